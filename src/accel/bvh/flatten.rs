@@ -1,0 +1,164 @@
+//! The default GPU layout: 32-byte nodes in depth-first pre-order. An inner node's first
+//! child is at i + 1 and holds the low side of the split axis; the second child's index and
+//! the split axis are stored. A leaf holds (first, count) into the triangle array, which is
+//! in leaf order; every triangle keeps its original index.
+
+use crate::geometry::{Aabb, Triangle};
+use crate::scene::Mesh;
+
+use super::{Bvh, Node, MAX_DEPTH};
+
+/// Low two bits of `GpuNode::b` equal to this mark a leaf; otherwise they are the axis.
+pub const LEAF_TAG: u32 = 3;
+
+/// One node, 32 bytes (WGSL `Node` in shaders/common.wgsl).
+/// Inner: `a` = second child index, `b` = split axis (0..=2).
+/// Leaf: `a` = first triangle, `b` = count << 2 | LEAF_TAG.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuNode {
+    pub lo: [f32; 3],
+    pub a: u32,
+    pub hi: [f32; 3],
+    pub b: u32,
+}
+
+impl GpuNode {
+    pub fn is_leaf(&self) -> bool {
+        self.b & 3 == LEAF_TAG
+    }
+    pub fn axis(&self) -> usize {
+        (self.b & 3) as usize
+    }
+    pub fn count(&self) -> u32 {
+        self.b >> 2
+    }
+    pub fn bbox(&self) -> Aabb {
+        Aabb {
+            lo: self.lo.into(),
+            hi: self.hi.into(),
+        }
+    }
+}
+
+/// One triangle, 48 bytes (WGSL `Tri`): three vertices, the original index in v0's slot w.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuTri {
+    pub v0: [f32; 3],
+    pub prim: u32,
+    pub v1: [f32; 3],
+    pub _pad1: u32,
+    pub v2: [f32; 3],
+    pub _pad2: u32,
+}
+
+impl GpuTri {
+    pub fn triangle(&self) -> Triangle {
+        Triangle::new(self.v0.into(), self.v1.into(), self.v2.into())
+    }
+}
+
+/// A flattened BVH, ready for the CPU tracer or upload.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FlatBvh {
+    pub nodes: Vec<GpuNode>,
+    pub tris: Vec<GpuTri>,
+}
+
+impl FlatBvh {
+    pub fn new(bvh: &Bvh, mesh: &Mesh) -> FlatBvh {
+        let tris = bvh
+            .order
+            .iter()
+            .map(|&id| {
+                let t = &mesh.triangles[id as usize];
+                GpuTri {
+                    v0: t.v[0].into(),
+                    prim: id,
+                    v1: t.v[1].into(),
+                    _pad1: 0,
+                    v2: t.v[2].into(),
+                    _pad2: 0,
+                }
+            })
+            .collect();
+        let mut nodes = Vec::new();
+        push(&bvh.root, &mut nodes);
+        FlatBvh { nodes, tris }
+    }
+
+    /// Bytes the GPU holds for this BVH.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice()) + std::mem::size_of_val(self.tris.as_slice())
+    }
+
+    /// Checks every invariant traversal relies on (child indices in range and forward, leaf
+    /// ranges in range, depth ≤ MAX_DEPTH). Run before handing the BVH to an unchecked GPU
+    /// module; an error names the first bad node.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return Err("BVH has no nodes".into());
+        }
+        let mut stack = vec![(0usize, 0usize, self.nodes.len())];
+        let mut seen = 0usize;
+        while let Some((i, depth, end)) = stack.pop() {
+            seen += 1;
+            if depth > MAX_DEPTH {
+                return Err(format!("node {i} is at depth {depth} > {MAX_DEPTH}"));
+            }
+            let n = &self.nodes[i];
+            if n.is_leaf() {
+                let (first, count) = (n.a as usize, n.count() as usize);
+                if first + count > self.tris.len() {
+                    return Err(format!(
+                        "leaf {i} refers to triangles {first}..{} of {}",
+                        first + count,
+                        self.tris.len()
+                    ));
+                }
+            } else {
+                let second = n.a as usize;
+                if i + 1 >= second || second >= end {
+                    return Err(format!(
+                        "inner node {i} has second child {second} outside {}..{end}",
+                        i + 2
+                    ));
+                }
+                stack.push((i + 1, depth + 1, second));
+                stack.push((second, depth + 1, end));
+            }
+        }
+        if seen != self.nodes.len() {
+            return Err(format!(
+                "{} of {} nodes are unreachable",
+                self.nodes.len() - seen,
+                self.nodes.len()
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn push(node: &Node, out: &mut Vec<GpuNode>) {
+    let i = out.len();
+    let b = node.bbox();
+    out.push(GpuNode {
+        lo: b.lo.into(),
+        a: 0,
+        hi: b.hi.into(),
+        b: 0,
+    });
+    match node {
+        Node::Leaf { start, count, .. } => {
+            out[i].a = *start;
+            out[i].b = count << 2 | LEAF_TAG;
+        }
+        Node::Inner { axis, children, .. } => {
+            push(&children[0], out);
+            out[i].a = out.len() as u32;
+            out[i].b = *axis as u32;
+            push(&children[1], out);
+        }
+    }
+}

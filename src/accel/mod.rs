@@ -1,0 +1,3 @@
+//! Acceleration structures.
+
+pub mod bvh;

@@ -1,0 +1,50 @@
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use lancer::accel::bvh::{build, BvhStats, FlatBvh};
+use lancer::scene::load_mesh;
+use lancer::Result;
+
+use super::BuildArgs;
+
+#[derive(Args)]
+pub struct BuildCmd {
+    /// OBJ mesh.
+    mesh: PathBuf,
+    #[command(flatten)]
+    build: BuildArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+impl BuildCmd {
+    pub fn run(self) -> Result<()> {
+        let mesh = load_mesh(&self.mesh)?;
+        let opts = self.build.options();
+        let t0 = Instant::now();
+        let bvh = build(&mesh, &opts);
+        let flat = FlatBvh::new(&bvh, &mesh);
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let s = BvhStats::of(&flat, &opts);
+        if self.json {
+            let j = serde_json::json!({
+                "triangles": s.triangles, "nodes": s.nodes, "leaves": s.leaves,
+                "max_depth": s.max_depth, "sah_cost": s.sah_cost, "build_ms": ms,
+                "bytes": s.bytes,
+            });
+            println!("{j}");
+        } else {
+            println!("builder     {:?}", opts.builder);
+            println!("triangles   {}", s.triangles);
+            println!("nodes       {}", s.nodes);
+            println!("leaves      {}", s.leaves);
+            println!("max depth   {}", s.max_depth);
+            println!("SAH cost    {:.3}", s.sah_cost);
+            println!("build ms    {ms:.2}");
+            println!("GPU bytes   {}", s.bytes);
+        }
+        Ok(())
+    }
+}

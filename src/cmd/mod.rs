@@ -1,0 +1,71 @@
+//! Subcommands of the `lancer` binary.
+
+mod build;
+mod rays;
+mod trace;
+
+use clap::{Args, Parser, Subcommand};
+use lancer::accel::bvh::{BuildOptions, Builder};
+use lancer::Result;
+
+#[derive(Parser)]
+#[command(
+    name = "lancer",
+    version,
+    about = "GPU compute ray tracer with a CPU reference"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Build a BVH and print its statistics.
+    Build(build::BuildCmd),
+    /// Trace a ray file, write a hit file.
+    Trace(trace::TraceCmd),
+    /// Write the primary rays of a mesh's default view.
+    Rays(rays::RaysCmd),
+}
+
+/// BVH build options shared by the subcommands that build one.
+#[derive(Args, Clone, Debug)]
+pub struct BuildArgs {
+    /// Builder.
+    #[arg(long, value_enum, default_value_t = Builder::Sweep)]
+    builder: Builder,
+    /// Bins per axis (binned builder).
+    #[arg(long, default_value_t = 16)]
+    bins: usize,
+    /// Largest leaf; bigger nodes are always split.
+    #[arg(long, default_value_t = 16)]
+    max_leaf: usize,
+    /// SAH cost of one box test.
+    #[arg(long, default_value_t = 1.0)]
+    t_cube: f32,
+    /// SAH cost of one triangle test.
+    #[arg(long, default_value_t = 1.0)]
+    t_obj: f32,
+}
+
+impl BuildArgs {
+    pub fn options(&self) -> BuildOptions {
+        BuildOptions {
+            builder: self.builder,
+            t_cube: self.t_cube,
+            t_obj: self.t_obj,
+            max_leaf: self.max_leaf.max(1),
+            bins: self.bins.max(2),
+            parallel: true,
+        }
+    }
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Build(c) => c.run(),
+        Cmd::Trace(c) => c.run(),
+        Cmd::Rays(c) => c.run(),
+    }
+}

@@ -1,0 +1,104 @@
+use glam::Vec3;
+
+use super::Ray;
+
+/// Conservative far-plane widening of Ize 2013 ("Robust BVH Ray Traversal", JCGT 2(2)):
+/// t_far is multiplied by 1 + 2·γ(3), γ(n) = n·ε/(1 − n·ε), ε = 2⁻²⁴. Rounded to f32 this is
+/// 1 + 3·2⁻²³; the WGSL kernel uses the same literal.
+pub const FAR_WIDEN: f32 = 1.000_000_4;
+
+/// Axis-aligned bounding box. An empty box has `lo > hi` (lo = +MAX, hi = −MAX).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        lo: Vec3::splat(f32::MAX),
+        hi: Vec3::splat(-f32::MAX),
+    };
+
+    pub fn from_points(points: &[Vec3]) -> Aabb {
+        points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
+    }
+
+    pub fn grow(self, p: Vec3) -> Aabb {
+        Aabb {
+            lo: self.lo.min(p),
+            hi: self.hi.max(p),
+        }
+    }
+
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.lo.x > self.hi.x || self.lo.y > self.hi.y || self.lo.z > self.hi.z
+    }
+
+    pub fn extent(&self) -> Vec3 {
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.hi - self.lo
+        }
+    }
+
+    pub fn center(&self) -> Vec3 {
+        (self.lo + self.hi) * 0.5
+    }
+
+    /// Surface area; 0 for an empty box.
+    pub fn area(&self) -> f32 {
+        let e = self.extent();
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    pub fn longest_axis(&self) -> usize {
+        let e = self.extent();
+        if e.x >= e.y && e.x >= e.z {
+            0
+        } else if e.y >= e.z {
+            1
+        } else {
+            2
+        }
+    }
+
+    pub fn contains(&self, o: &Aabb) -> bool {
+        self.lo.cmple(o.lo).all() && self.hi.cmpge(o.hi).all()
+    }
+
+    /// Robust slab test: `inv_dir` from [`safe_recip`](super::safe_recip), so no 0·∞ NaN can
+    /// arise even for an origin on a slab plane; far distances widened by [`FAR_WIDEN`].
+    /// Returns whether [max(t_near, tmin), min(t_far, tmax)] is non-empty.
+    /// The WGSL `slab_hit` performs the same operations in the same order.
+    #[inline]
+    pub fn slab_hit(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        let t0 = (self.lo - origin) * inv_dir;
+        let t1 = (self.hi - origin) * inv_dir;
+        let tn = t0.min(t1);
+        let tf = t0.max(t1) * FAR_WIDEN;
+        // max/min with the ray bounds last: a NaN slab never widens the interval.
+        let enter = tn.x.max(tn.y).max(tn.z).max(tmin);
+        let exit = tf.x.min(tf.y).min(tf.z).min(tmax);
+        enter <= exit
+    }
+
+    /// Convenience wrapper for a whole ray.
+    pub fn hit_ray(&self, ray: &Ray) -> bool {
+        self.slab_hit(ray.origin, ray.inv_dir(), ray.tmin, ray.tmax)
+    }
+}

@@ -1,0 +1,150 @@
+use glam::Vec3;
+
+use super::{Aabb, Ray};
+
+/// A triangle by its three vertices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    pub v: [Vec3; 3],
+}
+
+impl Triangle {
+    pub fn new(a: Vec3, b: Vec3, c: Vec3) -> Triangle {
+        Triangle { v: [a, b, c] }
+    }
+
+    pub fn bbox(&self) -> Aabb {
+        Aabb::from_points(&self.v)
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.v.iter().all(|p| p.is_finite())
+    }
+
+    /// Exactly zero area in f32 (coincident or collinear vertices): such a triangle can
+    /// never be hit and is kept out of the BVH.
+    pub fn is_degenerate(&self) -> bool {
+        (self.v[1] - self.v[0]).cross(self.v[2] - self.v[0]) == Vec3::ZERO
+    }
+}
+
+/// Which ray/triangle test the tracers run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum TriangleTest {
+    /// Woop, Benthin & Wald 2013, "Watertight Ray/Triangle Intersection", JCGT 2(1).
+    #[default]
+    Watertight,
+    /// Möller & Trumbore 1997: fewer operations, can leak through shared edges.
+    MollerTrumbore,
+}
+
+/// Per-ray set-up of the watertight test: permute so that the dominant direction axis is
+/// z, then shear so the ray becomes +z. The WGSL `watertight_setup` mirrors this.
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay {
+    pub k: [usize; 3],
+    pub s: Vec3,
+}
+
+impl WatertightRay {
+    pub fn new(dir: Vec3) -> WatertightRay {
+        let a = dir.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding: swap when the dominant component is negative.
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / dir[kz];
+        WatertightRay {
+            k: [kx, ky, kz],
+            s: Vec3::new(dir[kx] * sz, dir[ky] * sz, sz),
+        }
+    }
+}
+
+/// Watertight test. Returns (t, u, v) when the hit lies in [tmin, tmax]; u and v weight
+/// vertices 1 and 2. Edges shared by two triangles are tested with the same products in
+/// opposite sign, so a ray through an edge hits at least one of them (no f64 fallback:
+/// the GPU has none, and an exact zero is resolved by the sign rule on both sides alike).
+#[inline]
+pub fn intersect_watertight(
+    tri: &Triangle,
+    origin: Vec3,
+    wr: &WatertightRay,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32, f32)> {
+    let [kx, ky, kz] = wr.k;
+    let a = tri.v[0] - origin;
+    let b = tri.v[1] - origin;
+    let c = tri.v[2] - origin;
+    let ax = a[kx] - wr.s.x * a[kz];
+    let ay = a[ky] - wr.s.y * a[kz];
+    let bx = b[kx] - wr.s.x * b[kz];
+    let by = b[ky] - wr.s.y * b[kz];
+    let cx = c[kx] - wr.s.x * c[kz];
+    let cy = c[ky] - wr.s.y * c[kz];
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    let az = wr.s.z * a[kz];
+    let bz = wr.s.z * b[kz];
+    let cz = wr.s.z * c[kz];
+    let tt = u * az + v * bz + w * cz;
+    let t = tt / det;
+    // Written so that a NaN t fails.
+    if t >= tmin && t <= tmax {
+        Some((t, v / det, w / det))
+    } else {
+        None
+    }
+}
+
+/// Möller–Trumbore, kept as the selectable cheaper alternative.
+#[inline]
+pub fn intersect_moller_trumbore(
+    tri: &Triangle,
+    ray: &Ray,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32, f32)> {
+    let e1 = tri.v[1] - tri.v[0];
+    let e2 = tri.v[2] - tri.v[0];
+    let p = ray.dir.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = ray.origin - tri.v[0];
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = ray.dir.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    if t >= tmin && t <= tmax {
+        Some((t, u, v))
+    } else {
+        None
+    }
+}

@@ -1,0 +1,31 @@
+use std::path::Path;
+
+use super::{load_obj, Mesh};
+use crate::error::{Error, Result};
+
+/// Loads a mesh for tracing: refuses a file with no usable triangle, and prints one line
+/// on stderr counting what was left out of the BVH.
+pub fn load_mesh(path: &Path) -> Result<Mesh> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if ext.as_deref() != Some("obj") {
+        return Err(Error::input(path, None, "expected a Wavefront .obj mesh"));
+    }
+    let mesh = load_obj(path)?;
+    if let Some(s) = mesh.exclusion_summary() {
+        eprintln!("{}: warning: {s}", path.display());
+    }
+    if mesh.included().is_empty() {
+        return Err(Error::input(
+            path,
+            None,
+            format!(
+                "no usable triangle ({} faces read): nothing to trace",
+                mesh.len()
+            ),
+        ));
+    }
+    Ok(mesh)
+}

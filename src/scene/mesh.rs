@@ -1,0 +1,98 @@
+use glam::Vec3;
+
+use crate::geometry::{Aabb, Triangle};
+
+/// Why a triangle is (not) in the BVH.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TriStatus {
+    Ok,
+    /// A vertex is NaN or infinite.
+    NonFinite,
+    /// Zero area in f32.
+    Degenerate,
+    /// A face index points at no vertex (placeholder keeps later indices in file order).
+    OutOfRange,
+}
+
+/// Triangles in file order (index = the triangle index every API and file reports), with
+/// the reason each excluded one stays out of the BVH.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub triangles: Vec<Triangle>,
+    pub status: Vec<TriStatus>,
+    /// Faces with fewer than 3 vertices: they have no triangle index.
+    pub short_faces: usize,
+}
+
+impl Mesh {
+    /// A mesh from triangles, classifying each one.
+    pub fn from_triangles(triangles: Vec<Triangle>) -> Mesh {
+        let status = triangles.iter().map(classify).collect();
+        Mesh {
+            triangles,
+            status,
+            short_faces: 0,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Original indices of the triangles that go into the BVH.
+    pub fn included(&self) -> Vec<u32> {
+        (0..self.triangles.len() as u32)
+            .filter(|&i| self.status[i as usize] == TriStatus::Ok)
+            .collect()
+    }
+
+    pub fn count(&self, s: TriStatus) -> usize {
+        self.status.iter().filter(|&&x| x == s).count()
+    }
+
+    /// One line naming what was left out, or None when nothing was.
+    pub fn exclusion_summary(&self) -> Option<String> {
+        let parts: Vec<String> = [
+            (self.count(TriStatus::NonFinite), "with NaN/Inf vertices"),
+            (self.count(TriStatus::Degenerate), "with zero area"),
+            (
+                self.count(TriStatus::OutOfRange),
+                "with out-of-range indices",
+            ),
+            (self.short_faces, "faces with fewer than 3 vertices"),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        (!parts.is_empty()).then(|| format!("left out of the BVH: {}", parts.join(", ")))
+    }
+
+    /// Bounds of the included triangles.
+    pub fn bounds(&self) -> Aabb {
+        self.triangles
+            .iter()
+            .zip(&self.status)
+            .filter(|(_, s)| **s == TriStatus::Ok)
+            .fold(Aabb::EMPTY, |b, (t, _)| b.union(t.bbox()))
+    }
+}
+
+pub(crate) fn classify(t: &Triangle) -> TriStatus {
+    if !t.is_finite() {
+        TriStatus::NonFinite
+    } else if t.is_degenerate() {
+        TriStatus::Degenerate
+    } else {
+        TriStatus::Ok
+    }
+}
+
+/// Placeholder for a face that could not be resolved: keeps the numbering.
+pub(crate) fn placeholder() -> Triangle {
+    Triangle::new(Vec3::NAN, Vec3::NAN, Vec3::NAN)
+}

@@ -1,0 +1,11 @@
+//! Scene input: meshes from OBJ files and the default view.
+
+mod camera;
+mod load;
+mod mesh;
+mod obj;
+
+pub use camera::Camera;
+pub use load::load_mesh;
+pub use mesh::{Mesh, TriStatus};
+pub use obj::load_obj;

@@ -1,0 +1,161 @@
+//! OBJ loading through tobj. A line scan first finds what tobj would reject without a line
+//! number (bad numbers, bad indices) and faces whose vertex index points nowhere; the latter
+//! are commented out for tobj and replaced by placeholders so numbering stays in file order.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::mesh::{classify, placeholder, Mesh, TriStatus};
+use crate::error::{Error, Result};
+use crate::geometry::Triangle;
+
+/// Result of the line scan.
+struct Scan {
+    /// The text handed to tobj (out-of-range faces commented out).
+    text: String,
+    /// (triangle index where the face would start, triangles it would have made).
+    out_of_range: Vec<(usize, usize)>,
+    short_faces: usize,
+}
+
+fn scan(path: &Path, src: &str) -> Result<Scan> {
+    let mut text = String::with_capacity(src.len() + 64);
+    let (mut nv, mut nvt, mut nvn) = (0usize, 0usize, 0usize);
+    let mut tris = 0usize;
+    let mut out_of_range = Vec::new();
+    let mut short_faces = 0;
+    for (i, line) in src.lines().enumerate() {
+        let lineno = i + 1;
+        let bad = |msg: String| Error::input(path, Some(lineno), msg);
+        let mut words = line.split_whitespace();
+        let mut keep = true;
+        match words.next() {
+            Some(kw @ ("v" | "vn" | "vt")) => {
+                let need = if kw == "vt" { 1 } else { 3 };
+                let nums: Vec<&str> = words.collect();
+                if nums.len() < need {
+                    return Err(bad(format!(
+                        "'{kw}' needs {need} numbers, found {}",
+                        nums.len()
+                    )));
+                }
+                if let Some(w) = nums.iter().find(|w| w.parse::<f32>().is_err()) {
+                    return Err(bad(format!("'{w}' is not a number")));
+                }
+                match kw {
+                    "v" => nv += 1,
+                    "vt" => nvt += 1,
+                    _ => nvn += 1,
+                }
+            }
+            Some("f") => {
+                let corners: Vec<&str> = words.collect();
+                let mut in_range = true;
+                for c in &corners {
+                    let parts: Vec<&str> = c.split('/').collect();
+                    if parts.len() > 3 || parts[0].is_empty() {
+                        return Err(bad(format!(
+                            "'{c}' is not a face corner (v, v/vt, v//vn or v/vt/vn)"
+                        )));
+                    }
+                    for (k, (p, n)) in parts.iter().zip([nv, nvt, nvn]).enumerate() {
+                        if p.is_empty() {
+                            continue;
+                        }
+                        let x: i64 = p.parse().map_err(|_| {
+                            bad(format!("'{p}' in face corner '{c}' is not an index"))
+                        })?;
+                        let ok =
+                            (x > 0 && x as usize <= n) || (x < 0 && x.unsigned_abs() as usize <= n);
+                        if !ok && k == 0 {
+                            in_range = false;
+                        } else if !ok {
+                            let what = if k == 1 {
+                                "texture coordinate"
+                            } else {
+                                "normal"
+                            };
+                            return Err(bad(format!("{what} index {x} in '{c}' refers to none of the {n} defined so far")));
+                        }
+                    }
+                }
+                if corners.len() < 3 {
+                    short_faces += 1;
+                    keep = false;
+                } else if !in_range {
+                    out_of_range.push((tris, corners.len() - 2));
+                    keep = false;
+                }
+                if corners.len() >= 3 {
+                    tris += corners.len() - 2;
+                }
+            }
+            _ => {}
+        }
+        if !keep {
+            text.push('#');
+        }
+        text.push_str(line);
+        text.push('\n');
+    }
+    Ok(Scan {
+        text,
+        out_of_range,
+        short_faces,
+    })
+}
+
+/// Loads every triangle of an OBJ file in file order (polygons fan-triangulated).
+pub fn load_obj(path: &Path) -> Result<Mesh> {
+    let src = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let src = String::from_utf8(src)
+        .map_err(|e| Error::input(path, None, format!("not UTF-8 text ({e})")))?;
+    let scan = scan(path, &src)?;
+    let opts = tobj::LoadOptions {
+        single_index: false,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let (models, _materials) = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
+        tobj::load_mtl(dir.join(p))
+    })
+    .map_err(|e| Error::input(path, None, format!("OBJ parse error: {e}")))?;
+
+    let mut triangles = Vec::new();
+    let mut status = Vec::new();
+    let mut pending = scan.out_of_range.iter().peekable();
+    let mut fill = |triangles: &mut Vec<Triangle>, status: &mut Vec<TriStatus>| {
+        while let Some(&&(at, n)) = pending.peek() {
+            if at != triangles.len() {
+                break;
+            }
+            for _ in 0..n {
+                triangles.push(placeholder());
+                status.push(TriStatus::OutOfRange);
+            }
+            pending.next();
+        }
+    };
+    for m in &models {
+        let p = &m.mesh.positions;
+        let vert = |i: u32| {
+            let i = i as usize * 3;
+            Vec3::new(p[i], p[i + 1], p[i + 2])
+        };
+        for f in m.mesh.indices.chunks_exact(3) {
+            fill(&mut triangles, &mut status);
+            let t = Triangle::new(vert(f[0]), vert(f[1]), vert(f[2]));
+            status.push(classify(&t));
+            triangles.push(t);
+        }
+    }
+    fill(&mut triangles, &mut status);
+    Ok(Mesh {
+        triangles,
+        status,
+        short_faces: scan.short_faces,
+    })
+}

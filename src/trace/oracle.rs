@@ -1,0 +1,182 @@
+//! The f64 oracle: brute force over every included triangle in double precision. Tests use
+//! it to say whether an f32 tracer's answer is right, or a genuine tie that no f32 tracer
+//! can be expected to resolve the same way (a ray within a tiny distance of an edge, two
+//! hits at practically equal t, a hit at the end of the ray's interval).
+
+use glam::DVec3;
+
+use crate::geometry::{Hit, Ray, MISS};
+use crate::scene::{Mesh, TriStatus};
+
+/// Relative size of "tiny": 32 f32 ulps of the coordinates involved.
+const TIE_REL: f64 = 32.0 * f32::EPSILON as f64;
+
+fn d3(v: glam::Vec3) -> DVec3 {
+    v.as_dvec3()
+}
+
+/// Watertight test (Woop et al. 2013) in f64, no interval: t and whether it is inside.
+fn intersect(v: &[DVec3; 3], o: DVec3, d: DVec3) -> Option<f64> {
+    let a = d.abs();
+    let kz = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    if d[kz] < 0.0 {
+        std::mem::swap(&mut kx, &mut ky);
+    }
+    let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+    let p: Vec<DVec3> = v.iter().map(|&q| q - o).collect();
+    let x = |q: DVec3| q[kx] - sx * q[kz];
+    let y = |q: DVec3| q[ky] - sy * q[kz];
+    let (ax, ay, bx, by, cx, cy) = (x(p[0]), y(p[0]), x(p[1]), y(p[1]), x(p[2]), y(p[2]));
+    let u = cx * by - cy * bx;
+    let vv = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || vv < 0.0 || w < 0.0) && (u > 0.0 || vv > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + vv + w;
+    if det == 0.0 {
+        return None;
+    }
+    Some((u * sz * p[0][kz] + vv * sz * p[1][kz] + w * sz * p[2][kz]) / det)
+}
+
+/// The exact-as-f64-allows closest hit in [tmin, tmax]: (t, prim), ties by index.
+pub fn closest(mesh: &Mesh, ray: &Ray) -> Option<(f64, u32)> {
+    if !ray.is_valid() {
+        return None;
+    }
+    let (o, d) = (d3(ray.origin), d3(ray.dir));
+    let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
+    let mut best: Option<(f64, u32)> = None;
+    for (i, tri) in mesh.triangles.iter().enumerate() {
+        if mesh.status[i] != TriStatus::Ok {
+            continue;
+        }
+        let v = tri.v.map(d3);
+        if let Some(t) = intersect(&v, o, d) {
+            if t >= tmin && t <= tmax && best.is_none_or(|(bt, _)| t < bt) {
+                best = Some((t, i as u32));
+            }
+        }
+    }
+    best
+}
+
+/// Distance between the ray's line and the closest of a triangle's three edges.
+fn edge_distance(v: &[DVec3; 3], o: DVec3, d: DVec3) -> f64 {
+    let d = d.normalize();
+    (0..3)
+        .map(|i| {
+            let (p, q) = (v[i], v[(i + 1) % 3]);
+            let e = q - p;
+            // Closest points of segment p + s·e (s ∈ [0,1]) and line o + t·d.
+            let w = p - o;
+            let (ee, ed) = (e.dot(e), e.dot(d));
+            let denom = ee - ed * ed;
+            let s = if denom > 0.0 {
+                ((ed * w.dot(d) - w.dot(e)) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let ps = p + e * s;
+            let t = (ps - o).dot(d);
+            (ps - (o + d * t)).length()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Verdict on an f32 tracer's answer for one ray.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Verdict {
+    /// Same primitive (or both miss) and t within a tiny tolerance.
+    Agree,
+    /// A genuine tie; the reason says which.
+    Tie(&'static str),
+    /// A wrong answer, described for the test log.
+    Wrong(String),
+}
+
+/// Judges a closest-hit answer `got` for `ray` against the oracle.
+pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
+    let o = d3(ray.origin);
+    let d = d3(ray.dir);
+    let dl = d.length();
+    let truth = closest(mesh, ray);
+    let tri = |p: u32| mesh.triangles[p as usize].v.map(d3);
+    // Scale of the numbers involved: coordinates relative to the origin, and the hit point.
+    let scale_of = |p: u32, t: f64| {
+        tri(p)
+            .iter()
+            .map(|&q| (q - o).abs().max_element())
+            .fold(t.abs() * dl, f64::max)
+    };
+    let tol = |p: u32, t: f64| TIE_REL * scale_of(p, t).max(f64::MIN_POSITIVE);
+    let near_edge = |p: u32, t: f64| edge_distance(&tri(p), o, d) <= tol(p, t);
+    let near_bound = |p: u32, t: f64| {
+        let tt = tol(p, t) / dl;
+        (t - ray.tmin as f64).abs() <= tt || (t - ray.tmax as f64).abs() <= tt
+    };
+    if got.prim != MISS && got.prim as usize >= mesh.len() {
+        return Verdict::Wrong(format!("prim {} is no triangle", got.prim));
+    }
+    let g = (got.prim != MISS).then_some((got.t as f64, got.prim));
+    // A reported hit must lie on its triangle's plane at the reported t.
+    if let Some((gt, gp)) = g {
+        let v = tri(gp);
+        let n = (v[1] - v[0]).cross(v[2] - v[0]);
+        let tp = n.dot(v[0] - o) / n.dot(d);
+        if !((tp - gt).abs() * dl <= tol(gp, gt)) {
+            return Verdict::Wrong(format!(
+                "prim {gp} reported at t={gt}, its plane is at t={tp}"
+            ));
+        }
+    }
+    match (truth, g) {
+        (None, None) => Verdict::Agree,
+        (Some((tt, tp)), Some((gt, gp))) if tp == gp => {
+            if (tt - gt).abs() * dl <= tol(tp, tt) {
+                Verdict::Agree
+            } else {
+                Verdict::Wrong(format!("prim {tp}: t={gt}, oracle t={tt}"))
+            }
+        }
+        (Some((tt, tp)), None) => {
+            if near_edge(tp, tt) {
+                Verdict::Tie("missed a triangle at its edge")
+            } else if near_bound(tp, tt) {
+                Verdict::Tie("hit at the end of the interval")
+            } else {
+                Verdict::Wrong(format!("miss, oracle hits prim {tp} at t={tt}"))
+            }
+        }
+        (None, Some((gt, gp))) => {
+            if near_edge(gp, gt) {
+                Verdict::Tie("hit a triangle at its edge")
+            } else if near_bound(gp, gt) {
+                Verdict::Tie("hit at the end of the interval")
+            } else {
+                Verdict::Wrong(format!("hit prim {gp} at t={gt}, oracle misses"))
+            }
+        }
+        (Some((tt, tp)), Some((gt, gp))) => {
+            if (tt - gt).abs() * dl <= tol(tp, tt).max(tol(gp, gt)) {
+                Verdict::Tie("two hits at equal t")
+            } else if gt < tt && near_edge(gp, gt) {
+                Verdict::Tie("a nearer triangle hit at its edge")
+            } else if gt > tt && near_edge(tp, tt) {
+                Verdict::Tie("the nearest triangle missed at its edge")
+            } else if near_bound(tp, tt) || near_bound(gp, gt) {
+                Verdict::Tie("hit at the end of the interval")
+            } else {
+                Verdict::Wrong(format!("prim {gp} at t={gt}, oracle prim {tp} at t={tt}"))
+            }
+        }
+    }
+}

@@ -1,0 +1,83 @@
+//! Ray and hit files. Rays: 32 bytes each, little-endian f32 origin xyz, tmin, direction
+//! xyz, tmax. Hits: 16 bytes each, t f32, prim u32 (0xFFFFFFFF = miss, t = tmax), u, v.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::geometry::{Hit, Ray};
+
+const RAY_BYTES: usize = std::mem::size_of::<Ray>();
+
+pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.len() % RAY_BYTES != 0 {
+        return Err(Error::input(
+            path,
+            None,
+            format!(
+                "size {} bytes is not a multiple of {RAY_BYTES} (one ray = origin xyz, tmin, direction xyz, tmax as f32); the last {} bytes are a partial ray",
+                bytes.len(),
+                bytes.len() % RAY_BYTES
+            ),
+        ));
+    }
+    // Decode explicitly little-endian, whatever the host.
+    Ok(bytes
+        .chunks_exact(RAY_BYTES)
+        .map(|c| {
+            let f = |i: usize| f32::from_le_bytes(c[i * 4..i * 4 + 4].try_into().unwrap());
+            Ray::new(
+                glam::Vec3::new(f(0), f(1), f(2)),
+                glam::Vec3::new(f(4), f(5), f(6)),
+                f(3),
+                f(7),
+            )
+        })
+        .collect())
+}
+
+pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
+    let mut out = Vec::with_capacity(rays.len() * RAY_BYTES);
+    for r in rays {
+        for x in [
+            r.origin.x, r.origin.y, r.origin.z, r.tmin, r.dir.x, r.dir.y, r.dir.z, r.tmax,
+        ] {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    std::fs::write(path, out).map_err(|e| Error::io(path, e))
+}
+
+pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
+    let mut out = Vec::with_capacity(hits.len() * 16);
+    for h in hits {
+        out.extend_from_slice(&h.t.to_le_bytes());
+        out.extend_from_slice(&h.prim.to_le_bytes());
+        out.extend_from_slice(&h.u.to_le_bytes());
+        out.extend_from_slice(&h.v.to_le_bytes());
+    }
+    std::fs::write(path, out).map_err(|e| Error::io(path, e))
+}
+
+pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.len() % 16 != 0 {
+        return Err(Error::input(
+            path,
+            None,
+            "size is not a multiple of 16 (one hit = t, prim, u, v)",
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(16)
+        .map(|c| {
+            let w = |i: usize| <[u8; 4]>::try_from(&c[i * 4..i * 4 + 4]).unwrap();
+            Hit {
+                t: f32::from_le_bytes(w(0)),
+                prim: u32::from_le_bytes(w(1)),
+                u: f32::from_le_bytes(w(2)),
+                v: f32::from_le_bytes(w(3)),
+            }
+        })
+        .collect())
+}
