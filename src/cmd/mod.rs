@@ -57,7 +57,7 @@ impl BuildArgs {
             t_obj: self.t_obj,
             max_leaf: self.max_leaf.max(1),
             bins: self.bins.max(2),
-            parallel: true,
+            ..BuildOptions::default()
         }
     }
 }

@@ -118,6 +118,17 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
             .fold(t.abs() * dl, f64::max)
     };
     let tol = |p: u32, t: f64| TIE_REL * scale_of(p, t).max(f64::MIN_POSITIVE);
+    // Tolerance on t for a hit on triangle p: a point error of `tol` across the plane moves
+    // t by tol / |cos θ| along a ray meeting the plane at angle θ (large for grazing hits).
+    let tol_t = |p: u32, t: f64| {
+        let v = tri(p);
+        let cos = (v[1] - v[0])
+            .cross(v[2] - v[0])
+            .normalize()
+            .dot(d / dl)
+            .abs();
+        tol(p, t) / (dl * cos.max(1e-12))
+    };
     let near_edge = |p: u32, t: f64| edge_distance(&tri(p), o, d) <= tol(p, t);
     let near_bound = |p: u32, t: f64| {
         let tt = tol(p, t) / dl;
@@ -132,7 +143,7 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
         let v = tri(gp);
         let n = (v[1] - v[0]).cross(v[2] - v[0]);
         let tp = n.dot(v[0] - o) / n.dot(d);
-        if !((tp - gt).abs() * dl <= tol(gp, gt)) {
+        if !((tp - gt).abs() <= tol_t(gp, gt)) {
             return Verdict::Wrong(format!(
                 "prim {gp} reported at t={gt}, its plane is at t={tp}"
             ));
@@ -141,7 +152,7 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
     match (truth, g) {
         (None, None) => Verdict::Agree,
         (Some((tt, tp)), Some((gt, gp))) if tp == gp => {
-            if (tt - gt).abs() * dl <= tol(tp, tt) {
+            if (tt - gt).abs() <= tol_t(tp, tt) {
                 Verdict::Agree
             } else {
                 Verdict::Wrong(format!("prim {tp}: t={gt}, oracle t={tt}"))
@@ -166,7 +177,7 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
             }
         }
         (Some((tt, tp)), Some((gt, gp))) => {
-            if (tt - gt).abs() * dl <= tol(tp, tt).max(tol(gp, gt)) {
+            if (tt - gt).abs() <= tol_t(tp, tt).max(tol_t(gp, gt)) {
                 Verdict::Tie("two hits at equal t")
             } else if gt < tt && near_edge(gp, gt) {
                 Verdict::Tie("a nearer triangle hit at its edge")

@@ -1,8 +1,6 @@
 //! Binned SAH (Wald 2007): K equal bins over the centroid bounds on each axis.
 
-use super::build::{
-    depth_forces_median, join, leaf, median_split, BuildOptions, Node, Prims, PARALLEL_MIN,
-};
+use super::build::{join, leaf, median_split, BuildOptions, Node, Prims, PARALLEL_MIN};
 use crate::geometry::Aabb;
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
@@ -23,7 +21,7 @@ fn node(prims: &Prims, opts: &BuildOptions, idx: &mut [u32], offset: usize, dept
     }
     let bins = opts.bins.max(2);
     let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, split bin)
-    if !depth_forces_median(depth, n) {
+    if !opts.depth_forces_median(depth, n) {
         let ext = cbox.extent();
         for axis in 0..3 {
             if ext[axis] <= 0.0 {
@@ -82,7 +80,7 @@ fn node(prims: &Prims, opts: &BuildOptions, idx: &mut [u32], offset: usize, dept
         None => {
             // Depth cap or identical centroids: object median.
             let cost = opts.split_cost(1.0, 1.0, n / 2, 1.0, n - n / 2);
-            if !depth_forces_median(depth, n) && opts.prefers_leaf(n, cost) {
+            if !opts.depth_forces_median(depth, n) && opts.prefers_leaf(n, cost) {
                 return leaf(bbox, offset, n);
             }
             let axis = cbox.longest_axis();

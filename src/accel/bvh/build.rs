@@ -36,6 +36,9 @@ pub struct BuildOptions {
     pub max_leaf: usize,
     /// Bins per axis for the binned builder.
     pub bins: usize,
+    /// Deepest leaf allowed (capped at MAX_DEPTH, the traversal stack size). Honoured by the
+    /// SAH builders for any input with ⌈log2 N⌉ ≤ max_depth; the median tree is balanced.
+    pub max_depth: usize,
     /// Build subtrees in parallel with rayon (the result is identical to the serial build).
     pub parallel: bool,
 }
@@ -48,6 +51,7 @@ impl Default for BuildOptions {
             t_obj: 1.0,
             max_leaf: 16,
             bins: 16,
+            max_depth: MAX_DEPTH,
             parallel: true,
         }
     }
@@ -69,12 +73,13 @@ impl BuildOptions {
     pub fn prefers_leaf(&self, n: usize, best_split: f32) -> bool {
         n <= self.max_leaf.max(1) && n as f32 * self.t_obj <= best_split
     }
-}
 
-/// Whether a node must take a balanced (median) split to keep every leaf within MAX_DEPTH:
-/// a median split halves n, so depth + ⌈log2 n⌉ ≤ MAX_DEPTH is kept all the way down.
-pub(crate) fn depth_forces_median(depth: usize, n: usize) -> bool {
-    depth + ceil_log2(n) >= MAX_DEPTH
+    /// Whether a node must take a balanced (median) split to keep every leaf within
+    /// max_depth: a median split halves n, so depth + ⌈log2 n⌉ ≤ max_depth holds all the way
+    /// down (it holds at the root for any n < 2^64 when max_depth = 64).
+    pub(crate) fn depth_forces_median(&self, depth: usize, n: usize) -> bool {
+        depth + ceil_log2(n) >= self.max_depth.min(MAX_DEPTH)
+    }
 }
 
 fn ceil_log2(n: usize) -> usize {

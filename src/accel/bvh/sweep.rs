@@ -6,7 +6,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::build::{depth_forces_median, join, leaf, BuildOptions, Node, Prims, PARALLEL_MIN};
+use super::build::{join, leaf, BuildOptions, Node, Prims, PARALLEL_MIN};
 use crate::geometry::Aabb;
 
 struct Ctx<'a> {
@@ -66,11 +66,11 @@ fn node(ctx: &Ctx, lists: [&mut [u32]; 3], offset: usize, depth: usize) -> Node 
     if n == 1 {
         return leaf(bbox, offset, 1);
     }
-    let (axis, k) = if depth_forces_median(depth, n) || cbox.extent() == glam::Vec3::ZERO {
+    let (axis, k) = if ctx.opts.depth_forces_median(depth, n) || cbox.extent() == glam::Vec3::ZERO {
         // Depth cap, or identical centroids (no SAH candidate separates them): the object
         // median keeps the tree balanced. A leaf is still taken when the SAH prefers it.
         let cost = ctx.opts.split_cost(1.0, 1.0, n / 2, 1.0, n - n / 2);
-        if !depth_forces_median(depth, n) && ctx.opts.prefers_leaf(n, cost) {
+        if !ctx.opts.depth_forces_median(depth, n) && ctx.opts.prefers_leaf(n, cost) {
             return leaf(bbox, offset, n);
         }
         (cbox.longest_axis(), n / 2)

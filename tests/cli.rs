@@ -1,0 +1,105 @@
+//! The `lancer` binary end to end: build/rays/trace, file formats, exit codes.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn lancer(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lancer-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn quad() -> PathBuf {
+    let p = tmp("quad.obj");
+    std::fs::write(&p, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n").unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn build_json_has_the_documented_keys() {
+    let q = quad();
+    let out = lancer(&["build", s(&q), "--json"]);
+    assert!(out.status.success());
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for k in [
+        "triangles",
+        "nodes",
+        "leaves",
+        "max_depth",
+        "sah_cost",
+        "build_ms",
+        "bytes",
+    ] {
+        assert!(j.get(k).is_some(), "missing {k}");
+    }
+    assert_eq!(j["triangles"], 2);
+}
+
+#[test]
+fn rays_then_trace_writes_hits_of_the_default_view() {
+    let q = quad();
+    let (r, h) = (tmp("q.rays"), tmp("q.hits"));
+    assert!(
+        lancer(&["rays", s(&q), "--width", "8", "--height", "6", "-o", s(&r)])
+            .status
+            .success()
+    );
+    assert_eq!(std::fs::metadata(&r).unwrap().len(), 8 * 6 * 32);
+    let out = lancer(&[
+        "trace",
+        s(&q),
+        "--rays",
+        s(&r),
+        "--out",
+        s(&h),
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let hits = lancer::trace::rays::read_hits(&h).unwrap();
+    assert_eq!(hits.len(), 48);
+    // The centre pixels look at the quad (prims 0 and 1), row 0 is the top.
+    let centre = hits[3 * 8 + 4];
+    assert!(centre.prim <= 1 && centre.t > 0.0);
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_2() {
+    let q = quad();
+    let r = tmp("short.rays");
+    std::fs::write(&r, [0u8; 33]).unwrap();
+    let out = lancer(&["trace", s(&q), "--rays", s(&r), "--out", s(&tmp("x.hits"))]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("not a multiple of 32"), "{err}");
+
+    let bad = tmp("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 1\n").unwrap();
+    let out = lancer(&["build", s(&bad)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.obj:2:"));
+
+    let empty = tmp("empty.obj");
+    std::fs::write(&empty, "# nothing\n").unwrap();
+    let out = lancer(&["build", s(&empty)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no usable triangle"));
+}

@@ -1,0 +1,109 @@
+//! The CPU reference tracer against the f64 oracle: every answer agrees, or is a genuine
+//! tie the oracle can name (a ray within a tiny distance of an edge, equal t).
+
+mod common;
+
+use common::{load_model, random_rays, soup, Rng};
+use lancer::accel::bvh::{build, BuildOptions, Builder, FlatBvh};
+use lancer::geometry::{Ray, TriangleTest};
+use lancer::scene::{Camera, Mesh};
+use lancer::trace::oracle::{judge, Verdict};
+use lancer::trace::{trace_batch, Query};
+
+/// Traces `rays`, judges every answer, prints the counts and fails on any wrong one.
+fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usize) {
+    let opts = BuildOptions {
+        builder,
+        ..BuildOptions::default()
+    };
+    let flat = FlatBvh::new(&build(mesh, &opts), mesh);
+    let (hits, _) = trace_batch(&flat, rays, Query::Closest, TriangleTest::Watertight);
+    let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
+    for (r, h) in rays.iter().zip(&hits) {
+        match judge(mesh, r, h) {
+            Verdict::Agree => agree += 1,
+            Verdict::Tie(_) => tie += 1,
+            Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
+        }
+    }
+    println!(
+        "{name} ({builder:?}): {agree} agree, {tie} ties, {} wrong",
+        wrong.len()
+    );
+    assert!(
+        wrong.is_empty(),
+        "{name}: {} wrong, first: {}",
+        wrong.len(),
+        wrong[0]
+    );
+    (agree, tie)
+}
+
+#[test]
+fn random_soups() {
+    for seed in 0..4 {
+        let mut rng = Rng::new(100 + seed);
+        let mesh = soup(&mut rng, 2000, 0.2);
+        let rays = random_rays(&mut rng, 4000, &mesh);
+        for b in [Builder::Sweep, Builder::Binned, Builder::Median] {
+            let (agree, _) = check(&format!("soup {seed}"), &mesh, &rays, b);
+            assert!(agree > 3000);
+        }
+    }
+}
+
+#[test]
+fn models_random_and_primary_rays() {
+    for name in ["teapot.obj", "stanford-bunny.obj"] {
+        let Some(mesh) = load_model(name) else { return };
+        let mut rng = Rng::new(5);
+        let rays = random_rays(&mut rng, 1500, &mesh);
+        check(name, &mesh, &rays, Builder::Sweep);
+        let cam = Camera::default_view(&mesh.bounds(), 48, 48);
+        let (agree, _) = check(name, &mesh, &cam.primary_rays(), Builder::Sweep);
+        assert!(agree > 48 * 48 / 2);
+    }
+}
+
+#[test]
+fn rays_aimed_at_edges_and_vertices() {
+    // The hardest rays: through shared vertices and edge midpoints of a real mesh.
+    let Some(mesh) = load_model("teapot.obj") else {
+        return;
+    };
+    let mut rng = Rng::new(9);
+    let b = mesh.bounds();
+    let r = b.extent().length();
+    let rays: Vec<Ray> = (0..3000)
+        .map(|i| {
+            let t = &mesh.triangles[rng.u64() as usize % mesh.len()];
+            let target = if i % 2 == 0 {
+                t.v[i % 3]
+            } else {
+                0.5 * (t.v[0] + t.v[1])
+            };
+            let o = b.center() + rng.dir() * r;
+            Ray::new(o, (target - o).normalize(), 0.0, 3.4e38)
+        })
+        .collect();
+    let (_, ties) = check("teapot edges", &mesh, &rays, Builder::Sweep);
+    println!("{ties} genuine ties among rays aimed at edges");
+}
+
+#[test]
+fn the_judge_rejects_wrong_answers() {
+    let mut rng = Rng::new(1);
+    let mesh = soup(&mut rng, 500, 0.3);
+    let rays = random_rays(&mut rng, 500, &mesh);
+    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let (hits, _) = trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight);
+    let (r, h) = rays
+        .iter()
+        .zip(&hits)
+        .find(|(_, h)| h.is_hit())
+        .expect("some hit");
+    let as_miss = lancer::geometry::Hit::miss(r.tmax);
+    assert!(matches!(judge(&mesh, r, &as_miss), Verdict::Wrong(_)));
+    let far = lancer::geometry::Hit { t: h.t * 1.5, ..*h };
+    assert!(matches!(judge(&mesh, r, &far), Verdict::Wrong(_)));
+}

@@ -1,0 +1,215 @@
+//! Hand-made cases with known answers: watertightness, the tie rule, robust slabs, bad rays.
+
+use glam::Vec3;
+use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::geometry::{Aabb, Ray, Triangle, TriangleTest, MISS};
+use lancer::scene::Mesh;
+use lancer::trace::{trace_ray, Query, RayStats};
+
+fn flat(mesh: &Mesh) -> FlatBvh {
+    FlatBvh::new(&build(mesh, &BuildOptions::default()), mesh)
+}
+
+fn trace(f: &FlatBvh, r: Ray) -> lancer::geometry::Hit {
+    trace_ray(
+        f,
+        &r,
+        Query::Closest,
+        TriangleTest::Watertight,
+        &mut RayStats::default(),
+    )
+}
+
+#[test]
+fn a_known_hit() {
+    let mesh = Mesh::from_triangles(vec![Triangle::new(
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    )]);
+    let f = flat(&mesh);
+    let h = trace(
+        &f,
+        Ray::new(Vec3::new(0.25, 0.5, 2.0), Vec3::NEG_Z, 0.0, 10.0),
+    );
+    assert_eq!(h.prim, 0);
+    assert_eq!(h.t, 2.0);
+    assert_eq!((h.u, h.v), (0.25, 0.5));
+    // Interval ends are honoured.
+    assert_eq!(
+        trace(
+            &f,
+            Ray::new(Vec3::new(0.25, 0.5, 2.0), Vec3::NEG_Z, 0.0, 1.9)
+        )
+        .prim,
+        MISS
+    );
+    assert_eq!(
+        trace(
+            &f,
+            Ray::new(Vec3::new(0.25, 0.5, 2.0), Vec3::NEG_Z, 2.1, 9.0)
+        )
+        .prim,
+        MISS
+    );
+    // Both triangle tests agree on an interior hit.
+    let r = Ray::new(Vec3::new(0.25, 0.5, 2.0), Vec3::NEG_Z, 0.0, 10.0);
+    let mt = trace_ray(
+        &f,
+        &r,
+        Query::Closest,
+        TriangleTest::MollerTrumbore,
+        &mut RayStats::default(),
+    );
+    assert_eq!((mt.prim, mt.t), (0, 2.0));
+}
+
+/// A grid of quads (two triangles each) with many shared edges and vertices.
+fn grid(n: usize) -> Mesh {
+    let mut tris = Vec::new();
+    let p = |i: usize, j: usize| {
+        Vec3::new(
+            i as f32 / n as f32,
+            j as f32 / n as f32,
+            0.3 * (i as f32 * 0.37).sin(),
+        )
+    };
+    for i in 0..n {
+        for j in 0..n {
+            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
+            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
+        }
+    }
+    Mesh::from_triangles(tris)
+}
+
+#[test]
+fn watertight_no_ray_leaks_through_shared_edges_or_vertices() {
+    let n = 16;
+    let mesh = grid(n);
+    let f = flat(&mesh);
+    let mut leaks = 0;
+    let mut total = 0;
+    // Rays through every vertex and along every edge line at many offsets, from oblique
+    // directions: each must hit the (closed over its footprint) grid.
+    for i in 0..=4 * n {
+        for j in 0..=4 * n {
+            let x = i as f32 / (4 * n) as f32;
+            let y = j as f32 / (4 * n) as f32;
+            for d in [
+                Vec3::new(0.1, 0.2, -1.0),
+                Vec3::new(-0.3, 0.05, -1.0),
+                Vec3::NEG_Z,
+            ] {
+                let target = Vec3::new(x, y, 0.3 * (x * n as f32 * 0.37).sin());
+                let o = target - d * 5.0;
+                let inside = x > 0.0 && x < 1.0 && y > 0.0 && y < 1.0;
+                if !inside {
+                    continue;
+                }
+                total += 1;
+                if !trace(&f, Ray::new(o, d.normalize(), 0.0, 100.0)).is_hit() {
+                    leaks += 1;
+                }
+            }
+        }
+    }
+    assert!(total > 10_000);
+    assert_eq!(leaks, 0, "{leaks} of {total} rays leaked through the grid");
+}
+
+#[test]
+fn equal_t_goes_to_the_smaller_index() {
+    let t = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+    let other = Triangle::new(
+        Vec3::new(5.0, 5.0, 5.0),
+        Vec3::new(6.0, 5.0, 5.0),
+        Vec3::new(5.0, 6.0, 5.0),
+    );
+    // Duplicates at indices 1, 3 and 4: the smaller index wins whatever the leaf order.
+    let mesh = Mesh::from_triangles(vec![other, t, other, t, t]);
+    let f = flat(&mesh);
+    let h = trace(
+        &f,
+        Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z, 0.0, 10.0),
+    );
+    assert_eq!(h.prim, 1);
+}
+
+#[test]
+fn slab_test_is_robust() {
+    let b = Aabb {
+        lo: Vec3::ZERO,
+        hi: Vec3::ONE,
+    };
+    // Origin exactly on a slab plane, direction parallel to it (0·∞ would be NaN).
+    assert!(b.hit_ray(&Ray::new(Vec3::new(0.0, 0.5, -1.0), Vec3::Z, 0.0, 10.0)));
+    assert!(b.hit_ray(&Ray::new(Vec3::new(1.0, 0.5, -1.0), Vec3::Z, 0.0, 10.0)));
+    // Negative zero keeps its sign and still hits.
+    assert!(b.hit_ray(&Ray::new(
+        Vec3::new(0.5, 0.5, 2.0),
+        Vec3::new(-0.0, 0.0, -1.0),
+        0.0,
+        10.0
+    )));
+    // Parallel and outside: a miss.
+    assert!(!b.hit_ray(&Ray::new(Vec3::new(1.5, 0.5, -1.0), Vec3::Z, 0.0, 10.0)));
+    // A flat box (zero thickness) is hit face-on.
+    let flat_box = Aabb {
+        lo: Vec3::ZERO,
+        hi: Vec3::new(1.0, 1.0, 0.0),
+    };
+    assert!(flat_box.hit_ray(&Ray::new(Vec3::new(0.5, 0.5, 1.0), Vec3::NEG_Z, 0.0, 10.0)));
+    // The far-plane widening keeps a grazing hit at the box corner.
+    assert!(b.hit_ray(&Ray::new(
+        Vec3::new(-1.0, -1.0, 0.5),
+        Vec3::new(1.0, 1.0, 0.0).normalize(),
+        0.0,
+        10.0
+    )));
+}
+
+#[test]
+fn bad_rays_are_misses_not_hangs() {
+    let mesh = grid(4);
+    let f = flat(&mesh);
+    let o = Vec3::new(0.5, 0.5, 1.0);
+    for r in [
+        Ray::new(Vec3::new(f32::NAN, 0.5, 1.0), Vec3::NEG_Z, 0.0, 10.0),
+        Ray::new(o, Vec3::new(0.0, f32::NAN, -1.0), 0.0, 10.0),
+        Ray::new(o, Vec3::ZERO, 0.0, 10.0),
+        Ray::new(o, Vec3::NEG_Z, f32::NAN, 10.0),
+        Ray::new(o, Vec3::NEG_Z, 0.0, f32::NAN),
+        Ray::new(o, Vec3::NEG_Z, 5.0, 1.0),
+        Ray::new(Vec3::new(f32::INFINITY, 0.0, 0.0), Vec3::NEG_Z, 0.0, 10.0),
+    ] {
+        let mut s = RayStats::default();
+        let h = trace_ray(&f, &r, Query::Closest, TriangleTest::Watertight, &mut s);
+        assert_eq!(h.prim, MISS, "{r:?}");
+        assert_eq!(s.nodes, 0, "an invalid ray must not traverse");
+    }
+}
+
+#[test]
+fn any_hit_finds_an_occluder_and_respects_the_interval() {
+    let mesh = grid(8);
+    let f = flat(&mesh);
+    let r = Ray::new(Vec3::new(0.4, 0.6, 2.0), Vec3::NEG_Z, 0.0, 10.0);
+    let h = trace_ray(
+        &f,
+        &r,
+        Query::Any,
+        TriangleTest::Watertight,
+        &mut RayStats::default(),
+    );
+    assert!(h.is_hit());
+    let short = Ray { tmax: 1.0, ..r };
+    let h = trace_ray(
+        &f,
+        &short,
+        Query::Any,
+        TriangleTest::Watertight,
+        &mut RayStats::default(),
+    );
+    assert!(!h.is_hit());
+}
