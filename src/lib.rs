@@ -5,6 +5,7 @@
 pub mod accel;
 pub mod error;
 pub mod geometry;
+pub mod gpu;
 pub mod scene;
 pub mod trace;
 

@@ -29,7 +29,7 @@ impl Triangle {
 }
 
 /// Which ray/triangle test the tracers run.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum)]
 pub enum TriangleTest {
     /// Woop, Benthin & Wald 2013, "Watertight Ray/Triangle Intersection", JCGT 2(1).
     #[default]

@@ -11,7 +11,7 @@ use crate::geometry::{
 };
 
 /// What a ray asks for.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Query {
     /// The nearest hit in [tmin, tmax] (ties: smaller original index).
     #[default]

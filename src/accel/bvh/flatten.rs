@@ -162,3 +162,10 @@ fn push(node: &Node, out: &mut Vec<GpuNode>) {
         }
     }
 }
+
+impl GpuTri {
+    /// An all-zero triangle (degenerate, never hit), padding an otherwise empty buffer.
+    pub fn zeroed_tri() -> GpuTri {
+        bytemuck::Zeroable::zeroed()
+    }
+}

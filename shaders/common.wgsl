@@ -1,0 +1,184 @@
+// Types and tests shared by every lancer kernel. Each struct mirrors a #[repr(C)] Rust type;
+// tests/layout.rs checks offsets and sizes with naga. Each function mirrors a Rust one,
+// same operations in the same order (named in the comment), so CPU and GPU agree bit for bit.
+
+// accel::bvh::GpuNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | 3.
+struct Node {
+    lo: vec3<f32>,
+    a: u32,
+    hi: vec3<f32>,
+    b: u32,
+}
+
+// accel::bvh::GpuTri: vertices, original triangle index in v0's w slot.
+struct Tri {
+    v0: vec3<f32>,
+    prim: u32,
+    v1: vec3<f32>,
+    pad1: u32,
+    v2: vec3<f32>,
+    pad2: u32,
+}
+
+// geometry::Ray
+struct Ray {
+    origin: vec3<f32>,
+    tmin: f32,
+    dir: vec3<f32>,
+    tmax: f32,
+}
+
+// geometry::Hit
+struct Hit {
+    t: f32,
+    prim: u32,
+    u: f32,
+    v: f32,
+}
+
+const MISS: u32 = 0xffffffffu;
+const LEAF_TAG: u32 = 3u;
+const STACK_SIZE: u32 = 64u;     // accel::bvh::MAX_DEPTH
+const RECIP_FLOOR: f32 = 1e-30;  // geometry::ray::RECIP_FLOOR
+const FAR_WIDEN: f32 = 1.0000004; // geometry::FAR_WIDEN (Ize 2013: 1 + 2γ(3))
+
+// Finite test on bits: NaN/Inf comparisons are not reliable in WGSL.
+fn is_finite_bits(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7fffffffu) < 0x7f800000u;
+}
+
+// Ray::is_valid
+fn ray_is_valid(r: Ray) -> bool {
+    let fin = is_finite_bits(r.origin.x) && is_finite_bits(r.origin.y) && is_finite_bits(r.origin.z)
+        && is_finite_bits(r.dir.x) && is_finite_bits(r.dir.y) && is_finite_bits(r.dir.z)
+        && is_finite_bits(r.tmin);
+    let tmax_ok = (bitcast<u32>(r.tmax) & 0x7fffffffu) <= 0x7f800000u;
+    let nonzero = r.dir.x != 0.0 || r.dir.y != 0.0 || r.dir.z != 0.0;
+    return fin && tmax_ok && nonzero && r.tmin <= r.tmax;
+}
+
+// safe_recip: ±1/max(|d|, RECIP_FLOOR), sign of d kept (−0.0 included, by its sign bit).
+fn safe_recip(d: f32) -> f32 {
+    var m = d;
+    if abs(d) < RECIP_FLOOR {
+        m = select(RECIP_FLOOR, -RECIP_FLOOR, (bitcast<u32>(d) & 0x80000000u) != 0u);
+    }
+    return 1.0 / m;
+}
+
+fn safe_recip3(d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(safe_recip(d.x), safe_recip(d.y), safe_recip(d.z));
+}
+
+// Aabb::slab_hit
+fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32) -> bool {
+    let t0 = (lo - origin) * inv_dir;
+    let t1 = (hi - origin) * inv_dir;
+    let tn = min(t0, t1);
+    let tf = max(t0, t1) * FAR_WIDEN;
+    let enter = max(max(max(tn.x, tn.y), tn.z), tmin);
+    let exit = min(min(min(tf.x, tf.y), tf.z), tmax);
+    return enter <= exit;
+}
+
+// WatertightRay: permutation k (dominant axis last) and shear s.
+struct Watertight {
+    kx: u32,
+    ky: u32,
+    kz: u32,
+    s: vec3<f32>,
+}
+
+// WatertightRay::new
+fn watertight_setup(dir: vec3<f32>) -> Watertight {
+    let a = abs(dir);
+    var kz = 2u;
+    if a.x >= a.y && a.x >= a.z {
+        kz = 0u;
+    } else if a.y >= a.z {
+        kz = 1u;
+    }
+    var kx = (kz + 1u) % 3u;
+    var ky = (kx + 1u) % 3u;
+    if dir[kz] < 0.0 {
+        let tmp = kx;
+        kx = ky;
+        ky = tmp;
+    }
+    let sz = 1.0 / dir[kz];
+    return Watertight(kx, ky, kz, vec3<f32>(dir[kx] * sz, dir[ky] * sz, sz));
+}
+
+// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2).
+struct TriHit {
+    ok: bool,
+    t: f32,
+    u: f32,
+    v: f32,
+}
+
+// intersect_watertight (Woop, Benthin & Wald 2013)
+fn intersect_watertight(tri: Tri, origin: vec3<f32>, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
+    var res = TriHit(false, 0.0, 0.0, 0.0);
+    let a = tri.v0 - origin;
+    let b = tri.v1 - origin;
+    let c = tri.v2 - origin;
+    let ax = a[w.kx] - w.s.x * a[w.kz];
+    let ay = a[w.ky] - w.s.y * a[w.kz];
+    let bx = b[w.kx] - w.s.x * b[w.kz];
+    let by = b[w.ky] - w.s.y * b[w.kz];
+    let cx = c[w.kx] - w.s.x * c[w.kz];
+    let cy = c[w.ky] - w.s.y * c[w.kz];
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let ww = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || ww < 0.0) && (u > 0.0 || v > 0.0 || ww > 0.0) {
+        return res;
+    }
+    let det = u + v + ww;
+    if det == 0.0 {
+        return res;
+    }
+    let az = w.s.z * a[w.kz];
+    let bz = w.s.z * b[w.kz];
+    let cz = w.s.z * c[w.kz];
+    let tt = u * az + v * bz + ww * cz;
+    let t = tt / det;
+    if t >= tmin && t <= tmax {
+        res = TriHit(true, t, v / det, ww / det);
+    }
+    return res;
+}
+
+// intersect_moller_trumbore
+fn intersect_moller_trumbore(tri: Tri, r: Ray, tmin: f32, tmax: f32) -> TriHit {
+    var res = TriHit(false, 0.0, 0.0, 0.0);
+    let e1 = tri.v1 - tri.v0;
+    let e2 = tri.v2 - tri.v0;
+    let p = cross(r.dir, e2);
+    let det = dot(e1, p);
+    if det == 0.0 {
+        return res;
+    }
+    let inv = 1.0 / det;
+    let s = r.origin - tri.v0;
+    let u = dot(s, p) * inv;
+    if !(u >= 0.0 && u <= 1.0) {
+        return res;
+    }
+    let q = cross(s, e1);
+    let v = dot(r.dir, q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return res;
+    }
+    let t = dot(e2, q) * inv;
+    if t >= tmin && t <= tmax {
+        res = TriHit(true, t, u, v);
+    }
+    return res;
+}
+
+// Hit::beats — the tie rule: smaller t, then smaller original index.
+fn beats(t: f32, prim: u32, best_t: f32, best_prim: u32) -> bool {
+    return t < best_t || (t == best_t && prim < best_prim);
+}

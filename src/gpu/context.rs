@@ -1,0 +1,127 @@
+//! One place that opens a headless GPU device.
+
+use std::sync::Once;
+
+use crate::error::{Error, Result};
+
+/// What the adapter is, for `--stats` and warnings.
+#[derive(Clone, Debug)]
+pub struct AdapterReport {
+    pub name: String,
+    pub driver: String,
+    pub backend: String,
+    pub software: bool,
+}
+
+impl std::fmt::Display for AdapterReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({}, {})", self.name, self.driver, self.backend)
+    }
+}
+
+/// A headless device and queue.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter: AdapterReport,
+    pub limits: wgpu::Limits,
+    pub timestamps: bool,
+}
+
+const INSTALL_HINT: &str = "no GPU adapter found; install a Vulkan driver (on Debian/Ubuntu: \
+apt-get install mesa-vulkan-drivers libvulkan1, which includes the lavapipe software driver) \
+or use --device cpu";
+
+static SOFTWARE_WARNING: Once = Once::new();
+
+impl GpuContext {
+    /// Opens an adapter without a window. Honours `WGPU_BACKEND` (e.g. vulkan, gl) and
+    /// `WGPU_ADAPTER_NAME` (a case-insensitive substring of the adapter name).
+    pub fn new() -> Result<GpuContext> {
+        pollster::block_on(Self::open())
+    }
+
+    async fn open() -> Result<GpuContext> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            // Compute only: the primary APIs. The GL backend probes window systems and
+            // prints noise on headless machines; WGPU_BACKEND=gl still selects it.
+            desc.backends = wgpu::Backends::PRIMARY;
+        }
+        let instance = wgpu::Instance::new(desc);
+        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
+            Ok(want) => {
+                let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+                adapters
+                    .into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&want.to_lowercase()))
+                    .ok_or_else(|| {
+                        Error::Gpu(format!(
+                            "WGPU_ADAPTER_NAME={want} matches none of the adapters: [{}]",
+                            names.join(", ")
+                        ))
+                    })?
+            }
+            Err(_) => instance
+                .request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    ..Default::default()
+                })
+                .await
+                .map_err(|_| Error::Gpu(INSTALL_HINT.into()))?,
+        };
+        let info = adapter.get_info();
+        let report = AdapterReport {
+            name: info.name.clone(),
+            driver: format!("{} {}", info.driver, info.driver_info).trim().to_string(),
+            backend: format!("{:?}", info.backend),
+            software: info.device_type == wgpu::DeviceType::Cpu,
+        };
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let limits = adapter.limits();
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("lancer"),
+                required_features: if timestamps {
+                    wgpu::Features::TIMESTAMP_QUERY
+                } else {
+                    wgpu::Features::empty()
+                },
+                required_limits: limits.clone(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?;
+        if report.software {
+            SOFTWARE_WARNING.call_once(|| {
+                eprintln!("warning: {report} is a software adapter (CPU); GPU timings are not a GPU's");
+            });
+        }
+        Ok(GpuContext {
+            device,
+            queue,
+            adapter: report,
+            limits,
+            timestamps,
+        })
+    }
+
+    /// Refuses a buffer the device cannot bind, naming the size and the limit.
+    pub fn check_binding(&self, what: &str, bytes: u64) -> Result<()> {
+        let limit = self
+            .limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size);
+        if bytes > limit {
+            return Err(Error::Gpu(format!(
+                "{what} need {:.1} MiB but {} binds at most {:.1} MiB per storage buffer \
+                 (max_storage_buffer_binding_size); use a smaller scene or --device cpu",
+                bytes as f64 / 1048576.0,
+                self.adapter.name,
+                limit as f64 / 1048576.0
+            )));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,8 @@
+//! The GPU side: a headless wgpu device, the WGSL kernels, and BVH traversal on the GPU.
+
+mod context;
+pub mod shaders;
+mod trace;
+
+pub use context::{AdapterReport, GpuContext};
+pub use trace::{GpuTimings, GpuTracer, TraceKernel};
