@@ -95,8 +95,14 @@ impl TraceCmd {
                 let (h, s, t) = tracer.trace(&rays, kernel)?;
                 if self.stats {
                     println!("device    gpu: {}", ctx.adapter);
-                    let gpu = t.gpu_ms.map(|ms| format!("{ms:.2} ms")).unwrap_or("n/a".into());
-                    println!("gpu time  {gpu} (dispatches)  wall {:.2} ms (upload+dispatch+readback)", t.wall_ms);
+                    let gpu = t
+                        .gpu_ms
+                        .map(|ms| format!("{ms:.2} ms"))
+                        .unwrap_or("n/a".into());
+                    println!(
+                        "gpu time  {gpu} (dispatches)  wall {:.2} ms (upload+dispatch+readback)",
+                        t.wall_ms
+                    );
                 }
                 (h, s.unwrap_or_default())
             }

@@ -55,7 +55,12 @@ impl GpuContext {
                 let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
                 adapters
                     .into_iter()
-                    .find(|a| a.get_info().name.to_lowercase().contains(&want.to_lowercase()))
+                    .find(|a| {
+                        a.get_info()
+                            .name
+                            .to_lowercase()
+                            .contains(&want.to_lowercase())
+                    })
                     .ok_or_else(|| {
                         Error::Gpu(format!(
                             "WGPU_ADAPTER_NAME={want} matches none of the adapters: [{}]",
@@ -74,7 +79,9 @@ impl GpuContext {
         let info = adapter.get_info();
         let report = AdapterReport {
             name: info.name.clone(),
-            driver: format!("{} {}", info.driver, info.driver_info).trim().to_string(),
+            driver: format!("{} {}", info.driver, info.driver_info)
+                .trim()
+                .to_string(),
             backend: format!("{:?}", info.backend),
             software: info.device_type == wgpu::DeviceType::Cpu,
         };
@@ -95,7 +102,9 @@ impl GpuContext {
             .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?;
         if report.software {
             SOFTWARE_WARNING.call_once(|| {
-                eprintln!("warning: {report} is a software adapter (CPU); GPU timings are not a GPU's");
+                eprintln!(
+                    "warning: {report} is a software adapter (CPU); GPU timings are not a GPU's"
+                );
             });
         }
         Ok(GpuContext {

@@ -5,4 +5,4 @@ pub mod shaders;
 mod trace;
 
 pub use context::{AdapterReport, GpuContext};
-pub use trace::{GpuTimings, GpuTracer, TraceKernel};
+pub use trace::{GpuTimings, GpuTracer, Params, TraceKernel};

@@ -86,11 +86,16 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 impl<'a> GpuTracer<'a> {
     /// Validates and uploads a flat BVH.
     pub fn new(ctx: &'a GpuContext, flat: &FlatBvh) -> Result<GpuTracer<'a>> {
-        flat.validate().map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
+        flat.validate()
+            .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
         let node_bytes: &[u8] = bytemuck::cast_slice(&flat.nodes);
         // A binding cannot be empty: an empty scene gets one unused triangle.
         let pad = [crate::accel::bvh::GpuTri::zeroed_tri()];
-        let tri_slice = if flat.tris.is_empty() { &pad[..] } else { &flat.tris[..] };
+        let tri_slice = if flat.tris.is_empty() {
+            &pad[..]
+        } else {
+            &flat.tris[..]
+        };
         let tri_bytes: &[u8] = bytemuck::cast_slice(tri_slice);
         ctx.check_binding("the BVH nodes", node_bytes.len() as u64)?;
         ctx.check_binding("the triangles", tri_bytes.len() as u64)?;
@@ -154,7 +159,11 @@ impl<'a> GpuTracer<'a> {
 
     fn pipeline(&mut self, k: TraceKernel) -> &wgpu::ComputePipeline {
         let (dev, pl) = (&self.ctx.device, &self.pipeline_layout);
-        let module = if k.trusted { &self.trusted } else { &self.checked };
+        let module = if k.trusted {
+            &self.trusted
+        } else {
+            &self.checked
+        };
         self.pipelines.entry(k).or_insert_with(|| {
             let b = |x: bool| if x { 1.0 } else { 0.0 };
             let constants = [
@@ -184,7 +193,11 @@ impl<'a> GpuTracer<'a> {
         kernel: TraceKernel,
     ) -> Result<(Vec<Hit>, Option<Vec<RayStats>>, GpuTimings)> {
         let start = Instant::now();
-        let limit = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
+        let limit = self
+            .ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(self.ctx.limits.max_buffer_size);
         let batch = rays.len().clamp(1, MAX_BATCH.min((limit / 32) as usize));
         let mut hits = Vec::with_capacity(rays.len());
         let mut stats = kernel.stats.then(|| Vec::with_capacity(rays.len()));
@@ -258,11 +271,26 @@ impl<'a> GpuTracer<'a> {
             label: Some("traverse"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: self.nodes.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: self.tris.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: ray_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: hit_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: stat_buf.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.nodes.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.tris.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: ray_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: hit_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: stat_buf.as_entire_binding(),
+                },
                 wgpu::BindGroupEntry {
                     binding: 5,
                     resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -302,10 +330,12 @@ impl<'a> GpuTracer<'a> {
             let count = (n - c * CHUNK).min(CHUNK) as u32;
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("trace"),
-                timestamp_writes: queries.as_ref().map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
-                    query_set: set,
-                    beginning_of_pass_write_index: Some((2 * c) as u32),
-                    end_of_pass_write_index: Some((2 * c + 1) as u32),
+                timestamp_writes: queries.as_ref().map(|(set, _, _)| {
+                    wgpu::ComputePassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: Some((2 * c) as u32),
+                        end_of_pass_write_index: Some((2 * c + 1) as u32),
+                    }
                 }),
             });
             pass.set_pipeline(&pipeline);
@@ -338,7 +368,8 @@ impl<'a> GpuTracer<'a> {
             let view = readback.get_mapped_range(..).map_err(map_err)?;
             let hits: Vec<Hit> = bytemuck::cast_slice(&view[..rays.len() * 16]).to_vec();
             let stats = kernel.stats.then(|| {
-                bytemuck::cast_slice(&view[hit_size as usize..hit_size as usize + rays.len() * 8]).to_vec()
+                bytemuck::cast_slice(&view[hit_size as usize..hit_size as usize + rays.len() * 8])
+                    .to_vec()
             });
             (hits, stats)
         };
@@ -348,7 +379,11 @@ impl<'a> GpuTracer<'a> {
                 let view = read.get_mapped_range(..).map_err(map_err)?;
                 let ts: &[u64] = bytemuck::cast_slice(&view);
                 let period = self.ctx.queue.get_timestamp_period() as f64;
-                Some(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period).sum())
+                Some(
+                    ts.chunks(2)
+                        .map(|p| p[1].saturating_sub(p[0]) as f64 * period)
+                        .sum(),
+                )
             }
             None => None,
         };

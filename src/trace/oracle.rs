@@ -47,26 +47,30 @@ fn intersect(v: &[DVec3; 3], o: DVec3, d: DVec3) -> Option<f64> {
     Some((u * sz * p[0][kz] + vv * sz * p[1][kz] + w * sz * p[2][kz]) / det)
 }
 
-/// The exact-as-f64-allows closest hit in [tmin, tmax]: (t, prim), ties by index.
-pub fn closest(mesh: &Mesh, ray: &Ray) -> Option<(f64, u32)> {
+/// Every hit in [tmin, tmax] as (t, prim), in index order.
+pub fn all_hits(mesh: &Mesh, ray: &Ray) -> Vec<(f64, u32)> {
     if !ray.is_valid() {
-        return None;
+        return Vec::new();
     }
     let (o, d) = (d3(ray.origin), d3(ray.dir));
     let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
-    let mut best: Option<(f64, u32)> = None;
-    for (i, tri) in mesh.triangles.iter().enumerate() {
-        if mesh.status[i] != TriStatus::Ok {
-            continue;
-        }
-        let v = tri.v.map(d3);
-        if let Some(t) = intersect(&v, o, d) {
-            if t >= tmin && t <= tmax && best.is_none_or(|(bt, _)| t < bt) {
-                best = Some((t, i as u32));
-            }
-        }
-    }
-    best
+    mesh.triangles
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| mesh.status[*i] == TriStatus::Ok)
+        .filter_map(|(i, tri)| intersect(&tri.v.map(d3), o, d).map(|t| (t, i as u32)))
+        .filter(|&(t, _)| t >= tmin && t <= tmax)
+        .collect()
+}
+
+/// The exact-as-f64-allows closest hit in [tmin, tmax]: (t, prim), ties by index.
+pub fn closest(mesh: &Mesh, ray: &Ray) -> Option<(f64, u32)> {
+    all_hits(mesh, ray)
+        .into_iter()
+        .fold(None, |best, (t, p)| match best {
+            Some((bt, _)) if bt <= t => best,
+            _ => Some((t, p)),
+        })
 }
 
 /// Distance between the ray's line and the closest of a triangle's three edges.
@@ -189,5 +193,38 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
                 Verdict::Wrong(format!("prim {gp} at t={gt}, oracle prim {tp} at t={tt}"))
             }
         }
+    }
+}
+
+/// Judges an any-hit (occlusion) answer: a reported hit must be a real hit of its triangle
+/// in the interval (or a tie at its edge / the interval's end); a miss is right only when
+/// every hit the oracle finds is such a tie.
+pub fn judge_any(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
+    let o = d3(ray.origin);
+    let d = d3(ray.dir);
+    let dl = d.length();
+    let hits = all_hits(mesh, ray);
+    let marginal = |p: u32, t: f64| {
+        let v = mesh.triangles[p as usize].v.map(d3);
+        let scale = v
+            .iter()
+            .map(|&q| (q - o).abs().max_element())
+            .fold(t.abs() * dl, f64::max);
+        let tol = TIE_REL * scale.max(f64::MIN_POSITIVE);
+        let near_bound = |b: f32| (t - b as f64).abs() * dl <= tol;
+        edge_distance(&v, o, d) <= tol || near_bound(ray.tmin) || near_bound(ray.tmax)
+    };
+    if got.prim == MISS {
+        match hits.iter().find(|&&(t, p)| !marginal(p, t)) {
+            None if hits.is_empty() => Verdict::Agree,
+            None => Verdict::Tie("only marginal occluders"),
+            Some((t, p)) => Verdict::Wrong(format!("miss, but prim {p} occludes at t={t}")),
+        }
+    } else if hits.iter().any(|&(_, p)| p == got.prim) {
+        Verdict::Agree
+    } else if (got.prim as usize) < mesh.len() && marginal(got.prim, got.t as f64) {
+        Verdict::Tie("occluder hit at its edge")
+    } else {
+        Verdict::Wrong(format!("prim {} does not occlude this ray", got.prim))
     }
 }

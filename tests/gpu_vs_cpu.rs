@@ -1,0 +1,277 @@
+//! The GPU kernel against the CPU reference on lavapipe (or any adapter). For every ray:
+//! hit/miss and prim agree with the CPU, except genuine ties the f64 oracle names; t agrees
+//! to ≤ 2 ulp where the prim agrees. Traversal statistics agree exactly.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use common::{load_model, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::geometry::{Hit, Ray, TriangleTest};
+use lancer::gpu::{GpuContext, GpuTracer, TraceKernel};
+use lancer::scene::{Camera, Mesh};
+use lancer::trace::oracle::{judge, judge_any, Verdict};
+use lancer::trace::{trace_batch, Query};
+
+/// The adapter for this test binary. A GPU test never passes without one.
+fn gpu() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| match GpuContext::new() {
+        Ok(c) => {
+            println!("adapter: {}", c.adapter);
+            c
+        }
+        Err(e) => panic!(
+            "GPU tests need an adapter{}: {e}",
+            if std::env::var("CI").is_ok() {
+                " in CI"
+            } else {
+                ""
+            }
+        ),
+    })
+}
+
+fn ulps(a: f32, b: f32) -> u32 {
+    (a.to_bits() as i64 - b.to_bits() as i64)
+        .unsigned_abs()
+        .min(u32::MAX as u64) as u32
+}
+
+/// Compares GPU with CPU on `rays`; returns (agree, tie).
+fn compare(name: &str, mesh: &Mesh, rays: &[Ray], kernel: TraceKernel) -> (usize, usize) {
+    let flat = FlatBvh::new(&build(mesh, &BuildOptions::default()), mesh);
+    let (cpu, cpu_stats) = trace_batch(&flat, rays, kernel.query, kernel.test);
+    let mut tracer = GpuTracer::new(gpu(), &flat).unwrap();
+    let (gpu_hits, gpu_stats, _) = tracer
+        .trace(
+            rays,
+            TraceKernel {
+                stats: true,
+                ..kernel
+            },
+        )
+        .unwrap();
+    let judge_one = |r: &Ray, h: &Hit| match kernel.query {
+        Query::Closest => judge(mesh, r, h),
+        Query::Any => judge_any(mesh, r, h),
+    };
+    let (mut agree, mut tie, mut bad) = (0, 0, Vec::new());
+    for (i, ((r, c), g)) in rays.iter().zip(&cpu).zip(&gpu_hits).enumerate() {
+        if c.prim == g.prim {
+            let t_ok = !c.is_hit() || ulps(c.t, g.t) <= 2;
+            if t_ok {
+                agree += 1;
+            } else {
+                bad.push(format!(
+                    "ray {i}: t {} vs {} ({} ulp)",
+                    c.t,
+                    g.t,
+                    ulps(c.t, g.t)
+                ));
+            }
+            continue;
+        }
+        // Different answers: both must be right, or a tie, by the oracle.
+        match (judge_one(r, c), judge_one(r, g)) {
+            (Verdict::Wrong(w), _) => bad.push(format!("ray {i}: CPU wrong: {w}")),
+            (_, Verdict::Wrong(w)) => bad.push(format!("ray {i}: GPU wrong: {w} (CPU {c:?})")),
+            _ => tie += 1,
+        }
+    }
+    println!(
+        "{name} {:?}: {agree} agree, {tie} tie, {} disagree",
+        kernel.query,
+        bad.len()
+    );
+    assert!(
+        bad.is_empty(),
+        "{name}: {} disagree; first: {}",
+        bad.len(),
+        bad[0]
+    );
+    // Same algorithm, same order: the work counts agree wherever the answers do.
+    let gs = gpu_stats.unwrap();
+    let same_work = cpu_stats.iter().zip(&gs).filter(|(a, b)| a == b).count();
+    assert!(
+        same_work + tie >= rays.len(),
+        "{name}: stats differ on {} rays",
+        rays.len() - same_work
+    );
+    (agree, tie)
+}
+
+fn kernels() -> [TraceKernel; 2] {
+    [
+        TraceKernel::default(),
+        TraceKernel {
+            query: Query::Any,
+            ..TraceKernel::default()
+        },
+    ]
+}
+
+#[test]
+fn random_soups() {
+    for seed in 0..3 {
+        let mut rng = Rng::new(300 + seed);
+        let mesh = soup(&mut rng, 3000, 0.15);
+        let rays = random_rays(&mut rng, 20_000, &mesh);
+        for k in kernels() {
+            let (agree, _) = compare(&format!("soup {seed}"), &mesh, &rays, k);
+            assert!(agree > 19_000);
+        }
+    }
+}
+
+#[test]
+fn models_primary_random_and_inside_rays() {
+    for name in ["teapot.obj", "stanford-bunny.obj"] {
+        let Some(mesh) = load_model(name) else { return };
+        let cam = Camera::default_view(&mesh.bounds(), 160, 120);
+        compare(
+            &format!("{name} primary"),
+            &mesh,
+            &cam.primary_rays(),
+            TraceKernel::default(),
+        );
+        let mut rng = Rng::new(17);
+        let rays = random_rays(&mut rng, 20_000, &mesh);
+        for k in kernels() {
+            compare(&format!("{name} random"), &mesh, &rays, k);
+        }
+        // Rays starting just behind random triangles (inside a closed mesh), any direction.
+        let inside: Vec<Ray> = (0..20_000)
+            .map(|_| {
+                let t = &mesh.triangles[rng.u64() as usize % mesh.len()];
+                let c = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
+                let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
+                Ray::new(
+                    c - n * 1e-3 * mesh.bounds().extent().length(),
+                    rng.dir(),
+                    0.0,
+                    3.4e38,
+                )
+            })
+            .collect();
+        compare(
+            &format!("{name} inside"),
+            &mesh,
+            &inside,
+            TraceKernel::default(),
+        );
+    }
+}
+
+#[test]
+fn shadow_rays_from_primary_hits() {
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let cam = Camera::default_view(&mesh.bounds(), 160, 120);
+    let primary = cam.primary_rays();
+    let (hits, _) = trace_batch(&flat, &primary, Query::Closest, TriangleTest::Watertight);
+    let b = mesh.bounds();
+    let light = b.center() + Vec3::new(0.3, 1.0, 0.5) * b.extent().length();
+    let shadow: Vec<Ray> = primary
+        .iter()
+        .zip(&hits)
+        .filter(|(_, h)| h.is_hit())
+        .map(|(r, h)| {
+            let p = r.origin + r.dir * h.t;
+            let to = light - p;
+            // Offset relative to the hit distance, as a renderer would, then up to the light.
+            Ray::new(p, to.normalize(), 1e-4 * h.t, to.length())
+        })
+        .collect();
+    assert!(shadow.len() > 1000);
+    compare(
+        "bunny shadow",
+        &mesh,
+        &shadow,
+        TraceKernel {
+            query: Query::Any,
+            ..TraceKernel::default()
+        },
+    );
+}
+
+#[test]
+fn every_variant_matches_the_cpu() {
+    // Workgroup sizes, trusted modules and Möller–Trumbore: one source, same answers.
+    let mut rng = Rng::new(44);
+    let mesh = soup(&mut rng, 2000, 0.2);
+    let rays = random_rays(&mut rng, 5000, &mesh);
+    for workgroup_size in [32, 64, 128] {
+        for trusted in [false, true] {
+            for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
+                let k = TraceKernel {
+                    workgroup_size,
+                    trusted,
+                    test,
+                    ..TraceKernel::default()
+                };
+                compare(
+                    &format!("wg{workgroup_size} trusted={trusted} {test:?}"),
+                    &mesh,
+                    &rays,
+                    k,
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_rays_terminate_as_misses() {
+    let mut rng = Rng::new(2);
+    let mesh = soup(&mut rng, 500, 0.2);
+    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let o = Vec3::ZERO;
+    let rays = vec![
+        Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 10.0),
+        Ray::new(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0, 10.0),
+        Ray::new(o, Vec3::ZERO, 0.0, 10.0),
+        Ray::new(o, Vec3::X, f32::NAN, 10.0),
+        Ray::new(o, Vec3::X, 0.0, f32::NAN),
+        Ray::new(o, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
+        Ray::new(o, Vec3::X, 5.0, 1.0),
+    ];
+    let mut tracer = GpuTracer::new(gpu(), &flat).unwrap();
+    let (hits, stats, _) = tracer
+        .trace(
+            &rays,
+            TraceKernel {
+                stats: true,
+                ..TraceKernel::default()
+            },
+        )
+        .unwrap();
+    for ((r, h), s) in rays.iter().zip(&hits).zip(stats.unwrap()) {
+        assert!(!h.is_hit(), "{r:?} hit");
+        assert_eq!(s.nodes, 0, "{r:?} traversed");
+    }
+}
+
+#[test]
+fn large_batches_are_split_and_complete() {
+    // More rays than one dispatch holds: the result is the CPU's, in order.
+    let mut rng = Rng::new(8);
+    let mesh = soup(&mut rng, 1000, 0.1);
+    let rays = random_rays(&mut rng, (1 << 18) + 12345, &mesh);
+    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let (cpu, _) = trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight);
+    let mut tracer = GpuTracer::new(gpu(), &flat).unwrap();
+    let (g, _, _) = tracer.trace(&rays, TraceKernel::default()).unwrap();
+    assert_eq!(g.len(), rays.len());
+    let same = cpu.iter().zip(&g).filter(|(a, b)| a.prim == b.prim).count();
+    assert!(
+        same as f64 >= 0.999 * rays.len() as f64,
+        "{same} of {}",
+        rays.len()
+    );
+    assert_eq!(cpu.last().unwrap().prim, g.last().unwrap().prim);
+}
