@@ -1,6 +1,8 @@
 //! Subcommands of the `lancer` binary.
 
+mod bench;
 mod build;
+mod heatmap;
 mod rays;
 mod trace;
 
@@ -27,6 +29,10 @@ enum Cmd {
     Trace(trace::TraceCmd),
     /// Write the primary rays of a mesh's default view.
     Rays(rays::RaysCmd),
+    /// Render nodes visited per pixel of the default view as a PNG.
+    Heatmap(heatmap::HeatmapCmd),
+    /// Measure speed.
+    Bench(bench::BenchCmd),
 }
 
 /// BVH build options shared by the subcommands that build one.
@@ -67,5 +73,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Cmd::Build(c) => c.run(),
         Cmd::Trace(c) => c.run(),
         Cmd::Rays(c) => c.run(),
+        Cmd::Heatmap(c) => c.run(),
+        Cmd::Bench(c) => c.run(),
     }
 }

@@ -81,3 +81,23 @@ pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
         })
         .collect())
 }
+
+/// Shadow rays from the hit points of `primary` towards a point light, for every ray that
+/// hit. tmin is a small fraction of the hit distance, tmax ends at the light.
+pub fn shadow_rays(primary: &[Ray], hits: &[Hit], light: glam::Vec3) -> Vec<Ray> {
+    primary
+        .iter()
+        .zip(hits)
+        .filter(|(_, h)| h.is_hit())
+        .map(|(r, h)| {
+            let p = r.origin + r.dir * h.t;
+            let to = light - p;
+            Ray::new(p, to.normalize(), 1e-4 * h.t, to.length())
+        })
+        .collect()
+}
+
+/// The point light used for benchmark shadow rays: above and in front of the mesh.
+pub fn default_light(bounds: &crate::geometry::Aabb) -> glam::Vec3 {
+    bounds.center() + glam::Vec3::new(0.3, 1.0, 0.5) * bounds.extent().length()
+}

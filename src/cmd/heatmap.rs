@@ -1,0 +1,71 @@
+use std::path::PathBuf;
+
+use clap::Args;
+use lancer::accel::bvh::{build, FlatBvh};
+use lancer::geometry::TriangleTest;
+use lancer::gpu::{GpuTracer, TraceKernel};
+use lancer::scene::{load_mesh, Camera};
+use lancer::trace::{trace_batch, Query};
+use lancer::{Error, Result};
+
+use super::trace::{open_device, Device};
+use super::BuildArgs;
+
+#[derive(Args)]
+pub struct HeatmapCmd {
+    /// OBJ mesh.
+    mesh: PathBuf,
+    /// Output PNG.
+    #[arg(short, long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 512)]
+    width: u32,
+    #[arg(long, default_value_t = 512)]
+    height: u32,
+    #[arg(long, value_enum, default_value_t = Device::Auto)]
+    device: Device,
+    #[command(flatten)]
+    build: BuildArgs,
+}
+
+/// Black → purple → orange → yellow ramp for t in [0, 1].
+fn ramp(t: f32) -> [u8; 3] {
+    const STOPS: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.02],
+        [0.34, 0.06, 0.43],
+        [0.73, 0.21, 0.33],
+        [0.98, 0.55, 0.04],
+        [0.99, 1.0, 0.64],
+    ];
+    let x = t.clamp(0.0, 1.0) * 4.0;
+    let i = (x as usize).min(3);
+    let f = x - i as f32;
+    let c = |k: usize| STOPS[i][k] + (STOPS[i + 1][k] - STOPS[i][k]) * f;
+    [0, 1, 2].map(|k| (c(k) * 255.0).round() as u8)
+}
+
+impl HeatmapCmd {
+    pub fn run(self) -> Result<()> {
+        let mesh = load_mesh(&self.mesh)?;
+        let flat = FlatBvh::new(&build(&mesh, &self.build.options()), &mesh);
+        let (w, h) = (self.width.max(1), self.height.max(1));
+        let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
+        let stats = match open_device(self.device)? {
+            Some(ctx) => {
+                let kernel = TraceKernel { stats: true, ..TraceKernel::default() };
+                GpuTracer::new(&ctx, &flat)?.trace(&rays, kernel)?.1.unwrap_or_default()
+            }
+            None => trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight).1,
+        };
+        let max = stats.iter().map(|s| s.nodes).max().unwrap_or(1).max(1);
+        let mean = stats.iter().map(|s| s.nodes as f64).sum::<f64>() / stats.len() as f64;
+        let mut img = image::RgbImage::new(w, h);
+        for (p, s) in img.pixels_mut().zip(&stats) {
+            *p = image::Rgb(ramp(s.nodes as f32 / max as f32));
+        }
+        img.save(&self.out)
+            .map_err(|e| Error::input(&self.out, None, format!("cannot write PNG: {e}")))?;
+        println!("nodes visited per pixel: mean {mean:.1}, max {max} (white-yellow) -> {}", self.out.display());
+        Ok(())
+    }
+}
