@@ -65,14 +65,20 @@ impl BenchTrace {
     fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
         let flat = FlatBvh::new(&build(&mesh, &self.build.options()), &mesh);
-        let primary = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1)).primary_rays();
+        let primary = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1))
+            .primary_rays();
         let (hits, _) = trace_batch(&flat, &primary, Query::Closest, TriangleTest::Watertight);
         let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
-        let sets: [(&str, Query, &[Ray]); 2] =
-            [("primary closest-hit", Query::Closest, &primary), ("shadow any-hit", Query::Any, &shadow)];
+        let sets: [(&str, Query, &[Ray]); 2] = [
+            ("primary closest-hit", Query::Closest, &primary),
+            ("shadow any-hit", Query::Any, &shadow),
+        ];
         let ctx = open_device(self.device)?;
         let gpu_configs: Vec<(u32, bool)> = if ctx.is_some() {
-            [32, 64, 128].iter().flat_map(|&w| [(w, false), (w, true)]).collect()
+            [32, 64, 128]
+                .iter()
+                .flat_map(|&w| [(w, false), (w, true)])
+                .collect()
         } else {
             Vec::new()
         };
@@ -101,7 +107,12 @@ impl BenchTrace {
             if let Some(ctx) = &ctx {
                 let mut tracer = GpuTracer::new(ctx, &flat)?;
                 for &(wg, trusted) in &gpu_configs {
-                    let k = TraceKernel { query, workgroup_size: wg, trusted, ..TraceKernel::default() };
+                    let k = TraceKernel {
+                        query,
+                        workgroup_size: wg,
+                        trusted,
+                        ..TraceKernel::default()
+                    };
                     tracer.trace(&rays[..rays.len().min(1024)], k)?; // compile outside the timing
                     let (mut gpu, mut wall) = (Vec::new(), Vec::new());
                     for _ in 0..repeat {
@@ -123,7 +134,13 @@ impl BenchTrace {
             }
         }
         bar.finish_and_clear();
-        println!("mesh {}  {} triangles  {}x{}", self.mesh.display(), flat.tris.len(), self.width, self.height);
+        println!(
+            "mesh {}  {} triangles  {}x{}",
+            self.mesh.display(),
+            flat.tris.len(),
+            self.width,
+            self.height
+        );
         if let Some(ctx) = &ctx {
             println!("adapter {}", ctx.adapter);
         }

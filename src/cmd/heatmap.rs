@@ -52,8 +52,14 @@ impl HeatmapCmd {
         let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
         let stats = match open_device(self.device)? {
             Some(ctx) => {
-                let kernel = TraceKernel { stats: true, ..TraceKernel::default() };
-                GpuTracer::new(&ctx, &flat)?.trace(&rays, kernel)?.1.unwrap_or_default()
+                let kernel = TraceKernel {
+                    stats: true,
+                    ..TraceKernel::default()
+                };
+                GpuTracer::new(&ctx, &flat)?
+                    .trace(&rays, kernel)?
+                    .1
+                    .unwrap_or_default()
             }
             None => trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight).1,
         };
@@ -65,7 +71,10 @@ impl HeatmapCmd {
         }
         img.save(&self.out)
             .map_err(|e| Error::input(&self.out, None, format!("cannot write PNG: {e}")))?;
-        println!("nodes visited per pixel: mean {mean:.1}, max {max} (white-yellow) -> {}", self.out.display());
+        println!(
+            "nodes visited per pixel: mean {mean:.1}, max {max} (white-yellow) -> {}",
+            self.out.display()
+        );
         Ok(())
     }
 }

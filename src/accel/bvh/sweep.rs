@@ -19,14 +19,15 @@ struct Ctx<'a> {
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
     let n = prims.boxes.len();
     let sorted = |axis: usize| {
-        let mut v: Vec<u32> = (0..n as u32).collect();
-        // Stable sort: equal centroids keep index order (deterministic).
-        v.sort_by(|&a, &b| {
-            prims.centroids[a as usize][axis].total_cmp(&prims.centroids[b as usize][axis])
-        });
-        v
+        let mut keyed: Vec<(f32, u32)> = (0..n as u32)
+            .map(|i| (prims.centroids[i as usize][axis], i))
+            .collect();
+        // Equal centroids ordered by index: deterministic, same as a stable sort.
+        keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        keyed.into_iter().map(|(_, i)| i).collect::<Vec<u32>>()
     };
-    let (mut x, mut y, mut z) = (sorted(0), sorted(1), sorted(2));
+    let par = opts.parallel && n >= PARALLEL_MIN;
+    let (mut x, (mut y, mut z)) = join(par, || sorted(0), || join(par, || sorted(1), || sorted(2)));
     let ctx = Ctx {
         prims,
         opts,
