@@ -6,6 +6,7 @@ pub mod accel;
 pub mod error;
 pub mod geometry;
 pub mod gpu;
+pub mod render;
 pub mod scene;
 pub mod trace;
 

@@ -103,3 +103,55 @@ fn bad_input_is_one_line_and_exit_2() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no usable triangle"));
 }
+
+#[test]
+fn render_writes_the_same_png_on_cpu_and_gpu() {
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.obj");
+    let (c, g) = (tmp("cornell-cpu.png"), tmp("cornell-gpu.png"));
+    let args = |out: &Path, dev: &'static str| {
+        vec![
+            "render".to_string(),
+            s(&scene).into(),
+            "-o".into(),
+            s(out).into(),
+            "--width".into(),
+            "64".into(),
+            "--height".into(),
+            "48".into(),
+            "--device".into(),
+            dev.into(),
+        ]
+    };
+    let run = |a: Vec<String>| {
+        Command::new(env!("CARGO_BIN_EXE_lancer"))
+            .args(a)
+            .output()
+            .unwrap()
+    };
+    let out = run(args(&c, "cpu"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cpu = image::open(&c).unwrap().to_rgb8();
+    assert_eq!(cpu.dimensions(), (64, 48));
+    // The box is lit: some pixels are much brighter than the background.
+    assert!(cpu.pixels().filter(|p| p[0] > 150).count() > 200);
+    let out = run(args(&g, "gpu"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let gpu = image::open(&g).unwrap().to_rgb8();
+    let differ = cpu
+        .pixels()
+        .zip(gpu.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(
+        differ, 0,
+        "{differ} pixels differ between CPU and GPU renders"
+    );
+}

@@ -4,6 +4,7 @@ mod bench;
 mod build;
 mod heatmap;
 mod rays;
+mod render;
 mod trace;
 
 use clap::{Args, Parser, Subcommand};
@@ -23,6 +24,8 @@ pub struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// Render a mesh's default view with one point light and shadows to a PNG.
+    Render(render::RenderCmd),
     /// Build a BVH and print its statistics.
     Build(build::BuildCmd),
     /// Trace a ray file, write a hit file.
@@ -70,6 +73,7 @@ impl BuildArgs {
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
+        Cmd::Render(c) => c.run(),
         Cmd::Build(c) => c.run(),
         Cmd::Trace(c) => c.run(),
         Cmd::Rays(c) => c.run(),

@@ -59,6 +59,9 @@ pub struct Params {
     pub count: u32,
 }
 
+/// Hits, per-ray statistics (when counted) and GPU nanoseconds (when timed) of one batch.
+type BatchResult = (Vec<Hit>, Option<Vec<RayStats>>, Option<f64>);
+
 pub struct GpuTracer<'a> {
     ctx: &'a GpuContext,
     nodes: wgpu::Buffer,
@@ -217,11 +220,7 @@ impl<'a> GpuTracer<'a> {
         Ok((hits, stats, timings))
     }
 
-    fn trace_batch(
-        &mut self,
-        rays: &[Ray],
-        kernel: TraceKernel,
-    ) -> Result<(Vec<Hit>, Option<Vec<RayStats>>, Option<f64>)> {
+    fn trace_batch(&mut self, rays: &[Ray], kernel: TraceKernel) -> Result<BatchResult> {
         let n = rays.len().max(1);
         let chunks = n.div_ceil(CHUNK);
         let align = self.ctx.limits.min_uniform_buffer_offset_alignment.max(8) as usize;

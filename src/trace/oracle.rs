@@ -147,7 +147,8 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
         let v = tri(gp);
         let n = (v[1] - v[0]).cross(v[2] - v[0]);
         let tp = n.dot(v[0] - o) / n.dot(d);
-        if !((tp - gt).abs() <= tol_t(gp, gt)) {
+        let on_plane = (tp - gt).abs() <= tol_t(gp, gt); // false for NaN too
+        if !on_plane {
             return Verdict::Wrong(format!(
                 "prim {gp} reported at t={gt}, its plane is at t={tp}"
             ));

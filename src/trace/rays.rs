@@ -97,7 +97,8 @@ pub fn shadow_rays(primary: &[Ray], hits: &[Hit], light: glam::Vec3) -> Vec<Ray>
         .collect()
 }
 
-/// The point light used for benchmark shadow rays: above and in front of the mesh.
+/// The point light of the preview and of benchmark shadow rays: in front of the mesh (on
+/// the default view's side), up and to the right.
 pub fn default_light(bounds: &crate::geometry::Aabb) -> glam::Vec3 {
-    bounds.center() + glam::Vec3::new(0.3, 1.0, 0.5) * bounds.extent().length()
+    bounds.center() + glam::Vec3::new(0.25, 0.3, 0.9) * bounds.extent().length()
 }

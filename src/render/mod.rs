@@ -1,0 +1,5 @@
+//! Rendering on top of the tracers.
+
+mod preview;
+
+pub use preview::{preview, PreviewOptions};
