@@ -41,6 +41,8 @@ const LEAF_TAG: u32 = 3u;
 const STACK_SIZE: u32 = 64u;     // accel::bvh::MAX_DEPTH
 const RECIP_FLOOR: f32 = 1e-30;  // geometry::ray::RECIP_FLOOR
 const FAR_WIDEN: f32 = 1.0000004; // geometry::FAR_WIDEN (Ize 2013: 1 + 2γ(3))
+const PARALLEL_INV: f32 = 5e29;   // geometry::PARALLEL_INV
+const BIG: f32 = 3.4028235e38;    // f32::MAX
 
 // Finite test on bits: NaN/Inf comparisons are not reliable in WGSL.
 fn is_finite_bits(x: f32) -> bool {
@@ -70,12 +72,15 @@ fn safe_recip3(d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(safe_recip(d.x), safe_recip(d.y), safe_recip(d.z));
 }
 
-// Aabb::slab_hit
+// Aabb::slab_hit (an axis the ray is parallel to bounds nothing if the origin is in its slab)
 fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32) -> bool {
     let t0 = (lo - origin) * inv_dir;
     let t1 = (hi - origin) * inv_dir;
-    let tn = min(t0, t1);
-    let tf = max(t0, t1) * FAR_WIDEN;
+    let parallel = abs(inv_dir) >= vec3<f32>(PARALLEL_INV);
+    let inside = (lo <= origin) & (origin <= hi);
+    let big = select(vec3<f32>(-BIG), vec3<f32>(BIG), inside);
+    let tn = select(min(t0, t1), -big, parallel);
+    let tf = select(max(t0, t1) * FAR_WIDEN, big, parallel);
     let enter = max(max(max(tn.x, tn.y), tn.z), tmin);
     let exit = min(min(min(tf.x, tf.y), tf.z), tmax);
     return enter <= exit;

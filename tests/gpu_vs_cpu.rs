@@ -275,3 +275,48 @@ fn large_batches_are_split_and_complete() {
     );
     assert_eq!(cpu.last().unwrap().prim, g.last().unwrap().prim);
 }
+
+#[test]
+fn axis_parallel_rays_on_box_faces() {
+    // Origins exactly on node-box face planes with zero (and −0.0) direction components:
+    // the slab test's parallel-axis rule, identical on both sides.
+    let mut rng = Rng::new(21);
+    let mesh = soup(&mut rng, 400, 0.2);
+    let b = mesh.bounds();
+    let mut rays = Vec::new();
+    for i in 0..=20 {
+        for j in 0..=20 {
+            let (u, v) = (i as f32 / 20.0, j as f32 / 20.0);
+            for (o, d) in [
+                (
+                    Vec3::new(b.lo.x + u * (b.hi.x - b.lo.x), b.hi.y, b.lo.z - 1.0),
+                    Vec3::Z,
+                ),
+                (
+                    Vec3::new(b.hi.x, b.lo.y + u * (b.hi.y - b.lo.y), b.hi.z + 1.0),
+                    Vec3::new(-0.0, 0.0, -1.0),
+                ),
+                (
+                    Vec3::new(
+                        b.lo.x - 1.0,
+                        b.lo.y + u * (b.hi.y - b.lo.y),
+                        b.lo.z + v * (b.hi.z - b.lo.z),
+                    ),
+                    Vec3::X,
+                ),
+            ] {
+                rays.push(Ray::new(o, d, 0.0, 100.0));
+            }
+        }
+    }
+    compare("axis-parallel", &mesh, &rays, TraceKernel::default());
+    compare(
+        "axis-parallel",
+        &mesh,
+        &rays,
+        TraceKernel {
+            query: Query::Any,
+            ..TraceKernel::default()
+        },
+    );
+}

@@ -7,6 +7,9 @@ use super::Ray;
 /// 1 + 3·2⁻²³; the WGSL kernel uses the same literal.
 pub const FAR_WIDEN: f32 = 1.000_000_4;
 
+/// |safe_recip(d)| at or above this marks an axis the ray is parallel to. Same in WGSL.
+pub const PARALLEL_INV: f32 = 5e29;
+
 /// Axis-aligned bounding box. An empty box has `lo > hi` (lo = +MAX, hi = −MAX).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
@@ -82,16 +85,21 @@ impl Aabb {
     }
 
     /// Robust slab test: `inv_dir` from [`safe_recip`](super::safe_recip), so no 0·∞ NaN can
-    /// arise even for an origin on a slab plane; far distances widened by [`FAR_WIDEN`].
-    /// Returns whether [max(t_near, tmin), min(t_far, tmax)] is non-empty.
-    /// The WGSL `slab_hit` performs the same operations in the same order.
+    /// arise; far distances widened by [`FAR_WIDEN`]. An axis the ray is parallel to
+    /// (|inv| ≥ PARALLEL_INV, i.e. |d| ≲ 2e-30) does not limit the interval when the origin
+    /// lies within that slab, boundary planes included, and empties it otherwise — so an
+    /// origin exactly on either face plane behaves the same. Returns whether
+    /// [max(t_near, tmin), min(t_far, tmax)] is non-empty. WGSL `slab_hit` is the same.
     #[inline]
     pub fn slab_hit(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> bool {
         let t0 = (self.lo - origin) * inv_dir;
         let t1 = (self.hi - origin) * inv_dir;
-        let tn = t0.min(t1);
-        let tf = t0.max(t1) * FAR_WIDEN;
-        // max/min with the ray bounds last: a NaN slab never widens the interval.
+        let parallel = inv_dir.abs().cmpge(Vec3::splat(PARALLEL_INV));
+        let inside = self.lo.cmple(origin) & origin.cmple(self.hi);
+        let big = Vec3::select(inside, Vec3::splat(f32::MAX), Vec3::splat(-f32::MAX));
+        let tn = Vec3::select(parallel, -big, t0.min(t1));
+        let tf = Vec3::select(parallel, big, t0.max(t1) * FAR_WIDEN);
+        // max/min with the ray bounds last.
         let enter = tn.x.max(tn.y).max(tn.z).max(tmin);
         let exit = tf.x.min(tf.y).min(tf.z).min(tmax);
         enter <= exit

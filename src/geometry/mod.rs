@@ -5,7 +5,7 @@ mod hit;
 mod ray;
 mod triangle;
 
-pub use aabb::{Aabb, FAR_WIDEN};
+pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray};
 pub use triangle::{
