@@ -95,10 +95,15 @@ impl Aabb {
         let t0 = (self.lo - origin) * inv_dir;
         let t1 = (self.hi - origin) * inv_dir;
         let parallel = inv_dir.abs().cmpge(Vec3::splat(PARALLEL_INV));
-        let inside = self.lo.cmple(origin) & origin.cmple(self.hi);
-        let big = Vec3::select(inside, Vec3::splat(f32::MAX), Vec3::splat(-f32::MAX));
-        let tn = Vec3::select(parallel, -big, t0.min(t1));
-        let tf = Vec3::select(parallel, big, t0.max(t1) * FAR_WIDEN);
+        let (mut tn, mut tf) = (t0.min(t1), t0.max(t1) * FAR_WIDEN);
+        // Rare (axis-aligned rays): a predictable branch keeps the common path short; the
+        // result equals the WGSL select() form on every input.
+        if parallel.any() {
+            let inside = self.lo.cmple(origin) & origin.cmple(self.hi);
+            let big = Vec3::select(inside, Vec3::splat(f32::MAX), Vec3::splat(-f32::MAX));
+            tn = Vec3::select(parallel, -big, tn);
+            tf = Vec3::select(parallel, big, tf);
+        }
         // max/min with the ray bounds last.
         let enter = tn.x.max(tn.y).max(tn.z).max(tmin);
         let exit = tf.x.min(tf.y).min(tf.z).min(tmax);
