@@ -233,14 +233,16 @@ impl<'a> GpuTracer<'a> {
             params[c * align..c * align + 8].copy_from_slice(bytemuck::bytes_of(&p));
         }
         let dev = &self.ctx.device;
-        let ray_bytes: Vec<u8> = if rays.is_empty() {
-            vec![0u8; 32]
+        // Upload straight from the caller's slice; an empty batch binds one zero ray.
+        let zero = [0u8; 32];
+        let ray_bytes: &[u8] = if rays.is_empty() {
+            &zero
         } else {
-            bytemuck::cast_slice(rays).to_vec()
+            bytemuck::cast_slice(rays)
         };
         let ray_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("rays"),
-            contents: &ray_bytes,
+            contents: ray_bytes,
             usage: wgpu::BufferUsages::STORAGE,
         });
         let param_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
