@@ -213,3 +213,65 @@ fn any_hit_finds_an_occluder_and_respects_the_interval() {
     );
     assert!(!h.is_hit());
 }
+
+/// Coordinates that stress the slab test: ordinary values, values on box planes, zeros of
+/// both signs, and extremes whose products overflow.
+fn slab_coord() -> impl proptest::strategy::Strategy<Value = f32> {
+    use proptest::prelude::*;
+    prop_oneof![
+        -10.0f32..10.0,
+        Just(0.0f32),
+        Just(-0.0f32),
+        Just(1.0f32),
+        Just(-1.0f32),
+        Just(3.0e38f32),
+        Just(-3.0e38f32),
+        Just(1e-20f32),
+    ]
+}
+
+proptest::proptest! {
+    /// The tracer's SIMD slab test for non-parallel rays is the scalar reference bit for
+    /// bit in its verdict, including on box planes and under overflow.
+    #[test]
+    fn simd_slab_test_equals_scalar(
+        lo in proptest::array::uniform3(slab_coord()),
+        ext in proptest::array::uniform3(box_extent()),
+        o in proptest::array::uniform3(slab_coord()),
+        d in proptest::array::uniform3(slab_coord()),
+        aim in 0usize..12,
+        along in 0.0f32..1.0,
+        tmin in 0.0f32..2.0,
+        tmax in ray_tmax(),
+    ) {
+        let lo = Vec3::from(lo);
+        let b = Aabb { lo, hi: lo + Vec3::from(ext) };
+        let o = Vec3::from(o);
+        // Most rays aim at a corner (aim < 8) or along an edge of the box, where the
+        // entry and exit distances meet and the far-plane widening decides.
+        let corner = |k: usize| Vec3::select(
+            glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), b.hi, b.lo);
+        let d = match aim {
+            0..=7 => corner(aim) - o,
+            8..=10 => corner(aim - 8).lerp(corner(7 - (aim - 8)), along) - o,
+            _ => Vec3::from(d),
+        };
+        let ray = Ray::new(o, d, tmin, tmax);
+        let inv = ray.inv_dir();
+        proptest::prop_assume!(ray.is_valid());
+        proptest::prop_assume!(inv.abs().max_element() < lancer::geometry::PARALLEL_INV);
+        let simd = Aabb::slab_hit_nonparallel(
+            b.lo.into(), b.hi.into(), ray.origin.into(), inv.into(), tmin, tmax);
+        proptest::prop_assert_eq!(simd, b.slab_hit(ray.origin, inv, tmin, tmax));
+    }
+}
+
+fn box_extent() -> impl proptest::strategy::Strategy<Value = f32> {
+    use proptest::prelude::*;
+    prop_oneof![0.0f32..5.0, Just(0.0f32)]
+}
+
+fn ray_tmax() -> impl proptest::strategy::Strategy<Value = f32> {
+    use proptest::prelude::*;
+    prop_oneof![2.0f32..100.0, Just(3.4e38f32)]
+}

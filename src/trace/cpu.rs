@@ -6,8 +6,11 @@
 use rayon::prelude::*;
 
 use crate::accel::bvh::{FlatBvh, MAX_DEPTH};
+use glam::{Vec3, Vec3A};
+
 use crate::geometry::{
-    intersect_moller_trumbore, intersect_watertight, Hit, Ray, TriangleTest, WatertightRay, MISS,
+    intersect_moller_trumbore, intersect_watertight, Aabb, Hit, Ray, TriangleTest, WatertightRay,
+    MISS, PARALLEL_INV,
 };
 
 /// What a ray asks for.
@@ -41,6 +44,8 @@ pub fn trace_ray(
         return best;
     }
     let inv = ray.inv_dir();
+    let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+    let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
     let wr = WatertightRay::new(ray.dir);
     let mut stack = [0u32; MAX_DEPTH];
     let mut sp = 0usize;
@@ -48,7 +53,19 @@ pub fn trace_ray(
     loop {
         let node = &bvh.nodes[idx];
         stats.nodes += 1;
-        if node.bbox().slab_hit(ray.origin, inv, ray.tmin, best.t) {
+        let enter = if parallel {
+            node.bbox().slab_hit(ray.origin, inv, ray.tmin, best.t)
+        } else {
+            Aabb::slab_hit_nonparallel(
+                Vec3A::from_array(node.lo),
+                Vec3A::from_array(node.hi),
+                origin_a,
+                inv_a,
+                ray.tmin,
+                best.t,
+            )
+        };
+        if enter {
             if !node.is_leaf() {
                 let (first, second) = (idx + 1, node.a as usize);
                 let (near, far) = if ray.dir[node.axis()] < 0.0 {
