@@ -8,7 +8,7 @@ mod render;
 mod trace;
 
 use clap::{Args, Parser, Subcommand};
-use lancer::accel::bvh::{BuildOptions, Builder};
+use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
 use lancer::Result;
 
 #[derive(Parser)]
@@ -44,12 +44,12 @@ pub struct BuildArgs {
     /// Builder.
     #[arg(long, value_enum, default_value_t = Builder::Sweep)]
     builder: Builder,
-    /// Bins per axis (binned builder).
-    #[arg(long, default_value_t = 16)]
-    bins: usize,
+    /// Bins per axis (binned builder), 2 to 64.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(2..=MAX_BINS as i64))]
+    bins: u32,
     /// Largest leaf; bigger nodes are always split.
-    #[arg(long, default_value_t = 16)]
-    max_leaf: usize,
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
+    max_leaf: u32,
     /// SAH cost of one box test.
     #[arg(long, default_value_t = 1.0)]
     t_cube: f32,
@@ -64,8 +64,8 @@ impl BuildArgs {
             builder: self.builder,
             t_cube: self.t_cube,
             t_obj: self.t_obj,
-            max_leaf: self.max_leaf.max(1),
-            bins: self.bins.max(2),
+            max_leaf: self.max_leaf as usize,
+            bins: self.bins as usize,
             ..BuildOptions::default()
         }
     }

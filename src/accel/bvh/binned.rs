@@ -1,41 +1,154 @@
 //! Binned SAH (Wald 2007): K equal bins over the centroid bounds on each axis, filled in
-//! one pass over the node's primitives; the partition is in place.
+//! one pass over the node's primitives; the partition is in place. The builder moves
+//! 32-byte primitive references (box in SIMD lanes, index in a spare lane) rather than
+//! indices, so every pass streams through memory; a node costs two linear passes (bin,
+//! partition), the partition also yielding the children's centroid bounds.
 
-use super::build::{join, leaf, median_split, BuildOptions, Node, Prims, PARALLEL_MIN};
+use glam::{Vec3, Vec3A, Vec4};
+
+use super::build::{join, leaf, BuildOptions, Node, Prims, PARALLEL_MIN};
 use crate::geometry::Aabb;
 
-pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
-    let mut idx: Vec<u32> = (0..prims.boxes.len() as u32).collect();
-    let (bbox, _) = prims.bounds(&idx);
-    let root = node(prims, opts, &mut idx, bbox, 0, 0);
-    (root, idx)
-}
+/// Most bins per axis the builder supports (the CLI refuses more).
+pub const MAX_BINS: usize = 64;
 
-/// Maps centroids on one axis to bins.
+/// A box in SIMD lanes. Operands are never NaN (the mesh excludes non-finite triangles), so
+/// the lane-wise min/max are exact.
 #[derive(Clone, Copy)]
-struct Binner {
-    lo: f32,
-    scale: f32,
-    bins: usize,
+struct BoxA {
+    lo: Vec3A,
+    hi: Vec3A,
 }
 
-impl Binner {
-    fn bin(&self, c: f32) -> usize {
-        (((c - self.lo) * self.scale) as usize).min(self.bins - 1)
+impl BoxA {
+    const EMPTY: BoxA = BoxA {
+        lo: Vec3A::splat(f32::MAX),
+        hi: Vec3A::splat(-f32::MAX),
+    };
+
+    #[inline(always)]
+    fn union(self, o: BoxA) -> BoxA {
+        BoxA {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
     }
+
+    #[inline(always)]
+    fn grow(self, p: Vec3A) -> BoxA {
+        BoxA {
+            lo: self.lo.min(p),
+            hi: self.hi.max(p),
+        }
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb {
+            lo: Vec3::from(self.lo),
+            hi: Vec3::from(self.hi),
+        }
+    }
+
+    /// Surface area of a non-empty box.
+    #[inline(always)]
+    fn area(self) -> f32 {
+        let e = self.hi - self.lo;
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+}
+
+impl From<Aabb> for BoxA {
+    fn from(b: Aabb) -> BoxA {
+        BoxA {
+            lo: b.lo.into(),
+            hi: b.hi.into(),
+        }
+    }
+}
+
+/// A primitive reference: its box, with the primitive's index in the spare `w` lanes as two
+/// 16-bit halves stored as small whole floats (raw index bits would be denormals, which the
+/// lane-wise arithmetic on `w` would make very slow).
+#[derive(Clone, Copy)]
+struct Ref {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Ref {
+    fn new(b: &Aabb, id: u32) -> Ref {
+        Ref {
+            lo: b.lo.extend((id & 0xffff) as f32),
+            hi: b.hi.extend((id >> 16) as f32),
+        }
+    }
+
+    fn id(&self) -> u32 {
+        self.lo.w as u32 | (self.hi.w as u32) << 16
+    }
+
+    #[inline(always)]
+    fn bbox(&self) -> BoxA {
+        BoxA {
+            lo: Vec3A::from_vec4(self.lo),
+            hi: Vec3A::from_vec4(self.hi),
+        }
+    }
+
+    /// Same value as [`Aabb::center`].
+    #[inline(always)]
+    fn centroid(&self) -> Vec3A {
+        (Vec3A::from_vec4(self.lo) + Vec3A::from_vec4(self.hi)) * 0.5
+    }
+}
+
+fn bounds(refs: &[Ref]) -> (BoxA, BoxA) {
+    refs.iter().fold((BoxA::EMPTY, BoxA::EMPTY), |(b, c), r| {
+        (b.union(r.bbox()), c.grow(r.centroid()))
+    })
+}
+
+pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
+    let mut refs: Vec<Ref> = (prims.boxes.iter().enumerate())
+        .map(|(i, b)| Ref::new(b, i as u32))
+        .collect();
+    let (bbox, cbox) = bounds(&refs);
+    let root = node(opts, &mut refs, bbox.aabb(), cbox, 0, 0);
+    (root, refs.iter().map(Ref::id).collect())
 }
 
 #[derive(Clone, Copy)]
 struct Bin {
-    bbox: Aabb,
+    bbox: BoxA,
     count: usize,
 }
 
+const EMPTY_BIN: Bin = Bin {
+    bbox: BoxA::EMPTY,
+    count: 0,
+};
+
+/// Bin of a centroid coordinate. `(c − lo)·scale` lies in [0, K] (c within the centroid
+/// bounds, scale finite), so the truncating conversion needs no saturation checks.
+#[inline(always)]
+fn bin_index(c: f32, lo: f32, scale: f32, last: usize) -> usize {
+    let x = (c - lo) * scale;
+    debug_assert!((0.0..=(last + 1) as f32 * 1.001).contains(&x));
+    // SAFETY: x is finite and in [0, K + ε] as argued above, so it fits an i32.
+    (unsafe { x.to_int_unchecked::<i32>() } as usize).min(last)
+}
+
+/// Bin index of a centroid on every axis at once; a flat axis (scale 0) maps all to bin 0.
+#[inline(always)]
+fn bin_of(c: Vec3A, lo: Vec3A, scale: Vec3A, last: usize) -> [usize; 3] {
+    std::array::from_fn(|a| bin_index(c[a], lo[a], scale[a], last))
+}
+
 fn node(
-    prims: &Prims,
     opts: &BuildOptions,
-    idx: &mut [u32],
+    idx: &mut [Ref],
     bbox: Aabb,
+    cbox: BoxA,
     offset: usize,
     depth: usize,
 ) -> Node {
@@ -43,68 +156,84 @@ fn node(
     if n == 1 {
         return leaf(bbox, offset, 1);
     }
-    let cbox = idx
-        .iter()
-        .fold(Aabb::EMPTY, |c, &p| c.grow(prims.centroids[p as usize]));
-    let nbins = opts.bins.max(2);
-    let ext = cbox.extent();
-    let binners: [Option<Binner>; 3] = std::array::from_fn(|a| {
-        (ext[a] > 0.0).then(|| Binner {
-            lo: cbox.lo[a],
-            scale: nbins as f32 / ext[a],
-            bins: nbins,
-        })
-    });
+    let nbins = opts.bins.clamp(2, MAX_BINS);
+    let ext = cbox.hi - cbox.lo;
+    let scale = nbins as f32 / ext;
+    // A flat axis, or one so thin that K/extent overflows, is not binned.
+    let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
+    let scale = Vec3A::select(splittable, scale, Vec3A::ZERO);
     // (cost, axis, first bin on the right, left box, right box)
-    let mut best: Option<(f32, usize, usize, Aabb, Aabb)> = None;
-    if !opts.depth_forces_median(depth, n) && binners.iter().any(Option::is_some) {
-        let empty = Bin {
-            bbox: Aabb::EMPTY,
-            count: 0,
+    let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
+    if !opts.depth_forces_median(depth, n) && splittable.any() {
+        let fill = |refs: &[Ref]| fill_bins(refs, nbins, cbox.lo, scale);
+        // The top nodes, where the subtree parallelism has not started yet, bin in chunks
+        // on all threads (the union of boxes and sum of counts are order-independent).
+        let bins = if opts.parallel && n >= 4 * PARALLEL_MIN {
+            use rayon::prelude::*;
+            idx.par_chunks(PARALLEL_MIN)
+                .map(fill)
+                .reduce_with(merge_bins)
+                .expect("n > 0")
+        } else {
+            fill(idx)
         };
-        let mut bins = vec![[empty; 3]; nbins];
-        // Every axis is binned (a flat one all into bin 0, never chosen): no branch per axis.
-        let scale = binners.map(|b| b.map_or(0.0, |b| b.scale));
-        let lo = cbox.lo;
-        for &p in idx.iter() {
-            let (c, b) = (prims.centroids[p as usize], prims.boxes[p as usize]);
-            for a in 0..3 {
-                let k = (((c[a] - lo[a]) * scale[a]) as usize).min(nbins - 1);
-                let bin = &mut bins[k][a];
-                bin.bbox = bin.bbox.union(b);
-                bin.count += 1;
-            }
-        }
         let area = bbox.area();
-        let mut right = vec![(Aabb::EMPTY, 0usize); nbins];
-        for a in (0..3).filter(|&a| binners[a].is_some()) {
-            let mut acc = (Aabb::EMPTY, 0);
+        // Right-to-left: area and count of everything right of each boundary.
+        let mut right = vec![(0.0f32, 0usize); nbins];
+        for a in (0..3).filter(|&a| splittable.test(a)) {
+            let mut acc = (BoxA::EMPTY, 0);
+            let mut acc_area = 0.0;
             for s in (1..nbins).rev() {
-                acc = (acc.0.union(bins[s][a].bbox), acc.1 + bins[s][a].count);
-                right[s] = acc;
+                // An empty bin changes nothing (many are, in small nodes): skip its area.
+                if bins[s][a].count > 0 {
+                    acc = (acc.0.union(bins[s][a].bbox), acc.1 + bins[s][a].count);
+                    acc_area = acc.0.area();
+                }
+                right[s] = (acc_area, acc.1);
             }
-            let mut l = (Aabb::EMPTY, 0);
+            // Left-to-right: the best boundary by A_L·N_L + A_R·N_R, which orders the
+            // candidates as the cost does without a division each; the cost and the boxes
+            // are computed for the winner only.
+            let (mut l, mut best_axis) = ((BoxA::EMPTY, 0), None::<(f32, usize, f32)>);
             for s in 1..nbins {
-                l = (l.0.union(bins[s - 1][a].bbox), l.1 + bins[s - 1][a].count);
-                let r = right[s];
-                if l.1 == 0 || r.1 == 0 {
+                // After an empty bin the boundary splits exactly as the one before it did,
+                // which was already a candidate.
+                if bins[s - 1][a].count == 0 {
                     continue;
                 }
-                let cost = opts.split_cost(area, l.0.area(), l.1, r.0.area(), r.1);
+                l = (l.0.union(bins[s - 1][a].bbox), l.1 + bins[s - 1][a].count);
+                let r = right[s];
+                if r.1 == 0 {
+                    continue;
+                }
+                let al = l.0.area();
+                let key = al * l.1 as f32 + r.0 * r.1 as f32;
+                if best_axis.is_none_or(|b| key < b.0) {
+                    best_axis = Some((key, s, al));
+                }
+            }
+            if let Some((_, s, al)) = best_axis {
+                let (nl, r) = (n - right[s].1, right[s]);
+                let cost = opts.split_cost(area, al, nl, r.0, r.1);
                 if best.is_none_or(|b| cost < b.0) {
-                    best = Some((cost, a, s, l.0, r.0));
+                    let side = |r: std::ops::Range<usize>| {
+                        bins[r]
+                            .iter()
+                            .fold(BoxA::EMPTY, |b, bin| b.union(bin[a].bbox))
+                    };
+                    best = Some((cost, a, s, side(0..s), side(s..nbins)));
                 }
             }
         }
     }
-    let (k, axis, lbox, rbox) = match best {
+    let (k, axis, lbox, rbox, lc, rc) = match best {
         Some((cost, axis, s, lbox, rbox)) => {
             if opts.prefers_leaf(n, cost) {
                 return leaf(bbox, offset, n);
             }
-            let bn = binners[axis].expect("axis with extent");
-            let k = partition(idx, |p| bn.bin(prims.centroids[p as usize][axis]) < s);
-            (k, axis, lbox, rbox)
+            let (lo, scale) = (cbox.lo[axis], scale[axis]);
+            let (k, lc, rc) = partition(idx, |c| bin_index(c[axis], lo, scale, nbins - 1) < s);
+            (k, axis, lbox.aabb(), rbox.aabb(), lc, rc)
         }
         None => {
             // Depth cap or identical centroids: object median.
@@ -112,21 +241,22 @@ fn node(
             if !opts.depth_forces_median(depth, n) && opts.prefers_leaf(n, cost) {
                 return leaf(bbox, offset, n);
             }
-            let axis = cbox.longest_axis();
-            let k = median_split(prims, idx, axis);
-            (
-                k,
-                axis,
-                prims.bounds(&idx[..k]).0,
-                prims.bounds(&idx[k..]).0,
-            )
+            let axis = cbox.aabb().longest_axis();
+            let k = n / 2;
+            idx.select_nth_unstable_by(k, |a, b| {
+                let (ca, cb) = (a.centroid()[axis], b.centroid()[axis]);
+                ca.total_cmp(&cb).then(a.id().cmp(&b.id()))
+            });
+            let (lbox, lc) = bounds(&idx[..k]);
+            let (rbox, rc) = bounds(&idx[k..]);
+            (k, axis, lbox.aabb(), rbox.aabb(), lc, rc)
         }
     };
     let (l, r) = idx.split_at_mut(k);
     let (a, b) = join(
         opts.parallel && n >= PARALLEL_MIN,
-        || node(prims, opts, l, lbox, offset, depth + 1),
-        || node(prims, opts, r, rbox, offset + k, depth + 1),
+        || node(opts, l, lbox, lc, offset, depth + 1),
+        || node(opts, r, rbox, rc, offset + k, depth + 1),
     );
     Node::Inner {
         bbox,
@@ -135,16 +265,43 @@ fn node(
     }
 }
 
-/// In-place two-pointer partition (deterministic); returns the size of the `true` side.
-fn partition(idx: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
+/// Bins every reference on all three axes (a flat axis all into bin 0, never chosen), so
+/// there is no branch per axis.
+fn fill_bins(refs: &[Ref], nbins: usize, lo: Vec3A, scale: Vec3A) -> Vec<[Bin; 3]> {
+    let mut bins = vec![[EMPTY_BIN; 3]; nbins];
+    for r in refs {
+        let b = r.bbox();
+        let k = bin_of(r.centroid(), lo, scale, nbins - 1);
+        for a in 0..3 {
+            let bin = &mut bins[k[a]][a];
+            bin.bbox = bin.bbox.union(b);
+            bin.count += 1;
+        }
+    }
+    bins
+}
+
+fn merge_bins(mut a: Vec<[Bin; 3]>, b: Vec<[Bin; 3]>) -> Vec<[Bin; 3]> {
+    for (x, y) in a.iter_mut().flatten().zip(b.iter().flatten()) {
+        x.bbox = x.bbox.union(y.bbox);
+        x.count += y.count;
+    }
+    a
+}
+
+fn partition(idx: &mut [Ref], left: impl Fn(Vec3A) -> bool) -> (usize, BoxA, BoxA) {
     let (mut i, mut j) = (0, idx.len());
+    let (mut lc, mut rc) = (BoxA::EMPTY, BoxA::EMPTY);
     while i < j {
-        if left(idx[i]) {
+        let c = idx[i].centroid();
+        if left(c) {
+            lc = lc.grow(c);
             i += 1;
         } else {
+            rc = rc.grow(c);
             j -= 1;
             idx.swap(i, j);
         }
     }
-    i
+    (i, lc, rc)
 }

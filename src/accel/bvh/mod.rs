@@ -8,6 +8,7 @@ mod median;
 mod stats;
 mod sweep;
 
+pub use binned::MAX_BINS;
 pub use build::{build, BuildOptions, Builder, Bvh, Node, MAX_DEPTH};
 pub use flatten::{FlatBvh, GpuNode, GpuTri, LEAF_TAG};
 pub use stats::BvhStats;
