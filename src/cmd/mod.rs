@@ -24,7 +24,7 @@ pub struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Render a mesh's default view with one point light and shadows to a PNG.
+    /// Render a TOML scene (or an OBJ on a ground plane under a sun) to PNG or EXR.
     Render(render::RenderCmd),
     /// Build a BVH and print its statistics.
     Build(build::BuildCmd),

@@ -13,6 +13,12 @@ impl Triangle {
         Triangle { v: [a, b, c] }
     }
 
+    pub fn area(&self) -> f32 {
+        0.5 * (self.v[1] - self.v[0])
+            .cross(self.v[2] - self.v[0])
+            .length()
+    }
+
     pub fn bbox(&self) -> Aabb {
         Aabb::from_points(&self.v)
     }

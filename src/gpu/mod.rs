@@ -5,4 +5,5 @@ pub mod shaders;
 mod trace;
 
 pub use context::{AdapterReport, GpuContext};
+pub(crate) use trace::storage_entry;
 pub use trace::{GpuTimings, GpuTracer, Params, TraceKernel};

@@ -1,5 +1,19 @@
-//! Rendering on top of the tracers.
+//! Rendering on top of the tracers: TOML scenes, the effects they call for, the CPU
+//! reference renderer and the GPU renderer (one WGSL source specialised per effect set).
 
-mod preview;
+mod effects;
+mod gpu;
+mod image_out;
+mod integrator;
+mod sampling;
+mod scene;
+mod scene_file;
+mod shapes;
 
-pub use preview::{preview, PreviewOptions};
+pub use effects::EffectSet;
+pub use gpu::GpuRenderer;
+pub use image_out::{save_image, to_rgb8};
+pub use integrator::{sample_texture, CameraFrame, CpuRenderer};
+pub use sampling::{offset_origin, pcg, Rng};
+pub use scene::{Light, Material, RenderScene, Settings, Texture};
+pub use scene_file::{Integrator, MaterialKind, SceneFile};

@@ -5,7 +5,7 @@ mod load;
 mod mesh;
 mod obj;
 
-pub use camera::Camera;
+pub use camera::{Camera, PRIMARY_TMAX};
 pub use load::load_mesh;
 pub use mesh::{Mesh, TriStatus};
-pub use obj::load_obj;
+pub use obj::{load_obj, load_obj_scene, ObjScene};

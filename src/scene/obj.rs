@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::mesh::{classify, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
@@ -107,7 +107,25 @@ fn scan(path: &Path, src: &str) -> Result<Scan> {
 }
 
 /// Loads every triangle of an OBJ file in file order (polygons fan-triangulated).
+/// An OBJ file with what a renderer needs besides the triangles: per-triangle texture
+/// coordinates and material (index into `materials`, from the MTL files it names).
+#[derive(Clone, Debug, Default)]
+pub struct ObjScene {
+    pub mesh: Mesh,
+    /// Texture coordinates of each triangle's corners (zero where the file gives none).
+    pub uvs: Vec<[Vec2; 3]>,
+    pub material_ids: Vec<Option<usize>>,
+    pub materials: Vec<tobj::Material>,
+    /// Why the MTL library could not be read, if it could not.
+    pub mtl_error: Option<String>,
+}
+
 pub fn load_obj(path: &Path) -> Result<Mesh> {
+    load_obj_scene(path).map(|s| s.mesh)
+}
+
+/// Loads an OBJ file with its texture coordinates and MTL materials.
+pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
     let src = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let src = String::from_utf8(src)
         .map_err(|e| Error::input(path, None, format!("not UTF-8 text ({e})")))?;
@@ -119,15 +137,20 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
         ignore_lines: true,
     };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let (models, _materials) = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
+    let (models, materials) = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
         tobj::load_mtl(dir.join(p))
     })
     .map_err(|e| Error::input(path, None, format!("OBJ parse error: {e}")))?;
 
     let mut triangles = Vec::new();
     let mut status = Vec::new();
+    let mut uvs = Vec::new();
+    let mut material_ids = Vec::new();
     let mut pending = scan.out_of_range.iter().peekable();
-    let mut fill = |triangles: &mut Vec<Triangle>, status: &mut Vec<TriStatus>| {
+    let mut fill = |triangles: &mut Vec<Triangle>,
+                    status: &mut Vec<TriStatus>,
+                    uvs: &mut Vec<[Vec2; 3]>,
+                    material_ids: &mut Vec<Option<usize>>| {
         while let Some(&&(at, n)) = pending.peek() {
             if at != triangles.len() {
                 break;
@@ -135,6 +158,8 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
             for _ in 0..n {
                 triangles.push(placeholder());
                 status.push(TriStatus::OutOfRange);
+                uvs.push([Vec2::ZERO; 3]);
+                material_ids.push(None);
             }
             pending.next();
         }
@@ -145,17 +170,36 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
             let i = i as usize * 3;
             Vec3::new(p[i], p[i + 1], p[i + 2])
         };
-        for f in m.mesh.indices.chunks_exact(3) {
-            fill(&mut triangles, &mut status);
+        let tc = &m.mesh.texcoords;
+        let uv = |k: usize| {
+            m.mesh.texcoord_indices.get(k).map_or(Vec2::ZERO, |&i| {
+                let i = i as usize * 2;
+                Vec2::new(tc[i], tc[i + 1])
+            })
+        };
+        for (fi, f) in m.mesh.indices.chunks_exact(3).enumerate() {
+            fill(&mut triangles, &mut status, &mut uvs, &mut material_ids);
             let t = Triangle::new(vert(f[0]), vert(f[1]), vert(f[2]));
             status.push(classify(&t));
             triangles.push(t);
+            uvs.push([uv(3 * fi), uv(3 * fi + 1), uv(3 * fi + 2)]);
+            material_ids.push(m.mesh.material_id);
         }
     }
-    fill(&mut triangles, &mut status);
-    Ok(Mesh {
-        triangles,
-        status,
-        short_faces: scan.short_faces,
+    fill(&mut triangles, &mut status, &mut uvs, &mut material_ids);
+    let (materials, mtl_error) = match materials {
+        Ok(m) => (m, None),
+        Err(e) => (Vec::new(), Some(e.to_string())),
+    };
+    Ok(ObjScene {
+        mesh: Mesh {
+            triangles,
+            status,
+            short_faces: scan.short_faces,
+        },
+        uvs,
+        material_ids,
+        materials,
+        mtl_error,
     })
 }

@@ -1,0 +1,340 @@
+// The renderer: one sample of one pixel per invocation, added to an accumulation buffer.
+// render::integrator::CpuRenderer::sample operation for operation; the effects a scene
+// does not call for are override constants set false, so their code is compiled out.
+
+override SHADOWS: bool = true;
+override SOFT_SHADOWS: bool = true;
+override MIRROR: bool = true;
+override REFRACTION: bool = true;
+override INDIRECT: bool = true;
+override TEXTURES: bool = true;
+override AO: bool = true;
+override WORKGROUP_SIZE: u32 = 64u;
+
+const PI_INV: f32 = 0.3183098861837907;  // std::f32::consts::FRAC_1_PI
+const KIND_DIFFUSE: u32 = 0u;
+const KIND_MIRROR: u32 = 1u;
+const KIND_GLASS: u32 = 2u;
+const KIND_EMISSIVE: u32 = 3u;
+const INTEGRATOR_PATH: u32 = 1u;
+const INTEGRATOR_AO: u32 = 2u;
+const PRIMARY_TMAX: f32 = 3.4e38;  // scene::PRIMARY_TMAX
+
+// render::gpu::GpuShade: a triangle by original index, for shading.
+struct Shade {
+    v0: vec3<f32>,
+    material: u32,
+    v1: vec3<f32>,
+    pad1: u32,
+    v2: vec3<f32>,
+    pad2: u32,
+    uv0: vec2<f32>,
+    uv1: vec2<f32>,
+    uv2: vec2<f32>,
+    pad3: vec2<u32>,
+}
+
+// render::gpu::GpuMaterial
+struct Material {
+    albedo: vec3<f32>,
+    kind: u32,
+    emission: vec3<f32>,
+    ior: f32,
+    tex_offset: u32,
+    tex_width: u32,
+    tex_height: u32,
+    has_tex: u32,
+}
+
+// render::gpu::GpuLight: kind 0 point (v = position, power = intensity),
+// 1 directional (v = direction of travel, power = irradiance).
+struct Light {
+    v: vec3<f32>,
+    kind: u32,
+    power: vec3<f32>,
+    pad: u32,
+}
+
+// render::gpu::RenderParams
+struct Params {
+    eye: vec3<f32>,
+    width: u32,
+    fwd: vec3<f32>,
+    height: u32,
+    right: vec3<f32>,
+    inv_w2: f32,
+    up: vec3<f32>,
+    inv_h2: f32,
+    background: vec3<f32>,
+    seed: u32,
+    sample: u32,
+    offset: u32,
+    count: u32,
+    max_bounces: u32,
+    integrator: u32,
+    n_lights: u32,
+    n_emitters: u32,
+    emit_total: f32,
+    ao_distance: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(2) var<storage, read> shades: array<Shade>;
+@group(0) @binding(3) var<storage, read> materials: array<Material>;
+@group(0) @binding(4) var<storage, read> lights: array<Light>;
+// (original triangle index, running area sum as f32 bits)
+@group(0) @binding(5) var<storage, read> emitters: array<vec2<u32>>;
+@group(0) @binding(6) var<storage, read> texels: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> accum: array<vec4<f32>>;
+@group(0) @binding(8) var<uniform> params: Params;
+
+// sampling::pcg
+fn pcg(v: u32) -> u32 {
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+var<private> rng_state: u32;
+
+fn next_f32() -> f32 {
+    rng_state = pcg(rng_state);
+    return f32(rng_state >> 8u) * (1.0 / 16777216.0);
+}
+
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+
+fn normalize3(v: vec3<f32>) -> vec3<f32> {
+    let l = sqrt(dot3(v, v));
+    return vec3<f32>(v.x / l, v.y / l, v.z / l);
+}
+
+// sampling::cosine_direction
+fn cosine_direction(n: vec3<f32>) -> vec3<f32> {
+    var x = 0.0;
+    var y = 0.0;
+    for (var i = 0; i < 16; i += 1) {
+        let a = 2.0 * next_f32() - 1.0;
+        let b = 2.0 * next_f32() - 1.0;
+        if a * a + b * b <= 1.0 {
+            x = a;
+            y = b;
+            break;
+        }
+    }
+    let z = sqrt(max(1.0 - x * x - y * y, 0.0));
+    // sampling::basis
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let aa = -1.0 / (sign + n.z);
+    let bb = n.x * n.y * aa;
+    let t = vec3<f32>(1.0 + sign * n.x * n.x * aa, sign * bb, -sign * n.x);
+    let b = vec3<f32>(bb, sign + n.y * n.y * aa, -n.y);
+    return t * x + b * y + n * z;
+}
+
+// sampling::offset_origin (Wächter & Binder 2019)
+fn offset_coord(p: f32, n: f32) -> f32 {
+    let off = i32(256.0 * n);
+    let pi = bitcast<f32>(bitcast<i32>(p) + select(off, -off, p < 0.0));
+    return select(pi, p + n * (1.0 / 65536.0), abs(p) < 1.0 / 32.0);
+}
+
+fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(offset_coord(p.x, n.x), offset_coord(p.y, n.y), offset_coord(p.z, n.z));
+}
+
+fn occluded(origin: vec3<f32>, dir: vec3<f32>, tmax: f32) -> bool {
+    return traverse(Ray(origin, 0.0, dir, tmax), true).prim != MISS;
+}
+
+fn texel(m: Material, x: i32, y: i32) -> vec3<f32> {
+    return texels[m.tex_offset + u32(y * i32(m.tex_width) + x)].xyz;
+}
+
+// integrator::sample_texture
+fn sample_texture(m: Material, uv: vec2<f32>) -> vec3<f32> {
+    let w = i32(m.tex_width);
+    let h = i32(m.tex_height);
+    let u = uv.x - floor(uv.x);
+    let v = uv.y - floor(uv.y);
+    let x = u * f32(w) - 0.5;
+    let y = (1.0 - v) * f32(h) - 0.5;
+    let x0 = floor(x);
+    let y0 = floor(y);
+    let fx = x - x0;
+    let fy = y - y0;
+    let ix0 = ((i32(x0) % w) + w) % w;
+    let iy0 = ((i32(y0) % h) + h) % h;
+    let ix1 = (ix0 + 1) % w;
+    let iy1 = (iy0 + 1) % h;
+    let a = texel(m, ix0, iy0);
+    let b = texel(m, ix1, iy0);
+    let c = texel(m, ix0, iy1);
+    let d = texel(m, ix1, iy1);
+    let top = a + (b - a) * fx;
+    let bottom = c + (d - c) * fx;
+    return top + (bottom - top) * fy;
+}
+
+// CpuRenderer::direct
+fn direct(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let o = offset_origin(p, n);
+    var sum = vec3<f32>(0.0);
+    for (var i = 0u; i < params.n_lights; i += 1u) {
+        let l = lights[i];
+        if l.kind == 0u {
+            let d = l.v - p;
+            let d2 = dot3(d, d);
+            let c = dot3(n, d) / sqrt(d2);
+            if c > 0.0 && !(SHADOWS && occluded(o, l.v - o, 1.0)) {
+                sum += l.power * (c / d2);
+            }
+        } else {
+            let c = -dot3(n, l.v);
+            if c > 0.0 && !(SHADOWS && occluded(o, -l.v, PRIMARY_TMAX)) {
+                sum += l.power * c;
+            }
+        }
+    }
+    if SOFT_SHADOWS && params.n_emitters > 0u {
+        let target_area = next_f32() * params.emit_total;
+        var lo = 0u;
+        var hi = params.n_emitters - 1u;
+        while lo < hi {
+            let mid = (lo + hi) / 2u;
+            if bitcast<f32>(emitters[mid].y) > target_area {
+                hi = mid;
+            } else {
+                lo = mid + 1u;
+            }
+        }
+        let s = shades[emitters[lo].x];
+        let su = sqrt(next_f32());
+        let b0 = 1.0 - su;
+        let b1 = next_f32() * su;
+        let q = s.v0 * b0 + s.v1 * b1 + s.v2 * (1.0 - b0 - b1);
+        let nl = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
+        let d = q - p;
+        let d2 = dot3(d, d);
+        let dist = sqrt(d2);
+        let cs = dot3(n, d) / dist;
+        let cl = abs(dot3(nl, d)) / dist;
+        if cs > 0.0 && cl > 0.0 {
+            let toward = select(nl, -nl, dot3(nl, d) > 0.0);
+            let qt = offset_origin(q, toward);
+            if !(SHADOWS && occluded(o, qt - o, 1.0)) {
+                sum += materials[s.material].emission * (cs * cl / d2 * params.emit_total);
+            }
+        }
+    }
+    return sum;
+}
+
+// CpuRenderer::sample
+fn radiance(x: u32, y: u32) -> vec3<f32> {
+    let pixel = y * params.width + x;
+    rng_state = pcg(params.seed ^ pcg(pixel ^ pcg(params.sample)));
+    let jx = next_f32();
+    let jy = next_f32();
+    // CameraFrame::ray
+    let sx = (f32(x) + jx) * params.inv_w2 - 1.0;
+    let sy = 1.0 - (f32(y) + jy) * params.inv_h2;
+    var ray = Ray(params.eye, 0.0, normalize3(params.fwd + params.right * sx + params.up * sy), PRIMARY_TMAX);
+    var rad = vec3<f32>(0.0);
+    var beta = vec3<f32>(1.0);
+    var count_emission = true;
+    let nee = SOFT_SHADOWS && params.n_emitters > 0u;
+    for (var bounce = 0u; bounce <= params.max_bounces; bounce += 1u) {
+        let hit = traverse(ray, false);
+        if hit.prim == MISS {
+            rad += beta * params.background;
+            break;
+        }
+        let s = shades[hit.prim];
+        let mat = materials[s.material];
+        let w = 1.0 - hit.u - hit.v;
+        let p = s.v0 * w + s.v1 * hit.u + s.v2 * hit.v;
+        let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
+        let front = dot3(ng, ray.dir) < 0.0;
+        let n = select(-ng, ng, front);
+        if mat.kind == KIND_EMISSIVE {
+            if count_emission {
+                rad += beta * mat.emission;
+            }
+            break;
+        }
+        if AO && params.integrator == INTEGRATOR_AO {
+            let d = cosine_direction(n);
+            if !occluded(offset_origin(p, n), d, params.ao_distance) {
+                rad += beta;
+            }
+            break;
+        }
+        let last = bounce == params.max_bounces;
+        let mirror = MIRROR && mat.kind == KIND_MIRROR;
+        let glass = REFRACTION && mat.kind == KIND_GLASS;
+        let d = ray.dir;
+        let reflected = d - n * (2.0 * dot3(d, n));
+        if (mirror || glass) && last {
+            break;
+        }
+        if mirror {
+            beta *= mat.albedo;
+            ray = Ray(offset_origin(p, n), 0.0, reflected, PRIMARY_TMAX);
+            count_emission = true;
+            continue;
+        }
+        if glass {
+            let cos_i = -dot3(d, n);
+            let eta = select(mat.ior, 1.0 / mat.ior, front);
+            let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+            var r0 = (1.0 - mat.ior) / (1.0 + mat.ior);
+            r0 = r0 * r0;
+            let m = 1.0 - cos_i;
+            let fresnel = r0 + (1.0 - r0) * (m * m * m * m * m);
+            let u = next_f32();
+            beta *= mat.albedo;
+            count_emission = true;
+            if sin2_t >= 1.0 || u < fresnel {
+                ray = Ray(offset_origin(p, n), 0.0, reflected, PRIMARY_TMAX);
+            } else {
+                let cos_t = sqrt(1.0 - sin2_t);
+                let t = d * eta + n * (eta * cos_i - cos_t);
+                ray = Ray(offset_origin(p, -n), 0.0, t, PRIMARY_TMAX);
+            }
+            continue;
+        }
+        var albedo = mat.albedo;
+        if TEXTURES && mat.has_tex != 0u {
+            let uv = s.uv0 * w + s.uv1 * hit.u + s.uv2 * hit.v;
+            albedo = sample_texture(mat, uv);
+        }
+        rad += beta * albedo * PI_INV * direct(p, n);
+        if !(INDIRECT && params.integrator == INTEGRATOR_PATH) || last {
+            break;
+        }
+        beta *= albedo;
+        let dir = cosine_direction(n);
+        ray = Ray(offset_origin(p, n), 0.0, dir, PRIMARY_TMAX);
+        count_emission = !nee;
+    }
+    return rad;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.count {
+        return;
+    }
+    let pixel = params.offset + gid.x;
+    let c = radiance(pixel % params.width, pixel / params.width);
+    accum[pixel] += vec4<f32>(c, 0.0);
+}

@@ -1,0 +1,90 @@
+//! The effects a scene calls for. The set decides which code the render kernel keeps
+//! (WGSL `override` constants of one shader source) and which the CPU renderer runs.
+
+use super::scene::RenderScene;
+use super::scene_file::{Integrator, MaterialKind};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EffectSet {
+    /// Shadow rays toward lights (any light).
+    pub shadows: bool,
+    /// Area lights sampled at every diffuse hit (emissive triangles).
+    pub soft_shadows: bool,
+    /// Mirror reflection.
+    pub mirror: bool,
+    /// Refraction through glass.
+    pub refraction: bool,
+    /// Diffuse bounces (path integrator with max_bounces ≥ 1).
+    pub indirect: bool,
+    /// Albedo textures.
+    pub textures: bool,
+    /// Ambient occlusion (ao integrator).
+    pub ao: bool,
+}
+
+impl EffectSet {
+    /// Every effect on: the unspecialised kernel.
+    pub const ALL: EffectSet = EffectSet {
+        shadows: true,
+        soft_shadows: true,
+        mirror: true,
+        refraction: true,
+        indirect: true,
+        textures: true,
+        ao: true,
+    };
+
+    /// What `scene` needs, and nothing more.
+    pub fn of(scene: &RenderScene) -> EffectSet {
+        let s = &scene.settings;
+        let used = |k: MaterialKind| {
+            scene
+                .mesh
+                .included()
+                .iter()
+                .any(|&i| scene.materials[scene.material_of[i as usize] as usize].kind == k)
+        };
+        let ao = s.integrator == Integrator::Ao;
+        EffectSet {
+            shadows: !ao && (!scene.lights.is_empty() || !scene.emitters.is_empty()),
+            soft_shadows: !ao && !scene.emitters.is_empty(),
+            mirror: !ao && used(MaterialKind::Mirror),
+            refraction: !ao && used(MaterialKind::Glass),
+            indirect: s.integrator == Integrator::Path && s.max_bounces >= 1,
+            textures: !ao
+                && scene.mesh.included().iter().any(|&i| {
+                    scene.materials[scene.material_of[i as usize] as usize]
+                        .texture
+                        .is_some()
+                }),
+            ao,
+        }
+    }
+
+    /// (name, on) for printing and for the WGSL override constants.
+    pub fn flags(&self) -> [(&'static str, bool); 7] {
+        [
+            ("SHADOWS", self.shadows),
+            ("SOFT_SHADOWS", self.soft_shadows),
+            ("MIRROR", self.mirror),
+            ("REFRACTION", self.refraction),
+            ("INDIRECT", self.indirect),
+            ("TEXTURES", self.textures),
+            ("AO", self.ao),
+        ]
+    }
+}
+
+impl std::fmt::Display for EffectSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let on: Vec<String> = (self.flags().iter())
+            .filter(|x| x.1)
+            .map(|x| x.0.to_ascii_lowercase().replace('_', "-"))
+            .collect();
+        if on.is_empty() {
+            write!(f, "none (direct light only)")
+        } else {
+            write!(f, "{}", on.join(" "))
+        }
+    }
+}

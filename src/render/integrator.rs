@@ -1,0 +1,292 @@
+//! The CPU renderer: the integrator of shaders/render.wgsl, operation for operation, over
+//! the CPU reference tracer. It is the reference the GPU images are tested against.
+
+use std::f32::consts::FRAC_1_PI;
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::effects::EffectSet;
+use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, Rng};
+use super::scene::{Light, RenderScene, Texture};
+use super::scene_file::{Integrator, MaterialKind};
+use crate::accel::bvh::FlatBvh;
+use crate::geometry::{Ray, TriangleTest};
+use crate::scene::PRIMARY_TMAX;
+use crate::trace::{trace_ray, Query, RayStats};
+
+/// The camera as both renderers use it: per-pixel steps precomputed once on the CPU.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraFrame {
+    pub eye: Vec3,
+    pub fwd: Vec3,
+    /// right · half-width and up · half-height of the image plane at distance 1.
+    pub right: Vec3,
+    pub up: Vec3,
+    /// 2 / width, 2 / height.
+    pub inv_w2: f32,
+    pub inv_h2: f32,
+}
+
+impl CameraFrame {
+    pub fn new(scene: &RenderScene) -> CameraFrame {
+        let c = &scene.camera;
+        let fwd = (c.look_at - c.eye).normalize();
+        let right = fwd.cross(c.up).normalize();
+        let up = right.cross(fwd);
+        let hh = (0.5 * c.vfov_deg.to_radians()).tan();
+        let hw = hh * c.width as f32 / c.height as f32;
+        CameraFrame {
+            eye: c.eye,
+            fwd,
+            right: right * hw,
+            up: up * hh,
+            inv_w2: 2.0 / c.width as f32,
+            inv_h2: 2.0 / c.height as f32,
+        }
+    }
+
+    /// Ray through pixel (x, y) at jitter (jx, jy) ∈ [0, 1)².
+    pub fn ray(&self, x: u32, y: u32, jx: f32, jy: f32) -> Ray {
+        let sx = (x as f32 + jx) * self.inv_w2 - 1.0;
+        let sy = 1.0 - (y as f32 + jy) * self.inv_h2;
+        let d = normalize(self.fwd + self.right * sx + self.up * sy);
+        Ray::new(self.eye, d, 0.0, PRIMARY_TMAX)
+    }
+}
+
+/// Bilinear lookup with wrap-around, in linear RGB.
+pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
+    let (w, h) = (t.width as i32, t.height as i32);
+    let u = uv.x - uv.x.floor();
+    let v = uv.y - uv.y.floor();
+    let x = u * w as f32 - 0.5;
+    let y = (1.0 - v) * h as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let wrap = |i: i32, n: i32| ((i % n) + n) % n;
+    let (ix0, iy0) = (wrap(x0 as i32, w), wrap(y0 as i32, h));
+    let (ix1, iy1) = ((ix0 + 1) % w, (iy0 + 1) % h);
+    let at = |x: i32, y: i32| t.texels[(y * w + x) as usize];
+    let lerp = |a: Vec3, b: Vec3, f: f32| a + (b - a) * f;
+    lerp(
+        lerp(at(ix0, iy0), at(ix1, iy0), fx),
+        lerp(at(ix0, iy1), at(ix1, iy1), fx),
+        fy,
+    )
+}
+
+/// What the renderers need besides the scene: the BVH and which effects to simulate.
+pub struct CpuRenderer<'a> {
+    pub scene: &'a RenderScene,
+    pub bvh: &'a FlatBvh,
+    pub effects: EffectSet,
+    pub frame: CameraFrame,
+    /// Total emitter area (the last CDF entry).
+    emit_total: f32,
+}
+
+impl<'a> CpuRenderer<'a> {
+    pub fn new(scene: &'a RenderScene, bvh: &'a FlatBvh, effects: EffectSet) -> Self {
+        CpuRenderer {
+            scene,
+            bvh,
+            effects,
+            frame: CameraFrame::new(scene),
+            emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
+        }
+    }
+
+    fn closest(&self, r: &Ray) -> crate::geometry::Hit {
+        trace_ray(
+            self.bvh,
+            r,
+            Query::Closest,
+            TriangleTest::Watertight,
+            &mut RayStats::default(),
+        )
+    }
+
+    fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        let r = Ray::new(origin, dir, 0.0, tmax);
+        trace_ray(
+            self.bvh,
+            &r,
+            Query::Any,
+            TriangleTest::Watertight,
+            &mut RayStats::default(),
+        )
+        .is_hit()
+    }
+
+    /// Light arriving at p (normal n, facing the viewer) from every light, times cosine.
+    fn direct(&self, p: Vec3, n: Vec3, rng: &mut Rng) -> Vec3 {
+        let fx = self.effects;
+        let o = offset_origin(p, n);
+        let mut sum = Vec3::ZERO;
+        for l in &self.scene.lights {
+            match *l {
+                Light::Point {
+                    position,
+                    intensity,
+                } => {
+                    let d = position - p;
+                    let d2 = dot(d, d);
+                    let c = dot(n, d) / d2.sqrt();
+                    if c > 0.0 && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
+                        sum += intensity * (c / d2);
+                    }
+                }
+                Light::Directional {
+                    direction,
+                    irradiance,
+                } => {
+                    let c = -dot(n, direction);
+                    if c > 0.0 && !(fx.shadows && self.occluded(o, -direction, PRIMARY_TMAX)) {
+                        sum += irradiance * c;
+                    }
+                }
+            }
+        }
+        if fx.soft_shadows && !self.scene.emitters.is_empty() {
+            // One emitter, chosen in proportion to area, one uniform point on it.
+            let target = rng.next_f32() * self.emit_total;
+            let cdf = &self.scene.emitter_cdf;
+            let (mut lo, mut hi) = (0usize, cdf.len() - 1);
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                if cdf[mid] > target {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            let prim = self.scene.emitters[lo] as usize;
+            let tri = &self.scene.mesh.triangles[prim];
+            let su = rng.next_f32().sqrt();
+            let b0 = 1.0 - su;
+            let b1 = rng.next_f32() * su;
+            let q = tri.v[0] * b0 + tri.v[1] * b1 + tri.v[2] * (1.0 - b0 - b1);
+            let nl = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
+            let d = q - p;
+            let d2 = dot(d, d);
+            let dist = d2.sqrt();
+            let cs = dot(n, d) / dist;
+            let cl = dot(nl, d).abs() / dist;
+            if cs > 0.0 && cl > 0.0 {
+                let toward = if dot(nl, d) > 0.0 { -nl } else { nl };
+                let qt = offset_origin(q, toward);
+                if !(fx.shadows && self.occluded(o, qt - o, 1.0)) {
+                    let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+                    sum += mat.emission * (cs * cl / d2 * self.emit_total);
+                }
+            }
+        }
+        sum
+    }
+
+    /// One sample of the radiance along the camera ray of a pixel.
+    pub fn sample(&self, x: u32, y: u32, sample: u32) -> Vec3 {
+        let s = &self.scene.settings;
+        let fx = self.effects;
+        let pixel = y * self.scene.camera.width + x;
+        let mut rng = Rng::new(s.seed, pixel, sample);
+        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+        let mut ray = self.frame.ray(x, y, jx, jy);
+        let mut radiance = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let mut count_emission = true;
+        let nee = fx.soft_shadows && !self.scene.emitters.is_empty();
+        for bounce in 0..=s.max_bounces {
+            let hit = self.closest(&ray);
+            if !hit.is_hit() {
+                radiance += beta * s.background;
+                break;
+            }
+            let prim = hit.prim as usize;
+            let tri = &self.scene.mesh.triangles[prim];
+            let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+            let w = 1.0 - hit.u - hit.v;
+            let p = tri.v[0] * w + tri.v[1] * hit.u + tri.v[2] * hit.v;
+            let ng = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
+            let front = dot(ng, ray.dir) < 0.0;
+            let n = if front { ng } else { -ng };
+            if mat.kind == MaterialKind::Emissive {
+                if count_emission {
+                    radiance += beta * mat.emission;
+                }
+                break;
+            }
+            if fx.ao && s.integrator == Integrator::Ao {
+                let d = cosine_direction(n, &mut rng);
+                if !self.occluded(offset_origin(p, n), d, s.ao_distance) {
+                    radiance += beta;
+                }
+                break;
+            }
+            let last = bounce == s.max_bounces;
+            let mirror = fx.mirror && mat.kind == MaterialKind::Mirror;
+            let glass = fx.refraction && mat.kind == MaterialKind::Glass;
+            let d = ray.dir;
+            let reflected = d - n * (2.0 * dot(d, n));
+            if (mirror || glass) && last {
+                break;
+            }
+            if mirror {
+                beta *= mat.albedo;
+                ray = Ray::new(offset_origin(p, n), reflected, 0.0, PRIMARY_TMAX);
+                count_emission = true;
+                continue;
+            }
+            if glass {
+                let cos_i = -dot(d, n);
+                let eta = if front { 1.0 / mat.ior } else { mat.ior };
+                let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+                let r0 = (1.0 - mat.ior) / (1.0 + mat.ior);
+                let r0 = r0 * r0;
+                let m = 1.0 - cos_i;
+                let fresnel = r0 + (1.0 - r0) * (m * m * m * m * m);
+                let u = rng.next_f32();
+                beta *= mat.albedo;
+                count_emission = true;
+                if sin2_t >= 1.0 || u < fresnel {
+                    ray = Ray::new(offset_origin(p, n), reflected, 0.0, PRIMARY_TMAX);
+                } else {
+                    let cos_t = (1.0 - sin2_t).sqrt();
+                    let t = d * eta + n * (eta * cos_i - cos_t);
+                    ray = Ray::new(offset_origin(p, -n), t, 0.0, PRIMARY_TMAX);
+                }
+                continue;
+            }
+            // Diffuse.
+            let albedo = match mat.texture {
+                Some(t) if fx.textures => {
+                    let uv = self.scene.uvs[prim];
+                    let uv = uv[0] * w + uv[1] * hit.u + uv[2] * hit.v;
+                    sample_texture(&self.scene.textures[t], uv)
+                }
+                _ => mat.albedo,
+            };
+            radiance += beta * albedo * FRAC_1_PI * self.direct(p, n, &mut rng);
+            if !(fx.indirect && s.integrator == Integrator::Path) || last {
+                break;
+            }
+            beta *= albedo;
+            let dir = cosine_direction(n, &mut rng);
+            ray = Ray::new(offset_origin(p, n), dir, 0.0, PRIMARY_TMAX);
+            count_emission = !nee;
+        }
+        radiance
+    }
+
+    /// Adds samples [first, first + count) of every pixel to `accum` (row-major).
+    pub fn accumulate(&self, accum: &mut [Vec3], first: u32, count: u32) {
+        let w = self.scene.camera.width;
+        accum.par_iter_mut().enumerate().for_each(|(i, a)| {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            for s in first..first + count {
+                *a += self.sample(x, y, s);
+            }
+        });
+    }
+}

@@ -1,0 +1,104 @@
+//! Random numbers and sampling shared, operation for operation, with shaders/render.wgsl:
+//! integer hashing only, no transcendental functions (their GPU implementations differ),
+//! so CPU and GPU draw the same numbers and the same directions.
+
+use glam::Vec3;
+
+/// PCG hash (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering").
+#[inline]
+pub fn pcg(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+/// Per-(seed, pixel, sample) random stream.
+pub struct Rng(u32);
+
+impl Rng {
+    pub fn new(seed: u32, pixel: u32, sample: u32) -> Rng {
+        Rng(pcg(seed ^ pcg(pixel ^ pcg(sample))))
+    }
+
+    pub fn next_u32(&mut self) -> u32 {
+        self.0 = pcg(self.0);
+        self.0
+    }
+
+    /// Uniform in [0, 1), 24 bits.
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+    }
+}
+
+#[inline]
+pub fn dot(a: Vec3, b: Vec3) -> f32 {
+    a.x * b.x + a.y * b.y + a.z * b.z
+}
+
+#[inline]
+pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(
+        a.y * b.z - a.z * b.y,
+        a.z * b.x - a.x * b.z,
+        a.x * b.y - a.y * b.x,
+    )
+}
+
+/// v / |v| (a division, not a reciprocal square root: exact on both sides).
+#[inline]
+pub fn normalize(v: Vec3) -> Vec3 {
+    let l = dot(v, v).sqrt();
+    Vec3::new(v.x / l, v.y / l, v.z / l)
+}
+
+/// Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis,
+/// Revisited").
+#[inline]
+pub fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// Cosine-weighted direction about unit n: a point of the unit disk by rejection (at most
+/// 16 tries, then the centre) lifted onto the hemisphere.
+pub fn cosine_direction(n: Vec3, rng: &mut Rng) -> Vec3 {
+    let (mut x, mut y) = (0.0f32, 0.0f32);
+    for _ in 0..16 {
+        let a = 2.0 * rng.next_f32() - 1.0;
+        let b = 2.0 * rng.next_f32() - 1.0;
+        if a * a + b * b <= 1.0 {
+            (x, y) = (a, b);
+            break;
+        }
+    }
+    let z = (1.0 - x * x - y * y).max(0.0).sqrt();
+    let (t, b) = basis(n);
+    t * x + b * y + n * z
+}
+
+/// Wächter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection" (Ray
+/// Tracing Gems, ch. 6): moves p off the surface along n by a few ulps of p's own
+/// magnitude (a relative, not a scene-size, offset); near the origin by a tiny constant.
+pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65_536.0;
+    const INT_SCALE: f32 = 256.0;
+    let f = |p: f32, n: f32| {
+        let of = (INT_SCALE * n) as i32;
+        let pi = f32::from_bits(
+            (p.to_bits() as i32).wrapping_add(if p < 0.0 { -of } else { of }) as u32,
+        );
+        if p.abs() < ORIGIN {
+            p + FLOAT_SCALE * n
+        } else {
+            pi
+        }
+    };
+    Vec3::new(f(p.x, n.x), f(p.y, n.y), f(p.z, n.z))
+}

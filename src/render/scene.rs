@@ -1,0 +1,508 @@
+//! A scene ready to render: every object's triangles in one mesh (triangle index = the
+//! order of objects in the file, then file order within each), per-triangle materials
+//! and texture coordinates, lights, and the emissive triangles that act as area lights.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Mat3, Vec2, Vec3};
+
+use super::scene_file::{
+    line_of, Integrator, LightKind, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
+};
+use super::shapes;
+use crate::error::{Error, Result};
+use crate::geometry::Triangle;
+use crate::scene::{load_obj_scene, Camera, Mesh, TriStatus};
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub kind: MaterialKind,
+    /// Linear RGB reflectance / transmittance tint.
+    pub albedo: Vec3,
+    pub emission: Vec3,
+    pub ior: f32,
+    pub texture: Option<usize>,
+}
+
+impl Material {
+    pub fn diffuse(albedo: Vec3) -> Material {
+        Material {
+            kind: MaterialKind::Diffuse,
+            albedo,
+            emission: Vec3::ZERO,
+            ior: 1.0,
+            texture: None,
+        }
+    }
+}
+
+/// A texture in linear RGB, row 0 at the top (v = 1).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec3>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Light {
+    /// Radiant intensity from a point.
+    Point { position: Vec3, intensity: Vec3 },
+    /// Irradiance arriving along `direction` (unit, the way the light travels).
+    Directional { direction: Vec3, irradiance: Vec3 },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub integrator: Integrator,
+    pub max_bounces: u32,
+    pub spp: u32,
+    pub seed: u32,
+    pub background: Vec3,
+    pub ao_distance: f32,
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderScene {
+    pub camera: Camera,
+    pub settings: Settings,
+    pub mesh: Mesh,
+    pub uvs: Vec<[Vec2; 3]>,
+    /// Material index of every triangle.
+    pub material_of: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub lights: Vec<Light>,
+    /// Emissive triangles in the BVH (area lights), with the running sum of their areas.
+    pub emitters: Vec<u32>,
+    pub emitter_cdf: Vec<f32>,
+}
+
+/// sRGB 8-bit → linear, exactly as the image would be displayed.
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn load_texture(path: &Path) -> Result<Texture> {
+    let img = image::open(path)
+        .map_err(|e| Error::input(path, None, format!("cannot read texture: {e}")))?
+        .to_rgb8();
+    let lut: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
+    Ok(Texture {
+        width: img.width(),
+        height: img.height(),
+        texels: img
+            .pixels()
+            .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
+            .collect(),
+    })
+}
+
+/// Accumulates objects into one mesh.
+#[derive(Default)]
+struct Builder {
+    triangles: Vec<Triangle>,
+    status: Vec<TriStatus>,
+    uvs: Vec<[Vec2; 3]>,
+    material_of: Vec<u32>,
+    materials: Vec<Material>,
+    textures: Vec<Texture>,
+    texture_ids: HashMap<PathBuf, usize>,
+    short_faces: usize,
+}
+
+impl Builder {
+    fn texture(&mut self, path: &Path) -> Result<usize> {
+        if let Some(&i) = self.texture_ids.get(path) {
+            return Ok(i);
+        }
+        let t = load_texture(path)?;
+        self.textures.push(t);
+        self.texture_ids
+            .insert(path.to_path_buf(), self.textures.len() - 1);
+        Ok(self.textures.len() - 1)
+    }
+
+    fn material(&mut self, m: Material) -> u32 {
+        if let Some(i) = self.materials.iter().position(|x| *x == m) {
+            return i as u32;
+        }
+        self.materials.push(m);
+        (self.materials.len() - 1) as u32
+    }
+
+    fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
+        // A transform can make a good triangle degenerate or overflow: classify again.
+        let status = match status {
+            TriStatus::Ok => Mesh::from_triangles(vec![t]).status[0],
+            s => s,
+        };
+        self.triangles.push(t);
+        self.status.push(status);
+        self.uvs.push(uv);
+        self.material_of.push(material);
+    }
+}
+
+/// Material from an MTL entry: Kd (or map_Kd) diffuse, Ke emissive, illum 5 mirror,
+/// illum 7 glass with Ni.
+fn mtl_material(b: &mut Builder, dir: &Path, m: &tobj::Material) -> Result<Material> {
+    let kd = Vec3::from(m.diffuse.unwrap_or([0.7; 3]));
+    let ke = Vec3::from(m.emissive.unwrap_or([0.0; 3]));
+    let mut mat = Material::diffuse(kd);
+    if ke.max_element() > 0.0 {
+        mat.kind = MaterialKind::Emissive;
+        mat.emission = ke;
+    } else if m.illumination_model == Some(5) {
+        mat.kind = MaterialKind::Mirror;
+        mat.albedo = Vec3::from(m.specular.unwrap_or([1.0; 3]));
+    } else if m.illumination_model == Some(7) {
+        mat.kind = MaterialKind::Glass;
+        mat.albedo = Vec3::ONE;
+        mat.ior = m.optical_density.unwrap_or(1.5);
+    } else if let Some(t) = &m.diffuse_texture {
+        mat.texture = Some(b.texture(&dir.join(t))?);
+    }
+    Ok(mat)
+}
+
+fn transform(o: &ObjectDef) -> (Mat3, Vec3) {
+    let s = match o.scale {
+        Scale::Uniform(s) => Vec3::splat(s),
+        Scale::Axes(a) => Vec3::from(a),
+    };
+    let [rx, ry, rz] = o.rotate.map(f32::to_radians);
+    let r = Mat3::from_rotation_z(rz) * Mat3::from_rotation_y(ry) * Mat3::from_rotation_x(rx);
+    (r * Mat3::from_diagonal(s), Vec3::from(o.translate))
+}
+
+fn check_rgb(path: &Path, line: usize, what: &str, c: [f32; 3]) -> Result<Vec3> {
+    if c.iter().any(|x| !x.is_finite() || *x < 0.0) {
+        return Err(Error::input(
+            path,
+            Some(line),
+            format!("{what} must be finite and non-negative, got {c:?}"),
+        ));
+    }
+    Ok(Vec3::from(c))
+}
+
+fn scene_material(
+    b: &mut Builder,
+    path: &Path,
+    dir: &Path,
+    line: usize,
+    name: &str,
+    d: &MaterialDef,
+) -> Result<Material> {
+    let bad = |msg: String| Error::input(path, Some(line), format!("material '{name}': {msg}"));
+    let only = |field: &str, set: bool, kinds: &str| {
+        if set {
+            Err(bad(format!("'{field}' applies to {kinds} materials only")))
+        } else {
+            Ok(())
+        }
+    };
+    let mut m = Material::diffuse(Vec3::ONE);
+    m.kind = d.kind;
+    only(
+        "texture",
+        d.texture.is_some() && d.kind != MaterialKind::Diffuse,
+        "diffuse",
+    )?;
+    only(
+        "ior",
+        d.ior.is_some() && d.kind != MaterialKind::Glass,
+        "glass",
+    )?;
+    only(
+        "emission",
+        d.emission.is_some() && d.kind != MaterialKind::Emissive,
+        "emissive",
+    )?;
+    if let Some(a) = d.albedo {
+        m.albedo = check_rgb(path, line, "albedo", a)?;
+    } else if d.kind == MaterialKind::Diffuse && d.texture.is_none() {
+        m.albedo = Vec3::splat(0.7);
+    }
+    match d.kind {
+        MaterialKind::Emissive => {
+            let e = d
+                .emission
+                .ok_or_else(|| bad("needs 'emission = [r, g, b]'".into()))?;
+            m.emission = check_rgb(path, line, "emission", e)?;
+        }
+        MaterialKind::Glass => {
+            m.ior = d.ior.unwrap_or(1.5);
+            if !(m.ior >= 1.0 && m.ior <= 4.0) {
+                return Err(bad(format!("ior must be in [1, 4], got {}", m.ior)));
+            }
+        }
+        _ => {}
+    }
+    if let Some(t) = &d.texture {
+        m.texture = Some(b.texture(&dir.join(t))?);
+    }
+    Ok(m)
+}
+
+impl RenderScene {
+    /// Reads a TOML scene file and everything it names.
+    pub fn from_file(path: &Path) -> Result<RenderScene> {
+        let src = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let f = SceneFile::parse(path, &src)?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let line = |span: std::ops::Range<usize>| line_of(&src, span.start);
+        let mut b = Builder::default();
+
+        let mut named = HashMap::new();
+        for (name, d) in &f.materials {
+            let m = scene_material(&mut b, path, &dir, line(d.span()), name, d.get_ref())?;
+            named.insert(name.clone(), b.material(m));
+        }
+        let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
+
+        if f.objects.is_empty() {
+            return Err(Error::input(
+                path,
+                None,
+                "no [[objects]]: nothing to render",
+            ));
+        }
+        for o in &f.objects {
+            let ln = line(o.span());
+            let o = o.get_ref();
+            let bad = |msg: String| Error::input(path, Some(ln), msg);
+            let mat = match &o.material {
+                Some(n) => Some(
+                    *named
+                        .get(n)
+                        .ok_or_else(|| bad(format!("no material named '{n}' in [materials]")))?,
+                ),
+                None => None,
+            };
+            let (m, t) = transform(o);
+            let xf = |p: Vec3| m * p + t;
+            match (&o.mesh, o.shape) {
+                (Some(file), None) => {
+                    let mesh_path = dir.join(file);
+                    let obj = load_obj_scene(&mesh_path)?;
+                    if let Some(e) = &obj.mtl_error {
+                        eprintln!(
+                            "{}: warning: materials not read ({e}); using grey",
+                            mesh_path.display()
+                        );
+                    }
+                    let mesh_dir = mesh_path
+                        .parent()
+                        .map(Path::to_path_buf)
+                        .unwrap_or_default();
+                    let mut mtl = Vec::new();
+                    for mm in &obj.materials {
+                        let m = mtl_material(&mut b, &mesh_dir, mm)?;
+                        mtl.push(b.material(m));
+                    }
+                    for (i, tri) in obj.mesh.triangles.iter().enumerate() {
+                        let id = mat.unwrap_or_else(|| {
+                            obj.material_ids[i]
+                                .and_then(|k| mtl.get(k).copied())
+                                .unwrap_or(grey)
+                        });
+                        let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
+                        b.push(t, obj.mesh.status[i], obj.uvs[i], id);
+                    }
+                    b.short_faces += obj.mesh.short_faces;
+                }
+                (None, Some(shape)) => {
+                    let (tris, uvs) = match shape {
+                        super::scene_file::Shape::Quad => shapes::quad(),
+                        super::scene_file::Shape::Box => shapes::cube(),
+                        super::scene_file::Shape::Sphere => shapes::sphere(o.segments),
+                    };
+                    for (tri, uv) in tris.iter().zip(uvs) {
+                        let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
+                        b.push(t, TriStatus::Ok, uv, mat.unwrap_or(grey));
+                    }
+                }
+                _ => {
+                    return Err(bad(
+                        "an object needs exactly one of 'mesh' and 'shape'".into()
+                    ))
+                }
+            }
+        }
+
+        let mut lights = Vec::new();
+        for l in &f.lights {
+            let ln = line(l.span());
+            let l = l.get_ref();
+            let bad = |msg: &str| Error::input(path, Some(ln), msg.to_string());
+            let power = check_rgb(path, ln, "color", l.color)? * l.intensity.max(0.0);
+            lights.push(match l.kind {
+                LightKind::Point => Light::Point {
+                    position: Vec3::from(
+                        l.position
+                            .ok_or_else(|| bad("a point light needs 'position'"))?,
+                    ),
+                    intensity: power,
+                },
+                LightKind::Directional => {
+                    let d = Vec3::from(
+                        l.direction
+                            .ok_or_else(|| bad("a directional light needs 'direction'"))?,
+                    );
+                    if !(d.length() > 0.0) {
+                        return Err(bad("'direction' must not be zero"));
+                    }
+                    Light::Directional {
+                        direction: d.normalize(),
+                        irradiance: power,
+                    }
+                }
+            });
+        }
+
+        let c = &f.camera;
+        let ln = line_of(&src, src.find("[camera]").unwrap_or(0));
+        if c.width == 0 || c.height == 0 || !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(Error::input(
+                path,
+                Some(ln),
+                "camera: width and height must be positive and fov in (0, 180) degrees",
+            ));
+        }
+        if Vec3::from(c.position) == Vec3::from(c.look_at) {
+            return Err(Error::input(
+                path,
+                Some(ln),
+                "camera: position equals look_at",
+            ));
+        }
+        let camera = Camera {
+            eye: c.position.into(),
+            look_at: c.look_at.into(),
+            up: c.up.into(),
+            vfov_deg: c.fov,
+            width: c.width,
+            height: c.height,
+        };
+        let r = &f.render;
+        let settings = Settings {
+            integrator: r.integrator,
+            max_bounces: r.max_bounces,
+            spp: r.spp.max(1),
+            seed: r.seed,
+            background: check_rgb(path, 1, "background", r.background)?,
+            ao_distance: r.ao_distance.unwrap_or(0.0),
+        };
+        b.finish(path, camera, settings, lights)
+    }
+
+    /// `lancer render MESH.obj`: the mesh from its default view, on a ground plane, lit by
+    /// a sun and a sky-coloured background.
+    pub fn from_mesh(path: &Path, width: u32, height: u32) -> Result<RenderScene> {
+        let obj = load_obj_scene(path)?;
+        let bounds = obj.mesh.bounds();
+        let mut b = Builder::default();
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut mtl = Vec::new();
+        for mm in &obj.materials {
+            let m = mtl_material(&mut b, &dir, mm)?;
+            mtl.push(b.material(m));
+        }
+        let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
+        for (i, tri) in obj.mesh.triangles.iter().enumerate() {
+            let id = obj.material_ids[i]
+                .and_then(|k| mtl.get(k).copied())
+                .unwrap_or(grey);
+            b.push(*tri, obj.mesh.status[i], obj.uvs[i], id);
+        }
+        b.short_faces = obj.mesh.short_faces;
+        if !bounds.is_empty() {
+            let r = 0.5 * bounds.extent().length();
+            let ground = b.material(Material::diffuse(Vec3::splat(0.5)));
+            let (tris, uvs) = shapes::quad();
+            let c = Vec3::new(bounds.center().x, bounds.lo.y, bounds.center().z);
+            for (tri, uv) in tris.iter().zip(uvs) {
+                let t = Triangle::new(
+                    c + tri.v[0] * 20.0 * r,
+                    c + tri.v[1] * 20.0 * r,
+                    c + tri.v[2] * 20.0 * r,
+                );
+                b.push(t, TriStatus::Ok, uv, ground);
+            }
+        }
+        let camera = Camera::default_view(&bounds, width, height);
+        let settings = Settings {
+            integrator: Integrator::Path,
+            max_bounces: 2,
+            spp: 16,
+            seed: 0,
+            background: Vec3::new(0.35, 0.45, 0.6),
+            ao_distance: 0.0,
+        };
+        let lights = vec![Light::Directional {
+            direction: Vec3::new(-0.4, -1.0, -0.5).normalize(),
+            irradiance: Vec3::new(2.6, 2.4, 2.1),
+        }];
+        b.finish(path, camera, settings, lights)
+    }
+}
+
+impl Builder {
+    fn finish(
+        self,
+        path: &Path,
+        camera: Camera,
+        mut settings: Settings,
+        lights: Vec<Light>,
+    ) -> Result<RenderScene> {
+        let mesh = Mesh {
+            triangles: self.triangles,
+            status: self.status,
+            short_faces: self.short_faces,
+        };
+        if let Some(s) = mesh.exclusion_summary() {
+            eprintln!("{}: warning: {s}", path.display());
+        }
+        if mesh.included().is_empty() {
+            return Err(Error::input(
+                path,
+                None,
+                "no usable triangle: nothing to render",
+            ));
+        }
+        if settings.ao_distance <= 0.0 {
+            settings.ao_distance = 0.1 * mesh.bounds().extent().length();
+        }
+        let mut emitters = Vec::new();
+        let mut emitter_cdf = Vec::new();
+        let mut total = 0.0f32;
+        for i in mesh.included() {
+            let m = &self.materials[self.material_of[i as usize] as usize];
+            if m.kind == MaterialKind::Emissive && m.emission.max_element() > 0.0 {
+                total += mesh.triangles[i as usize].area();
+                emitters.push(i);
+                emitter_cdf.push(total);
+            }
+        }
+        Ok(RenderScene {
+            camera,
+            settings,
+            mesh,
+            uvs: self.uvs,
+            material_of: self.material_of,
+            materials: self.materials,
+            textures: self.textures,
+            lights,
+            emitters,
+            emitter_cdf,
+        })
+    }
+}

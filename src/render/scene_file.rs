@@ -1,0 +1,216 @@
+//! The TOML scene format (documented in README.md). Parsing only: `scene.rs` turns a
+//! `SceneFile` into something the renderers can use. Unknown keys and bad values are
+//! refused with `FILE:LINE: message`.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::error::{Error, Result};
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Direct light (point, directional and area lights) plus mirror/glass chains.
+    Direct,
+    /// Path tracing: direct light at every diffuse bounce, up to max_bounces bounces.
+    #[default]
+    Path,
+    /// Ambient occlusion: the fraction of a cosine lobe unoccluded within ao_distance.
+    Ao,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub camera: CameraDef,
+    #[serde(default)]
+    pub render: RenderDef,
+    #[serde(default)]
+    pub materials: BTreeMap<String, Spanned<MaterialDef>>,
+    #[serde(default)]
+    pub objects: Vec<Spanned<ObjectDef>>,
+    #[serde(default)]
+    pub lights: Vec<Spanned<LightDef>>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDef {
+    pub position: [f32; 3],
+    pub look_at: [f32; 3],
+    #[serde(default = "up")]
+    pub up: [f32; 3],
+    /// Vertical field of view, degrees.
+    #[serde(default = "fov")]
+    pub fov: f32,
+    #[serde(default = "width")]
+    pub width: u32,
+    #[serde(default = "height")]
+    pub height: u32,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDef {
+    #[serde(default)]
+    pub integrator: Integrator,
+    #[serde(default = "max_bounces")]
+    pub max_bounces: u32,
+    #[serde(default = "spp")]
+    pub spp: u32,
+    #[serde(default)]
+    pub seed: u32,
+    #[serde(default)]
+    pub background: [f32; 3],
+    /// AO ray length; default: a tenth of the scene's bounding-box diagonal.
+    pub ao_distance: Option<f32>,
+}
+
+impl Default for RenderDef {
+    fn default() -> Self {
+        RenderDef {
+            integrator: Integrator::default(),
+            max_bounces: max_bounces(),
+            spp: spp(),
+            seed: 0,
+            background: [0.0; 3],
+            ao_distance: None,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MaterialKind {
+    Diffuse,
+    Mirror,
+    Glass,
+    Emissive,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDef {
+    #[serde(rename = "type")]
+    pub kind: MaterialKind,
+    /// Linear RGB reflectance (diffuse, mirror) or transmittance tint (glass).
+    pub albedo: Option<[f32; 3]>,
+    /// Image file (PNG, JPEG…), relative to the scene file; diffuse only.
+    pub texture: Option<String>,
+    /// Index of refraction (glass).
+    pub ior: Option<f32>,
+    /// Emitted radiance (emissive).
+    pub emission: Option<[f32; 3]>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Shape {
+    /// Unit square in the XZ plane, centred, facing +Y.
+    Quad,
+    /// Unit cube, centred.
+    Box,
+    /// Unit-radius sphere, centred, tessellated.
+    Sphere,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum Scale {
+    Uniform(f32),
+    Axes([f32; 3]),
+}
+
+impl Default for Scale {
+    fn default() -> Self {
+        Scale::Uniform(1.0)
+    }
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectDef {
+    /// OBJ file, relative to the scene file. Exactly one of `mesh` and `shape`.
+    pub mesh: Option<String>,
+    pub shape: Option<Shape>,
+    /// Material name; default: the OBJ's MTL materials, else a grey diffuse.
+    pub material: Option<String>,
+    #[serde(default)]
+    pub scale: Scale,
+    /// Rotation in degrees about X, then Y, then Z.
+    #[serde(default)]
+    pub rotate: [f32; 3],
+    #[serde(default)]
+    pub translate: [f32; 3],
+    /// Sphere tessellation: segments around (rings are half as many).
+    #[serde(default = "segments")]
+    pub segments: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LightKind {
+    /// Radiant intensity `color·intensity` from `position`, falling off with 1/d².
+    Point,
+    /// Irradiance `color·intensity` arriving along `direction` (a sun).
+    Directional,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightDef {
+    #[serde(rename = "type")]
+    pub kind: LightKind,
+    pub position: Option<[f32; 3]>,
+    pub direction: Option<[f32; 3]>,
+    #[serde(default = "white")]
+    pub color: [f32; 3],
+    #[serde(default = "one")]
+    pub intensity: f32,
+}
+
+fn up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn fov() -> f32 {
+    40.0
+}
+fn width() -> u32 {
+    512
+}
+fn height() -> u32 {
+    512
+}
+fn max_bounces() -> u32 {
+    4
+}
+fn spp() -> u32 {
+    16
+}
+fn segments() -> u32 {
+    32
+}
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+fn one() -> f32 {
+    1.0
+}
+
+/// 1-based line of a byte offset.
+pub fn line_of(src: &str, offset: usize) -> usize {
+    src[..offset.min(src.len())].matches('\n').count() + 1
+}
+
+impl SceneFile {
+    /// Parses scene text; errors name `path` and the line.
+    pub fn parse(path: &Path, src: &str) -> Result<SceneFile> {
+        toml::from_str(src).map_err(|e| {
+            let line = e.span().map(|s| line_of(src, s.start));
+            Error::input(path, line, e.message().trim().to_string())
+        })
+    }
+}
