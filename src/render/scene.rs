@@ -357,7 +357,7 @@ impl RenderScene {
                         l.direction
                             .ok_or_else(|| bad("a directional light needs 'direction'"))?,
                     );
-                    if !(d.length() > 0.0) {
+                    if d.length().is_nan() || d.length() <= 0.0 {
                         return Err(bad("'direction' must not be zero"));
                     }
                     Light::Directional {

@@ -1,0 +1,233 @@
+//! The renderer: GPU (lavapipe in CI) against the CPU reference on every scene in scenes/,
+//! effect specialisation (a specialised kernel renders what the all-effects kernel does;
+//! switching an effect the scene uses off changes the image), and scene-file errors.
+
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use glam::Vec3;
+use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::gpu::GpuContext;
+use lancer::render::{to_rgb8, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
+
+fn gpu() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| match GpuContext::new() {
+        Ok(c) => c,
+        Err(e) => panic!("GPU tests need an adapter: {e}"),
+    })
+}
+
+fn scenes_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// Every scene file, small: 64×48 (keeps CI fast).
+fn scenes() -> Vec<(String, RenderScene, FlatBvh)> {
+    let mut out = Vec::new();
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(scenes_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    for p in paths {
+        let name = p.file_stem().unwrap().to_string_lossy().to_string();
+        let needs_shared = std::fs::read_to_string(&p)
+            .unwrap()
+            .contains("shared/models");
+        if needs_shared && !scenes_dir().join("../../shared/models").exists() {
+            assert!(std::env::var("CI").is_err(), "{name} needs ../shared in CI");
+            eprintln!("skipping {name}: ../shared/models not present (outside CI)");
+            continue;
+        }
+        let mut s = RenderScene::from_file(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+        s.camera.width = 64;
+        s.camera.height = 48;
+        let flat = FlatBvh::new(&build(&s.mesh, &BuildOptions::default()), &s.mesh);
+        out.push((name, s, flat));
+    }
+    assert!(
+        out.len() >= 5,
+        "expected the shipped scenes, found {}",
+        out.len()
+    );
+    out
+}
+
+fn cpu_image(s: &RenderScene, flat: &FlatBvh, fx: EffectSet, spp: u32) -> Vec<Vec3> {
+    let r = CpuRenderer::new(s, flat, fx);
+    let mut acc = vec![Vec3::ZERO; (s.camera.width * s.camera.height) as usize];
+    r.accumulate(&mut acc, 0, spp);
+    acc.iter().map(|c| *c / spp as f32).collect()
+}
+
+fn gpu_image(s: &RenderScene, flat: &FlatBvh, fx: EffectSet, spp: u32) -> Vec<Vec3> {
+    let mut g = GpuRenderer::new(gpu(), s, flat).unwrap();
+    for i in 0..spp {
+        g.add_sample(fx, i).unwrap();
+    }
+    let acc = g.read_accum().unwrap();
+    acc.iter().map(|c| *c / spp as f32).collect()
+}
+
+/// Per-pixel difference in display terms: the largest channel difference after clipping
+/// to [0, 1] (what a PNG shows).
+fn diffs(a: &[Vec3], b: &[Vec3]) -> Vec<f32> {
+    let clip = |c: Vec3| c.clamp(Vec3::ZERO, Vec3::ONE);
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (clip(*x) - clip(*y)).abs().max_element())
+        .collect()
+}
+
+fn write_failure(name: &str, s: &RenderScene, got: &[Vec3], want: &[Vec3]) {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("render-failures");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (s.camera.width, s.camera.height);
+    let d: Vec<Vec3> = diffs(got, want)
+        .iter()
+        .map(|&x| Vec3::splat(x * 4.0))
+        .collect();
+    for (tag, px) in [("actual", got), ("expected", want), ("difference", &d[..])] {
+        to_rgb8(px, w, h)
+            .save(dir.join(format!("{name}-{tag}.png")))
+            .unwrap();
+    }
+    eprintln!(
+        "wrote {}/{name}-{{actual,expected,difference}}.png",
+        dir.display()
+    );
+}
+
+/// GPU ≡ CPU tolerance. Both run the same operations on the same random numbers, so most
+/// pixels agree exactly; a path may still branch differently where the two differ by an
+/// ulp (a GPU may fuse a multiply-add), so a small share of pixels may differ by more.
+const PIXEL_TOL: f32 = 2.0 / 255.0;
+const MAX_OUTLIER_SHARE: f64 = 0.02;
+const MAX_MEAN: f64 = 0.004;
+
+#[test]
+fn gpu_renders_match_the_cpu_reference() {
+    for (name, s, flat) in scenes() {
+        let fx = EffectSet::of(&s);
+        let cpu = cpu_image(&s, &flat, fx, 2);
+        let gpu = gpu_image(&s, &flat, fx, 2);
+        let d = diffs(&gpu, &cpu);
+        let max = d.iter().cloned().fold(0.0, f32::max);
+        let mean = d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64;
+        let outliers = d.iter().filter(|&&x| x > PIXEL_TOL).count();
+        println!(
+            "{name}: effects [{fx}]  max diff {max:.4}  mean {mean:.6}  pixels over {PIXEL_TOL:.4}: {outliers}/{}",
+            d.len()
+        );
+        let ok = (outliers as f64) <= MAX_OUTLIER_SHARE * d.len() as f64 && mean <= MAX_MEAN;
+        if !ok {
+            write_failure(&name, &s, &gpu, &cpu);
+        }
+        assert!(ok, "{name}: GPU and CPU images differ beyond the tolerance");
+        // Not a black or constant image: the comparison means something.
+        let lum: Vec<f32> = cpu.iter().map(|c| c.x + c.y + c.z).collect();
+        let spread =
+            lum.iter().cloned().fold(0.0, f32::max) - lum.iter().cloned().fold(f32::MAX, f32::min);
+        assert!(spread > 0.1, "{name}: the reference image is flat");
+    }
+}
+
+#[test]
+fn specialised_kernels_render_what_the_all_effects_kernel_renders() {
+    for (name, s, flat) in scenes() {
+        let fx = EffectSet::of(&s);
+        // CPU: the same flags must give the same numbers, bit for bit.
+        assert_eq!(
+            cpu_image(&s, &flat, fx, 1),
+            cpu_image(&s, &flat, EffectSet::ALL, 1),
+            "{name}: CPU, specialised vs all effects"
+        );
+        let a = gpu_image(&s, &flat, fx, 1);
+        let b = gpu_image(&s, &flat, EffectSet::ALL, 1);
+        let d = diffs(&a, &b);
+        let outliers = d.iter().filter(|&&x| x > PIXEL_TOL).count();
+        println!("{name}: specialised [{fx}] vs all effects: {outliers} pixels over tolerance");
+        assert!(
+            (outliers as f64) <= MAX_OUTLIER_SHARE * d.len() as f64,
+            "{name}: GPU, specialised vs all effects"
+        );
+    }
+}
+
+/// Turning off an effect the scene calls for changes the image, on both devices.
+#[test]
+fn each_effect_changes_the_scene_that_calls_for_it() {
+    let all = scenes();
+    let find = |n: &str| all.iter().find(|x| x.0 == n).unwrap();
+    type Off = fn(&mut EffectSet);
+    let cases: [(&str, &str, Off); 7] = [
+        ("mirror", "glass-mirror", |f| f.mirror = false),
+        ("refraction", "glass-mirror", |f| f.refraction = false),
+        ("soft shadows", "glass-mirror", |f| f.soft_shadows = false),
+        ("shadows", "glass-mirror", |f| f.shadows = false),
+        ("textures", "textured", |f| f.textures = false),
+        ("indirect", "cornell", |f| f.indirect = false),
+        ("ao", "ao", |f| f.ao = false),
+    ];
+    for (effect, scene, off) in cases {
+        let (_, s, flat) = find(scene);
+        let on = EffectSet::of(s);
+        let mut without = on;
+        off(&mut without);
+        assert_ne!(on, without, "{scene} does not call for {effect}");
+        for (dev, a, b) in [
+            (
+                "cpu",
+                cpu_image(s, flat, on, 2),
+                cpu_image(s, flat, without, 2),
+            ),
+            (
+                "gpu",
+                gpu_image(s, flat, on, 2),
+                gpu_image(s, flat, without, 2),
+            ),
+        ] {
+            let changed = diffs(&a, &b).iter().filter(|&&x| x > 0.05).count();
+            println!("{scene} without {effect} ({dev}): {changed} pixels change by > 0.05");
+            assert!(
+                changed >= 20,
+                "{scene}: {effect} off changes nothing on {dev}"
+            );
+        }
+    }
+}
+
+#[test]
+fn scene_file_errors_name_file_and_line() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let check = |name: &str, text: &str, want: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        let e = RenderScene::from_file(&p).unwrap_err().to_string();
+        assert!(e.contains(want), "{name}: '{e}' lacks '{want}'");
+        assert!(e.starts_with(&p.display().to_string()), "{e}");
+    };
+    let cam = "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n";
+    check("unknown.toml", &format!("{cam}colour = 3\n"), ":4:");
+    check("unknown.toml", &format!("{cam}colour = 3\n"), "colour");
+    check(
+        "badvalue.toml",
+        &format!("{cam}\n[render]\nspp = \"many\"\n"),
+        ":6:",
+    );
+    check(
+        "nomat.toml",
+        &format!("{cam}\n[[objects]]\nshape = \"box\"\nmaterial = \"gold\"\n"),
+        "no material named 'gold'",
+    );
+    check(
+        "badior.toml",
+        &format!(
+            "{cam}\n[materials.g]\ntype = \"glass\"\nior = 0.5\n\n[[objects]]\nshape = \"box\"\n"
+        ),
+        ":5:",
+    );
+    check("noobj.toml", cam, "nothing to render");
+}
