@@ -121,3 +121,51 @@ fn gpu_structs_match_rust() {
     );
     assert_eq!(size_of::<GpuNode>(), 32);
 }
+
+#[test]
+fn render_structs_match_rust() {
+    use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
+    let m = module(&shaders::render_source());
+    macro_rules! fields {
+        ($t:ty; $($w:literal => $f:ident),*) => {
+            &[$(($w, offset_of!($t, $f))),*]
+        };
+    }
+    check(
+        &m,
+        "Shade",
+        size_of::<GpuShade>(),
+        fields!(GpuShade;
+        "v0" => v0, "material" => material, "v1" => v1, "pad1" => _pad1, "v2" => v2,
+        "pad2" => _pad2, "uv0" => uv0, "uv1" => uv1, "uv2" => uv2, "pad3" => _pad3),
+    );
+    check(
+        &m,
+        "Material",
+        size_of::<GpuMaterial>(),
+        fields!(GpuMaterial;
+        "albedo" => albedo, "kind" => kind, "emission" => emission, "ior" => ior,
+        "tex_offset" => tex_offset, "tex_width" => tex_width, "tex_height" => tex_height,
+        "has_tex" => has_tex),
+    );
+    check(
+        &m,
+        "Light",
+        size_of::<GpuLight>(),
+        fields!(GpuLight;
+        "v" => v, "kind" => kind, "power" => power, "pad" => _pad),
+    );
+    check(
+        &m,
+        "Params",
+        size_of::<RenderParams>(),
+        fields!(RenderParams;
+        "eye" => eye, "width" => width, "fwd" => fwd, "height" => height, "right" => right,
+        "inv_w2" => inv_w2, "up" => up, "inv_h2" => inv_h2, "background" => background,
+        "seed" => seed, "sample" => sample, "offset" => offset, "count" => count,
+        "max_bounces" => max_bounces, "integrator" => integrator, "n_lights" => n_lights,
+        "n_emitters" => n_emitters, "emit_total" => emit_total, "ao_distance" => ao_distance,
+        "pad0" => _pad0, "pad1" => _pad1, "pad2" => _pad2),
+    );
+    assert_eq!(size_of::<RenderParams>(), 128);
+}

@@ -81,7 +81,9 @@ pub struct RenderParams {
     pub n_emitters: u32,
     pub emit_total: f32,
     pub ao_distance: f32,
-    pub _pad: [u32; 3],
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 pub struct GpuRenderer<'a> {

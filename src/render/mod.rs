@@ -11,7 +11,7 @@ mod scene_file;
 mod shapes;
 
 pub use effects::EffectSet;
-pub use gpu::GpuRenderer;
+pub use gpu::{GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams};
 pub use image_out::{save_image, to_rgb8};
 pub use integrator::{sample_texture, CameraFrame, CpuRenderer};
 pub use sampling::{offset_origin, pcg, Rng};
