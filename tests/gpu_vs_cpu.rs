@@ -4,35 +4,14 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
-use common::{load_model, random_rays, soup, Rng};
+use common::{gpu, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
 use lancer::geometry::{Hit, Ray, TriangleTest};
-use lancer::gpu::{GpuContext, GpuTracer, TraceKernel};
+use lancer::gpu::{GpuTracer, TraceKernel};
 use lancer::scene::{Camera, Mesh};
 use lancer::trace::oracle::{judge, judge_any, Verdict};
 use lancer::trace::{trace_batch, Query};
-
-/// The adapter for this test binary. A GPU test never passes without one.
-fn gpu() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| match GpuContext::new() {
-        Ok(c) => {
-            println!("adapter: {}", c.adapter);
-            c
-        }
-        Err(e) => panic!(
-            "GPU tests need an adapter{}: {e}",
-            if std::env::var("CI").is_ok() {
-                " in CI"
-            } else {
-                ""
-            }
-        ),
-    })
-}
 
 fn ulps(a: f32, b: f32) -> u32 {
     (a.to_bits() as i64 - b.to_bits() as i64)

@@ -2,21 +2,14 @@
 //! effect specialisation (a specialised kernel renders what the all-effects kernel does;
 //! switching an effect the scene uses off changes the image), and scene-file errors.
 
-use std::path::PathBuf;
-use std::sync::OnceLock;
+mod common;
 
+use std::path::PathBuf;
+
+use common::gpu;
 use glam::Vec3;
 use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
-use lancer::gpu::GpuContext;
 use lancer::render::{to_rgb8, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
-
-fn gpu() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| match GpuContext::new() {
-        Ok(c) => c,
-        Err(e) => panic!("GPU tests need an adapter: {e}"),
-    })
-}
 
 fn scenes_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")

@@ -37,26 +37,19 @@ impl EffectSet {
     /// What `scene` needs, and nothing more.
     pub fn of(scene: &RenderScene) -> EffectSet {
         let s = &scene.settings;
-        let used = |k: MaterialKind| {
-            scene
-                .mesh
-                .included()
-                .iter()
-                .any(|&i| scene.materials[scene.material_of[i as usize] as usize].kind == k)
-        };
+        // The materials of the triangles that are in the BVH (only those can be hit).
+        let used: Vec<_> = (scene.mesh.included().iter())
+            .map(|&i| &scene.materials[scene.material_of[i as usize] as usize])
+            .collect();
+        let kind_used = |k: MaterialKind| used.iter().any(|m| m.kind == k);
         let ao = s.integrator == Integrator::Ao;
         EffectSet {
             shadows: !ao && (!scene.lights.is_empty() || !scene.emitters.is_empty()),
             soft_shadows: !ao && !scene.emitters.is_empty(),
-            mirror: !ao && used(MaterialKind::Mirror),
-            refraction: !ao && used(MaterialKind::Glass),
+            mirror: !ao && kind_used(MaterialKind::Mirror),
+            refraction: !ao && kind_used(MaterialKind::Glass),
             indirect: s.integrator == Integrator::Path && s.max_bounces >= 1,
-            textures: !ao
-                && scene.mesh.included().iter().any(|&i| {
-                    scene.materials[scene.material_of[i as usize] as usize]
-                        .texture
-                        .is_some()
-                }),
+            textures: !ao && used.iter().any(|m| m.texture.is_some()),
             ao,
         }
     }

@@ -13,7 +13,7 @@ use super::scene_file::{
 use super::shapes;
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-use crate::scene::{load_obj_scene, Camera, Mesh, TriStatus};
+use crate::scene::{check_usable, load_obj_scene, Camera, Mesh, ObjScene, TriStatus};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -135,6 +135,54 @@ impl Builder {
         }
         self.materials.push(m);
         (self.materials.len() - 1) as u32
+    }
+
+    /// Adds an OBJ's triangles, transformed; `material` overrides its MTL materials,
+    /// `grey` stands in for faces with none.
+    fn add_obj(
+        &mut self,
+        obj: &ObjScene,
+        path: &Path,
+        material: Option<u32>,
+        grey: u32,
+        xf: impl Fn(Vec3) -> Vec3,
+    ) -> Result<()> {
+        if let Some(e) = &obj.mtl_error {
+            eprintln!(
+                "{}: warning: materials not read ({e}); using grey",
+                path.display()
+            );
+        }
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut mtl = Vec::new();
+        for mm in &obj.materials {
+            let m = mtl_material(self, &dir, mm)?;
+            mtl.push(self.material(m));
+        }
+        for (i, tri) in obj.mesh.triangles.iter().enumerate() {
+            let id = material.unwrap_or_else(|| {
+                obj.material_ids[i]
+                    .and_then(|k| mtl.get(k).copied())
+                    .unwrap_or(grey)
+            });
+            let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
+            self.push(t, obj.mesh.status[i], obj.uvs[i], id);
+        }
+        self.short_faces += obj.mesh.short_faces;
+        Ok(())
+    }
+
+    /// Adds a built-in shape, transformed, in one material.
+    fn add_shape(
+        &mut self,
+        (tris, uvs): shapes::ShapeMesh,
+        material: u32,
+        xf: impl Fn(Vec3) -> Vec3,
+    ) {
+        for (tri, uv) in tris.iter().zip(uvs) {
+            let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
+            self.push(t, TriStatus::Ok, uv, material);
+        }
     }
 
     fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
@@ -293,42 +341,15 @@ impl RenderScene {
                 (Some(file), None) => {
                     let mesh_path = dir.join(file);
                     let obj = load_obj_scene(&mesh_path)?;
-                    if let Some(e) = &obj.mtl_error {
-                        eprintln!(
-                            "{}: warning: materials not read ({e}); using grey",
-                            mesh_path.display()
-                        );
-                    }
-                    let mesh_dir = mesh_path
-                        .parent()
-                        .map(Path::to_path_buf)
-                        .unwrap_or_default();
-                    let mut mtl = Vec::new();
-                    for mm in &obj.materials {
-                        let m = mtl_material(&mut b, &mesh_dir, mm)?;
-                        mtl.push(b.material(m));
-                    }
-                    for (i, tri) in obj.mesh.triangles.iter().enumerate() {
-                        let id = mat.unwrap_or_else(|| {
-                            obj.material_ids[i]
-                                .and_then(|k| mtl.get(k).copied())
-                                .unwrap_or(grey)
-                        });
-                        let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
-                        b.push(t, obj.mesh.status[i], obj.uvs[i], id);
-                    }
-                    b.short_faces += obj.mesh.short_faces;
+                    b.add_obj(&obj, &mesh_path, mat, grey, xf)?;
                 }
                 (None, Some(shape)) => {
-                    let (tris, uvs) = match shape {
+                    let shape = match shape {
                         super::scene_file::Shape::Quad => shapes::quad(),
                         super::scene_file::Shape::Box => shapes::cube(),
                         super::scene_file::Shape::Sphere => shapes::sphere(o.segments),
                     };
-                    for (tri, uv) in tris.iter().zip(uvs) {
-                        let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
-                        b.push(t, TriStatus::Ok, uv, mat.unwrap_or(grey));
-                    }
+                    b.add_shape(shape, mat.unwrap_or(grey), xf);
                 }
                 _ => {
                     return Err(bad(
@@ -410,33 +431,13 @@ impl RenderScene {
         let obj = load_obj_scene(path)?;
         let bounds = obj.mesh.bounds();
         let mut b = Builder::default();
-        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut mtl = Vec::new();
-        for mm in &obj.materials {
-            let m = mtl_material(&mut b, &dir, mm)?;
-            mtl.push(b.material(m));
-        }
         let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
-        for (i, tri) in obj.mesh.triangles.iter().enumerate() {
-            let id = obj.material_ids[i]
-                .and_then(|k| mtl.get(k).copied())
-                .unwrap_or(grey);
-            b.push(*tri, obj.mesh.status[i], obj.uvs[i], id);
-        }
-        b.short_faces = obj.mesh.short_faces;
+        b.add_obj(&obj, path, None, grey, |p| p)?;
         if !bounds.is_empty() {
             let r = 0.5 * bounds.extent().length();
             let ground = b.material(Material::diffuse(Vec3::splat(0.5)));
-            let (tris, uvs) = shapes::quad();
             let c = Vec3::new(bounds.center().x, bounds.lo.y, bounds.center().z);
-            for (tri, uv) in tris.iter().zip(uvs) {
-                let t = Triangle::new(
-                    c + tri.v[0] * 20.0 * r,
-                    c + tri.v[1] * 20.0 * r,
-                    c + tri.v[2] * 20.0 * r,
-                );
-                b.push(t, TriStatus::Ok, uv, ground);
-            }
+            b.add_shape(shapes::quad(), ground, |p| c + p * 20.0 * r);
         }
         let camera = Camera::default_view(&bounds, width, height);
         let settings = Settings {
@@ -468,16 +469,7 @@ impl Builder {
             status: self.status,
             short_faces: self.short_faces,
         };
-        if let Some(s) = mesh.exclusion_summary() {
-            eprintln!("{}: warning: {s}", path.display());
-        }
-        if mesh.included().is_empty() {
-            return Err(Error::input(
-                path,
-                None,
-                "no usable triangle: nothing to render",
-            ));
-        }
+        check_usable(path, &mesh)?;
         if settings.ao_distance <= 0.0 {
             settings.ao_distance = 0.1 * mesh.bounds().extent().length();
         }

@@ -14,6 +14,13 @@ pub fn load_mesh(path: &Path) -> Result<Mesh> {
         return Err(Error::input(path, None, "expected a Wavefront .obj mesh"));
     }
     let mesh = load_obj(path)?;
+    check_usable(path, &mesh)?;
+    Ok(mesh)
+}
+
+/// Prints one line on stderr counting what was left out of the BVH, and refuses a mesh
+/// with no usable triangle.
+pub fn check_usable(path: &Path, mesh: &Mesh) -> Result<()> {
     if let Some(s) = mesh.exclusion_summary() {
         eprintln!("{}: warning: {s}", path.display());
     }
@@ -27,5 +34,5 @@ pub fn load_mesh(path: &Path) -> Result<Mesh> {
             ),
         ));
     }
-    Ok(mesh)
+    Ok(())
 }

@@ -6,6 +6,6 @@ mod mesh;
 mod obj;
 
 pub use camera::{Camera, PRIMARY_TMAX};
-pub use load::load_mesh;
+pub use load::{check_usable, load_mesh};
 pub use mesh::{Mesh, TriStatus};
 pub use obj::{load_obj, load_obj_scene, ObjScene};

@@ -2,9 +2,11 @@
 #![allow(dead_code)]
 
 use std::path::PathBuf;
+use std::sync::OnceLock;
 
 use glam::Vec3;
 use lancer::geometry::{Ray, Triangle};
+use lancer::gpu::GpuContext;
 use lancer::scene::{load_obj, Mesh};
 
 /// xorshift64*: small, seeded, reproducible.
@@ -91,4 +93,23 @@ pub fn model(name: &str) -> Option<PathBuf> {
 
 pub fn load_model(name: &str) -> Option<Mesh> {
     model(name).map(|p| load_obj(&p).expect("model loads"))
+}
+
+/// The adapter for this test binary. A GPU test never passes without one.
+pub fn gpu() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| match GpuContext::new() {
+        Ok(c) => {
+            println!("adapter: {}", c.adapter);
+            c
+        }
+        Err(e) => panic!(
+            "GPU tests need an adapter{}: {e}",
+            if std::env::var("CI").is_ok() {
+                " in CI"
+            } else {
+                ""
+            }
+        ),
+    })
 }
