@@ -159,3 +159,62 @@ fn render_writes_the_same_png_on_cpu_and_gpu() {
         "{differ} pixels differ between CPU and GPU renders"
     );
 }
+
+fn scene(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+}
+
+#[test]
+fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
+    let ao = scene("ao.toml");
+    let exr = tmp("ao.exr");
+    let small = [
+        "--width", "16", "--height", "12", "--spp", "1", "--device", "cpu",
+    ];
+    let out = lancer(&[&["render", s(&ao), "-o", s(&exr)][..], &small].concat());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(&exr).unwrap().to_rgb32f();
+    assert_eq!(img.dimensions(), (16, 12));
+    // Linear AO values: the white background is 1, occluded floor is below it.
+    assert!(img.pixels().any(|p| p[0] > 0.99) && img.pixels().any(|p| p[0] < 0.9));
+
+    let jpg = tmp("ao.jpg");
+    let out = lancer(&[&["render", s(&ao), "-o", s(&jpg)][..], &small].concat());
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("unknown image type"), "{err}");
+    assert!(!err.contains("spp ->"), "rendered before refusing: {err}");
+    assert!(!jpg.exists());
+}
+
+#[test]
+fn bench_render_prints_both_kernels() {
+    let out = lancer(&[
+        "bench",
+        "render",
+        s(&scene("textured.toml")),
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "1",
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("| cpu | specialised |"), "{text}");
+    assert!(text.contains("| cpu | all effects |"), "{text}");
+    assert!(text.contains("effects: shadows textures"), "{text}");
+}

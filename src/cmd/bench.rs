@@ -24,6 +24,8 @@ pub struct BenchCmd {
 enum BenchWhat {
     /// Trace primary (closest-hit) and shadow (any-hit) rays of the default view.
     Trace(BenchTrace),
+    /// Milliseconds per spp on GPU and CPU, specialised vs all-effects kernel.
+    Render(super::bench_render::BenchRender),
 }
 
 #[derive(Args)]
@@ -48,6 +50,7 @@ impl BenchCmd {
     pub fn run(self) -> Result<()> {
         match self.what {
             BenchWhat::Trace(b) => b.run(),
+            BenchWhat::Render(b) => b.run(),
         }
     }
 }

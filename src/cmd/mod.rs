@@ -1,6 +1,7 @@
 //! Subcommands of the `lancer` binary.
 
 mod bench;
+mod bench_render;
 mod build;
 mod heatmap;
 mod rays;

@@ -7,7 +7,7 @@ use clap::Args;
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::{build, BvhStats, FlatBvh};
-use lancer::render::{save_image, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
+use lancer::render::{image_kind, save_image, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
 use lancer::{Error, Result};
 
 use super::trace::{open_device, Device};
@@ -75,6 +75,7 @@ pub fn load_scene(
 
 impl RenderCmd {
     pub fn run(self) -> Result<()> {
+        image_kind(&self.out)?;
         let mut scene = load_scene(&self.scene, self.width, self.height)?;
         if let Some(s) = self.spp {
             scene.settings.spp = s;

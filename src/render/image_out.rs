@@ -24,24 +24,39 @@ pub fn to_rgb8(px: &[Vec3], width: u32, height: u32) -> image::RgbImage {
     })
 }
 
-/// Saves linear radiance as PNG (sRGB) or EXR (linear float), chosen by extension.
-pub fn save_image(path: &Path, px: &[Vec3], width: u32, height: u32) -> Result<()> {
+/// The output formats, by lower-case extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageKind {
+    Png,
+    Exr,
+}
+
+/// The format a file name asks for; checked before rendering so no work is lost.
+pub fn image_kind(path: &Path) -> Result<ImageKind> {
     let ext = (path.extension().and_then(|e| e.to_str()))
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
-    let fail = |e: image::ImageError| Error::input(path, None, format!("cannot write image: {e}"));
     match ext.as_str() {
-        "png" => to_rgb8(px, width, height).save(path).map_err(fail),
-        "exr" => {
-            let img = image::Rgb32FImage::from_fn(width, height, |x, y| {
-                image::Rgb(px[(y * width + x) as usize].to_array())
-            });
-            img.save(path).map_err(fail)
-        }
+        "png" => Ok(ImageKind::Png),
+        "exr" => Ok(ImageKind::Exr),
         _ => Err(Error::input(
             path,
             None,
             "unknown image type: use a .png (sRGB) or .exr (linear) file name",
         )),
+    }
+}
+
+/// Saves linear radiance as PNG (sRGB) or EXR (linear float), chosen by extension.
+pub fn save_image(path: &Path, px: &[Vec3], width: u32, height: u32) -> Result<()> {
+    let fail = |e: image::ImageError| Error::input(path, None, format!("cannot write image: {e}"));
+    match image_kind(path)? {
+        ImageKind::Png => to_rgb8(px, width, height).save(path).map_err(fail),
+        ImageKind::Exr => {
+            let img = image::Rgb32FImage::from_fn(width, height, |x, y| {
+                image::Rgb(px[(y * width + x) as usize].to_array())
+            });
+            img.save(path).map_err(fail)
+        }
     }
 }

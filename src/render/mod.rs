@@ -12,7 +12,7 @@ mod shapes;
 
 pub use effects::EffectSet;
 pub use gpu::{GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams};
-pub use image_out::{save_image, to_rgb8};
+pub use image_out::{image_kind, save_image, to_rgb8, ImageKind};
 pub use integrator::{sample_texture, CameraFrame, CpuRenderer};
 pub use sampling::{offset_origin, pcg, Rng};
 pub use scene::{Light, Material, RenderScene, Settings, Texture};
