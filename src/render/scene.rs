@@ -13,7 +13,7 @@ use super::scene_file::{
 use super::shapes;
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-use crate::scene::{check_usable, load_obj_scene, Camera, Mesh, ObjScene, TriStatus};
+use crate::scene::{check_usable, classify, load_obj_scene, Camera, Mesh, ObjScene, TriStatus};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -188,7 +188,7 @@ impl Builder {
     fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
         // A transform can make a good triangle degenerate or overflow: classify again.
         let status = match status {
-            TriStatus::Ok => Mesh::from_triangles(vec![t]).status[0],
+            TriStatus::Ok => classify(&t),
             s => s,
         };
         self.triangles.push(t);
