@@ -153,8 +153,8 @@ fn node(
     depth: usize,
 ) -> Node {
     let n = idx.len();
-    if n == 1 {
-        return leaf(bbox, offset, 1);
+    if n == 1 || (opts.leaf_beats_any_split(n) && !opts.depth_forces_median(depth, n)) {
+        return leaf(bbox, offset, n);
     }
     let nbins = opts.bins.clamp(2, MAX_BINS);
     let ext = cbox.hi - cbox.lo;

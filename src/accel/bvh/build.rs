@@ -74,6 +74,13 @@ impl BuildOptions {
         n <= self.max_leaf.max(1) && n as f32 * self.t_obj <= best_split
     }
 
+    /// A leaf of n primitives costs n·T_obj and any split at least 2·T_cube (both children
+    /// are tested; areas are ≥ 0), so when n·T_obj ≤ 2·T_cube the node is a leaf without
+    /// evaluating a single split — the tree is the same, the work is not.
+    pub(crate) fn leaf_beats_any_split(&self, n: usize) -> bool {
+        n <= self.max_leaf.max(1) && n as f32 * self.t_obj <= 2.0 * self.t_cube
+    }
+
     /// Whether a node must take a balanced (median) split to keep every leaf within
     /// max_depth: a median split halves n, so depth + ⌈log2 n⌉ ≤ max_depth holds all the way
     /// down (it holds at the root for any n < 2^64 when max_depth = 64).

@@ -64,8 +64,8 @@ fn sweep(ctx: &Ctx, lists: &[&mut [u32]; 3], area: f32) -> (f32, usize, usize) {
 fn node(ctx: &Ctx, lists: [&mut [u32]; 3], offset: usize, depth: usize) -> Node {
     let n = lists[0].len();
     let (bbox, cbox) = ctx.prims.bounds(lists[0]);
-    if n == 1 {
-        return leaf(bbox, offset, 1);
+    if n == 1 || (ctx.opts.leaf_beats_any_split(n) && !ctx.opts.depth_forces_median(depth, n)) {
+        return leaf(bbox, offset, n);
     }
     let (axis, k) = if ctx.opts.depth_forces_median(depth, n) || cbox.extent() == glam::Vec3::ZERO {
         // Depth cap, or identical centroids (no SAH candidate separates them): the object
