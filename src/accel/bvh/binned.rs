@@ -2,9 +2,10 @@
 //! one pass over the node's primitives; the partition is in place. The builder moves
 //! 32-byte primitive references (box in SIMD lanes, index in a spare lane) rather than
 //! indices, so every pass streams through memory; a node costs two linear passes (bin,
-//! partition), the partition also yielding the children's centroid bounds.
+//! partition), the partition also yielding the children's centroid bounds. The split
+//! candidates of the three axes are evaluated together in SIMD lanes.
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{Mat3A, Vec3, Vec3A, Vec4};
 
 use super::build::{join, leaf, BuildOptions, Node, Prims, PARALLEL_MIN};
 use crate::geometry::Aabb;
@@ -47,13 +48,6 @@ impl BoxA {
             lo: Vec3::from(self.lo),
             hi: Vec3::from(self.hi),
         }
-    }
-
-    /// Surface area of a non-empty box.
-    #[inline(always)]
-    fn area(self) -> f32 {
-        let e = self.hi - self.lo;
-        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 }
 
@@ -177,54 +171,7 @@ fn node(
         } else {
             fill(idx)
         };
-        let area = bbox.area();
-        // Right-to-left: area and count of everything right of each boundary.
-        let mut right = vec![(0.0f32, 0usize); nbins];
-        for a in (0..3).filter(|&a| splittable.test(a)) {
-            let mut acc = (BoxA::EMPTY, 0);
-            let mut acc_area = 0.0;
-            for s in (1..nbins).rev() {
-                // An empty bin changes nothing (many are, in small nodes): skip its area.
-                if bins[s][a].count > 0 {
-                    acc = (acc.0.union(bins[s][a].bbox), acc.1 + bins[s][a].count);
-                    acc_area = acc.0.area();
-                }
-                right[s] = (acc_area, acc.1);
-            }
-            // Left-to-right: the best boundary by A_L·N_L + A_R·N_R, which orders the
-            // candidates as the cost does without a division each; the cost and the boxes
-            // are computed for the winner only.
-            let (mut l, mut best_axis) = ((BoxA::EMPTY, 0), None::<(f32, usize, f32)>);
-            for s in 1..nbins {
-                // After an empty bin the boundary splits exactly as the one before it did,
-                // which was already a candidate.
-                if bins[s - 1][a].count == 0 {
-                    continue;
-                }
-                l = (l.0.union(bins[s - 1][a].bbox), l.1 + bins[s - 1][a].count);
-                let r = right[s];
-                if r.1 == 0 {
-                    continue;
-                }
-                let al = l.0.area();
-                let key = al * l.1 as f32 + r.0 * r.1 as f32;
-                if best_axis.is_none_or(|b| key < b.0) {
-                    best_axis = Some((key, s, al));
-                }
-            }
-            if let Some((_, s, al)) = best_axis {
-                let (nl, r) = (n - right[s].1, right[s]);
-                let cost = opts.split_cost(area, al, nl, r.0, r.1);
-                if best.is_none_or(|b| cost < b.0) {
-                    let side = |r: std::ops::Range<usize>| {
-                        bins[r]
-                            .iter()
-                            .fold(BoxA::EMPTY, |b, bin| b.union(bin[a].bbox))
-                    };
-                    best = Some((cost, a, s, side(0..s), side(s..nbins)));
-                }
-            }
-        }
+        best = best_split(opts, &bins, nbins, splittable, bbox.area(), n);
     }
     let (k, axis, lbox, rbox, lc, rc) = match best {
         Some((cost, axis, s, lbox, rbox)) => {
@@ -263,6 +210,110 @@ fn node(
         axis: axis as u8,
         children: Box::new([a, b]),
     }
+}
+
+/// A bin on all three axes at once, transposed so that each vector holds one coordinate
+/// of the three axes' bins: lane a of `lo[0]` is bins[s][a].lo.x.
+struct Lanes {
+    lo: [Vec3A; 3],
+    hi: [Vec3A; 3],
+    count: Vec3A,
+}
+
+impl Lanes {
+    const EMPTY: Lanes = Lanes {
+        lo: [Vec3A::splat(f32::MAX); 3],
+        hi: [Vec3A::splat(-f32::MAX); 3],
+        count: Vec3A::ZERO,
+    };
+
+    fn of(bin: &[Bin; 3]) -> Lanes {
+        let lo = Mat3A::from_cols(bin[0].bbox.lo, bin[1].bbox.lo, bin[2].bbox.lo).transpose();
+        let hi = Mat3A::from_cols(bin[0].bbox.hi, bin[1].bbox.hi, bin[2].bbox.hi).transpose();
+        Lanes {
+            lo: [lo.x_axis, lo.y_axis, lo.z_axis],
+            hi: [hi.x_axis, hi.y_axis, hi.z_axis],
+            count: Vec3A::new(
+                bin[0].count as f32,
+                bin[1].count as f32,
+                bin[2].count as f32,
+            ),
+        }
+    }
+
+    #[inline(always)]
+    fn add(&mut self, o: &Lanes) {
+        for c in 0..3 {
+            self.lo[c] = self.lo[c].min(o.lo[c]);
+            self.hi[c] = self.hi[c].max(o.hi[c]);
+        }
+        self.count += o.count;
+    }
+
+    /// The three boxes' surface areas.
+    #[inline(always)]
+    fn area(&self) -> Vec3A {
+        let (ex, ey, ez) = (
+            self.hi[0] - self.lo[0],
+            self.hi[1] - self.lo[1],
+            self.hi[2] - self.lo[2],
+        );
+        2.0 * (ex * ey + ey * ez + ez * ex)
+    }
+}
+
+/// The cheapest split over all bin boundaries of the splittable axes: (cost, axis, first
+/// bin on the right, left box, right box). The three axes are swept together in SIMD lanes;
+/// per axis the first boundary with the smallest A_L·N_L + A_R·N_R wins (it orders the
+/// candidates as the cost does, without a division each), then the axes by cost in order.
+fn best_split(
+    opts: &BuildOptions,
+    bins: &[[Bin; 3]],
+    nbins: usize,
+    splittable: glam::BVec3A,
+    area: f32,
+    n: usize,
+) -> Option<(f32, usize, usize, BoxA, BoxA)> {
+    // Right to left: area and count of everything right of each boundary.
+    let mut r_area = [Vec3A::ZERO; MAX_BINS];
+    let mut r_count = [Vec3A::ZERO; MAX_BINS];
+    let mut acc = Lanes::EMPTY;
+    for s in (1..nbins).rev() {
+        acc.add(&Lanes::of(&bins[s]));
+        r_area[s] = acc.area();
+        r_count[s] = acc.count;
+    }
+    // Left to right: the candidates. A boundary after an empty bin repeats the one before
+    // it and cannot win (strictly smaller keys only).
+    let mut l = Lanes::EMPTY;
+    let (mut key_best, mut s_best, mut al_best) = (Vec3A::ZERO, Vec3A::ZERO, Vec3A::ZERO);
+    let mut found = glam::BVec3A::FALSE;
+    for s in 1..nbins {
+        l.add(&Lanes::of(&bins[s - 1]));
+        let valid = l.count.cmpgt(Vec3A::ZERO) & r_count[s].cmpgt(Vec3A::ZERO) & splittable;
+        let al = l.area();
+        let key = al * l.count + r_area[s] * r_count[s];
+        let better = valid & (key.cmplt(key_best) | !found);
+        key_best = Vec3A::select(better, key, key_best);
+        s_best = Vec3A::select(better, Vec3A::splat(s as f32), s_best);
+        al_best = Vec3A::select(better, al, al_best);
+        found |= valid;
+    }
+    let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
+    for a in (0..3).filter(|&a| found.test(a)) {
+        let s = s_best[a] as usize;
+        let (ar, nr) = (r_area[s][a], r_count[s][a] as usize);
+        let cost = opts.split_cost(area, al_best[a], n - nr, ar, nr);
+        if best.is_none_or(|b| cost < b.0) {
+            let side = |r: std::ops::Range<usize>| {
+                bins[r]
+                    .iter()
+                    .fold(BoxA::EMPTY, |b, bin| b.union(bin[a].bbox))
+            };
+            best = Some((cost, a, s, side(0..s), side(s..nbins)));
+        }
+    }
+    best
 }
 
 /// Bins every reference on all three axes (a flat axis all into bin 0, never chosen), so
