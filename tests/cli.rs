@@ -12,6 +12,17 @@ fn lancer(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Runs lancer and fails the test with its stderr unless it succeeds.
+fn lancer_ok(args: &[&str]) -> Output {
+    let out = lancer(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lancer-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -58,7 +69,7 @@ fn rays_then_trace_writes_hits_of_the_default_view() {
             .success()
     );
     assert_eq!(std::fs::metadata(&r).unwrap().len(), 8 * 6 * 32);
-    let out = lancer(&[
+    let out = lancer_ok(&[
         "trace",
         s(&q),
         "--rays",
@@ -68,11 +79,6 @@ fn rays_then_trace_writes_hits_of_the_default_view() {
         "--device",
         "cpu",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let hits = lancer::trace::rays::read_hits(&h).unwrap();
     assert_eq!(hits.len(), 48);
     // The centre pixels look at the quad (prims 0 and 1), row 0 is the top.
@@ -173,12 +179,7 @@ fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
     let small = [
         "--width", "16", "--height", "12", "--spp", "1", "--device", "cpu",
     ];
-    let out = lancer(&[&["render", s(&ao), "-o", s(&exr)][..], &small].concat());
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = lancer_ok(&[&["render", s(&ao), "-o", s(&exr)][..], &small].concat());
     let img = image::open(&exr).unwrap().to_rgb32f();
     assert_eq!(img.dimensions(), (16, 12));
     // Linear AO values: the white background is 1, occluded floor is below it.
@@ -195,7 +196,7 @@ fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
 
 #[test]
 fn bench_render_prints_both_kernels() {
-    let out = lancer(&[
+    let out = lancer_ok(&[
         "bench",
         "render",
         s(&scene("textured.toml")),
@@ -208,11 +209,6 @@ fn bench_render_prints_both_kernels() {
         "--device",
         "cpu",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("| cpu | specialised |"), "{text}");
     assert!(text.contains("| cpu | all effects |"), "{text}");
