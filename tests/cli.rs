@@ -69,7 +69,7 @@ fn rays_then_trace_writes_hits_of_the_default_view() {
             .success()
     );
     assert_eq!(std::fs::metadata(&r).unwrap().len(), 8 * 6 * 32);
-    let out = lancer_ok(&[
+    lancer_ok(&[
         "trace",
         s(&q),
         "--rays",
@@ -179,7 +179,7 @@ fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
     let small = [
         "--width", "16", "--height", "12", "--spp", "1", "--device", "cpu",
     ];
-    let out = lancer_ok(&[&["render", s(&ao), "-o", s(&exr)][..], &small].concat());
+    lancer_ok(&[&["render", s(&ao), "-o", s(&exr)][..], &small].concat());
     let img = image::open(&exr).unwrap().to_rgb32f();
     assert_eq!(img.dimensions(), (16, 12));
     // Linear AO values: the white background is 1, occluded floor is below it.
