@@ -23,16 +23,29 @@ fn lancer_ok(args: &[&str]) -> Output {
     out
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lancer-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+/// A folder of its own per test: tests run in parallel, and two of them rewriting one
+/// shared file let a third read it half-written.
+struct Scratch(tempfile::TempDir);
 
-fn quad() -> PathBuf {
-    let p = tmp("quad.obj");
-    std::fs::write(&p, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n").unwrap();
-    p
+impl Scratch {
+    fn new() -> Self {
+        Scratch(
+            tempfile::Builder::new()
+                .prefix("lancer-cli-")
+                .tempdir()
+                .unwrap(),
+        )
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.path().join(name)
+    }
+
+    fn quad(&self) -> PathBuf {
+        let p = self.path("quad.obj");
+        std::fs::write(&p, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n").unwrap();
+        p
+    }
 }
 
 fn s(p: &Path) -> &str {
@@ -41,7 +54,8 @@ fn s(p: &Path) -> &str {
 
 #[test]
 fn build_json_has_the_documented_keys() {
-    let q = quad();
+    let dir = Scratch::new();
+    let q = dir.quad();
     let out = lancer(&["build", s(&q), "--json"]);
     assert!(out.status.success());
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -61,8 +75,9 @@ fn build_json_has_the_documented_keys() {
 
 #[test]
 fn rays_then_trace_writes_hits_of_the_default_view() {
-    let q = quad();
-    let (r, h) = (tmp("q.rays"), tmp("q.hits"));
+    let dir = Scratch::new();
+    let q = dir.quad();
+    let (r, h) = (dir.path("q.rays"), dir.path("q.hits"));
     assert!(
         lancer(&["rays", s(&q), "--width", "8", "--height", "6", "-o", s(&r)])
             .status
@@ -88,22 +103,30 @@ fn rays_then_trace_writes_hits_of_the_default_view() {
 
 #[test]
 fn bad_input_is_one_line_and_exit_2() {
-    let q = quad();
-    let r = tmp("short.rays");
+    let dir = Scratch::new();
+    let q = dir.quad();
+    let r = dir.path("short.rays");
     std::fs::write(&r, [0u8; 33]).unwrap();
-    let out = lancer(&["trace", s(&q), "--rays", s(&r), "--out", s(&tmp("x.hits"))]);
+    let out = lancer(&[
+        "trace",
+        s(&q),
+        "--rays",
+        s(&r),
+        "--out",
+        s(&dir.path("x.hits")),
+    ]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("not a multiple of 32"), "{err}");
 
-    let bad = tmp("bad.obj");
+    let bad = dir.path("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nv 1 1\n").unwrap();
     let out = lancer(&["build", s(&bad)]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("bad.obj:2:"));
 
-    let empty = tmp("empty.obj");
+    let empty = dir.path("empty.obj");
     std::fs::write(&empty, "# nothing\n").unwrap();
     let out = lancer(&["build", s(&empty)]);
     assert_eq!(out.status.code(), Some(2));
@@ -112,8 +135,9 @@ fn bad_input_is_one_line_and_exit_2() {
 
 #[test]
 fn render_writes_the_same_png_on_cpu_and_gpu() {
+    let dir = Scratch::new();
     let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.obj");
-    let (c, g) = (tmp("cornell-cpu.png"), tmp("cornell-gpu.png"));
+    let (c, g) = (dir.path("cornell-cpu.png"), dir.path("cornell-gpu.png"));
     let args = |out: &Path, dev: &'static str| {
         vec![
             "render".to_string(),
@@ -174,8 +198,9 @@ fn scene(name: &str) -> PathBuf {
 
 #[test]
 fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
+    let dir = Scratch::new();
     let ao = scene("ao.toml");
-    let exr = tmp("ao.exr");
+    let exr = dir.path("ao.exr");
     let small = [
         "--width", "16", "--height", "12", "--spp", "1", "--device", "cpu",
     ];
@@ -185,7 +210,7 @@ fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
     // Linear AO values: the white background is 1, occluded floor is below it.
     assert!(img.pixels().any(|p| p[0] > 0.99) && img.pixels().any(|p| p[0] < 0.9));
 
-    let jpg = tmp("ao.jpg");
+    let jpg = dir.path("ao.jpg");
     let out = lancer(&[&["render", s(&ao), "-o", s(&jpg)][..], &small].concat());
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
