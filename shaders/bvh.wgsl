@@ -4,8 +4,26 @@
 override COUNT_STATS: bool = false;      // count nodes visited / triangles tested
 override MOLLER_TRUMBORE: bool = false;  // TriangleTest::MollerTrumbore instead of watertight
 
-@group(0) @binding(0) var<storage, read> nodes: array<Node>;
-@group(0) @binding(1) var<storage, read> tris: array<Tri>;
+// Node and Tri arrays, read as 16-byte words. lavapipe compiles every storage load into a
+// loop over the SIMD lanes, one loop per load instruction: two vec4 loads per node instead of
+// one per field (lo, a, hi, b) is ~15% more rays/s there. load_node/load_tri follow the
+// offsets that tests/layout.rs checks.
+@group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;
+@group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;
+
+fn load_node(i: u32) -> Node {
+    let a = node_words[2u * i];
+    let b = node_words[2u * i + 1u];
+    return Node(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
+}
+
+fn load_tri(i: u32) -> Tri {
+    let a = tri_words[3u * i];
+    let b = tri_words[3u * i + 1u];
+    let c = tri_words[3u * i + 2u];
+    return Tri(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
+               bitcast<vec3<f32>>(c.xyz), c.w);
+}
 
 // Work done by the last traverse() call (read when COUNT_STATS).
 var<private> n_nodes: u32;
@@ -26,7 +44,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         var sp = 0u;
         var idx = 0u;
         loop {
-            let node = nodes[idx];
+            let node = load_node(idx);
             if COUNT_STATS {
                 n_nodes += 1u;
             }
@@ -46,7 +64,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 } else {
                     let end = node.a + (node.b >> 2u);
                     for (var i = node.a; i < end; i += 1u) {
-                        let tri = tris[i];
+                        let tri = load_tri(i);
                         if COUNT_STATS {
                             n_tris += 1u;
                         }
