@@ -1,0 +1,167 @@
+//! How fast can a GPU kernel go that only *reads* as many BVH nodes per ray as the traversal
+//! does, with no box or triangle test, no stack and no branch? Its rays/s is an upper bound
+//! for the real traversal on the same adapter; on lavapipe it shows that storage-buffer loads
+//! alone (a per-lane loop per load there) cap the primary-ray speed.
+//!
+//! `cargo run --release --example load_ceiling -- MESH.obj [WIDTH HEIGHT]`
+//!
+//! Prints, side by side in one run: the real closest-hit kernel (GPU time, timestamp queries)
+//! and the loads-only probe doing the mean number of node and triangle loads per ray over
+//! the same buffers (wall time around submit + wait, no readback; one dispatch).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::geometry::Ray;
+use lancer::gpu::{GpuContext, GpuTracer, TraceKernel};
+use lancer::scene::{load_mesh, Camera};
+use lancer::Result;
+use wgpu::util::DeviceExt;
+
+// Per invocation, the memory traffic of one traced ray in the same load shapes as
+// bvh.wgsl/traverse.wgsl: read the Ray, NODES nodes (two vec4 each), TRIS triangles (three
+// vec4 each), write a Hit. Each index comes from the words read before, so no load can be
+// skipped or hoisted.
+const PROBE: &str = "
+override NODES: u32 = 17u;
+override TRIS: u32 = 4u;
+override N_NODES: u32 = 1u;
+override N_TRIS: u32 = 1u;
+@group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;
+@group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read> rays: array<Ray>;
+@group(0) @binding(3) var<storage, read_write> hits: array<Hit>;
+@compute @workgroup_size(64)
+fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= arrayLength(&rays) {
+        return;
+    }
+    let r = rays[gid.x];
+    var acc = bitcast<vec4<u32>>(vec4<f32>(r.dir, r.tmax));
+    var idx = 0u;
+    for (var k = 0u; k < NODES; k += 1u) {
+        acc += node_words[2u * idx] ^ node_words[2u * idx + 1u];
+        idx = (acc.x + acc.y + acc.z + acc.w) % N_NODES;
+    }
+    for (var k = 0u; k < TRIS; k += 1u) {
+        let j = 3u * (idx % N_TRIS);
+        acc += tri_words[j] ^ tri_words[j + 1u] ^ tri_words[j + 2u];
+        idx = acc.x + acc.y + acc.z + acc.w;
+    }
+    hits[gid.x] = Hit(bitcast<f32>(acc.x), acc.y, bitcast<f32>(acc.z), bitcast<f32>(acc.w));
+}
+";
+
+fn main() -> Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(mesh_path) = args.first().map(PathBuf::from) else {
+        eprintln!("usage: load_ceiling MESH.obj [WIDTH HEIGHT]");
+        std::process::exit(2);
+    };
+    let dim = |i: usize| args.get(i).and_then(|s| s.parse().ok()).unwrap_or(1024u32);
+    let (w, h) = (dim(1), dim(2));
+    let mesh = load_mesh(&mesh_path)?;
+    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
+    let ctx = GpuContext::new()?;
+    println!("adapter {}", ctx.adapter);
+
+    // The real kernel, with statistics once for nodes/ray, then timed without.
+    let mut tracer = GpuTracer::new(&ctx, &flat)?;
+    let counting = TraceKernel {
+        stats: true,
+        ..TraceKernel::default()
+    };
+    let (_, stats, _) = tracer.trace(&rays, counting)?;
+    let stats = stats.unwrap_or_default();
+    let mean = |f: fn(&lancer::trace::RayStats) -> u32| {
+        stats.iter().map(|s| f(s) as f64).sum::<f64>() / stats.len().max(1) as f64
+    };
+    let (nodes_per_ray, tris_per_ray) = (mean(|s| s.nodes), mean(|s| s.tris));
+    let (_, _, t) = tracer.trace(&rays, TraceKernel::default())?;
+    let real_ms = t.gpu_ms.unwrap_or(t.wall_ms);
+
+    let loads = (nodes_per_ray.round() as u32, tris_per_ray.round() as u32);
+    let probe_ms = probe(&ctx, &flat, &rays, loads);
+    let mrays = |ms: f64| rays.len() as f64 / (ms * 1e3);
+    println!(
+        "{} primary rays, {nodes_per_ray:.2} nodes/ray, {tris_per_ray:.2} triangles/ray",
+        rays.len()
+    );
+    println!(
+        "closest-hit traversal: {:7.2} Mrays/s (GPU time)",
+        mrays(real_ms)
+    );
+    println!(
+        "loads only ({} nodes, {} triangles): {:7.2} Mrays/s (no tests, no stack, no branches)",
+        loads.0,
+        loads.1,
+        mrays(probe_ms)
+    );
+    Ok(())
+}
+
+/// Milliseconds of the probe over one invocation per ray (best of 3).
+fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u32)) -> f64 {
+    let dev = &ctx.device;
+    let init = |label, contents| {
+        dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+    };
+    let buffers = [
+        init("nodes", bytemuck::cast_slice(&flat.nodes)),
+        init("tris", bytemuck::cast_slice(&flat.tris)),
+        init("rays", bytemuck::cast_slice(rays)),
+        init("hits", &vec![0u8; rays.len() * 16]),
+    ];
+    let source = format!("{}\n{PROBE}", lancer::gpu::shaders::COMMON);
+    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("load probe"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let constants = [
+        ("NODES", nodes as f64),
+        ("TRIS", tris as f64),
+        ("N_NODES", flat.nodes.len() as f64),
+        ("N_TRIS", flat.tris.len().max(1) as f64),
+    ];
+    let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("load probe"),
+        layout: None,
+        module: &module,
+        entry_point: Some("probe"),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: &constants,
+            ..Default::default()
+        },
+        cache: None,
+    });
+    let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("load probe"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[0, 1, 2, 3].map(|i| wgpu::BindGroupEntry {
+            binding: i,
+            resource: buffers[i as usize].as_entire_binding(),
+        }),
+    });
+    let run = || {
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups((rays.len() as u32).div_ceil(64), 1, 1);
+        }
+        let start = Instant::now();
+        ctx.queue.submit([enc.finish()]);
+        dev.poll(wgpu::PollType::wait_indefinitely())
+            .expect("the GPU did not finish");
+        start.elapsed().as_secs_f64() * 1e3
+    };
+    run(); // compile and warm up
+    (0..3).map(|_| run()).fold(f64::INFINITY, f64::min)
+}
