@@ -133,8 +133,20 @@ fn bin_index(c: f32, lo: f32, scale: f32, last: usize) -> usize {
 }
 
 /// Bin index of a centroid on every axis at once; a flat axis (scale 0) maps all to bin 0.
+/// The same values as [`bin_index`] per axis (clamping before truncating is equivalent),
+/// converted in one SIMD instruction.
 #[inline(always)]
 fn bin_of(c: Vec3A, lo: Vec3A, scale: Vec3A, last: usize) -> [usize; 3] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128i, _mm_cvttps_epi32};
+        let x = ((c - lo) * scale).min(Vec3A::splat(last as f32));
+        // SAFETY: SSE2 is part of x86_64. Lanes x, y, z lie in [0, last] (see bin_index),
+        // so truncation is exact; lane w is never read.
+        let k: [i32; 4] = unsafe { std::mem::transmute::<__m128i, _>(_mm_cvttps_epi32(x.into())) };
+        [k[0] as usize, k[1] as usize, k[2] as usize]
+    }
+    #[cfg(not(target_arch = "x86_64"))]
     std::array::from_fn(|a| bin_index(c[a], lo[a], scale[a], last))
 }
 
@@ -159,19 +171,23 @@ fn node(
     // (cost, axis, first bin on the right, left box, right box)
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     if !opts.depth_forces_median(depth, n) && splittable.any() {
-        let fill = |refs: &[Ref]| fill_bins(refs, nbins, cbox.lo, scale);
-        // The top nodes, where the subtree parallelism has not started yet, bin in chunks
-        // on all threads (the union of boxes and sum of counts are order-independent).
-        let bins = if opts.parallel && n >= 4 * PARALLEL_MIN {
-            use rayon::prelude::*;
-            idx.par_chunks(PARALLEL_MIN)
-                .map(fill)
-                .reduce_with(merge_bins)
-                .expect("n > 0")
+        best = if n <= SMALL_NODE {
+            best_split_small(opts, idx, nbins, cbox.lo, scale, splittable, bbox.area())
         } else {
-            fill(idx)
+            let fill = |refs: &[Ref]| fill_bins(refs, nbins, cbox.lo, scale);
+            // The top nodes, where the subtree parallelism has not started yet, bin in chunks
+            // on all threads (the union of boxes and sum of counts are order-independent).
+            let bins = if opts.parallel && n >= 4 * PARALLEL_MIN {
+                use rayon::prelude::*;
+                idx.par_chunks(PARALLEL_MIN)
+                    .map(fill)
+                    .reduce_with(merge_bins)
+                    .expect("n > 0")
+            } else {
+                fill(idx)
+            };
+            best_split(opts, &bins, nbins, splittable, bbox.area(), n)
         };
-        best = best_split(opts, &bins, nbins, splittable, bbox.area(), n);
     }
     let (k, axis, lbox, rbox, lc, rc) = match best {
         Some((cost, axis, s, lbox, rbox)) => {
@@ -316,6 +332,72 @@ fn best_split(
     best
 }
 
+/// Nodes this small skip the bins: [`best_split_small`] finds the same split directly.
+const SMALL_NODE: usize = 8;
+
+/// [`best_split`] for a node of at most [`SMALL_NODE`] references, without bins: the
+/// references are sorted by bin and swept from both sides. Only boundaries right after an
+/// occupied bin can win (a boundary after an empty bin repeats the key before it), and each
+/// side's box is the union of its references' boxes, exactly what the bins would hold. Keys,
+/// costs and tie order are computed as there, so the split is the same (checked by
+/// `small_nodes_split_as_the_bins_do`).
+fn best_split_small(
+    opts: &BuildOptions,
+    refs: &[Ref],
+    nbins: usize,
+    lo: Vec3A,
+    scale: Vec3A,
+    splittable: glam::BVec3A,
+    area: f32,
+) -> Option<(f32, usize, usize, BoxA, BoxA)> {
+    let n = refs.len();
+    let mut bin = [[0usize; 3]; SMALL_NODE];
+    for (b, r) in bin.iter_mut().zip(refs) {
+        *b = bin_of(r.centroid(), lo, scale, nbins - 1);
+    }
+    let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
+    for a in (0..3).filter(|&a| splittable.test(a)) {
+        let mut ord: [usize; SMALL_NODE] = std::array::from_fn(|i| i);
+        ord[..n].sort_unstable_by_key(|&i| bin[i][a]);
+        // right[j]: the union of the references from sorted position j on.
+        let mut right = [BoxA::EMPTY; SMALL_NODE];
+        let mut acc = BoxA::EMPTY;
+        for j in (1..n).rev() {
+            acc = acc.union(refs[ord[j]].bbox());
+            right[j] = acc;
+        }
+        // (key, boundary, left area, left box, split position) of the first smallest key.
+        let mut axis_best: Option<(f32, usize, f32, BoxA, usize)> = None;
+        let mut left = BoxA::EMPTY;
+        for j in 1..n {
+            left = left.union(refs[ord[j - 1]].bbox());
+            let (prev, next) = (bin[ord[j - 1]][a], bin[ord[j]][a]);
+            if prev == next {
+                continue;
+            }
+            let al = box_area(left);
+            let key = al * j as f32 + box_area(right[j]) * (n - j) as f32;
+            if axis_best.is_none_or(|b| key < b.0) {
+                axis_best = Some((key, prev + 1, al, left, j));
+            }
+        }
+        if let Some((_, s, al, l, j)) = axis_best {
+            let cost = opts.split_cost(area, al, j, box_area(right[j]), n - j);
+            if best.is_none_or(|b| cost < b.0) {
+                best = Some((cost, a, s, l, right[j]));
+            }
+        }
+    }
+    best
+}
+
+/// Surface area, with the operations of [`Lanes::area`].
+#[inline(always)]
+fn box_area(b: BoxA) -> f32 {
+    let e = b.hi - b.lo;
+    2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+}
+
 /// Bins every reference on all three axes (a flat axis all into bin 0, never chosen), so
 /// there is no branch per axis.
 fn fill_bins(refs: &[Ref], nbins: usize, lo: Vec3A, scale: Vec3A) -> Vec<[Bin; 3]> {
@@ -355,4 +437,64 @@ fn partition(idx: &mut [Ref], left: impl Fn(Vec3A) -> bool) -> (usize, BoxA, Box
         }
     }
     (i, lc, rc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn same_box(a: BoxA, b: BoxA) -> bool {
+        a.lo.to_array().map(f32::to_bits) == b.lo.to_array().map(f32::to_bits)
+            && a.hi.to_array().map(f32::to_bits) == b.hi.to_array().map(f32::to_bits)
+    }
+
+    proptest! {
+        /// Small nodes skip the bins; the split must be the binned one: same cost to the
+        /// bit, same axis, same references on each side, same boxes.
+        #[test]
+        fn small_nodes_split_as_the_bins_do(
+            boxes in prop::collection::vec(
+                // Coarse coordinates, so centroids often share a bin or a value.
+                (prop::array::uniform3(0i8..8), prop::array::uniform3(0i8..3)),
+                2..=SMALL_NODE,
+            ),
+            nbins in 2usize..=MAX_BINS,
+        ) {
+            let refs: Vec<Ref> = boxes
+                .iter()
+                .enumerate()
+                .map(|(i, (lo, size))| {
+                    let lo = Vec3::from(lo.map(|x| x as f32 * 0.25));
+                    let hi = lo + Vec3::from(size.map(|x| x as f32 * 0.5));
+                    Ref::new(&Aabb { lo, hi }, i as u32)
+                })
+                .collect();
+            let (bbox, cbox) = bounds(&refs);
+            let ext = cbox.hi - cbox.lo;
+            let scale = nbins as f32 / ext;
+            let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
+            let scale = Vec3A::select(splittable, scale, Vec3A::ZERO);
+            let opts = BuildOptions::default();
+            let area = bbox.aabb().area();
+            let bins = fill_bins(&refs, nbins, cbox.lo, scale);
+            let binned = best_split(&opts, &bins, nbins, splittable, area, refs.len());
+            let small = best_split_small(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
+            match (binned, small) {
+                (None, None) => {}
+                (Some(b), Some(s)) => {
+                    prop_assert_eq!(b.0.to_bits(), s.0.to_bits(), "cost");
+                    prop_assert_eq!(b.1, s.1, "axis");
+                    let side = |k: usize| -> Vec<bool> {
+                        refs.iter()
+                            .map(|r| bin_index(r.centroid()[b.1], cbox.lo[b.1], scale[b.1], nbins - 1) < k)
+                            .collect()
+                    };
+                    prop_assert_eq!(side(b.2), side(s.2), "sides");
+                    prop_assert!(same_box(b.3, s.3) && same_box(b.4, s.4), "boxes");
+                }
+                (b, s) => prop_assert!(false, "binned {:?} vs small {:?}", b.map(|x| x.0), s.map(|x| x.0)),
+            }
+        }
+    }
 }

@@ -124,6 +124,25 @@ pub struct Bvh {
     pub order: Vec<u32>,
 }
 
+impl Drop for Bvh {
+    /// A big tree is one small allocation per inner node: the top subtrees are freed on all
+    /// threads.
+    fn drop(&mut self) {
+        fn free(node: Node, depth: u32) {
+            if let Node::Inner { children, .. } = node {
+                if depth < 4 {
+                    let [a, b] = *children;
+                    rayon::join(|| free(a, depth + 1), || free(b, depth + 1));
+                }
+            }
+        }
+        free(
+            std::mem::replace(&mut self.root, leaf(Aabb::EMPTY, 0, 0)),
+            0,
+        );
+    }
+}
+
 /// Per-primitive input of the builders, indexed by position in `ids`.
 pub(crate) struct Prims {
     pub boxes: Vec<Aabb>,
