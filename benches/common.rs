@@ -7,10 +7,6 @@ use glam::Vec3;
 use lancer::geometry::Triangle;
 use lancer::scene::{load_obj, Mesh};
 
-// The allocator of the `lancer` binary (src/main.rs), so benches time what users run.
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
 /// The bunny from ../shared/models (panics with a clear message when absent).
 pub fn bunny() -> Mesh {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/models/stanford-bunny.obj");
