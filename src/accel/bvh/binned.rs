@@ -221,11 +221,7 @@ fn node(
         || node(opts, l, lbox, lc, offset, depth + 1),
         || node(opts, r, rbox, rc, offset + k, depth + 1),
     );
-    Node::Inner {
-        bbox,
-        axis: axis as u8,
-        children: Box::new([a, b]),
-    }
+    Node::inner(bbox, axis, [a, b])
 }
 
 /// A bin on all three axes at once, transposed so that each vector holds one coordinate

@@ -104,11 +104,30 @@ pub enum Node {
     Inner {
         bbox: Aabb,
         axis: u8,
+        /// Nodes in this subtree, itself included: where flattening puts the second child.
+        nodes: u32,
         children: Box<[Node; 2]>,
     },
 }
 
 impl Node {
+    pub(crate) fn inner(bbox: Aabb, axis: usize, children: [Node; 2]) -> Node {
+        Node::Inner {
+            bbox,
+            axis: axis as u8,
+            nodes: 1 + children[0].nodes() + children[1].nodes(),
+            children: Box::new(children),
+        }
+    }
+
+    /// Nodes in this subtree, itself included.
+    pub fn nodes(&self) -> u32 {
+        match self {
+            Node::Leaf { .. } => 1,
+            Node::Inner { nodes, .. } => *nodes,
+        }
+    }
+
     pub fn bbox(&self) -> &Aabb {
         match self {
             Node::Leaf { bbox, .. } | Node::Inner { bbox, .. } => bbox,
@@ -194,12 +213,13 @@ pub(crate) fn median_split(prims: &Prims, idx: &mut [u32], axis: usize) -> usize
 
 /// Builds a BVH over the mesh's included triangles. Deterministic for a given input.
 pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
+    use rayon::prelude::*;
     let ids = mesh.included();
     let boxes: Vec<Aabb> = ids
-        .iter()
+        .par_iter()
         .map(|&i| mesh.triangles[i as usize].bbox())
         .collect();
-    let centroids = boxes.iter().map(Aabb::center).collect();
+    let centroids = boxes.par_iter().map(Aabb::center).collect();
     let prims = Prims { boxes, centroids };
     if ids.is_empty() {
         return Bvh {
@@ -214,6 +234,6 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
     };
     Bvh {
         root,
-        order: local.iter().map(|&l| ids[l as usize]).collect(),
+        order: local.par_iter().map(|&l| ids[l as usize]).collect(),
     }
 }

@@ -84,10 +84,10 @@ impl FlatBvh {
                 }
             })
             .collect();
-        // A binary tree over n triangles has at most 2n − 1 nodes. Reserving that saves the
-        // copies of a growing vector; the pages never written cost no memory.
-        let mut nodes = Vec::with_capacity((2 * bvh.order.len()).max(1));
-        push(&bvh.root, &mut nodes);
+        // Every subtree knows its size, so each writes its own part of the array; the big
+        // ones on all threads (most of the time here is first touches of fresh pages).
+        let mut nodes = bytemuck::zeroed_vec(bvh.root.nodes() as usize);
+        write(&bvh.root, &mut nodes, 0);
         FlatBvh { nodes, tris }
     }
 
@@ -143,25 +143,35 @@ impl FlatBvh {
     }
 }
 
-fn push(node: &Node, out: &mut Vec<GpuNode>) {
-    let i = out.len();
+/// Subtrees with at least this many nodes are written in parallel.
+const PARALLEL_NODES: usize = 1 << 12;
+
+/// Writes `node`'s subtree in pre-order into `out` (exactly its size), whose first element
+/// is node `index` of the whole array.
+fn write(node: &Node, out: &mut [GpuNode], index: u32) {
     let b = node.bbox();
-    out.push(GpuNode {
-        lo: b.lo.into(),
-        a: 0,
-        hi: b.hi.into(),
-        b: 0,
-    });
-    match node {
-        Node::Leaf { start, count, .. } => {
-            out[i].a = *start;
-            out[i].b = count << 2 | LEAF_TAG;
-        }
+    let (a, tag, children) = match node {
+        Node::Leaf { start, count, .. } => (*start, count << 2 | LEAF_TAG, None),
         Node::Inner { axis, children, .. } => {
-            push(&children[0], out);
-            out[i].a = out.len() as u32;
-            out[i].b = *axis as u32;
-            push(&children[1], out);
+            let second = index + 1 + children[0].nodes();
+            (second, *axis as u32, Some(children))
+        }
+    };
+    let (head, rest) = out.split_first_mut().expect("a subtree has a node");
+    *head = GpuNode {
+        lo: b.lo.into(),
+        a,
+        hi: b.hi.into(),
+        b: tag,
+    };
+    if let Some([l, r]) = children.map(|c| &**c) {
+        let big = rest.len() >= PARALLEL_NODES;
+        let (lo, hi) = rest.split_at_mut(l.nodes() as usize);
+        if big {
+            rayon::join(|| write(l, lo, index + 1), || write(r, hi, a));
+        } else {
+            write(l, lo, index + 1);
+            write(r, hi, a);
         }
     }
 }

@@ -29,9 +29,5 @@ fn node(prims: &Prims, opts: &BuildOptions, idx: &mut [u32], offset: usize) -> N
         || node(prims, opts, l, offset),
         || node(prims, opts, r, offset + k),
     );
-    Node::Inner {
-        bbox,
-        axis: axis as u8,
-        children: Box::new([a, b]),
-    }
+    Node::inner(bbox, axis, [a, b])
 }

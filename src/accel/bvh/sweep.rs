@@ -102,11 +102,7 @@ fn node(ctx: &Ctx, lists: [&mut [u32]; 3], offset: usize, depth: usize) -> Node 
         || node(ctx, [a0, b0, c0], offset, depth + 1),
         || node(ctx, [a1, b1, c1], offset + k, depth + 1),
     );
-    Node::Inner {
-        bbox,
-        axis: axis as u8,
-        children: Box::new([l, r]),
-    }
+    Node::inner(bbox, axis, [l, r])
 }
 
 /// Left-flagged entries first, both groups in their original order.
