@@ -17,7 +17,6 @@ use lancer::geometry::Ray;
 use lancer::gpu::{GpuContext, GpuTracer, TraceKernel};
 use lancer::scene::{load_mesh, Camera};
 use lancer::Result;
-use wgpu::util::DeviceExt;
 
 // Per invocation, the memory traffic of one traced ray in the same load shapes as
 // bvh.wgsl/traverse.wgsl: read the Ray, NODES nodes (two vec4 each), TRIS triangles (three
@@ -105,13 +104,7 @@ fn main() -> Result<()> {
 /// Milliseconds of the probe over one invocation per ray (best of 3).
 fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u32)) -> f64 {
     let dev = &ctx.device;
-    let init = |label, contents| {
-        dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents,
-            usage: wgpu::BufferUsages::STORAGE,
-        })
-    };
+    let init = |label, contents| ctx.buffer_with(label, contents, wgpu::BufferUsages::STORAGE);
     let buffers = [
         init("nodes", bytemuck::cast_slice(&flat.nodes)),
         init("tris", bytemuck::cast_slice(&flat.tris)),

@@ -2,6 +2,8 @@
 
 use std::sync::Once;
 
+use wgpu::util::DeviceExt;
+
 use crate::error::{Error, Result};
 
 /// What the adapter is, for `--stats` and warnings.
@@ -114,6 +116,21 @@ impl GpuContext {
             limits,
             timestamps,
         })
+    }
+
+    /// A read-only buffer holding `contents`, with `usage` (STORAGE or UNIFORM).
+    pub fn buffer_with(
+        &self,
+        label: &str,
+        contents: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
     }
 
     /// Refuses a buffer the device cannot bind, naming the size and the limit.

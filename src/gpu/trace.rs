@@ -4,8 +4,6 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use wgpu::util::DeviceExt;
-
 use super::{shaders, GpuContext};
 use crate::accel::bvh::FlatBvh;
 use crate::error::{Error, Result};
@@ -103,15 +101,8 @@ impl<'a> GpuTracer<'a> {
         ctx.check_binding("the BVH nodes", node_bytes.len() as u64)?;
         ctx.check_binding("the triangles", tri_bytes.len() as u64)?;
         let dev = &ctx.device;
-        let init = |label, contents| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let nodes = init("nodes", node_bytes);
-        let tris = init("tris", tri_bytes);
+        let nodes = ctx.buffer_with("nodes", node_bytes, wgpu::BufferUsages::STORAGE);
+        let tris = ctx.buffer_with("tris", tri_bytes, wgpu::BufferUsages::STORAGE);
         let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("traverse"),
             entries: &[
@@ -240,16 +231,12 @@ impl<'a> GpuTracer<'a> {
         } else {
             bytemuck::cast_slice(rays)
         };
-        let ray_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("rays"),
-            contents: ray_bytes,
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let param_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("params"),
-            contents: &params,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let ray_buf = self
+            .ctx
+            .buffer_with("rays", ray_bytes, wgpu::BufferUsages::STORAGE);
+        let param_buf = self
+            .ctx
+            .buffer_with("params", &params, wgpu::BufferUsages::UNIFORM);
         let hit_size = (n * 16) as u64;
         let stat_size = if kernel.stats { (n * 8) as u64 } else { 8 };
         let storage = |label, size| {

@@ -4,7 +4,6 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 use super::effects::EffectSet;
 use super::integrator::CameraFrame;
@@ -209,13 +208,7 @@ impl<'a> GpuRenderer<'a> {
         ctx.check_binding("the image accumulator", accum_bytes)?;
         let dev = &ctx.device;
         let buffers: Vec<wgpu::Buffer> = (sized.iter())
-            .map(|(what, bytes)| {
-                dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(what),
-                    contents: bytes,
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-            })
+            .map(|(what, bytes)| ctx.buffer_with(what, bytes, wgpu::BufferUsages::STORAGE))
             .collect();
         let accum = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("accum"),
