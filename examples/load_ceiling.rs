@@ -7,7 +7,8 @@
 //!
 //! Prints, side by side in one run: the real closest-hit kernel (GPU time, timestamp queries)
 //! and the loads-only probe doing the mean number of node and triangle loads per ray over
-//! the same buffers (wall time around submit + wait, no readback; one dispatch).
+//! the same buffers (wall time around submit + wait, no readback; one dispatch), and the probe
+//! again over read-only storage textures holding the same words.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -21,16 +22,33 @@ use lancer::Result;
 // Per invocation, the memory traffic of one traced ray in the same load shapes as
 // bvh.wgsl/traverse.wgsl: read the Ray, NODES nodes (two vec4 each), TRIS triangles (three
 // vec4 each), write a Hit. Each index comes from the words read before, so no load can be
-// skipped or hoisted.
+// skipped or hoisted. TEXTURES reads the same words from read-only storage textures
+// (TEXTURE_WIDTH texels a row) instead of storage buffers.
 const PROBE: &str = "
 override NODES: u32 = 17u;
 override TRIS: u32 = 4u;
 override N_NODES: u32 = 1u;
 override N_TRIS: u32 = 1u;
+override TEXTURES: bool = false;
+const TEXTURE_WIDTH: u32 = 4096u;
 @group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;
 @group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 @group(0) @binding(3) var<storage, read_write> hits: array<Hit>;
+@group(0) @binding(4) var node_texels: texture_storage_2d<rgba32uint, read>;
+@group(0) @binding(5) var tri_texels: texture_storage_2d<rgba32uint, read>;
+fn node_word(i: u32) -> vec4<u32> {
+    if TEXTURES {
+        return textureLoad(node_texels, vec2<u32>(i % TEXTURE_WIDTH, i / TEXTURE_WIDTH));
+    }
+    return node_words[i];
+}
+fn tri_word(i: u32) -> vec4<u32> {
+    if TEXTURES {
+        return textureLoad(tri_texels, vec2<u32>(i % TEXTURE_WIDTH, i / TEXTURE_WIDTH));
+    }
+    return tri_words[i];
+}
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= arrayLength(&rays) {
@@ -40,17 +58,18 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     var acc = bitcast<vec4<u32>>(vec4<f32>(r.dir, r.tmax));
     var idx = 0u;
     for (var k = 0u; k < NODES; k += 1u) {
-        acc += node_words[2u * idx] ^ node_words[2u * idx + 1u];
+        acc += node_word(2u * idx) ^ node_word(2u * idx + 1u);
         idx = (acc.x + acc.y + acc.z + acc.w) % N_NODES;
     }
     for (var k = 0u; k < TRIS; k += 1u) {
         let j = 3u * (idx % N_TRIS);
-        acc += tri_words[j] ^ tri_words[j + 1u] ^ tri_words[j + 2u];
+        acc += tri_word(j) ^ tri_word(j + 1u) ^ tri_word(j + 2u);
         idx = acc.x + acc.y + acc.z + acc.w;
     }
     hits[gid.x] = Hit(bitcast<f32>(acc.x), acc.y, bitcast<f32>(acc.z), bitcast<f32>(acc.w));
 }
 ";
+const TEXTURE_WIDTH: u32 = 4096;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -82,7 +101,8 @@ fn main() -> Result<()> {
     let real_ms = t.gpu_ms.unwrap_or(t.wall_ms);
 
     let loads = (nodes_per_ray.round() as u32, tris_per_ray.round() as u32);
-    let probe_ms = probe(&ctx, &flat, &rays, loads);
+    let probe_ms = probe(&ctx, &flat, &rays, loads, false);
+    let texture_ms = probe(&ctx, &flat, &rays, loads, true);
     let mrays = |ms: f64| rays.len() as f64 / (ms * 1e3);
     println!(
         "{} primary rays, {nodes_per_ray:.2} nodes/ray, {tris_per_ray:.2} triangles/ray",
@@ -98,11 +118,22 @@ fn main() -> Result<()> {
         loads.1,
         mrays(probe_ms)
     );
+    println!(
+        "the same loads from read-only storage textures: {:7.2} Mrays/s",
+        mrays(texture_ms)
+    );
     Ok(())
 }
 
-/// Milliseconds of the probe over one invocation per ray (best of 3).
-fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u32)) -> f64 {
+/// Milliseconds of the probe over one invocation per ray (best of 3), reading storage buffers
+/// or (`textures`) storage textures holding the same words.
+fn probe(
+    ctx: &GpuContext,
+    flat: &FlatBvh,
+    rays: &[Ray],
+    (nodes, tris): (u32, u32),
+    textures: bool,
+) -> f64 {
     let dev = &ctx.device;
     let init = |label, contents| ctx.buffer_with(label, contents, wgpu::BufferUsages::STORAGE);
     let buffers = [
@@ -111,6 +142,9 @@ fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u3
         init("rays", bytemuck::cast_slice(rays)),
         init("hits", &vec![0u8; rays.len() * 16]),
     ];
+    let node_texels = texels(ctx, bytemuck::cast_slice(&flat.nodes));
+    let tri_texels = texels(ctx, bytemuck::cast_slice(&flat.tris));
+    let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
     let source = format!("{}\n{PROBE}", lancer::gpu::shaders::COMMON);
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),
@@ -121,6 +155,7 @@ fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u3
         ("TRIS", tris as f64),
         ("N_NODES", flat.nodes.len() as f64),
         ("N_TRIS", flat.tris.len().max(1) as f64),
+        ("TEXTURES", if textures { 1.0 } else { 0.0 }),
     ];
     let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some("load probe"),
@@ -136,10 +171,14 @@ fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u3
     let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("load probe"),
         layout: &pipeline.get_bind_group_layout(0),
-        entries: &[0, 1, 2, 3].map(|i| wgpu::BindGroupEntry {
-            binding: i,
-            resource: buffers[i as usize].as_entire_binding(),
-        }),
+        entries: &[
+            entry(0, buffers[0].as_entire_binding()),
+            entry(1, buffers[1].as_entire_binding()),
+            entry(2, buffers[2].as_entire_binding()),
+            entry(3, buffers[3].as_entire_binding()),
+            entry(4, wgpu::BindingResource::TextureView(&node_texels)),
+            entry(5, wgpu::BindingResource::TextureView(&tri_texels)),
+        ],
     });
     let run = || {
         let mut enc = dev.create_command_encoder(&Default::default());
@@ -157,4 +196,38 @@ fn probe(ctx: &GpuContext, flat: &FlatBvh, rays: &[Ray], (nodes, tris): (u32, u3
     };
     run(); // compile and warm up
     (0..3).map(|_| run()).fold(f64::INFINITY, f64::min)
+}
+
+/// A view of an rgba32uint storage texture, TEXTURE_WIDTH texels a row, holding `words`
+/// (16 bytes a texel; the last row padded with zeros).
+fn texels(ctx: &GpuContext, words: &[u8]) -> wgpu::TextureView {
+    let rows = (words.len() / 16).div_ceil(TEXTURE_WIDTH as usize).max(1) as u32;
+    let size = wgpu::Extent3d {
+        width: TEXTURE_WIDTH,
+        height: rows,
+        depth_or_array_layers: 1,
+    };
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("load probe texels"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Uint,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let mut padded = words.to_vec();
+    padded.resize(rows as usize * TEXTURE_WIDTH as usize * 16, 0);
+    ctx.queue.write_texture(
+        texture.as_image_copy(),
+        &padded,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(TEXTURE_WIDTH * 16),
+            rows_per_image: Some(rows),
+        },
+        size,
+    );
+    texture.create_view(&Default::default())
 }
