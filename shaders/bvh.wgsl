@@ -4,23 +4,45 @@
 override COUNT_STATS: bool = false;      // count nodes visited / triangles tested
 override MOLLER_TRUMBORE: bool = false;  // TriangleTest::MollerTrumbore instead of watertight
 
-// Node and Tri arrays, read as 16-byte words. lavapipe compiles every storage load into a
-// loop over the SIMD lanes, one loop per load instruction: two vec4 loads per node instead of
-// one per field (lo, a, hi, b) is ~15% more rays/s there. load_node/load_tri follow the
-// offsets that tests/layout.rs checks.
+// Node and Tri arrays, read as 16-byte words. lavapipe compiles every storage-buffer load
+// into a loop over the SIMD lanes, one loop per load instruction: two vec4 loads per node
+// instead of one per field (lo, a, hi, b) is ~15% more rays/s there. load_node/load_tri
+// follow the offsets that tests/layout.rs checks.
+//
+// The same words live either in storage buffers or, with BVH_TEXTURES (gpu::BvhMemory), in
+// read-only rgba32uint storage textures of TEXEL_ROW texels a row, which lavapipe loads with
+// a gather (~18% more rays/s). Both pairs are declared; the unused pair is a placeholder.
+override BVH_TEXTURES: bool = false;
+const TEXEL_ROW: u32 = 4096u;  // gpu::TEXEL_ROW
 @group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;
 @group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;
+@group(0) @binding(10) var node_texels: texture_storage_2d<rgba32uint, read>;
+@group(0) @binding(11) var tri_texels: texture_storage_2d<rgba32uint, read>;
+
+fn node_word(i: u32) -> vec4<u32> {
+    if BVH_TEXTURES {
+        return textureLoad(node_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
+    }
+    return node_words[i];
+}
+
+fn tri_word(i: u32) -> vec4<u32> {
+    if BVH_TEXTURES {
+        return textureLoad(tri_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
+    }
+    return tri_words[i];
+}
 
 fn load_node(i: u32) -> Node {
-    let a = node_words[2u * i];
-    let b = node_words[2u * i + 1u];
+    let a = node_word(2u * i);
+    let b = node_word(2u * i + 1u);
     return Node(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
 }
 
 fn load_tri(i: u32) -> Tri {
-    let a = tri_words[3u * i];
-    let b = tri_words[3u * i + 1u];
-    let c = tri_words[3u * i + 2u];
+    let a = tri_word(3u * i);
+    let b = tri_word(3u * i + 1u);
+    let c = tri_word(3u * i + 2u);
     return Tri(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
                bitcast<vec3<f32>>(c.xyz), c.w);
 }

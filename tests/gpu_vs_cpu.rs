@@ -8,7 +8,7 @@ use common::{gpu, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
 use lancer::geometry::{Hit, Ray, TriangleTest};
-use lancer::gpu::{GpuTracer, TraceKernel};
+use lancer::gpu::{BvhMemory, GpuTracer, TraceKernel};
 use lancer::scene::{Camera, Mesh};
 use lancer::trace::oracle::{judge, judge_any, Verdict};
 use lancer::trace::{trace_batch, Query};
@@ -19,11 +19,22 @@ fn ulps(a: f32, b: f32) -> u32 {
         .min(u32::MAX as u64) as u32
 }
 
-/// Compares GPU with CPU on `rays`; returns (agree, tie).
+/// Compares GPU (BVH in the default memory) with CPU on `rays`; returns (agree, tie).
 fn compare(name: &str, mesh: &Mesh, rays: &[Ray], kernel: TraceKernel) -> (usize, usize) {
+    compare_in(name, mesh, rays, kernel, BvhMemory::default())
+}
+
+/// [`compare`] with the BVH in the given memory.
+fn compare_in(
+    name: &str,
+    mesh: &Mesh,
+    rays: &[Ray],
+    kernel: TraceKernel,
+    memory: BvhMemory,
+) -> (usize, usize) {
     let flat = FlatBvh::new(&build(mesh, &BuildOptions::default()), mesh);
     let (cpu, cpu_stats) = trace_batch(&flat, rays, kernel.query, kernel.test);
-    let mut tracer = GpuTracer::new(gpu(), &flat).unwrap();
+    let mut tracer = GpuTracer::with_memory(gpu(), &flat, memory).unwrap();
     let (gpu_hits, gpu_stats, _) = tracer
         .trace(
             rays,
@@ -98,9 +109,12 @@ fn random_soups() {
         let mut rng = Rng::new(300 + seed);
         let mesh = soup(&mut rng, 3000, 0.15);
         let rays = random_rays(&mut rng, 20_000, &mesh);
-        for k in kernels() {
-            let (agree, _) = compare(&format!("soup {seed}"), &mesh, &rays, k);
-            assert!(agree > 19_000);
+        for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
+            for k in kernels() {
+                let name = format!("soup {seed} {memory:?}");
+                let (agree, _) = compare_in(&name, &mesh, &rays, k, memory);
+                assert!(agree > 19_000);
+            }
         }
     }
 }
@@ -180,25 +194,24 @@ fn shadow_rays_from_primary_hits() {
 
 #[test]
 fn every_variant_matches_the_cpu() {
-    // Workgroup sizes, trusted modules and Möller–Trumbore: one source, same answers.
+    // Workgroup sizes, trusted modules, Möller–Trumbore and both BVH memories: one source,
+    // same answers.
     let mut rng = Rng::new(44);
     let mesh = soup(&mut rng, 2000, 0.2);
     let rays = random_rays(&mut rng, 5000, &mesh);
-    for workgroup_size in [32, 64, 128] {
-        for trusted in [false, true] {
-            for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
-                let k = TraceKernel {
-                    workgroup_size,
-                    trusted,
-                    test,
-                    ..TraceKernel::default()
-                };
-                compare(
-                    &format!("wg{workgroup_size} trusted={trusted} {test:?}"),
-                    &mesh,
-                    &rays,
-                    k,
-                );
+    for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
+        for workgroup_size in [32, 64, 128] {
+            for trusted in [false, true] {
+                for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
+                    let k = TraceKernel {
+                        workgroup_size,
+                        trusted,
+                        test,
+                        ..TraceKernel::default()
+                    };
+                    let name = format!("{memory:?} wg{workgroup_size} trusted={trusted} {test:?}");
+                    compare_in(&name, &mesh, &rays, k, memory);
+                }
             }
         }
     }
@@ -298,4 +311,27 @@ fn axis_parallel_rays_on_box_faces() {
             ..TraceKernel::default()
         },
     );
+}
+
+#[test]
+fn oversized_bvh_is_refused_naming_size_and_limit() {
+    // A device of our own whose recorded limits we shrink: the checks run before upload.
+    gpu(); // fails with the install hint when there is no adapter
+    let mut ctx = lancer::gpu::GpuContext::new().unwrap();
+    ctx.limits.max_storage_buffer_binding_size = 1024;
+    ctx.limits.max_texture_dimension_2d = 1024;
+    let mut rng = Rng::new(5);
+    let mesh = soup(&mut rng, 100, 0.2);
+    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    for (memory, limit) in [
+        (BvhMemory::Buffers, "max_storage_buffer_binding_size"),
+        (BvhMemory::Textures, "max_texture_dimension_2d"),
+    ] {
+        let e = GpuTracer::with_memory(&ctx, &flat, memory)
+            .err()
+            .unwrap_or_else(|| panic!("{memory:?}: an oversized BVH was uploaded"))
+            .to_string();
+        assert!(e.contains(limit), "{memory:?}: {e}");
+        assert!(e.contains("KiB"), "{memory:?}: the size is not named: {e}");
+    }
 }

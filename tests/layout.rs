@@ -169,3 +169,21 @@ fn render_structs_match_rust() {
     );
     assert_eq!(size_of::<RenderParams>(), 128);
 }
+
+#[test]
+fn texel_row_matches_rust() {
+    let m = module(&shaders::traverse_source());
+    let (_, c) = (m.constants.iter())
+        .find(|(_, c)| c.name.as_deref() == Some("TEXEL_ROW"))
+        .expect("TEXEL_ROW not in bvh.wgsl");
+    match m.global_expressions[c.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => {
+            assert_eq!(
+                v,
+                lancer::gpu::TEXEL_ROW,
+                "WGSL TEXEL_ROW vs gpu::TEXEL_ROW"
+            )
+        }
+        ref e => panic!("TEXEL_ROW is not a u32 literal: {e:?}"),
+    }
+}

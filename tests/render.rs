@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use common::gpu;
 use glam::Vec3;
 use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::gpu::BvhMemory;
 use lancer::render::{to_rgb8, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
 
 fn scenes_dir() -> PathBuf {
@@ -56,7 +57,17 @@ fn cpu_image(s: &RenderScene, flat: &FlatBvh, fx: EffectSet, spp: u32) -> Vec<Ve
 }
 
 fn gpu_image(s: &RenderScene, flat: &FlatBvh, fx: EffectSet, spp: u32) -> Vec<Vec3> {
-    let mut g = GpuRenderer::new(gpu(), s, flat).unwrap();
+    gpu_image_in(s, flat, fx, spp, BvhMemory::default())
+}
+
+fn gpu_image_in(
+    s: &RenderScene,
+    flat: &FlatBvh,
+    fx: EffectSet,
+    spp: u32,
+    memory: BvhMemory,
+) -> Vec<Vec3> {
+    let mut g = GpuRenderer::with_memory(gpu(), s, flat, memory).unwrap();
     for i in 0..spp {
         g.add_sample(fx, i).unwrap();
     }
@@ -124,6 +135,20 @@ fn gpu_renders_match_the_cpu_reference() {
         let spread =
             lum.iter().cloned().fold(0.0, f32::max) - lum.iter().cloned().fold(f32::MAX, f32::min);
         assert!(spread > 0.1, "{name}: the reference image is flat");
+    }
+}
+
+#[test]
+fn both_bvh_memories_render_the_same_image() {
+    // The same words read through buffers or textures: the same numbers, bit for bit.
+    for (name, s, flat) in scenes() {
+        let fx = EffectSet::of(&s);
+        assert_eq!(
+            gpu_image_in(&s, &flat, fx, 1, BvhMemory::Buffers),
+            gpu_image_in(&s, &flat, fx, 1, BvhMemory::Textures),
+            "{name}: BVH in buffers vs textures"
+        );
+        println!("{name}: buffers ≡ textures");
     }
 }
 

@@ -5,13 +5,13 @@ use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::{build, FlatBvh};
 use lancer::geometry::{Ray, TriangleTest};
-use lancer::gpu::{GpuTracer, TraceKernel};
+use lancer::gpu::{BvhMemory, GpuTracer, TraceKernel};
 use lancer::scene::{load_mesh, Camera};
 use lancer::trace::rays::{default_light, shadow_rays};
 use lancer::trace::{trace_batch, Query, RayStats};
 use lancer::Result;
 
-use super::trace::{open_device, Device};
+use super::trace::{memory_name, open_device, Device};
 use super::BuildArgs;
 
 #[derive(Args)]
@@ -77,6 +77,7 @@ impl BenchTrace {
             ("shadow any-hit", Query::Any, &shadow),
         ];
         let ctx = open_device(self.device)?;
+        let memories = [BvhMemory::Textures, BvhMemory::Buffers];
         let gpu_configs: Vec<(u32, bool)> = if ctx.is_some() {
             [32, 64, 128]
                 .iter()
@@ -85,8 +86,9 @@ impl BenchTrace {
         } else {
             Vec::new()
         };
+        let gpu_runs = memories.len() * gpu_configs.len();
         let repeat = self.repeat.max(1);
-        let bar = ProgressBar::new((sets.len() * (1 + gpu_configs.len()) * repeat) as u64);
+        let bar = ProgressBar::new((sets.len() * (1 + gpu_runs) * repeat) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}").unwrap());
         let mut rows = Vec::new();
         for (name, query, rays) in sets {
@@ -102,13 +104,15 @@ impl BenchTrace {
             }
             let cpu = n / median(times) / 1e6;
             rows.push(format!(
-                "| {name} | {} | cpu ({} threads) | – | – | {cpu:.2} | {cpu:.2} | {:.2} |",
+                "| {name} | {} | cpu ({} threads) | – | – | – | {cpu:.2} | {cpu:.2} | {:.2} |",
                 rays.len(),
                 rayon::current_num_threads(),
                 nodes_per_ray(&stats)
             ));
-            if let Some(ctx) = &ctx {
-                let mut tracer = GpuTracer::new(ctx, &flat)?;
+            let Some(ctx) = &ctx else { continue };
+            for memory in memories {
+                let mut tracer = GpuTracer::with_memory(ctx, &flat, memory)?;
+                let bvh = memory_name(memory);
                 for &(wg, trusted) in &gpu_configs {
                     let k = TraceKernel {
                         query,
@@ -127,7 +131,7 @@ impl BenchTrace {
                     let (_, s, _) = tracer.trace(rays, TraceKernel { stats: true, ..k })?;
                     let module = if trusted { "trusted" } else { "checked" };
                     rows.push(format!(
-                        "| {name} | {} | gpu | {wg} | {module} | {:.2} | {:.2} | {:.2} |",
+                        "| {name} | {} | gpu | {bvh} | {wg} | {module} | {:.2} | {:.2} | {:.2} |",
                         rays.len(),
                         n / median(gpu) / 1e3,
                         n / median(wall) / 1e3,
@@ -147,8 +151,8 @@ impl BenchTrace {
         if let Some(ctx) = &ctx {
             println!("adapter {}", ctx.adapter);
         }
-        println!("| rays | count | device | workgroup | module | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray |");
-        println!("|---|---|---|---|---|---|---|---|");
+        println!("| rays | count | device | BVH memory | workgroup | module | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray |");
+        println!("|---|---|---|---|---|---|---|---|---|");
         for r in rows {
             println!("{r}");
         }

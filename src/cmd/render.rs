@@ -7,10 +7,11 @@ use clap::Args;
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::{build, BvhStats, FlatBvh};
+use lancer::gpu::BvhMemory;
 use lancer::render::{image_kind, save_image, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
 use lancer::{Error, Result};
 
-use super::trace::{open_device, Device};
+use super::trace::{memory_name, open_device, Device};
 use super::BuildArgs;
 
 #[derive(Args)]
@@ -43,6 +44,9 @@ pub struct RenderCmd {
     /// Print build time, BVH statistics, effects, device and speed.
     #[arg(long)]
     stats: bool,
+    /// GPU: where the kernels read the BVH from (storage textures or storage buffers).
+    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
+    bvh_memory: BvhMemory,
     #[command(flatten)]
     build: BuildArgs,
 }
@@ -111,7 +115,7 @@ impl RenderCmd {
         let mut gpu_ms = 0.0;
         let mut done = 0u32;
         let mut gpu = match &ctx {
-            Some(c) => Some(GpuRenderer::new(c, &scene, &flat)?),
+            Some(c) => Some(GpuRenderer::with_memory(c, &scene, &flat, self.bvh_memory)?),
             None => None,
         };
         let cpu = CpuRenderer::new(&scene, &flat, effects);
@@ -171,6 +175,9 @@ impl RenderCmd {
                 s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost
             );
             println!("effects: {effects}");
+            if gpu.is_some() {
+                println!("BVH memory: {}", memory_name(self.bvh_memory));
+            }
             println!(
                 "{:.2} M camera rays/s, {:.1} ms per spp{}",
                 done as f64 * (w * h) as f64 / secs * 1e-6,

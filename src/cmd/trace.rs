@@ -3,7 +3,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use lancer::accel::bvh::{build, FlatBvh};
 use lancer::geometry::TriangleTest;
-use lancer::gpu::{GpuContext, GpuTracer, TraceKernel};
+use lancer::gpu::{BvhMemory, GpuContext, GpuTracer, TraceKernel};
 use lancer::scene::load_mesh;
 use lancer::trace::rays::{read_rays, write_hits};
 use lancer::trace::{trace_batch, Query};
@@ -34,6 +34,12 @@ pub fn open_device(device: Device) -> Result<Option<GpuContext>> {
     }
 }
 
+/// A BVH memory as the command line spells it.
+pub fn memory_name(m: BvhMemory) -> String {
+    m.to_possible_value()
+        .map_or(format!("{m:?}"), |v| v.get_name().to_string())
+}
+
 #[derive(Args)]
 pub struct TraceCmd {
     /// OBJ mesh.
@@ -61,6 +67,9 @@ pub struct TraceCmd {
     /// GPU: run the shader module without bounds checks / loop bounding (BVH validated first).
     #[arg(long)]
     trusted: bool,
+    /// GPU: where the kernels read the BVH from (storage textures or storage buffers).
+    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
+    bvh_memory: BvhMemory,
     #[command(flatten)]
     build: BuildArgs,
 }
@@ -84,7 +93,7 @@ impl TraceCmd {
                 (h, s)
             }
             Some(ctx) => {
-                let mut tracer = GpuTracer::new(&ctx, &flat)?;
+                let mut tracer = GpuTracer::with_memory(&ctx, &flat, self.bvh_memory)?;
                 let kernel = TraceKernel {
                     query,
                     test: self.triangle_test,
@@ -95,6 +104,7 @@ impl TraceCmd {
                 let (h, s, t) = tracer.trace(&rays, kernel)?;
                 if self.stats {
                     println!("device    gpu: {}", ctx.adapter);
+                    println!("bvh       in {}", memory_name(tracer.memory()));
                     let gpu = t
                         .gpu_ms
                         .map(|ms| format!("{ms:.2} ms"))

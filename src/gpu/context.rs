@@ -141,13 +141,22 @@ impl GpuContext {
             .min(self.limits.max_buffer_size);
         if bytes > limit {
             return Err(Error::Gpu(format!(
-                "{what} need {:.1} MiB but {} binds at most {:.1} MiB per storage buffer \
+                "{what} need {} but {} binds at most {} per storage buffer \
                  (max_storage_buffer_binding_size); use a smaller scene or --device cpu",
-                bytes as f64 / 1048576.0,
+                human_bytes(bytes),
                 self.adapter.name,
-                limit as f64 / 1048576.0
+                human_bytes(limit)
             )));
         }
         Ok(())
+    }
+}
+
+/// A size for people: bytes, KiB or MiB.
+pub fn human_bytes(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1 << 20 => format!("{:.1} MiB", b as f64 / 1048576.0),
+        b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
+        b => format!("{b} bytes"),
     }
 }

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use super::{shaders, GpuContext};
+use super::{shaders, BvhMemory, GpuBvh, GpuContext};
 use crate::accel::bvh::FlatBvh;
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, TriangleTest};
@@ -62,8 +62,7 @@ type BatchResult = (Vec<Hit>, Option<Vec<RayStats>>, Option<f64>);
 
 pub struct GpuTracer<'a> {
     ctx: &'a GpuContext,
-    nodes: wgpu::Buffer,
-    tris: wgpu::Buffer,
+    bvh: GpuBvh,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
     checked: wgpu::ShaderModule,
@@ -85,29 +84,29 @@ pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLay
 }
 
 impl<'a> GpuTracer<'a> {
-    /// Validates and uploads a flat BVH.
+    /// Validates and uploads a flat BVH in the default memory.
     pub fn new(ctx: &'a GpuContext, flat: &FlatBvh) -> Result<GpuTracer<'a>> {
+        Self::with_memory(ctx, flat, BvhMemory::default())
+    }
+
+    /// Validates and uploads a flat BVH in the given memory.
+    pub fn with_memory(
+        ctx: &'a GpuContext,
+        flat: &FlatBvh,
+        memory: BvhMemory,
+    ) -> Result<GpuTracer<'a>> {
         flat.validate()
             .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
-        let node_bytes: &[u8] = bytemuck::cast_slice(&flat.nodes);
-        // A binding cannot be empty: an empty scene gets one unused triangle.
-        let pad = [crate::accel::bvh::GpuTri::zeroed_tri()];
-        let tri_slice = if flat.tris.is_empty() {
-            &pad[..]
-        } else {
-            &flat.tris[..]
-        };
-        let tri_bytes: &[u8] = bytemuck::cast_slice(tri_slice);
-        ctx.check_binding("the BVH nodes", node_bytes.len() as u64)?;
-        ctx.check_binding("the triangles", tri_bytes.len() as u64)?;
+        let bvh = GpuBvh::upload(ctx, flat, memory)?;
         let dev = &ctx.device;
-        let nodes = ctx.buffer_with("nodes", node_bytes, wgpu::BufferUsages::STORAGE);
-        let tris = ctx.buffer_with("tris", tri_bytes, wgpu::BufferUsages::STORAGE);
+        let [nodes, tris, node_texels, tri_texels] = GpuBvh::layout_entries();
         let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("traverse"),
             entries: &[
-                storage_entry(0, true),
-                storage_entry(1, true),
+                nodes,
+                tris,
+                node_texels,
+                tri_texels,
                 storage_entry(2, true),
                 storage_entry(3, false),
                 storage_entry(4, false),
@@ -141,8 +140,7 @@ impl<'a> GpuTracer<'a> {
         };
         Ok(GpuTracer {
             ctx,
-            nodes,
-            tris,
+            bvh,
             layout,
             pipeline_layout,
             checked,
@@ -151,8 +149,14 @@ impl<'a> GpuTracer<'a> {
         })
     }
 
+    /// Where this tracer's BVH lives on the device.
+    pub fn memory(&self) -> BvhMemory {
+        self.bvh.memory
+    }
+
     fn pipeline(&mut self, k: TraceKernel) -> &wgpu::ComputePipeline {
         let (dev, pl) = (&self.ctx.device, &self.pipeline_layout);
+        let memory = self.bvh.override_constant();
         let module = if k.trusted {
             &self.trusted
         } else {
@@ -165,6 +169,7 @@ impl<'a> GpuTracer<'a> {
                 ("COUNT_STATS", b(k.stats)),
                 ("MOLLER_TRUMBORE", b(k.test == TriangleTest::MollerTrumbore)),
                 ("WORKGROUP_SIZE", k.workgroup_size as f64),
+                memory,
             ];
             dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("traverse"),
@@ -255,18 +260,15 @@ impl<'a> GpuTracer<'a> {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let [nodes, tris, node_texels, tri_texels] = self.bvh.bind_entries();
         let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("traverse"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.nodes.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: self.tris.as_entire_binding(),
-                },
+                nodes,
+                tris,
+                node_texels,
+                tri_texels,
                 wgpu::BindGroupEntry {
                     binding: 2,
                     resource: ray_buf.as_entire_binding(),

@@ -9,9 +9,9 @@ use super::effects::EffectSet;
 use super::integrator::CameraFrame;
 use super::scene::{Light, RenderScene};
 use super::scene_file::{Integrator, MaterialKind};
-use crate::accel::bvh::{FlatBvh, GpuTri};
+use crate::accel::bvh::FlatBvh;
 use crate::error::{Error, Result};
-use crate::gpu::{shaders, storage_entry, GpuContext};
+use crate::gpu::{shaders, storage_entry, BvhMemory, GpuBvh, GpuContext};
 
 /// Pixels per dispatch: keeps every dispatch short on a software rasteriser.
 const CHUNK: u32 = 1 << 16;
@@ -87,6 +87,7 @@ pub struct RenderParams {
 
 pub struct GpuRenderer<'a> {
     ctx: &'a GpuContext,
+    bvh: GpuBvh,
     bind: wgpu::BindGroup,
     accum: wgpu::Buffer,
     params: wgpu::Buffer,
@@ -108,10 +109,22 @@ fn kind_code(k: MaterialKind) -> u32 {
 }
 
 impl<'a> GpuRenderer<'a> {
-    /// Validates and uploads the BVH and the scene; the accumulation buffer starts at zero.
+    /// Validates and uploads the BVH (in the default memory) and the scene; the
+    /// accumulation buffer starts at zero.
     pub fn new(ctx: &'a GpuContext, scene: &RenderScene, flat: &FlatBvh) -> Result<Self> {
+        Self::with_memory(ctx, scene, flat, BvhMemory::default())
+    }
+
+    /// As [`GpuRenderer::new`], with the BVH in the given memory.
+    pub fn with_memory(
+        ctx: &'a GpuContext,
+        scene: &RenderScene,
+        flat: &FlatBvh,
+        memory: BvhMemory,
+    ) -> Result<Self> {
         flat.validate()
             .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
+        let bvh = GpuBvh::upload(ctx, flat, memory)?;
         let pixels = scene.camera.width * scene.camera.height;
         let shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
             .map(|(i, t)| {
@@ -186,16 +199,9 @@ impl<'a> GpuRenderer<'a> {
         let n_emitters = emitters.len() as u32;
         emitters.push([0; 2]);
 
-        let pad_tri = [GpuTri::zeroed_tri()];
-        let tris: &[GpuTri] = if flat.tris.is_empty() {
-            &pad_tri
-        } else {
-            &flat.tris
-        };
         let accum_bytes = pixels as u64 * 16;
-        let sized: [(&str, &[u8]); 7] = [
-            ("the BVH nodes", bytemuck::cast_slice(&flat.nodes)),
-            ("the triangles", bytemuck::cast_slice(tris)),
+        // Bindings 2..=6 (0, 1, 10 and 11 are the BVH's).
+        let sized: [(&str, &[u8]); 5] = [
             ("the shading triangles", bytemuck::cast_slice(&shades)),
             ("the materials", bytemuck::cast_slice(&materials)),
             ("the lights", bytemuck::cast_slice(&lights)),
@@ -224,8 +230,8 @@ impl<'a> GpuRenderer<'a> {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut entries: Vec<wgpu::BindGroupLayoutEntry> =
-            (0..7).map(|b| storage_entry(b, true)).collect();
+        let mut entries: Vec<wgpu::BindGroupLayoutEntry> = GpuBvh::layout_entries().into();
+        entries.extend((2..7).map(|b| storage_entry(b, true)));
         entries.push(storage_entry(7, false));
         entries.push(wgpu::BindGroupLayoutEntry {
             binding: 8,
@@ -241,12 +247,13 @@ impl<'a> GpuRenderer<'a> {
             label: Some("render"),
             entries: &entries,
         });
-        let mut bind_entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
+        let mut bind_entries: Vec<wgpu::BindGroupEntry> = bvh.bind_entries().into();
+        bind_entries.extend(
+            (buffers.iter().zip(2..)).map(|(b, binding)| wgpu::BindGroupEntry {
+                binding,
                 resource: b.as_entire_binding(),
-            })
-            .collect();
+            }),
+        );
         bind_entries.push(wgpu::BindGroupEntry {
             binding: 7,
             resource: accum.as_entire_binding(),
@@ -301,6 +308,7 @@ impl<'a> GpuRenderer<'a> {
         };
         Ok(GpuRenderer {
             ctx,
+            bvh,
             bind,
             accum,
             params,
@@ -315,6 +323,7 @@ impl<'a> GpuRenderer<'a> {
 
     fn pipeline(&mut self, fx: EffectSet) -> wgpu::ComputePipeline {
         let (dev, pl, module) = (&self.ctx.device, &self.pipeline_layout, &self.module);
+        let memory = self.bvh.override_constant();
         self.pipelines
             .entry(fx)
             .or_insert_with(|| {
@@ -322,6 +331,7 @@ impl<'a> GpuRenderer<'a> {
                     .map(|&(name, on)| (name, if on { 1.0 } else { 0.0 }))
                     .collect();
                 constants.push(("WORKGROUP_SIZE", WORKGROUP as f64));
+                constants.push(memory);
                 dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("render"),
                     layout: Some(pl),

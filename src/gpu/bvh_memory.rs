@@ -1,0 +1,165 @@
+//! The flat BVH on the device, in one of two kinds of memory. bvh.wgsl declares both and
+//! reads one, chosen by its `BVH_TEXTURES` override; the other pair of bindings gets a
+//! one-word placeholder.
+
+use crate::accel::bvh::{FlatBvh, GpuTri};
+use crate::error::{Error, Result};
+
+use super::context::human_bytes;
+use super::{storage_entry, GpuContext};
+
+/// Where the kernels read nodes and triangles from. The words are the same (32-byte nodes,
+/// 48-byte triangles, tests/layout.rs); only the kind of binding differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum)]
+pub enum BvhMemory {
+    /// Read-only storage buffers (bindings 0 and 1).
+    Buffers,
+    /// Read-only rgba32uint storage textures, TEXEL_ROW texels a row (bindings 10 and 11).
+    /// lavapipe loads these with a gather instead of a per-lane loop: ~18% more rays/s there.
+    #[default]
+    Textures,
+}
+
+/// Texels (16-byte words) per texture row; bvh.wgsl's TEXEL_ROW.
+pub const TEXEL_ROW: u32 = 4096;
+
+/// Nodes and triangles uploaded in the chosen memory.
+pub struct GpuBvh {
+    pub memory: BvhMemory,
+    node_buf: wgpu::Buffer,
+    tri_buf: wgpu::Buffer,
+    node_tex: wgpu::TextureView,
+    tri_tex: wgpu::TextureView,
+}
+
+impl GpuBvh {
+    /// Uploads `flat` (an empty one binds a single unused triangle); refuses sizes the
+    /// device cannot bind, naming the size and the limit.
+    pub fn upload(ctx: &GpuContext, flat: &FlatBvh, memory: BvhMemory) -> Result<GpuBvh> {
+        let pad = [GpuTri::zeroed_tri()];
+        let tris = if flat.tris.is_empty() {
+            &pad[..]
+        } else {
+            &flat.tris[..]
+        };
+        let nodes: &[u8] = bytemuck::cast_slice(&flat.nodes);
+        let tris: &[u8] = bytemuck::cast_slice(tris);
+        let word = [0u8; 16];
+        let bvh = match memory {
+            BvhMemory::Buffers => {
+                ctx.check_binding("the BVH nodes", nodes.len() as u64)?;
+                ctx.check_binding("the triangles", tris.len() as u64)?;
+                GpuBvh {
+                    memory,
+                    node_buf: storage(ctx, "nodes", nodes),
+                    tri_buf: storage(ctx, "tris", tris),
+                    node_tex: texels(ctx, "unused node texels", &word)?,
+                    tri_tex: texels(ctx, "unused triangle texels", &word)?,
+                }
+            }
+            BvhMemory::Textures => GpuBvh {
+                memory,
+                node_buf: storage(ctx, "unused nodes", &word),
+                tri_buf: storage(ctx, "unused tris", &word),
+                node_tex: texels(ctx, "the BVH nodes", nodes)?,
+                tri_tex: texels(ctx, "the triangles", tris)?,
+            },
+        };
+        Ok(bvh)
+    }
+
+    /// The override constant that tells bvh.wgsl which bindings to read.
+    pub fn override_constant(&self) -> (&'static str, f64) {
+        let on = self.memory == BvhMemory::Textures;
+        ("BVH_TEXTURES", if on { 1.0 } else { 0.0 })
+    }
+
+    /// Bind-group-layout entries of bvh.wgsl's four bindings.
+    pub fn layout_entries() -> [wgpu::BindGroupLayoutEntry; 4] {
+        let texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::ReadOnly,
+                format: wgpu::TextureFormat::Rgba32Uint,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        };
+        [
+            storage_entry(0, true),
+            storage_entry(1, true),
+            texture(10),
+            texture(11),
+        ]
+    }
+
+    /// Bind-group entries matching [`GpuBvh::layout_entries`].
+    pub fn bind_entries(&self) -> [wgpu::BindGroupEntry<'_>; 4] {
+        let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+        [
+            entry(0, self.node_buf.as_entire_binding()),
+            entry(1, self.tri_buf.as_entire_binding()),
+            entry(10, wgpu::BindingResource::TextureView(&self.node_tex)),
+            entry(11, wgpu::BindingResource::TextureView(&self.tri_tex)),
+        ]
+    }
+}
+
+fn storage(ctx: &GpuContext, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    ctx.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE)
+}
+
+/// An rgba32uint texture holding `bytes` (a multiple of 16) row by row, the last row padded
+/// with zeros.
+fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureView> {
+    let words = bytes.len() / 16;
+    let rows = words.div_ceil(TEXEL_ROW as usize).max(1);
+    let max = ctx.limits.max_texture_dimension_2d as usize;
+    if rows > max || TEXEL_ROW as usize > max {
+        return Err(Error::Gpu(format!(
+            "{what} need a texture of {TEXEL_ROW}×{rows} texels ({}) but {} allows at most \
+             {max}×{max} (max_texture_dimension_2d); use --bvh-memory buffers, a smaller scene \
+             or --device cpu",
+            human_bytes(bytes.len() as u64),
+            ctx.adapter.name,
+        )));
+    }
+    let size = |rows: usize| wgpu::Extent3d {
+        width: TEXEL_ROW,
+        height: rows as u32,
+        depth_or_array_layers: 1,
+    };
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(what),
+        size: size(rows),
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Uint,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    // Full rows straight from the caller's bytes; only the last, partial row is copied.
+    let row_bytes = TEXEL_ROW as usize * 16;
+    let full = bytes.len() / row_bytes;
+    let layout = wgpu::TexelCopyBufferLayout {
+        offset: 0,
+        bytes_per_row: Some(row_bytes as u32),
+        rows_per_image: None,
+    };
+    if full > 0 {
+        let whole = &bytes[..full * row_bytes];
+        ctx.queue
+            .write_texture(texture.as_image_copy(), whole, layout, size(full));
+    }
+    let rest = &bytes[full * row_bytes..];
+    if !rest.is_empty() || full == 0 {
+        let mut last = rest.to_vec();
+        last.resize(row_bytes, 0);
+        let mut at = texture.as_image_copy();
+        at.origin.y = full as u32;
+        ctx.queue.write_texture(at, &last, layout, size(1));
+    }
+    Ok(texture.create_view(&Default::default()))
+}
