@@ -5,8 +5,8 @@
 //!
 //! `cargo run --release --example load_ceiling -- MESH.obj [WIDTH HEIGHT]`
 //!
-//! Prints, side by side in one run: the real closest-hit kernel (GPU time, timestamp queries)
-//! and the loads-only probe doing the mean number of node and triangle loads per ray over
+//! Prints, side by side in one run: the real closest-hit kernel with the BVH in buffers and in
+//! textures (GPU time, timestamp queries) and the loads-only probe doing the mean number of node and triangle loads per ray over
 //! the same buffers (wall time around submit + wait, no readback; one dispatch), and the probe
 //! again over read-only storage textures holding the same words.
 
@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
 use lancer::geometry::Ray;
-use lancer::gpu::{GpuContext, GpuTracer, TraceKernel};
+use lancer::gpu::{BvhMemory, GpuContext, GpuTracer, TraceKernel};
 use lancer::scene::{load_mesh, Camera};
 use lancer::Result;
 
@@ -86,7 +86,7 @@ fn main() -> Result<()> {
     println!("adapter {}", ctx.adapter);
 
     // The real kernel, with statistics once for nodes/ray, then timed without.
-    let mut tracer = GpuTracer::new(&ctx, &flat)?;
+    let mut tracer = GpuTracer::with_memory(&ctx, &flat, BvhMemory::Buffers)?;
     let counting = TraceKernel {
         stats: true,
         ..TraceKernel::default()
@@ -97,8 +97,16 @@ fn main() -> Result<()> {
         stats.iter().map(|s| f(s) as f64).sum::<f64>() / stats.len().max(1) as f64
     };
     let (nodes_per_ray, tris_per_ray) = (mean(|s| s.nodes), mean(|s| s.tris));
-    let (_, _, t) = tracer.trace(&rays, TraceKernel::default())?;
-    let real_ms = t.gpu_ms.unwrap_or(t.wall_ms);
+    let time = |tracer: &mut GpuTracer| -> Result<f64> {
+        let (_, _, t) = tracer.trace(&rays, TraceKernel::default())?;
+        Ok(t.gpu_ms.unwrap_or(t.wall_ms))
+    };
+    let buffers_ms = time(&mut tracer)?;
+    let textures_ms = time(&mut GpuTracer::with_memory(
+        &ctx,
+        &flat,
+        BvhMemory::Textures,
+    )?)?;
 
     let loads = (nodes_per_ray.round() as u32, tris_per_ray.round() as u32);
     let probe_ms = probe(&ctx, &flat, &rays, loads, false);
@@ -109,8 +117,12 @@ fn main() -> Result<()> {
         rays.len()
     );
     println!(
-        "closest-hit traversal: {:7.2} Mrays/s (GPU time)",
-        mrays(real_ms)
+        "closest-hit traversal, BVH in buffers:  {:7.2} Mrays/s (GPU time)",
+        mrays(buffers_ms)
+    );
+    println!(
+        "closest-hit traversal, BVH in textures: {:7.2} Mrays/s (GPU time)",
+        mrays(textures_ms)
     );
     println!(
         "loads only ({} nodes, {} triangles): {:7.2} Mrays/s (no tests, no stack, no branches)",
