@@ -15,40 +15,22 @@ use std::time::Instant;
 
 use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
 use lancer::geometry::Ray;
-use lancer::gpu::{BvhMemory, GpuContext, GpuTracer, TraceKernel};
+use lancer::gpu::{shaders, BvhMemory, GpuBvh, GpuContext, GpuTracer, TraceKernel};
 use lancer::scene::{load_mesh, Camera};
 use lancer::Result;
 
 // Per invocation, the memory traffic of one traced ray in the same load shapes as
 // bvh.wgsl/traverse.wgsl: read the Ray, NODES nodes (two vec4 each), TRIS triangles (three
 // vec4 each), write a Hit. Each index comes from the words read before, so no load can be
-// skipped or hoisted. TEXTURES reads the same words from read-only storage textures
-// (TEXTURE_WIDTH texels a row) instead of storage buffers.
+// skipped or hoisted. The words come through bvh.wgsl's own node_word/tri_word, from buffers
+// or textures as its BVH_TEXTURES override says.
 const PROBE: &str = "
 override NODES: u32 = 17u;
 override TRIS: u32 = 4u;
 override N_NODES: u32 = 1u;
 override N_TRIS: u32 = 1u;
-override TEXTURES: bool = false;
-const TEXTURE_WIDTH: u32 = 4096u;
-@group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;
-@group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 @group(0) @binding(3) var<storage, read_write> hits: array<Hit>;
-@group(0) @binding(4) var node_texels: texture_storage_2d<rgba32uint, read>;
-@group(0) @binding(5) var tri_texels: texture_storage_2d<rgba32uint, read>;
-fn node_word(i: u32) -> vec4<u32> {
-    if TEXTURES {
-        return textureLoad(node_texels, vec2<u32>(i % TEXTURE_WIDTH, i / TEXTURE_WIDTH));
-    }
-    return node_words[i];
-}
-fn tri_word(i: u32) -> vec4<u32> {
-    if TEXTURES {
-        return textureLoad(tri_texels, vec2<u32>(i % TEXTURE_WIDTH, i / TEXTURE_WIDTH));
-    }
-    return tri_words[i];
-}
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= arrayLength(&rays) {
@@ -69,7 +51,6 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     hits[gid.x] = Hit(bitcast<f32>(acc.x), acc.y, bitcast<f32>(acc.z), bitcast<f32>(acc.w));
 }
 ";
-const TEXTURE_WIDTH: u32 = 4096;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -109,8 +90,8 @@ fn main() -> Result<()> {
     )?)?;
 
     let loads = (nodes_per_ray.round() as u32, tris_per_ray.round() as u32);
-    let probe_ms = probe(&ctx, &flat, &rays, loads, false);
-    let texture_ms = probe(&ctx, &flat, &rays, loads, true);
+    let probe_ms = probe(&ctx, &flat, &rays, loads, BvhMemory::Buffers)?;
+    let texture_ms = probe(&ctx, &flat, &rays, loads, BvhMemory::Textures)?;
     let mrays = |ms: f64| rays.len() as f64 / (ms * 1e3);
     println!(
         "{} primary rays, {nodes_per_ray:.2} nodes/ray, {tris_per_ray:.2} triangles/ray",
@@ -137,27 +118,28 @@ fn main() -> Result<()> {
     Ok(())
 }
 
-/// Milliseconds of the probe over one invocation per ray (best of 3), reading storage buffers
-/// or (`textures`) storage textures holding the same words.
+/// Milliseconds of the probe over one invocation per ray (best of 3), with the BVH's words
+/// in the given memory.
 fn probe(
     ctx: &GpuContext,
     flat: &FlatBvh,
     rays: &[Ray],
     (nodes, tris): (u32, u32),
-    textures: bool,
-) -> f64 {
+    memory: BvhMemory,
+) -> Result<f64> {
     let dev = &ctx.device;
-    let init = |label, contents| ctx.buffer_with(label, contents, wgpu::BufferUsages::STORAGE);
-    let buffers = [
-        init("nodes", bytemuck::cast_slice(&flat.nodes)),
-        init("tris", bytemuck::cast_slice(&flat.tris)),
-        init("rays", bytemuck::cast_slice(rays)),
-        init("hits", &vec![0u8; rays.len() * 16]),
-    ];
-    let node_texels = texels(ctx, bytemuck::cast_slice(&flat.nodes));
-    let tri_texels = texels(ctx, bytemuck::cast_slice(&flat.tris));
-    let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
-    let source = format!("{}\n{PROBE}", lancer::gpu::shaders::COMMON);
+    let bvh = GpuBvh::upload(ctx, flat, memory)?;
+    let ray_buf = ctx.buffer_with(
+        "rays",
+        bytemuck::cast_slice(rays),
+        wgpu::BufferUsages::STORAGE,
+    );
+    let hit_buf = ctx.buffer_with(
+        "hits",
+        &vec![0u8; rays.len() * 16],
+        wgpu::BufferUsages::STORAGE,
+    );
+    let source = format!("{}\n{}\n{PROBE}", shaders::COMMON, shaders::BVH);
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),
         source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -167,7 +149,7 @@ fn probe(
         ("TRIS", tris as f64),
         ("N_NODES", flat.nodes.len() as f64),
         ("N_TRIS", flat.tris.len().max(1) as f64),
-        ("TEXTURES", if textures { 1.0 } else { 0.0 }),
+        bvh.override_constant(),
     ];
     let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some("load probe"),
@@ -180,17 +162,19 @@ fn probe(
         },
         cache: None,
     });
+    let mut entries = Vec::from(bvh.bind_entries());
+    entries.push(wgpu::BindGroupEntry {
+        binding: 2,
+        resource: ray_buf.as_entire_binding(),
+    });
+    entries.push(wgpu::BindGroupEntry {
+        binding: 3,
+        resource: hit_buf.as_entire_binding(),
+    });
     let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("load probe"),
         layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            entry(0, buffers[0].as_entire_binding()),
-            entry(1, buffers[1].as_entire_binding()),
-            entry(2, buffers[2].as_entire_binding()),
-            entry(3, buffers[3].as_entire_binding()),
-            entry(4, wgpu::BindingResource::TextureView(&node_texels)),
-            entry(5, wgpu::BindingResource::TextureView(&tri_texels)),
-        ],
+        entries: &entries,
     });
     let run = || {
         let mut enc = dev.create_command_encoder(&Default::default());
@@ -207,39 +191,5 @@ fn probe(
         start.elapsed().as_secs_f64() * 1e3
     };
     run(); // compile and warm up
-    (0..3).map(|_| run()).fold(f64::INFINITY, f64::min)
-}
-
-/// A view of an rgba32uint storage texture, TEXTURE_WIDTH texels a row, holding `words`
-/// (16 bytes a texel; the last row padded with zeros).
-fn texels(ctx: &GpuContext, words: &[u8]) -> wgpu::TextureView {
-    let rows = (words.len() / 16).div_ceil(TEXTURE_WIDTH as usize).max(1) as u32;
-    let size = wgpu::Extent3d {
-        width: TEXTURE_WIDTH,
-        height: rows,
-        depth_or_array_layers: 1,
-    };
-    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("load probe texels"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Uint,
-        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    let mut padded = words.to_vec();
-    padded.resize(rows as usize * TEXTURE_WIDTH as usize * 16, 0);
-    ctx.queue.write_texture(
-        texture.as_image_copy(),
-        &padded,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(TEXTURE_WIDTH * 16),
-            rows_per_image: Some(rows),
-        },
-        size,
-    );
-    texture.create_view(&Default::default())
+    Ok((0..3).map(|_| run()).fold(f64::INFINITY, f64::min))
 }
