@@ -33,9 +33,12 @@ pub struct GpuBvh {
 }
 
 impl GpuBvh {
-    /// Uploads `flat` (an empty one binds a single unused triangle); refuses sizes the
-    /// device cannot bind, naming the size and the limit.
+    /// Validates and uploads `flat` (an empty one binds a single unused triangle); refuses
+    /// an invalid BVH (trusted modules rely on its indices) and sizes the device cannot
+    /// bind, naming the size and the limit.
     pub fn upload(ctx: &GpuContext, flat: &FlatBvh, memory: BvhMemory) -> Result<GpuBvh> {
+        flat.validate()
+            .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
         let pad = [GpuTri::zeroed_tri()];
         let tris = if flat.tris.is_empty() {
             &pad[..]
@@ -140,7 +143,8 @@ fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureVie
         usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    // Full rows straight from the caller's bytes; only the last, partial row is copied.
+    // Full rows straight from the caller's bytes; only the last, partial row is copied (the
+    // rest of a new texture is zero).
     let row_bytes = TEXEL_ROW as usize * 16;
     let full = bytes.len() / row_bytes;
     let layout = wgpu::TexelCopyBufferLayout {
@@ -154,7 +158,7 @@ fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureVie
             .write_texture(texture.as_image_copy(), whole, layout, size(full));
     }
     let rest = &bytes[full * row_bytes..];
-    if !rest.is_empty() || full == 0 {
+    if !rest.is_empty() {
         let mut last = rest.to_vec();
         last.resize(row_bytes, 0);
         let mut at = texture.as_image_copy();

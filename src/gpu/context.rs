@@ -118,7 +118,7 @@ impl GpuContext {
         })
     }
 
-    /// A read-only buffer holding `contents`, with `usage` (STORAGE or UNIFORM).
+    /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM).
     pub fn buffer_with(
         &self,
         label: &str,

@@ -122,8 +122,6 @@ impl<'a> GpuRenderer<'a> {
         flat: &FlatBvh,
         memory: BvhMemory,
     ) -> Result<Self> {
-        flat.validate()
-            .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
         let bvh = GpuBvh::upload(ctx, flat, memory)?;
         let pixels = scene.camera.width * scene.camera.height;
         let shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())

@@ -2,6 +2,7 @@
 //! leaf rule and the depth cap.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::geometry::Aabb;
 use crate::scene::Mesh;
@@ -213,7 +214,6 @@ pub(crate) fn median_split(prims: &Prims, idx: &mut [u32], axis: usize) -> usize
 
 /// Builds a BVH over the mesh's included triangles. Deterministic for a given input.
 pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
-    use rayon::prelude::*;
     let ids = mesh.included();
     let boxes: Vec<Aabb> = ids
         .par_iter()
