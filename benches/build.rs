@@ -6,9 +6,10 @@ mod common;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats, FlatBvh};
+use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats};
 use lancer::geometry::Aabb;
-use lancer::scene::Mesh;
+use lancer::layout::{flatten, LayoutKind};
+use lancer::mesh::Mesh;
 
 fn opts(builder: Builder) -> BuildOptions {
     BuildOptions {
@@ -125,12 +126,8 @@ fn obvhs_cost(b: &obvhs::bvh2::Bvh2) -> f64 {
 }
 
 fn bench_mesh(c: &mut Criterion, name: &str, mesh: &Mesh, samples: usize) {
-    let ours = [Builder::Sweep, Builder::Binned, Builder::Median].map(|b| {
-        (
-            b,
-            BvhStats::of(&FlatBvh::new(&build(mesh, &opts(b)), mesh), &opts(b)).sah_cost,
-        )
-    });
+    let ours = [Builder::Sweep, Builder::Binned, Builder::Median]
+        .map(|b| (b, BvhStats::of(&build(mesh, &opts(b)), &opts(b)).sah_cost));
     let obv = obvhs_tris(mesh);
     let mut shapes = bvh_shapes(mesh);
     let bvh_cost = bvh_crate_cost(&bvh::bvh::Bvh::build_with_executor(
@@ -151,7 +148,7 @@ fn bench_mesh(c: &mut Criterion, name: &str, mesh: &Mesh, samples: usize) {
     g.sample_size(samples);
     for b in [Builder::Sweep, Builder::Binned, Builder::Median] {
         g.bench_function(format!("lancer-{b:?}").to_lowercase(), |x| {
-            x.iter(|| FlatBvh::new(&build(mesh, &opts(b)), mesh))
+            x.iter(|| flatten(LayoutKind::default(), &build(mesh, &opts(b)), mesh))
         });
     }
     g.bench_function("obvhs-medium", |x| x.iter(|| obvhs_build(&obv)));

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use lancer::geometry::Triangle;
-use lancer::scene::{load_obj, Mesh};
+use lancer::mesh::{load_obj, Mesh};
 
 /// The bunny from ../shared/models (panics with a clear message when absent).
 pub fn bunny() -> Mesh {

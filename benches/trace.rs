@@ -6,17 +6,23 @@ mod common;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
-use lancer::geometry::TriangleTest;
-use lancer::scene::Camera;
-use lancer::trace::rays::{default_light, shadow_rays};
-use lancer::trace::{trace_batch, Query};
+use lancer::accel::bvh::{build, BuildOptions};
+use lancer::camera::Camera;
+use lancer::geometry::{Robustness, TriangleTest};
+use lancer::layout::{flatten, LayoutKind};
+use lancer::trace::files::{default_light, shadow_rays};
+use lancer::Query;
 
 fn traces(c: &mut Criterion) {
     let mesh = common::bunny();
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let flat = flatten(
+        LayoutKind::default(),
+        &build(&mesh, &BuildOptions::default()),
+        &mesh,
+    );
     let primary = Camera::default_view(&mesh.bounds(), 1024, 1024).primary_rays();
-    let (hits, _) = trace_batch(&flat, &primary, Query::Closest, TriangleTest::Watertight);
+    let robust = Robustness::default();
+    let (hits, _) = flat.trace_batch(&primary, Query::Closest, &robust);
     let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
     let mut g = c.benchmark_group("cpu-trace/bunny-1024");
     g.sample_size(10);
@@ -27,7 +33,11 @@ fn traces(c: &mut Criterion) {
         g.throughput(Throughput::Elements(rays.len() as u64));
         for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
             g.bench_function(format!("{name}/{test:?}").to_lowercase(), |b| {
-                b.iter(|| trace_batch(&flat, rays, q, test))
+                let rob = Robustness {
+                    triangle_test: test,
+                    ..robust
+                };
+                b.iter(|| flat.trace_batch(rays, q, &rob))
             });
         }
     }

@@ -13,24 +13,26 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::accel::bvh::{build, BuildOptions};
+use lancer::camera::Camera;
 use lancer::geometry::Ray;
-use lancer::gpu::{shaders, BvhMemory, GpuBvh, GpuContext, GpuTracer, TraceKernel};
-use lancer::scene::{load_mesh, Camera};
-use lancer::Result;
+use lancer::gpu::{bindings, shaders, BvhMemory, GpuBvh, GpuContext, GpuTracer, TraceKernel};
+use lancer::layout::{flatten, Layout, LayoutKind};
+use lancer::mesh::load_mesh;
+use lancer::{RayStats, Result};
 
-// Per invocation, the memory traffic of one traced ray in the same load shapes as
-// bvh.wgsl/traverse.wgsl: read the Ray, NODES nodes (two vec4 each), TRIS triangles (three
-// vec4 each), write a Hit. Each index comes from the words read before, so no load can be
-// skipped or hoisted. The words come through bvh.wgsl's own node_word/tri_word, from buffers
-// or textures as its BVH_TEXTURES override says.
+// Per invocation, the memory traffic of one traced ray in the load shapes of the default
+// layout's traversal: read the Ray, NODES node visits (two vec4 words each), TRIS
+// triangles (three vec4 each, load_tri), write a Hit. Each index comes from the words read
+// before, so no load can be skipped or hoisted. The words come through traversal.wgsl's own
+// node_word/tri_word, from buffers or textures as its BVH_TEXTURES override says.
 const PROBE: &str = "
 override NODES: u32 = 17u;
 override TRIS: u32 = 4u;
 override N_NODES: u32 = 1u;
 override N_TRIS: u32 = 1u;
-@group(0) @binding(2) var<storage, read> rays: array<Ray>;
-@group(0) @binding(3) var<storage, read_write> hits: array<Hit>;
+@group(0) @binding(BINDING_TRACE_RAYS) var<storage, read> rays: array<Ray>;
+@group(0) @binding(BINDING_TRACE_HITS) var<storage, read_write> hits: array<Hit>;
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= arrayLength(&rays) {
@@ -61,20 +63,25 @@ fn main() -> Result<()> {
     let dim = |i: usize| args.get(i).and_then(|s| s.parse().ok()).unwrap_or(1024u32);
     let (w, h) = (dim(1), dim(2));
     let mesh = load_mesh(&mesh_path)?;
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
+    let layout = flatten(
+        LayoutKind::default(),
+        &build(&mesh, &BuildOptions::default()),
+        &mesh,
+    );
+    let flat = layout.as_ref();
     let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
     let ctx = GpuContext::new()?;
     println!("adapter {}", ctx.adapter);
 
     // The real kernel, with statistics once for nodes/ray, then timed without.
-    let mut tracer = GpuTracer::with_memory(&ctx, &flat, BvhMemory::Buffers)?;
+    let mut tracer = GpuTracer::new(&ctx, flat, BvhMemory::Buffers)?;
     let counting = TraceKernel {
         stats: true,
         ..TraceKernel::default()
     };
     let (_, stats, _) = tracer.trace(&rays, counting)?;
     let stats = stats.unwrap_or_default();
-    let mean = |f: fn(&lancer::trace::RayStats) -> u32| {
+    let mean = |f: fn(&RayStats) -> u32| {
         stats.iter().map(|s| f(s) as f64).sum::<f64>() / stats.len().max(1) as f64
     };
     let (nodes_per_ray, tris_per_ray) = (mean(|s| s.nodes), mean(|s| s.tris));
@@ -83,15 +90,11 @@ fn main() -> Result<()> {
         Ok(t.gpu_ms.unwrap_or(t.wall_ms))
     };
     let buffers_ms = time(&mut tracer)?;
-    let textures_ms = time(&mut GpuTracer::with_memory(
-        &ctx,
-        &flat,
-        BvhMemory::Textures,
-    )?)?;
+    let textures_ms = time(&mut GpuTracer::new(&ctx, flat, BvhMemory::Textures)?)?;
 
     let loads = (nodes_per_ray.round() as u32, tris_per_ray.round() as u32);
-    let probe_ms = probe(&ctx, &flat, &rays, loads, BvhMemory::Buffers)?;
-    let texture_ms = probe(&ctx, &flat, &rays, loads, BvhMemory::Textures)?;
+    let probe_ms = probe(&ctx, flat, &rays, loads, BvhMemory::Buffers)?;
+    let texture_ms = probe(&ctx, flat, &rays, loads, BvhMemory::Textures)?;
     let mrays = |ms: f64| rays.len() as f64 / (ms * 1e3);
     println!(
         "{} primary rays, {nodes_per_ray:.2} nodes/ray, {tris_per_ray:.2} triangles/ray",
@@ -122,7 +125,7 @@ fn main() -> Result<()> {
 /// in the given memory.
 fn probe(
     ctx: &GpuContext,
-    flat: &FlatBvh,
+    flat: &dyn Layout,
     rays: &[Ray],
     (nodes, tris): (u32, u32),
     memory: BvhMemory,
@@ -139,7 +142,12 @@ fn probe(
         &vec![0u8; rays.len() * 16],
         wgpu::BufferUsages::STORAGE,
     );
-    let source = format!("{}\n{}\n{PROBE}", shaders::COMMON, shaders::BVH);
+    let source = format!(
+        "{}\n{}\n{}\n{PROBE}",
+        shaders::prelude(),
+        shaders::COMMON,
+        shaders::TRAVERSAL
+    );
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),
         source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -147,8 +155,9 @@ fn probe(
     let constants = [
         ("NODES", nodes as f64),
         ("TRIS", tris as f64),
-        ("N_NODES", flat.nodes.len() as f64),
-        ("N_TRIS", flat.tris.len().max(1) as f64),
+        // 32-byte visits over the node words, whatever the layout's node shape.
+        ("N_NODES", (flat.arrays().nodes.len() / 32).max(1) as f64),
+        ("N_TRIS", flat.triangles().max(1) as f64),
         bvh.override_constant(),
     ];
     let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -164,11 +173,11 @@ fn probe(
     });
     let mut entries = Vec::from(bvh.bind_entries());
     entries.push(wgpu::BindGroupEntry {
-        binding: 2,
+        binding: bindings::TRACE_RAYS,
         resource: ray_buf.as_entire_binding(),
     });
     entries.push(wgpu::BindGroupEntry {
-        binding: 3,
+        binding: bindings::TRACE_HITS,
         resource: hit_buf.as_entire_binding(),
     });
     let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -2,26 +2,40 @@
 
 use std::path::{Path, PathBuf};
 
+/// What went wrong, for people: the CLI prints it on one line.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// Bad user input (file content or arguments). The CLI exits with code 2.
     #[error("{}{}: {msg}", file.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
     Input {
+        /// The file (or argument) at fault.
         file: PathBuf,
+        /// Its line, when known.
         line: Option<usize>,
+        /// What is wrong and what to do.
         msg: String,
     },
+    /// A bad option or value not tied to a file. The CLI exits with code 2.
+    #[error("{0}")]
+    Usage(String),
+    /// Reading or writing a file failed.
     #[error("{}: {source}", file.display())]
     Io {
+        /// The file.
         file: PathBuf,
+        /// The system's error.
         source: std::io::Error,
     },
     /// No usable GPU, or a GPU limit the scene exceeds.
     #[error("{0}")]
     Gpu(String),
+    /// The run was cancelled before anything could be saved.
+    #[error("{0}")]
+    Cancelled(String),
 }
 
 impl Error {
+    /// Bad input in `file` (at `line`, when known).
     pub fn input(file: &Path, line: Option<usize>, msg: impl Into<String>) -> Error {
         Error::Input {
             file: file.to_path_buf(),
@@ -30,6 +44,7 @@ impl Error {
         }
     }
 
+    /// An I/O error on `file`.
     pub fn io(file: &Path, source: std::io::Error) -> Error {
         Error::Io {
             file: file.to_path_buf(),
@@ -37,13 +52,15 @@ impl Error {
         }
     }
 
-    /// Exit code for the CLI: 2 for bad input, 1 otherwise.
+    /// Exit code for the CLI: 2 for bad input, 130 for a cancelled run, 1 otherwise.
     pub fn exit_code(&self) -> i32 {
         match self {
-            Error::Input { .. } => 2,
+            Error::Input { .. } | Error::Usage(_) => 2,
+            Error::Cancelled(_) => 130,
             Error::Io { .. } | Error::Gpu(_) => 1,
         }
     }
 }
 
+/// lancer's result type.
 pub type Result<T> = std::result::Result<T, Error>;

@@ -5,9 +5,10 @@ mod common;
 
 use common::{load_model, soup, Rng};
 use glam::Vec3;
-use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats, FlatBvh, MAX_DEPTH};
+use lancer::accel::bvh::{build, BuildOptions, Builder, Bvh, BvhStats, Node, MAX_DEPTH};
 use lancer::geometry::Triangle;
-use lancer::scene::Mesh;
+use lancer::layout::{flatten, LayoutKind};
+use lancer::mesh::{Mesh, TriStatus};
 use proptest::prelude::*;
 
 fn opts(builder: Builder) -> BuildOptions {
@@ -17,39 +18,46 @@ fn opts(builder: Builder) -> BuildOptions {
     }
 }
 
-/// Checks every structural invariant of a flat BVH over `mesh`.
-fn check_invariants(mesh: &Mesh, flat: &FlatBvh) {
-    flat.validate().expect("valid BVH");
+/// Checks every structural invariant of a BVH over `mesh`, and that every layout
+/// flattens it into arrays its own validation accepts.
+fn check_invariants(mesh: &Mesh, bvh: &Bvh) {
     let mut seen = vec![0u32; mesh.len()];
-    let mut stack = vec![(0usize, 0usize)];
-    while let Some((i, depth)) = stack.pop() {
+    let mut stack = vec![(&bvh.root, 0usize)];
+    while let Some((n, depth)) = stack.pop() {
         assert!(depth <= MAX_DEPTH);
-        let n = &flat.nodes[i];
-        if n.is_leaf() {
-            for t in &flat.tris[n.a as usize..(n.a + n.count()) as usize] {
-                seen[t.prim as usize] += 1;
-                // The leaf box holds its triangles, and the stored vertices are the mesh's.
-                assert!(n.bbox().contains(&t.triangle().bbox()));
-                assert_eq!(t.triangle(), mesh.triangles[t.prim as usize]);
+        match n {
+            Node::Leaf { bbox, start, count } => {
+                for &prim in &bvh.order[*start as usize..(start + count) as usize] {
+                    seen[prim as usize] += 1;
+                    // The leaf box holds its triangles.
+                    assert!(bbox.contains(&mesh.triangles[prim as usize].bbox()));
+                }
             }
-        } else {
-            for c in [i + 1, n.a as usize] {
-                assert!(
-                    n.bbox().contains(&flat.nodes[c].bbox()),
-                    "child {c} outside parent {i}"
-                );
-                stack.push((c, depth + 1));
+            Node::Inner { bbox, children, .. } => {
+                for c in children.iter() {
+                    assert!(bbox.contains(c.bbox()), "child outside its parent");
+                    stack.push((c, depth + 1));
+                }
             }
         }
     }
     for (i, &s) in seen.iter().enumerate() {
-        let included = mesh.status[i] == lancer::scene::TriStatus::Ok;
+        let included = mesh.status[i] == TriStatus::Ok;
         assert_eq!(s, included as u32, "triangle {i} appears {s} times");
+    }
+    for &kind in LayoutKind::ALL {
+        let layout = flatten(kind, bvh, mesh);
+        layout.validate().unwrap_or_else(|e| panic!("{kind}: {e}"));
+        assert_eq!(layout.triangles(), bvh.order.len(), "{kind}");
     }
 }
 
-fn flat(mesh: &Mesh, o: &BuildOptions) -> FlatBvh {
-    FlatBvh::new(&build(mesh, o), mesh)
+/// Largest leaf of a tree.
+fn largest_leaf(n: &Node) -> usize {
+    match n {
+        Node::Leaf { count, .. } => *count as usize,
+        Node::Inner { children, .. } => largest_leaf(&children[0]).max(largest_leaf(&children[1])),
+    }
 }
 
 proptest! {
@@ -60,10 +68,10 @@ proptest! {
         let mesh = soup(&mut Rng::new(seed), n, size);
         for b in [Builder::Sweep, Builder::Binned, Builder::Median] {
             let o = BuildOptions { builder: b, max_leaf, ..BuildOptions::default() };
-            let f = flat(&mesh, &o);
+            let f = build(&mesh, &o);
             check_invariants(&mesh, &f);
             // No leaf above max_leaf.
-            prop_assert!(f.nodes.iter().filter(|n| n.is_leaf()).all(|n| n.count() as usize <= max_leaf));
+            prop_assert!(largest_leaf(&f.root) <= max_leaf);
         }
     }
 }
@@ -77,9 +85,9 @@ fn excluded_triangles_stay_out() {
     tris[10].v[2] = Vec3::new(f32::INFINITY, 0.0, 0.0);
     tris[20].v[2] = tris[20].v[0]; // zero area
     mesh = Mesh::from_triangles(tris);
-    let f = flat(&mesh, &BuildOptions::default());
+    let f = build(&mesh, &BuildOptions::default());
     check_invariants(&mesh, &f);
-    assert_eq!(f.tris.len(), 197);
+    assert_eq!(f.order.len(), 197);
 }
 
 #[test]
@@ -105,11 +113,11 @@ fn identical_triangles_stay_within_the_stack() {
     let t = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
     let mesh = Mesh::from_triangles(vec![t; 1_000_000]);
     for b in [Builder::Sweep, Builder::Binned, Builder::Median] {
-        let f = flat(&mesh, &opts(b));
+        let f = build(&mesh, &opts(b));
         let s = BvhStats::of(&f, &opts(b));
         assert!(s.max_depth <= MAX_DEPTH, "{b:?}: depth {}", s.max_depth);
         assert_eq!(s.triangles, 1_000_000);
-        f.validate().unwrap();
+        check_invariants(&mesh, &f);
     }
 }
 
@@ -123,13 +131,13 @@ fn depth_cap_bounds_every_leaf() {
             max_leaf: 1,
             ..opts(b)
         };
-        let uncapped = BvhStats::of(&flat(&mesh, &free), &free).max_depth;
+        let uncapped = BvhStats::of(&build(&mesh, &free), &free).max_depth;
         assert!(uncapped > 13, "{b:?}: uncapped depth {uncapped}");
         let capped = BuildOptions {
             max_depth: 13,
             ..free
         };
-        let f = flat(&mesh, &capped);
+        let f = build(&mesh, &capped);
         check_invariants(&mesh, &f);
         let d = BvhStats::of(&f, &capped).max_depth;
         assert!(d <= 13, "{b:?}: depth {d} above the cap of 13");
@@ -138,7 +146,7 @@ fn depth_cap_bounds_every_leaf() {
 
 fn costs(mesh: &Mesh) -> [f64; 3] {
     [Builder::Sweep, Builder::Binned, Builder::Median]
-        .map(|b| BvhStats::of(&flat(mesh, &opts(b)), &opts(b)).sah_cost)
+        .map(|b| BvhStats::of(&build(mesh, &opts(b)), &opts(b)).sah_cost)
 }
 
 #[test]
@@ -161,6 +169,6 @@ fn sweep_beats_binned_beats_median_on_models() {
         let [s, b, m] = costs(&mesh);
         println!("{name}: sweep {s:.3} binned {b:.3} median {m:.3}");
         assert!(s <= b && b <= m, "{name}: sweep {s} binned {b} median {m}");
-        check_invariants(&mesh, &flat(&mesh, &BuildOptions::default()));
+        check_invariants(&mesh, &build(&mesh, &BuildOptions::default()));
     }
 }

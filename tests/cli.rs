@@ -94,7 +94,7 @@ fn rays_then_trace_writes_hits_of_the_default_view() {
         "--device",
         "cpu",
     ]);
-    let hits = lancer::trace::rays::read_hits(&h).unwrap();
+    let hits = lancer::trace::files::read_hits(&h).unwrap();
     assert_eq!(hits.len(), 48);
     // The centre pixels look at the quad (prims 0 and 1), row 0 is the top.
     let centre = hits[3 * 8 + 4];

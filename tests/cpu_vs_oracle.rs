@@ -4,20 +4,37 @@
 mod common;
 
 use common::{load_model, random_rays, soup, Rng};
-use lancer::accel::bvh::{build, BuildOptions, Builder, FlatBvh};
-use lancer::geometry::{Ray, TriangleTest};
-use lancer::scene::{Camera, Mesh};
+use lancer::accel::bvh::{BuildOptions, Builder};
+use lancer::accel::{build, AccelKind};
+use lancer::camera::Camera;
+use lancer::geometry::Ray;
+use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, Verdict};
-use lancer::trace::{trace_batch, Query};
+use lancer::{LayoutKind, Query, Robustness};
 
-/// Traces `rays`, judges every answer, prints the counts and fails on any wrong one.
+/// Traces `rays` through every layout's CPU twin, judges every answer, prints the counts
+/// and fails on any wrong one. Returns the counts of the last layout.
 fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usize) {
+    let mut counts = (0, 0);
+    for &layout in LayoutKind::ALL {
+        counts = check_layout(name, mesh, rays, builder, layout);
+    }
+    counts
+}
+
+fn check_layout(
+    name: &str,
+    mesh: &Mesh,
+    rays: &[Ray],
+    builder: Builder,
+    layout: LayoutKind,
+) -> (usize, usize) {
     let opts = BuildOptions {
         builder,
         ..BuildOptions::default()
     };
-    let flat = FlatBvh::new(&build(mesh, &opts), mesh);
-    let (hits, _) = trace_batch(&flat, rays, Query::Closest, TriangleTest::Watertight);
+    let accel = build(AccelKind::Bvh(layout), mesh, &opts);
+    let (hits, _) = accel.trace_batch(rays, Query::Closest, &Robustness::default());
     let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
     for (r, h) in rays.iter().zip(&hits) {
         match judge(mesh, r, h) {
@@ -27,7 +44,7 @@ fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usi
         }
     }
     println!(
-        "{name} ({builder:?}): {agree} agree, {tie} ties, {} wrong",
+        "{name} ({builder:?}, {layout}): {agree} agree, {tie} ties, {} wrong",
         wrong.len()
     );
     assert!(
@@ -95,8 +112,8 @@ fn the_judge_rejects_wrong_answers() {
     let mut rng = Rng::new(1);
     let mesh = soup(&mut rng, 500, 0.3);
     let rays = random_rays(&mut rng, 500, &mesh);
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
-    let (hits, _) = trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight);
+    let accel = build(AccelKind::default(), &mesh, &BuildOptions::default());
+    let (hits, _) = accel.trace_batch(&rays, Query::Closest, &Robustness::default());
     let (r, h) = rays
         .iter()
         .zip(&hits)

@@ -1,17 +1,46 @@
-//! The GPU kernel against the CPU reference on lavapipe (or any adapter). For every ray:
-//! hit/miss and prim agree with the CPU, except genuine ties the f64 oracle names; t agrees
-//! to ≤ 2 ulp where the prim agrees. Traversal statistics agree exactly.
+//! Every layout's GPU kernel against its CPU twin on lavapipe (or any adapter), through the
+//! one `Tracer` API. For every ray: hit/miss and prim agree with the CPU, except genuine ties
+//! the f64 oracle names; t agrees to ≤ 2 ulp where the prim agrees. Traversal statistics
+//! agree exactly.
 
 mod common;
 
-use common::{gpu, load_model, random_rays, soup, Rng};
+use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
-use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
+use lancer::camera::Camera;
 use lancer::geometry::{Hit, Ray, TriangleTest};
-use lancer::gpu::{BvhMemory, GpuTracer, TraceKernel};
-use lancer::scene::{Camera, Mesh};
+use lancer::gpu::BvhMemory;
+use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
-use lancer::trace::{trace_batch, Query};
+use lancer::{Device, LayoutKind, Query, Robustness, Tracer, TracerOptions};
+
+/// One specialisation of the trace kernel.
+#[derive(Clone, Copy, Debug, Default)]
+struct TraceKernel {
+    query: Query,
+    robustness: Robustness,
+    workgroup_size: Option<u32>,
+}
+
+impl TraceKernel {
+    fn options(&self, layout: LayoutKind, memory: BvhMemory) -> TracerOptions {
+        TracerOptions {
+            layout,
+            memory,
+            robustness: self.robustness,
+            workgroup_size: self.workgroup_size.unwrap_or(64),
+            stats: true,
+            ..TracerOptions::default()
+        }
+    }
+}
+
+/// CPU hits of the default layout.
+fn cpu_hits(mesh: &Mesh, rays: &[Ray], query: Query) -> Vec<Hit> {
+    let cpu = Device::cpu();
+    let mut t = Tracer::new(&cpu, mesh, &TracerOptions::default()).unwrap();
+    t.trace(rays, query).unwrap().hits
+}
 
 fn ulps(a: f32, b: f32) -> u32 {
     (a.to_bits() as i64 - b.to_bits() as i64)
@@ -19,7 +48,8 @@ fn ulps(a: f32, b: f32) -> u32 {
         .min(u32::MAX as u64) as u32
 }
 
-/// Compares GPU (BVH in the default memory) with CPU on `rays`; returns (agree, tie).
+/// Compares GPU (BVH in the default memory) with CPU on `rays` for every layout; returns
+/// (agree, tie) of the last.
 fn compare(name: &str, mesh: &Mesh, rays: &[Ray], kernel: TraceKernel) -> (usize, usize) {
     compare_in(name, mesh, rays, kernel, BvhMemory::default())
 }
@@ -32,18 +62,33 @@ fn compare_in(
     kernel: TraceKernel,
     memory: BvhMemory,
 ) -> (usize, usize) {
-    let flat = FlatBvh::new(&build(mesh, &BuildOptions::default()), mesh);
-    let (cpu, cpu_stats) = trace_batch(&flat, rays, kernel.query, kernel.test);
-    let mut tracer = GpuTracer::with_memory(gpu(), &flat, memory).unwrap();
-    let (gpu_hits, gpu_stats, _) = tracer
-        .trace(
-            rays,
-            TraceKernel {
-                stats: true,
-                ..kernel
-            },
-        )
+    let mut counts = (0, 0);
+    for &layout in LayoutKind::ALL {
+        let name = format!("{name} {layout}");
+        counts = compare_layout(&name, mesh, rays, kernel, memory, layout);
+    }
+    counts
+}
+
+fn compare_layout(
+    name: &str,
+    mesh: &Mesh,
+    rays: &[Ray],
+    kernel: TraceKernel,
+    memory: BvhMemory,
+    layout: LayoutKind,
+) -> (usize, usize) {
+    let options = kernel.options(layout, memory);
+    let cpu_device = Device::cpu();
+    let c = Tracer::new(&cpu_device, mesh, &options)
+        .unwrap()
+        .trace(rays, kernel.query)
         .unwrap();
+    let g = Tracer::new(gpu_device(), mesh, &options)
+        .unwrap()
+        .trace(rays, kernel.query)
+        .unwrap();
+    let (cpu, cpu_stats, gpu_hits, gpu_stats) = (c.hits, c.stats.unwrap(), g.hits, g.stats);
     let judge_one = |r: &Ray, h: &Hit| match kernel.query {
         Query::Closest => judge(mesh, r, h),
         Query::Any => judge_any(mesh, r, h),
@@ -163,10 +208,9 @@ fn shadow_rays_from_primary_hits() {
     let Some(mesh) = load_model("stanford-bunny.obj") else {
         return;
     };
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
     let cam = Camera::default_view(&mesh.bounds(), 160, 120);
     let primary = cam.primary_rays();
-    let (hits, _) = trace_batch(&flat, &primary, Query::Closest, TriangleTest::Watertight);
+    let hits = cpu_hits(&mesh, &primary, Query::Closest);
     let b = mesh.bounds();
     let light = b.center() + Vec3::new(0.3, 1.0, 0.5) * b.extent().length();
     let shadow: Vec<Ray> = primary
@@ -204,9 +248,12 @@ fn every_variant_matches_the_cpu() {
             for trusted in [false, true] {
                 for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
                     let k = TraceKernel {
-                        workgroup_size,
-                        trusted,
-                        test,
+                        workgroup_size: Some(workgroup_size),
+                        robustness: Robustness {
+                            triangle_test: test,
+                            checked_module: !trusted,
+                            ..Robustness::default()
+                        },
                         ..TraceKernel::default()
                     };
                     let name = format!("{memory:?} wg{workgroup_size} trusted={trusted} {test:?}");
@@ -221,7 +268,6 @@ fn every_variant_matches_the_cpu() {
 fn bad_rays_terminate_as_misses() {
     let mut rng = Rng::new(2);
     let mesh = soup(&mut rng, 500, 0.2);
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
     let o = Vec3::ZERO;
     let rays = vec![
         Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 10.0),
@@ -232,17 +278,13 @@ fn bad_rays_terminate_as_misses() {
         Ray::new(o, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
         Ray::new(o, Vec3::X, 5.0, 1.0),
     ];
-    let mut tracer = GpuTracer::new(gpu(), &flat).unwrap();
-    let (hits, stats, _) = tracer
-        .trace(
-            &rays,
-            TraceKernel {
-                stats: true,
-                ..TraceKernel::default()
-            },
-        )
-        .unwrap();
-    for ((r, h), s) in rays.iter().zip(&hits).zip(stats.unwrap()) {
+    let options = TracerOptions {
+        stats: true,
+        ..TracerOptions::default()
+    };
+    let mut tracer = Tracer::new(gpu_device(), &mesh, &options).unwrap();
+    let result = tracer.trace(&rays, Query::Closest).unwrap();
+    for ((r, h), s) in rays.iter().zip(&result.hits).zip(result.stats.unwrap()) {
         assert!(!h.is_hit(), "{r:?} hit");
         assert_eq!(s.nodes, 0, "{r:?} traversed");
     }
@@ -254,10 +296,9 @@ fn large_batches_are_split_and_complete() {
     let mut rng = Rng::new(8);
     let mesh = soup(&mut rng, 1000, 0.1);
     let rays = random_rays(&mut rng, (1 << 18) + 12345, &mesh);
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
-    let (cpu, _) = trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight);
-    let mut tracer = GpuTracer::new(gpu(), &flat).unwrap();
-    let (g, _, _) = tracer.trace(&rays, TraceKernel::default()).unwrap();
+    let cpu = cpu_hits(&mesh, &rays, Query::Closest);
+    let mut tracer = Tracer::new(gpu_device(), &mesh, &TracerOptions::default()).unwrap();
+    let g = tracer.trace(&rays, Query::Closest).unwrap().hits;
     assert_eq!(g.len(), rays.len());
     let same = cpu.iter().zip(&g).filter(|(a, b)| a.prim == b.prim).count();
     assert!(
@@ -316,18 +357,22 @@ fn axis_parallel_rays_on_box_faces() {
 #[test]
 fn oversized_bvh_is_refused_naming_size_and_limit() {
     // A device of our own whose recorded limits we shrink: the checks run before upload.
-    gpu(); // fails with the install hint when there is no adapter
+    gpu_device(); // fails with the install hint when there is no adapter
     let mut ctx = lancer::gpu::GpuContext::new().unwrap();
     ctx.limits.max_storage_buffer_binding_size = 1024;
     ctx.limits.max_texture_dimension_2d = 1024;
+    let device = Device::gpu(ctx);
     let mut rng = Rng::new(5);
     let mesh = soup(&mut rng, 100, 0.2);
-    let flat = FlatBvh::new(&build(&mesh, &BuildOptions::default()), &mesh);
     for (memory, limit) in [
         (BvhMemory::Buffers, "max_storage_buffer_binding_size"),
         (BvhMemory::Textures, "max_texture_dimension_2d"),
     ] {
-        let e = GpuTracer::with_memory(&ctx, &flat, memory)
+        let options = TracerOptions {
+            memory,
+            ..TracerOptions::default()
+        };
+        let e = Tracer::new(&device, &mesh, &options)
             .err()
             .unwrap_or_else(|| panic!("{memory:?}: an oversized BVH was uploaded"))
             .to_string();

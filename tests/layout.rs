@@ -1,94 +1,71 @@
-//! Every WGSL module parses and validates with naga (no GPU needed), and every GPU-visible
-//! struct's field offsets and size equal those of its #[repr(C)] Rust twin.
+//! Every WGSL module parses and validates with naga (no GPU needed) for every layout, every
+//! GPU-visible struct's field offsets and size equal those of its #[repr(C)] Rust twin, and
+//! every constant shared with Rust reads back in WGSL as the Rust value.
 
 use std::mem::{offset_of, size_of};
 
-use lancer::accel::bvh::{GpuNode, GpuTri};
-use lancer::geometry::{Hit, Ray};
-use lancer::gpu::shaders;
+use glam::Vec3;
+use lancer::accel::bvh::{build, BuildOptions};
+use lancer::geometry::{Hit, Ray, Triangle};
+use lancer::gpu::shaders::{self, Shared};
+use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
+use lancer::mesh::Mesh;
 
 fn module(src: &str) -> naga::Module {
     naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)))
 }
 
+/// Every layout, flattened over a small mesh.
+fn layouts() -> Vec<Box<dyn Layout>> {
+    let mesh = Mesh::from_triangles(vec![
+        Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y),
+        Triangle::new(Vec3::Z, Vec3::X, Vec3::Y),
+    ]);
+    let bvh = build(&mesh, &BuildOptions::default());
+    LayoutKind::ALL
+        .iter()
+        .map(|&k| flatten(k, &bvh, &mesh))
+        .collect()
+}
+
+fn check(src: &str, name: &str, rust_size: usize, rust: &[(&str, usize)]) {
+    shaders::check_struct(src, name, rust_size, rust).unwrap_or_else(|e| panic!("{e}"));
+}
+
 #[test]
 fn all_shaders_validate() {
-    for (name, src) in shaders::all() {
-        let m = module(&src);
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        )
-        .validate(&m)
-        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
-    }
-}
-
-/// (member name, offset) list and size of a WGSL struct.
-fn wgsl_layout(m: &naga::Module, name: &str) -> (Vec<(String, u32)>, u32) {
-    let ty = m
-        .types
-        .iter()
-        .find(|(_, t)| t.name.as_deref() == Some(name))
-        .unwrap_or_else(|| panic!("struct {name} not in WGSL"))
-        .1;
-    match &ty.inner {
-        naga::TypeInner::Struct { members, span } => (
-            members
-                .iter()
-                .map(|mb| (mb.name.clone().unwrap(), mb.offset))
-                .collect(),
-            *span,
-        ),
-        _ => panic!("{name} is not a struct"),
-    }
-}
-
-fn check(m: &naga::Module, name: &str, rust_size: usize, rust: &[(&str, usize)]) {
-    let (members, size) = wgsl_layout(m, name);
-    assert_eq!(
-        size as usize, rust_size,
-        "{name}: WGSL size {size}, Rust {rust_size}"
-    );
-    assert_eq!(members.len(), rust.len(), "{name}: member count");
-    for ((wn, wo), (rn, ro)) in members.iter().zip(rust) {
-        assert_eq!(wn, rn, "{name}: member order");
-        assert_eq!(
-            *wo as usize, *ro,
-            "{name}.{wn}: WGSL offset {wo}, Rust {ro}"
-        );
+    for layout in layouts() {
+        for (name, src) in shaders::all(layout.as_ref()) {
+            let m = module(&src);
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::all(),
+            )
+            .validate(&m)
+            .unwrap_or_else(|e| panic!("{} {name}: {}", layout.kind(), e.emit_to_string(&src)));
+        }
     }
 }
 
 #[test]
 fn gpu_structs_match_rust() {
-    let m = module(&shaders::traverse_source());
+    let layout = &layouts()[0];
+    let src = shaders::trace_source(layout.as_ref());
     check(
-        &m,
-        "Node",
-        size_of::<GpuNode>(),
-        &[
-            ("lo", offset_of!(GpuNode, lo)),
-            ("a", offset_of!(GpuNode, a)),
-            ("hi", offset_of!(GpuNode, hi)),
-            ("b", offset_of!(GpuNode, b)),
-        ],
-    );
-    check(
-        &m,
+        &src,
         "Tri",
-        size_of::<GpuTri>(),
+        size_of::<LeafTri>(),
         &[
-            ("v0", offset_of!(GpuTri, v0)),
-            ("prim", offset_of!(GpuTri, prim)),
-            ("v1", offset_of!(GpuTri, v1)),
-            ("pad1", offset_of!(GpuTri, _pad1)),
-            ("v2", offset_of!(GpuTri, v2)),
-            ("pad2", offset_of!(GpuTri, _pad2)),
+            ("v0", offset_of!(LeafTri, v0)),
+            ("prim", offset_of!(LeafTri, prim)),
+            ("v1", offset_of!(LeafTri, v1)),
+            ("pad1", offset_of!(LeafTri, pad1)),
+            ("v2", offset_of!(LeafTri, v2)),
+            ("pad2", offset_of!(LeafTri, pad2)),
         ],
     );
     check(
-        &m,
+        &src,
         "Ray",
         size_of::<Ray>(),
         &[
@@ -99,7 +76,7 @@ fn gpu_structs_match_rust() {
         ],
     );
     check(
-        &m,
+        &src,
         "Hit",
         size_of::<Hit>(),
         &[
@@ -109,30 +86,31 @@ fn gpu_structs_match_rust() {
             ("v", offset_of!(Hit, v)),
         ],
     );
-    use lancer::gpu::Params;
+    use lancer::gpu::TraceParams;
     check(
-        &m,
+        &src,
         "Params",
-        size_of::<Params>(),
+        size_of::<TraceParams>(),
         &[
-            ("offset", offset_of!(Params, offset)),
-            ("count", offset_of!(Params, count)),
+            ("offset", offset_of!(TraceParams, offset)),
+            ("count", offset_of!(TraceParams, count)),
         ],
     );
-    assert_eq!(size_of::<GpuNode>(), 32);
 }
 
 #[test]
 fn render_structs_match_rust() {
     use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
-    let m = module(&shaders::render_source());
+    let layout = &layouts()[0];
+    let src = shaders::render_source(layout.as_ref());
+    let m = &src;
     macro_rules! fields {
         ($t:ty; $($w:literal => $f:ident),*) => {
             &[$(($w, offset_of!($t, $f))),*]
         };
     }
     check(
-        &m,
+        m,
         "Shade",
         size_of::<GpuShade>(),
         fields!(GpuShade;
@@ -140,7 +118,7 @@ fn render_structs_match_rust() {
         "pad2" => _pad2, "uv0" => uv0, "uv1" => uv1, "uv2" => uv2, "pad3" => _pad3),
     );
     check(
-        &m,
+        m,
         "Material",
         size_of::<GpuMaterial>(),
         fields!(GpuMaterial;
@@ -149,14 +127,14 @@ fn render_structs_match_rust() {
         "has_tex" => has_tex),
     );
     check(
-        &m,
+        m,
         "Light",
         size_of::<GpuLight>(),
         fields!(GpuLight;
         "v" => v, "kind" => kind, "power" => power, "pad" => _pad),
     );
     check(
-        &m,
+        m,
         "Params",
         size_of::<RenderParams>(),
         fields!(RenderParams;
@@ -171,19 +149,54 @@ fn render_structs_match_rust() {
 }
 
 #[test]
-fn texel_row_matches_rust() {
-    let m = module(&shaders::traverse_source());
-    let (_, c) = (m.constants.iter())
-        .find(|(_, c)| c.name.as_deref() == Some("TEXEL_ROW"))
-        .expect("TEXEL_ROW not in bvh.wgsl");
-    match m.global_expressions[c.init] {
-        naga::Expression::Literal(naga::Literal::U32(v)) => {
-            assert_eq!(
-                v,
-                lancer::gpu::TEXEL_ROW,
-                "WGSL TEXEL_ROW vs gpu::TEXEL_ROW"
-            )
+fn shared_constants_read_back_as_the_rust_values() {
+    let layout = &layouts()[0];
+    for (kernel, src) in shaders::all(layout.as_ref()) {
+        let m = module(&src);
+        for (name, value) in shaders::shared_constants() {
+            let (_, c) = (m.constants.iter())
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("{name} not in the {kernel} kernel"));
+            let wgsl = &m.global_expressions[c.init];
+            match (value, wgsl) {
+                (Shared::U32(x), naga::Expression::Literal(naga::Literal::U32(w))) => {
+                    assert_eq!(x, *w, "{name}")
+                }
+                (Shared::F32(x), naga::Expression::Literal(naga::Literal::F32(w))) => {
+                    assert_eq!(x.to_bits(), w.to_bits(), "{name}: {x} vs {w}")
+                }
+                (v, e) => panic!("{name}: Rust {v:?}, WGSL {e:?}"),
+            }
         }
-        ref e => panic!("TEXEL_ROW is not a u32 literal: {e:?}"),
     }
+}
+
+#[test]
+fn bindings_are_the_rust_numbers() {
+    use lancer::gpu::bindings;
+    let expected = [
+        ("node_words", bindings::NODE_WORDS),
+        ("tri_words", bindings::TRI_WORDS),
+        ("node_texels", bindings::NODE_TEXELS),
+        ("tri_texels", bindings::TRI_TEXELS),
+        ("rays", bindings::TRACE_RAYS),
+        ("hits", bindings::TRACE_HITS),
+        ("stats", bindings::TRACE_STATS),
+        ("shades", bindings::RENDER_SHADES),
+        ("accum", bindings::RENDER_ACCUM),
+    ];
+    let layout = &layouts()[0];
+    let mut seen = 0;
+    for (_, src) in shaders::all(layout.as_ref()) {
+        let m = module(&src);
+        for (_, g) in m.global_variables.iter() {
+            let Some(b) = &g.binding else { continue };
+            if let Some((_, want)) = expected.iter().find(|(n, _)| g.name.as_deref() == Some(n)) {
+                assert_eq!(b.binding, *want, "{:?}", g.name);
+                seen += 1;
+            }
+        }
+    }
+    // The four BVH bindings in both kernels, plus 3 trace and 2 render bindings.
+    assert_eq!(seen, 4 * 2 + 3 + 2);
 }

@@ -1,16 +1,32 @@
 //! Hand-made cases with known answers: watertightness, the tie rule, robust slabs, bad rays.
 
 use glam::Vec3;
-use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
-use lancer::geometry::{Aabb, Ray, Triangle, TriangleTest, MISS};
-use lancer::scene::Mesh;
-use lancer::trace::{trace_ray, Query, RayStats};
+use lancer::accel::bvh::BuildOptions;
+use lancer::accel::{build, Accel, AccelKind};
+use lancer::geometry::{Aabb, Hit, Ray, Robustness, Triangle, TriangleTest, FAR_WIDEN, MISS};
+use lancer::mesh::Mesh;
+use lancer::{Query, RayStats};
 
-fn flat(mesh: &Mesh) -> FlatBvh {
-    FlatBvh::new(&build(mesh, &BuildOptions::default()), mesh)
+fn flat(mesh: &Mesh) -> Box<dyn Accel> {
+    build(AccelKind::default(), mesh, &BuildOptions::default())
 }
 
-fn trace(f: &FlatBvh, r: Ray) -> lancer::geometry::Hit {
+/// One ray through the default layout's CPU twin with the given triangle test.
+fn trace_ray(
+    f: &impl AsRef<dyn Accel>,
+    r: &Ray,
+    query: Query,
+    test: TriangleTest,
+    stats: &mut RayStats,
+) -> Hit {
+    let rob = Robustness {
+        triangle_test: test,
+        ..Robustness::default()
+    };
+    f.as_ref().intersect(r, query, &rob, stats)
+}
+
+fn trace(f: &impl AsRef<dyn Accel>, r: Ray) -> Hit {
     trace_ray(
         f,
         &r,
@@ -260,9 +276,11 @@ proptest::proptest! {
         let inv = ray.inv_dir();
         proptest::prop_assume!(ray.is_valid());
         proptest::prop_assume!(inv.abs().max_element() < lancer::geometry::PARALLEL_INV);
-        let simd = Aabb::slab_hit_nonparallel(
-            b.lo.into(), b.hi.into(), ray.origin.into(), inv.into(), tmin, tmax);
-        proptest::prop_assert_eq!(simd, b.slab_hit(ray.origin, inv, tmin, tmax));
+        for widen in [FAR_WIDEN, 1.0] {
+            let simd = Aabb::slab_hit_nonparallel(
+                b.lo.into(), b.hi.into(), ray.origin.into(), inv.into(), tmin, tmax, widen);
+            proptest::prop_assert_eq!(simd, b.slab_hit(ray.origin, inv, tmin, tmax, widen));
+        }
     }
 }
 

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use lancer::scene::{load_obj, TriStatus};
+use lancer::mesh::{load_obj, TriStatus};
 use lancer::Error;
 
 fn write(name: &str, text: &str) -> PathBuf {

@@ -6,18 +6,18 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::gpu;
+use common::gpu_device;
 use glam::Vec3;
-use lancer::accel::bvh::{build, BuildOptions, FlatBvh};
 use lancer::gpu::BvhMemory;
-use lancer::render::{to_rgb8, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
+use lancer::render::{render, to_rgb8, EffectSet, RenderOptions, RenderScene};
+use lancer::Device;
 
 fn scenes_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
 }
 
 /// Every scene file, small: 64×48 (keeps CI fast).
-fn scenes() -> Vec<(String, RenderScene, FlatBvh)> {
+fn scenes() -> Vec<(String, RenderScene)> {
     let mut out = Vec::new();
     let mut paths: Vec<PathBuf> = std::fs::read_dir(scenes_dir())
         .unwrap()
@@ -38,8 +38,7 @@ fn scenes() -> Vec<(String, RenderScene, FlatBvh)> {
         let mut s = RenderScene::from_file(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
         s.camera.width = 64;
         s.camera.height = 48;
-        let flat = FlatBvh::new(&build(&s.mesh, &BuildOptions::default()), &s.mesh);
-        out.push((name, s, flat));
+        out.push((name, s));
     }
     assert!(
         out.len() >= 5,
@@ -49,30 +48,33 @@ fn scenes() -> Vec<(String, RenderScene, FlatBvh)> {
     out
 }
 
-fn cpu_image(s: &RenderScene, flat: &FlatBvh, fx: EffectSet, spp: u32) -> Vec<Vec3> {
-    let r = CpuRenderer::new(s, flat, fx);
-    let mut acc = vec![Vec3::ZERO; (s.camera.width * s.camera.height) as usize];
-    r.accumulate(&mut acc, 0, spp);
-    acc.iter().map(|c| *c / spp as f32).collect()
-}
-
-fn gpu_image(s: &RenderScene, flat: &FlatBvh, fx: EffectSet, spp: u32) -> Vec<Vec3> {
-    gpu_image_in(s, flat, fx, spp, BvhMemory::default())
-}
-
-fn gpu_image_in(
+/// The mean of samples 0..spp, simulating `fx`, with the BVH in `memory` on a GPU.
+fn image_on(
+    device: &Device,
     s: &RenderScene,
-    flat: &FlatBvh,
     fx: EffectSet,
     spp: u32,
     memory: BvhMemory,
 ) -> Vec<Vec3> {
-    let mut g = GpuRenderer::with_memory(gpu(), s, flat, memory).unwrap();
-    for i in 0..spp {
-        g.add_sample(fx, i).unwrap();
-    }
-    let acc = g.read_accum().unwrap();
-    acc.iter().map(|c| *c / spp as f32).collect()
+    let options = RenderOptions {
+        spp: Some(spp),
+        effects: Some(fx),
+        memory,
+        ..RenderOptions::default()
+    };
+    render(s, device, &options).unwrap().image.pixels
+}
+
+fn cpu_image(s: &RenderScene, fx: EffectSet, spp: u32) -> Vec<Vec3> {
+    image_on(&Device::cpu(), s, fx, spp, BvhMemory::default())
+}
+
+fn gpu_image(s: &RenderScene, fx: EffectSet, spp: u32) -> Vec<Vec3> {
+    gpu_image_in(s, fx, spp, BvhMemory::default())
+}
+
+fn gpu_image_in(s: &RenderScene, fx: EffectSet, spp: u32, memory: BvhMemory) -> Vec<Vec3> {
+    image_on(gpu_device(), s, fx, spp, memory)
 }
 
 /// Per-pixel difference in display terms: the largest channel difference after clipping
@@ -113,10 +115,10 @@ const MAX_MEAN: f64 = 0.004;
 
 #[test]
 fn gpu_renders_match_the_cpu_reference() {
-    for (name, s, flat) in scenes() {
+    for (name, s) in scenes() {
         let fx = EffectSet::of(&s);
-        let cpu = cpu_image(&s, &flat, fx, 2);
-        let gpu = gpu_image(&s, &flat, fx, 2);
+        let cpu = cpu_image(&s, fx, 2);
+        let gpu = gpu_image(&s, fx, 2);
         let d = diffs(&gpu, &cpu);
         let max = d.iter().cloned().fold(0.0, f32::max);
         let mean = d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64;
@@ -141,11 +143,11 @@ fn gpu_renders_match_the_cpu_reference() {
 #[test]
 fn both_bvh_memories_render_the_same_image() {
     // The same words read through buffers or textures: the same numbers, bit for bit.
-    for (name, s, flat) in scenes() {
+    for (name, s) in scenes() {
         let fx = EffectSet::of(&s);
         assert_eq!(
-            gpu_image_in(&s, &flat, fx, 1, BvhMemory::Buffers),
-            gpu_image_in(&s, &flat, fx, 1, BvhMemory::Textures),
+            gpu_image_in(&s, fx, 1, BvhMemory::Buffers),
+            gpu_image_in(&s, fx, 1, BvhMemory::Textures),
             "{name}: BVH in buffers vs textures"
         );
         println!("{name}: buffers ≡ textures");
@@ -154,16 +156,16 @@ fn both_bvh_memories_render_the_same_image() {
 
 #[test]
 fn specialised_kernels_render_what_the_all_effects_kernel_renders() {
-    for (name, s, flat) in scenes() {
+    for (name, s) in scenes() {
         let fx = EffectSet::of(&s);
         // CPU: the same flags must give the same numbers, bit for bit.
         assert_eq!(
-            cpu_image(&s, &flat, fx, 1),
-            cpu_image(&s, &flat, EffectSet::ALL, 1),
+            cpu_image(&s, fx, 1),
+            cpu_image(&s, EffectSet::ALL, 1),
             "{name}: CPU, specialised vs all effects"
         );
-        let a = gpu_image(&s, &flat, fx, 1);
-        let b = gpu_image(&s, &flat, EffectSet::ALL, 1);
+        let a = gpu_image(&s, fx, 1);
+        let b = gpu_image(&s, EffectSet::ALL, 1);
         let d = diffs(&a, &b);
         let outliers = d.iter().filter(|&&x| x > PIXEL_TOL).count();
         println!("{name}: specialised [{fx}] vs all effects: {outliers} pixels over tolerance");
@@ -190,22 +192,14 @@ fn each_effect_changes_the_scene_that_calls_for_it() {
         ("ao", "ao", |f| f.ao = false),
     ];
     for (effect, scene, off) in cases {
-        let (_, s, flat) = find(scene);
+        let (_, s) = find(scene);
         let on = EffectSet::of(s);
         let mut without = on;
         off(&mut without);
         assert_ne!(on, without, "{scene} does not call for {effect}");
         for (dev, a, b) in [
-            (
-                "cpu",
-                cpu_image(s, flat, on, 2),
-                cpu_image(s, flat, without, 2),
-            ),
-            (
-                "gpu",
-                gpu_image(s, flat, on, 2),
-                gpu_image(s, flat, without, 2),
-            ),
+            ("cpu", cpu_image(s, on, 2), cpu_image(s, without, 2)),
+            ("gpu", gpu_image(s, on, 2), gpu_image(s, without, 2)),
         ] {
             let changed = diffs(&a, &b).iter().filter(|&&x| x > 0.05).count();
             println!("{scene} without {effect} ({dev}): {changed} pixels change by > 0.05");

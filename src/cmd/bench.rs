@@ -1,18 +1,17 @@
 use std::path::PathBuf;
-use std::time::Instant;
+use std::sync::Arc;
 
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use lancer::accel::bvh::{build, FlatBvh};
-use lancer::geometry::{Ray, TriangleTest};
-use lancer::gpu::{BvhMemory, GpuTracer, TraceKernel};
-use lancer::scene::{load_mesh, Camera};
-use lancer::trace::rays::{default_light, shadow_rays};
-use lancer::trace::{trace_batch, Query, RayStats};
-use lancer::Result;
+use lancer::accel::bvh::build;
+use lancer::camera::Camera;
+use lancer::gpu::BvhMemory;
+use lancer::layout::{flatten, Layout};
+use lancer::mesh::load_mesh;
+use lancer::trace::files::{default_light, shadow_rays};
+use lancer::{DeviceChoice, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions};
 
-use super::trace::{memory_name, open_device, Device};
-use super::BuildArgs;
+use super::{open_device, spelled, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchCmd {
@@ -37,8 +36,8 @@ struct BenchTrace {
     #[arg(long, default_value_t = 1024)]
     height: u32,
     /// auto and gpu measure the GPU kernels and the CPU tracer side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = Device::Auto)]
-    device: Device,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
     /// Timed runs per configuration (the median is reported).
     #[arg(long, default_value_t = 3)]
     repeat: usize,
@@ -61,74 +60,88 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn nodes_per_ray(s: &[RayStats]) -> f64 {
-    s.iter().map(|s| s.nodes as f64).sum::<f64>() / s.len().max(1) as f64
+    RayStats::means(s).0
 }
 
 impl BenchTrace {
     fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
-        let flat = FlatBvh::new(&build(&mesh, &self.build.options()), &mesh);
+        let build_options = self.build.options();
+        let layout: Arc<dyn Layout> =
+            flatten(self.build.layout, &build(&mesh, &build_options), &mesh).into();
         let primary = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1))
             .primary_rays();
-        let (hits, _) = trace_batch(&flat, &primary, Query::Closest, TriangleTest::Watertight);
+        let rob = Robustness::default();
+        let (hits, _) = layout.trace_batch(&primary, Query::Closest, &rob);
         let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
         let sets: [(&str, Query, &[Ray]); 2] = [
             ("primary closest-hit", Query::Closest, &primary),
             ("shadow any-hit", Query::Any, &shadow),
         ];
-        let ctx = open_device(self.device)?;
+        let device = open_device(self.device)?;
         let memories = [BvhMemory::Textures, BvhMemory::Buffers];
-        let gpu_configs: Vec<(u32, bool)> = if ctx.is_some() {
+        let gpu_configs: Vec<(u32, bool)> = if device.is_cpu() {
+            Vec::new()
+        } else {
             [32, 64, 128]
                 .iter()
                 .flat_map(|&w| [(w, false), (w, true)])
                 .collect()
-        } else {
-            Vec::new()
         };
         let gpu_runs = memories.len() * gpu_configs.len();
         let repeat = self.repeat.max(1);
         let bar = ProgressBar::new((sets.len() * (1 + gpu_runs) * repeat) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}").unwrap());
         let mut rows = Vec::new();
+        let cpu = lancer::Device::cpu();
         for (name, query, rays) in sets {
             let n = rays.len() as f64;
+            let stats_on = TracerOptions {
+                stats: true,
+                ..TracerOptions::default()
+            };
+            let mut tracer = Tracer::with_layout(&cpu, layout.clone(), &stats_on)?;
             let mut times = Vec::new();
             let mut stats = Vec::new();
             for _ in 0..repeat {
-                let t0 = Instant::now();
-                let (_, s) = trace_batch(&flat, rays, query, TriangleTest::Watertight);
-                times.push(t0.elapsed().as_secs_f64());
-                stats = s;
+                let r = tracer.trace(rays, query)?;
+                times.push(r.timings.wall_ms * 1e-3);
+                stats = r.stats.unwrap_or_default();
                 bar.inc(1);
             }
-            let cpu = n / median(times) / 1e6;
+            let rate = n / median(times) / 1e6;
             rows.push(format!(
-                "| {name} | {} | cpu ({} threads) | – | – | – | {cpu:.2} | {cpu:.2} | {:.2} |",
+                "| {name} | {} | cpu ({} threads) | – | – | – | {rate:.2} | {rate:.2} | {:.2} |",
                 rays.len(),
                 rayon::current_num_threads(),
                 nodes_per_ray(&stats)
             ));
-            let Some(ctx) = &ctx else { continue };
+            if device.is_cpu() {
+                continue;
+            }
             for memory in memories {
-                let mut tracer = GpuTracer::with_memory(ctx, &flat, memory)?;
-                let bvh = memory_name(memory);
+                let options = TracerOptions {
+                    memory,
+                    ..TracerOptions::default()
+                };
+                let mut tracer = Tracer::with_layout(&device, layout.clone(), &options)?;
+                let bvh = spelled(memory);
                 for &(wg, trusted) in &gpu_configs {
-                    let k = TraceKernel {
-                        query,
-                        workgroup_size: wg,
-                        trusted,
-                        ..TraceKernel::default()
+                    let rob = Robustness {
+                        checked_module: !trusted,
+                        ..Robustness::default()
                     };
-                    tracer.trace(&rays[..rays.len().min(1024)], k)?; // compile outside the timing
+                    tracer.set_kernel(rob, wg, false);
+                    tracer.trace(&rays[..rays.len().min(1024)], query)?; // compile outside the timing
                     let (mut gpu, mut wall) = (Vec::new(), Vec::new());
                     for _ in 0..repeat {
-                        let (_, _, t) = tracer.trace(rays, k)?;
+                        let t = tracer.trace(rays, query)?.timings;
                         gpu.push(t.gpu_ms.unwrap_or(f64::NAN));
                         wall.push(t.wall_ms);
                         bar.inc(1);
                     }
-                    let (_, s, _) = tracer.trace(rays, TraceKernel { stats: true, ..k })?;
+                    tracer.set_kernel(rob, wg, true);
+                    let s = tracer.trace(rays, query)?.stats;
                     let module = if trusted { "trusted" } else { "checked" };
                     rows.push(format!(
                         "| {name} | {} | gpu | {bvh} | {wg} | {module} | {:.2} | {:.2} | {:.2} |",
@@ -142,13 +155,14 @@ impl BenchTrace {
         }
         bar.finish_and_clear();
         println!(
-            "mesh {}  {} triangles  {}x{}",
+            "mesh {}  {} triangles  {}x{}  layout {}",
             self.mesh.display(),
-            flat.tris.len(),
+            layout.triangles(),
             self.width,
-            self.height
+            self.height,
+            self.build.layout
         );
-        if let Some(ctx) = &ctx {
+        if let Some(ctx) = device.gpu_context() {
             println!("adapter {}", ctx.adapter);
         }
         println!("| rays | count | device | BVH memory | workgroup | module | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray |");

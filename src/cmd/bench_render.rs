@@ -2,18 +2,14 @@
 //! the kernel specialised to the scene's effects and with every effect compiled in.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use clap::Args;
-use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use lancer::accel::bvh::{build, FlatBvh};
-use lancer::render::{CpuRenderer, EffectSet, GpuRenderer};
-use lancer::Result;
+use lancer::render::{EffectSet, RenderOptions, Renderer};
+use lancer::{Device, DeviceChoice, Result, Robustness, Vec3};
 
 use super::render::load_scene;
-use super::trace::{open_device, Device};
-use super::BuildArgs;
+use super::{open_device, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchRender {
@@ -27,8 +23,8 @@ pub struct BenchRender {
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// auto and gpu measure the GPU and the CPU side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = Device::Auto)]
-    device: Device,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
     #[command(flatten)]
     build: BuildArgs,
 }
@@ -41,55 +37,54 @@ fn median(mut v: Vec<f64>) -> f64 {
 impl BenchRender {
     pub fn run(self) -> Result<()> {
         let scene = load_scene(&self.scene, self.width, self.height)?;
-        let flat = FlatBvh::new(&build(&scene.mesh, &self.build.options()), &scene.mesh);
-        let ctx = open_device(self.device)?;
+        let device = open_device(self.device)?;
+        let cpu = Device::cpu();
+        let options = RenderOptions {
+            build: self.build.options(),
+            layout: self.build.layout,
+            ..RenderOptions::default()
+        };
         let specialised = EffectSet::of(&scene);
         let kernels = [
             ("specialised", specialised),
             ("all effects", EffectSet::ALL),
         ];
-        let devices = if ctx.is_some() { 2 } else { 1 };
-        let bar = ProgressBar::new((devices * 2 * (self.spp + 1)) as u64);
+        let mut devices = vec![("cpu", &cpu)];
+        if !device.is_cpu() {
+            devices.insert(0, ("gpu", &device));
+        }
+        let bar = ProgressBar::new((devices.len() * 2 * (self.spp as usize + 1)) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} samples {msg}").unwrap());
+        let seed = scene.settings.seed;
+        let rob = Robustness::default();
+        let mut accum = vec![Vec3::ZERO; (scene.camera.width * scene.camera.height) as usize];
         // (device, kernel, ms per spp)
         let mut rows: Vec<(&str, &str, f64)> = Vec::new();
-        if let Some(ctx) = &ctx {
-            let mut gpu = GpuRenderer::new(ctx, &scene, &flat)?;
+        let mut triangles = 0;
+        for (dev_name, dev) in devices {
+            let mut renderer = Renderer::new(&scene, dev, &options)?;
+            triangles = renderer.bvh_stats().triangles;
             for (name, fx) in kernels {
-                bar.set_message(format!("gpu, {name}"));
-                gpu.add_sample(fx, 0)?; // compiles the pipeline outside the timing
+                bar.set_message(format!("{dev_name}, {name}"));
+                // Sample 0 compiles the pipeline (GPU) and warms caches, outside the timing.
+                renderer.add_sample(fx, rob, seed, 0, &mut accum)?;
                 bar.inc(1);
                 let mut ms = Vec::new();
                 for s in 1..=self.spp {
-                    ms.push(gpu.add_sample(fx, s)?);
+                    ms.push(renderer.add_sample(fx, rob, seed, s, &mut accum)?);
                     bar.inc(1);
                 }
-                rows.push(("gpu", name, median(ms)));
+                rows.push((dev_name, name, median(ms)));
             }
-        }
-        let mut accum = vec![Vec3::ZERO; (scene.camera.width * scene.camera.height) as usize];
-        for (name, fx) in kernels {
-            bar.set_message(format!("cpu, {name}"));
-            let cpu = CpuRenderer::new(&scene, &flat, fx);
-            let mut ms = Vec::new();
-            for s in 0..=self.spp {
-                let t0 = Instant::now();
-                cpu.accumulate(&mut accum, s, 1);
-                if s > 0 {
-                    ms.push(t0.elapsed().as_secs_f64() * 1e3);
-                }
-                bar.inc(1);
-            }
-            rows.push(("cpu", name, median(ms)));
         }
         bar.finish_and_clear();
         let (w, h) = (scene.camera.width, scene.camera.height);
         println!(
             "scene {}  {} triangles  {w}x{h}  effects: {specialised}",
             self.scene.display(),
-            flat.tris.len()
+            triangles
         );
-        if let Some(ctx) = &ctx {
+        if let Some(ctx) = device.gpu_context() {
             println!("adapter {}", ctx.adapter);
         }
         println!(

@@ -2,8 +2,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
-use lancer::accel::bvh::{build, BvhStats, FlatBvh};
-use lancer::scene::load_mesh;
+use lancer::accel::bvh::{build, BvhStats};
+use lancer::layout::flatten;
+use lancer::mesh::load_mesh;
 use lancer::Result;
 
 use super::BuildArgs;
@@ -25,25 +26,26 @@ impl BuildCmd {
         let opts = self.build.options();
         let t0 = Instant::now();
         let bvh = build(&mesh, &opts);
-        let flat = FlatBvh::new(&bvh, &mesh);
+        let layout = flatten(self.build.layout, &bvh, &mesh);
         let ms = t0.elapsed().as_secs_f64() * 1e3;
-        let s = BvhStats::of(&flat, &opts);
+        let s = BvhStats::of(&bvh, &opts);
         if self.json {
             let j = serde_json::json!({
                 "triangles": s.triangles, "nodes": s.nodes, "leaves": s.leaves,
                 "max_depth": s.max_depth, "sah_cost": s.sah_cost, "build_ms": ms,
-                "bytes": s.bytes,
+                "bytes": layout.bytes(), "layout": self.build.layout.name(),
             });
             println!("{j}");
         } else {
             println!("builder     {:?}", opts.builder);
+            println!("layout      {}", self.build.layout);
             println!("triangles   {}", s.triangles);
             println!("nodes       {}", s.nodes);
             println!("leaves      {}", s.leaves);
             println!("max depth   {}", s.max_depth);
             println!("SAH cost    {:.3}", s.sah_cost);
             println!("build ms    {ms:.2}");
-            println!("GPU bytes   {}", s.bytes);
+            println!("GPU bytes   {}", layout.bytes());
         }
         Ok(())
     }

@@ -1,15 +1,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::accel::bvh::{build, FlatBvh};
-use lancer::geometry::TriangleTest;
-use lancer::gpu::{GpuTracer, TraceKernel};
-use lancer::scene::{load_mesh, Camera};
-use lancer::trace::{trace_batch, Query};
-use lancer::{Error, Result};
+use lancer::camera::Camera;
+use lancer::mesh::load_mesh;
+use lancer::{Error, Query, Result, Tracer, TracerOptions};
 
-use super::trace::{open_device, Device};
-use super::BuildArgs;
+use super::{BuildArgs, DeviceArgs};
 
 #[derive(Args)]
 pub struct HeatmapCmd {
@@ -22,8 +18,8 @@ pub struct HeatmapCmd {
     width: u32,
     #[arg(long, default_value_t = 512)]
     height: u32,
-    #[arg(long, value_enum, default_value_t = Device::Auto)]
-    device: Device,
+    #[command(flatten)]
+    device: DeviceArgs,
     #[command(flatten)]
     build: BuildArgs,
 }
@@ -46,31 +42,43 @@ fn ramp(t: f32) -> [u8; 3] {
 
 impl HeatmapCmd {
     pub fn run(self) -> Result<()> {
+        if !self
+            .out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            return Err(Error::input(
+                &self.out,
+                None,
+                "a heatmap is a PNG: use a .png file name",
+            ));
+        }
         let mesh = load_mesh(&self.mesh)?;
-        let flat = FlatBvh::new(&build(&mesh, &self.build.options()), &mesh);
         let (w, h) = (self.width.max(1), self.height.max(1));
         let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
-        let stats = match open_device(self.device)? {
-            Some(ctx) => {
-                let kernel = TraceKernel {
-                    stats: true,
-                    ..TraceKernel::default()
-                };
-                GpuTracer::new(&ctx, &flat)?
-                    .trace(&rays, kernel)?
-                    .1
-                    .unwrap_or_default()
-            }
-            None => trace_batch(&flat, &rays, Query::Closest, TriangleTest::Watertight).1,
+        let device = self.device.open()?;
+        let options = TracerOptions {
+            build: self.build.options(),
+            layout: self.build.layout,
+            memory: self.device.bvh_memory,
+            stats: true,
+            ..TracerOptions::default()
         };
+        let mut tracer = Tracer::new(&device, &mesh, &options)?;
+        let stats = tracer
+            .trace(&rays, Query::Closest)?
+            .stats
+            .unwrap_or_default();
         let max = stats.iter().map(|s| s.nodes).max().unwrap_or(1).max(1);
         let mean = stats.iter().map(|s| s.nodes as f64).sum::<f64>() / stats.len() as f64;
         let mut img = image::RgbImage::new(w, h);
         for (p, s) in img.pixels_mut().zip(&stats) {
             *p = image::Rgb(ramp(s.nodes as f32 / max as f32));
         }
-        img.save(&self.out)
-            .map_err(|e| Error::input(&self.out, None, format!("cannot write PNG: {e}")))?;
+        lancer::output::write_atomic(&self.out, |w| {
+            img.write_to(w, image::ImageFormat::Png)
+                .map_err(std::io::Error::other)
+        })?;
         println!(
             "nodes visited per pixel: mean {mean:.1}, max {max} (white-yellow) -> {}",
             self.out.display()

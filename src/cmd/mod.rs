@@ -1,4 +1,4 @@
-//! Subcommands of the `lancer` binary.
+//! Subcommands of the `lancer` binary: parse, call the library, print.
 
 mod bench;
 mod bench_render;
@@ -10,7 +10,9 @@ mod trace;
 
 use clap::{Args, Parser, Subcommand};
 use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
-use lancer::Result;
+use lancer::geometry::{SlabTest, TriangleTest};
+use lancer::gpu::BvhMemory;
+use lancer::{Device, DeviceChoice, LayoutKind, Result, Robustness};
 
 #[derive(Parser)]
 #[command(
@@ -19,6 +21,12 @@ use lancer::Result;
     about = "GPU compute ray tracer with a CPU reference"
 )]
 pub struct Cli {
+    /// Print errors only (no warnings).
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// Print more about what happens (-v: info, -vv: debug).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -57,6 +65,9 @@ pub struct BuildArgs {
     /// SAH cost of one triangle test.
     #[arg(long, default_value_t = 1.0)]
     t_obj: f32,
+    /// Flattened BVH layout (GPU arrays and their CPU twin).
+    #[arg(long, value_enum, default_value_t = LayoutKind::default())]
+    layout: LayoutKind,
 }
 
 impl BuildArgs {
@@ -70,6 +81,71 @@ impl BuildArgs {
             ..BuildOptions::default()
         }
     }
+}
+
+/// Where to run, and how the GPU reads the BVH.
+#[derive(Args, Clone, Debug)]
+pub struct DeviceArgs {
+    /// auto: the GPU when an adapter opens, else the CPU (with a printed warning).
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
+    /// GPU: where the kernels read the BVH from (storage textures or storage buffers).
+    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
+    bvh_memory: BvhMemory,
+}
+
+impl DeviceArgs {
+    /// Opens the device, printing why `auto` fell back to the CPU and when timings come
+    /// from a software adapter.
+    pub fn open(&self) -> Result<Device> {
+        open_device(self.device)
+    }
+}
+
+/// Opens a device; the CLI's words for a fallback and for a software adapter.
+pub fn open_device(choice: DeviceChoice) -> Result<Device> {
+    let device = Device::open(choice)?;
+    if let Some(why) = device.fallback() {
+        eprintln!("warning: {why}; running on the CPU");
+    }
+    if let Some(ctx) = device.gpu_context().filter(|c| c.adapter.software) {
+        eprintln!(
+            "warning: {} is a software adapter (CPU); GPU timings are not a GPU's",
+            ctx.adapter
+        );
+    }
+    Ok(device)
+}
+
+/// The robustness knobs on the command line.
+#[derive(Args, Clone, Debug)]
+pub struct RobustnessArgs {
+    /// Triangle test.
+    #[arg(long, value_enum, default_value_t = TriangleTest::Watertight)]
+    triangle_test: TriangleTest,
+    /// Slab (ray–box) test.
+    #[arg(long, value_enum, default_value_t = SlabTest::Robust)]
+    slab_test: SlabTest,
+    /// GPU: run the shader module without bounds checks / loop bounding (BVH validated first).
+    #[arg(long)]
+    trusted: bool,
+}
+
+impl RobustnessArgs {
+    pub fn robustness(&self) -> Robustness {
+        Robustness {
+            triangle_test: self.triangle_test,
+            slab_test: self.slab_test,
+            checked_module: !self.trusted,
+            ..Robustness::default()
+        }
+    }
+}
+
+/// A value as the command line spells it.
+pub fn spelled<T: clap::ValueEnum + std::fmt::Debug>(v: T) -> String {
+    v.to_possible_value()
+        .map_or(format!("{v:?}"), |p| p.get_name().to_string())
 }
 
 pub fn run(cli: Cli) -> Result<()> {

@@ -1,8 +1,9 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::scene::{load_mesh, Camera};
-use lancer::trace::rays::write_rays;
+use lancer::camera::Camera;
+use lancer::mesh::load_mesh;
+use lancer::trace::files::write_rays;
 use lancer::Result;
 
 #[derive(Args)]

@@ -1,18 +1,14 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::Duration;
 
 use clap::Args;
-use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use lancer::accel::bvh::{build, BvhStats, FlatBvh};
-use lancer::gpu::BvhMemory;
-use lancer::render::{image_kind, save_image, CpuRenderer, EffectSet, GpuRenderer, RenderScene};
-use lancer::{Error, Result};
+use lancer::render::{image_kind, EffectSet, Progress, RenderOptions, Renderer, Stop};
+use lancer::{Error, RenderScene, Result};
 
-use super::trace::{memory_name, open_device, Device};
-use super::BuildArgs;
+use super::{spelled, BuildArgs, DeviceArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -36,17 +32,14 @@ pub struct RenderCmd {
     /// Stop after the last sample that fits in this many seconds (at least one sample).
     #[arg(long)]
     time_limit: Option<f64>,
-    #[arg(long, value_enum, default_value_t = Device::Auto)]
-    device: Device,
+    #[command(flatten)]
+    device: DeviceArgs,
     /// Compile every effect in, whatever the scene calls for (for comparisons).
     #[arg(long)]
     all_effects: bool,
     /// Print build time, BVH statistics, effects, device and speed.
     #[arg(long)]
     stats: bool,
-    /// GPU: where the kernels read the BVH from (storage textures or storage buffers).
-    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
-    bvh_memory: BvhMemory,
     #[command(flatten)]
     build: BuildArgs,
 }
@@ -80,114 +73,94 @@ pub fn load_scene(
 impl RenderCmd {
     pub fn run(self) -> Result<()> {
         image_kind(&self.out)?;
-        let mut scene = load_scene(&self.scene, self.width, self.height)?;
-        if let Some(s) = self.spp {
-            scene.settings.spp = s;
-        }
-        if let Some(s) = self.seed {
-            scene.settings.seed = s;
-        }
-        let opts = self.build.options();
-        let t0 = Instant::now();
-        let flat = FlatBvh::new(&build(&scene.mesh, &opts), &scene.mesh);
-        let build_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let effects = if self.all_effects {
-            EffectSet::ALL
-        } else {
-            EffectSet::of(&scene)
+        let time_limit = match self.time_limit {
+            Some(t) if !(t.is_finite() && t > 0.0) => {
+                return Err(Error::Usage(format!(
+                    "--time-limit {t}: give a positive number of seconds"
+                )))
+            }
+            t => t.map(Duration::from_secs_f64),
         };
-        let ctx = open_device(self.device)?;
-
-        let stop = Arc::new(AtomicBool::new(false));
+        let scene = load_scene(&self.scene, self.width, self.height)?;
+        let device = self.device.open()?;
+        let cancel = Arc::new(AtomicBool::new(false));
         {
-            let stop = stop.clone();
+            let cancel = cancel.clone();
             // A second Ctrl-C while saving is not caught: the default handler ends the run.
-            let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+            let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
         }
-        let (w, h) = (scene.camera.width, scene.camera.height);
-        let spp = scene.settings.spp;
+        let spp = self.spp.unwrap_or(scene.settings.spp);
         let bar = ProgressBar::new(spp as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:30} {pos}/{len} spp  {msg}  {elapsed_precise}")
                 .expect("valid template"),
         );
-        let start = Instant::now();
-        let mut gpu_ms = 0.0;
-        let mut done = 0u32;
-        let mut gpu = match &ctx {
-            Some(c) => Some(GpuRenderer::with_memory(c, &scene, &flat, self.bvh_memory)?),
-            None => None,
+        let progress = {
+            let bar = bar.clone();
+            Arc::new(move |p: &Progress| {
+                bar.set_message(format!("{:.2} M camera rays/s", p.camera_rays_per_s * 1e-6));
+                bar.set_position(p.done as u64);
+            })
         };
-        let cpu = CpuRenderer::new(&scene, &flat, effects);
-        let mut accum = vec![Vec3::ZERO; (w * h) as usize];
-        let mut interrupted = false;
-        while done < spp {
-            if stop.load(Ordering::SeqCst) {
-                interrupted = true;
-                break;
-            }
-            let elapsed = start.elapsed().as_secs_f64();
-            if let Some(limit) = self.time_limit {
-                if done > 0 && elapsed * (done + 1) as f64 / done as f64 > limit {
-                    break;
-                }
-            }
-            match gpu.as_mut() {
-                Some(g) => gpu_ms += g.add_sample(effects, done)?,
-                None => cpu.accumulate(&mut accum, done, 1),
-            }
-            done += 1;
-            let rate = (done as f64 * (w * h) as f64) / start.elapsed().as_secs_f64();
-            bar.set_message(format!("{:.2} M camera rays/s", rate * 1e-6));
-            bar.set_position(done as u64);
-        }
+        let options = RenderOptions {
+            spp: self.spp,
+            seed: self.seed,
+            effects: self.all_effects.then_some(EffectSet::ALL),
+            time_limit,
+            cancel: Some(cancel),
+            progress: Some(progress),
+            build: self.build.options(),
+            layout: self.build.layout,
+            memory: self.device.bvh_memory,
+            ..RenderOptions::default()
+        };
+        let mut renderer = Renderer::new(&scene, &device, &options)?;
+        let done = renderer.render(&options);
         bar.finish_and_clear();
-        let secs = start.elapsed().as_secs_f64();
-        if let Some(g) = &gpu {
-            accum = g.read_accum()?;
-        }
-        if done == 0 {
-            return Err(Error::Gpu(
-                "interrupted before the first sample finished: nothing to save".into(),
-            ));
-        }
-        let inv = 1.0 / done as f32;
-        let px: Vec<Vec3> = accum.iter().map(|c| *c * inv).collect();
-        save_image(&self.out, &px, w, h)?;
-        let device = ctx
-            .as_ref()
-            .map_or("cpu".to_string(), |c| format!("gpu: {}", c.adapter));
-        let why = if interrupted {
-            " (interrupted: saved what had accumulated)"
-        } else if done < spp {
-            " (time limit)"
-        } else {
-            ""
+        let done = done?;
+        done.image.save(&self.out)?;
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        let why = match done.stop {
+            Stop::Cancelled => " (interrupted: saved what had accumulated)",
+            Stop::TimeLimit => " (time limit)",
+            Stop::Complete => "",
         };
         println!(
-            "{w}x{h} {done}/{spp} spp -> {} ({device}, {secs:.2} s){why}",
-            self.out.display()
+            "{w}x{h} {}/{} spp -> {} ({device}, {:.2} s){why}",
+            done.samples,
+            done.requested,
+            self.out.display(),
+            done.seconds
         );
         if self.stats {
-            let s = BvhStats::of(&flat, &opts);
+            let s = renderer.bvh_stats();
             println!(
-                "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}  build {build_ms:.1} ms",
-                s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost
+                "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}  build {:.1} ms",
+                s.triangles,
+                s.nodes,
+                s.leaves,
+                s.max_depth,
+                s.sah_cost,
+                renderer.build_ms()
             );
-            println!("effects: {effects}");
-            if gpu.is_some() {
-                println!("BVH memory: {}", memory_name(self.bvh_memory));
+            println!("effects: {}", done.effects);
+            println!("layout: {}", self.build.layout);
+            if !device.is_cpu() {
+                println!("BVH memory: {}", spelled(self.device.bvh_memory));
             }
             println!(
-                "{:.2} M camera rays/s, {:.1} ms per spp{}",
-                done as f64 * (w * h) as f64 / secs * 1e-6,
-                secs * 1e3 / done as f64,
-                if gpu.is_some() {
-                    format!(", GPU wall {gpu_ms:.0} ms")
-                } else {
-                    String::new()
-                }
+                "{:.2} M camera rays/s, {:.1} ms per spp",
+                done.samples as f64 * (w * h) as f64 / done.seconds * 1e-6,
+                done.seconds * 1e3 / done.samples as f64,
             );
+        }
+        if done.stop == Stop::Cancelled {
+            return Err(Error::Cancelled(format!(
+                "interrupted after {} of {} samples; saved {}",
+                done.samples,
+                done.requested,
+                self.out.display()
+            )));
         }
         Ok(())
     }

@@ -85,17 +85,17 @@ impl Aabb {
     }
 
     /// Robust slab test: `inv_dir` from [`safe_recip`](super::safe_recip), so no 0·∞ NaN can
-    /// arise; far distances widened by [`FAR_WIDEN`]. An axis the ray is parallel to
+    /// arise; far distances multiplied by `widen` ([`FAR_WIDEN`] robust, 1 plain). An axis the ray is parallel to
     /// (|inv| ≥ PARALLEL_INV, i.e. |d| ≲ 2e-30) does not limit the interval when the origin
     /// lies within that slab, boundary planes included, and empties it otherwise — so an
     /// origin exactly on either face plane behaves the same. Returns whether
     /// [max(t_near, tmin), min(t_far, tmax)] is non-empty. WGSL `slab_hit` is the same.
     #[inline]
-    pub fn slab_hit(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> bool {
+    pub fn slab_hit(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32, widen: f32) -> bool {
         let t0 = (self.lo - origin) * inv_dir;
         let t1 = (self.hi - origin) * inv_dir;
         let parallel = inv_dir.abs().cmpge(Vec3::splat(PARALLEL_INV));
-        let (mut tn, mut tf) = (t0.min(t1), t0.max(t1) * FAR_WIDEN);
+        let (mut tn, mut tf) = (t0.min(t1), t0.max(t1) * widen);
         // Rare (axis-aligned rays): a predictable branch keeps the common path short; the
         // result equals the WGSL select() form on every input.
         if parallel.any() {
@@ -122,11 +122,12 @@ impl Aabb {
         inv_dir: Vec3A,
         tmin: f32,
         tmax: f32,
+        widen: f32,
     ) -> bool {
         let t0 = (lo - origin) * inv_dir;
         let t1 = (hi - origin) * inv_dir;
         let tn = t0.min(t1);
-        let tf = t0.max(t1) * FAR_WIDEN;
+        let tf = t0.max(t1) * widen;
         // min/max of non-NaN values is exact in any association (±0 may differ, which no
         // comparison below can see).
         let enter = tn.max_element();
@@ -138,6 +139,6 @@ impl Aabb {
 
     /// Convenience wrapper for a whole ray.
     pub fn hit_ray(&self, ray: &Ray) -> bool {
-        self.slab_hit(ray.origin, ray.inv_dir(), ray.tmin, ray.tmax)
+        self.slab_hit(ray.origin, ray.inv_dir(), ray.tmin, ray.tmax, FAR_WIDEN)
     }
 }

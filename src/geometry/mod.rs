@@ -1,13 +1,17 @@
-//! Geometric primitives shared by the builders, the CPU tracer and (by layout) the GPU.
+//! Geometric primitives shared by the builders, the CPU tracers and (by layout) the GPU:
+//! boxes, rays, hits, triangle tests and the robustness settings.
 
 mod aabb;
 mod hit;
 mod ray;
+mod robustness;
 mod triangle;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use hit::{Hit, MISS};
-pub use ray::{safe_recip, Ray};
+pub use ray::{safe_recip, Ray, RECIP_FLOOR};
+pub use robustness::{RayOffset, Robustness, SlabTest};
 pub use triangle::{
-    intersect_moller_trumbore, intersect_watertight, Triangle, TriangleTest, WatertightRay,
+    intersect_moller_trumbore, intersect_triangle, intersect_watertight, Triangle, TriangleTest,
+    WatertightRay,
 };

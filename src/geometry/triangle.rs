@@ -35,7 +35,8 @@ impl Triangle {
 }
 
 /// Which ray/triangle test the tracers run.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum TriangleTest {
     /// Woop, Benthin & Wald 2013, "Watertight Ray/Triangle Intersection", JCGT 2(1).
     #[default]
@@ -152,5 +153,22 @@ pub fn intersect_moller_trumbore(
         Some((t, u, v))
     } else {
         None
+    }
+}
+
+/// The chosen triangle test, as every tracer calls it: `Some((t, u, v))` for a hit with
+/// t in [tmin, tmax]. `wr` is the ray's watertight set-up (unused by Möller–Trumbore).
+#[inline(always)]
+pub fn intersect_triangle(
+    test: TriangleTest,
+    tri: &Triangle,
+    ray: &Ray,
+    wr: &WatertightRay,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32, f32)> {
+    match test {
+        TriangleTest::Watertight => intersect_watertight(tri, ray.origin, wr, tmin, tmax),
+        TriangleTest::MollerTrumbore => intersect_moller_trumbore(tri, ray, tmin, tmax),
     }
 }

@@ -1,30 +1,34 @@
-//! The flat BVH on the device, in one of two kinds of memory. bvh.wgsl declares both and
-//! reads one, chosen by its `BVH_TEXTURES` override; the other pair of bindings gets a
-//! one-word placeholder.
+//! A layout's arrays on the device, in one of two kinds of memory.
+//! `shaders/lib/traversal.wgsl` declares both and reads one, chosen by its `BVH_TEXTURES`
+//! override; the other pair of bindings gets a one-word placeholder.
 
-use crate::accel::bvh::{FlatBvh, GpuTri};
 use crate::error::{Error, Result};
+use crate::layout::{Layout, LeafTri};
 
+use super::bindings;
 use super::context::human_bytes;
-use super::{storage_entry, GpuContext};
+use super::plumbing::{storage_entry, texel_entry};
+use super::GpuContext;
 
-/// Where the kernels read nodes and triangles from. The words are the same (32-byte nodes,
-/// 48-byte triangles, tests/layout.rs); only the kind of binding differs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum)]
+/// Where the kernels read nodes and triangles from. The words are the same; only the kind
+/// of binding differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BvhMemory {
-    /// Read-only storage buffers (bindings 0 and 1).
+    /// Read-only storage buffers.
     Buffers,
-    /// Read-only rgba32uint storage textures, TEXEL_ROW texels a row (bindings 10 and 11).
+    /// Read-only rgba32uint storage textures, TEXEL_ROW texels a row.
     /// lavapipe loads these with a gather instead of a per-lane loop: ~18% more rays/s there.
     #[default]
     Textures,
 }
 
-/// Texels (16-byte words) per texture row; bvh.wgsl's TEXEL_ROW.
+/// Texels (16-byte words) per texture row (generated into the WGSL prelude).
 pub const TEXEL_ROW: u32 = 4096;
 
 /// Nodes and triangles uploaded in the chosen memory.
 pub struct GpuBvh {
+    /// Where they live.
     pub memory: BvhMemory,
     node_buf: wgpu::Buffer,
     tri_buf: wgpu::Buffer,
@@ -33,20 +37,21 @@ pub struct GpuBvh {
 }
 
 impl GpuBvh {
-    /// Validates and uploads `flat` (an empty one binds a single unused triangle); refuses
-    /// an invalid BVH (trusted modules rely on its indices) and sizes the device cannot
-    /// bind, naming the size and the limit.
-    pub fn upload(ctx: &GpuContext, flat: &FlatBvh, memory: BvhMemory) -> Result<GpuBvh> {
-        flat.validate()
+    /// Validates and uploads a layout's arrays (with no triangle, one unused zero triangle
+    /// is bound); refuses an invalid layout (trusted modules rely on its indices) and sizes
+    /// the device cannot bind, naming the size and the limit.
+    pub fn upload(ctx: &GpuContext, layout: &dyn Layout, memory: BvhMemory) -> Result<GpuBvh> {
+        layout
+            .validate()
             .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
-        let pad = [GpuTri::zeroed_tri()];
-        let tris = if flat.tris.is_empty() {
-            &pad[..]
+        let arrays = layout.arrays();
+        let pad: [LeafTri; 1] = [bytemuck::Zeroable::zeroed()];
+        let nodes: &[u8] = arrays.nodes;
+        let tris: &[u8] = if arrays.tris.is_empty() {
+            bytemuck::cast_slice(&pad)
         } else {
-            &flat.tris[..]
+            arrays.tris
         };
-        let nodes: &[u8] = bytemuck::cast_slice(&flat.nodes);
-        let tris: &[u8] = bytemuck::cast_slice(tris);
         let word = [0u8; 16];
         let bvh = match memory {
             BvhMemory::Buffers => {
@@ -71,29 +76,19 @@ impl GpuBvh {
         Ok(bvh)
     }
 
-    /// The override constant that tells bvh.wgsl which bindings to read.
+    /// The override constant that tells traversal.wgsl which bindings to read.
     pub fn override_constant(&self) -> (&'static str, f64) {
         let on = self.memory == BvhMemory::Textures;
         ("BVH_TEXTURES", if on { 1.0 } else { 0.0 })
     }
 
-    /// Bind-group-layout entries of bvh.wgsl's four bindings.
+    /// Bind-group-layout entries of traversal.wgsl's four bindings.
     pub fn layout_entries() -> [wgpu::BindGroupLayoutEntry; 4] {
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::StorageTexture {
-                access: wgpu::StorageTextureAccess::ReadOnly,
-                format: wgpu::TextureFormat::Rgba32Uint,
-                view_dimension: wgpu::TextureViewDimension::D2,
-            },
-            count: None,
-        };
         [
-            storage_entry(0, true),
-            storage_entry(1, true),
-            texture(10),
-            texture(11),
+            storage_entry(bindings::NODE_WORDS, true),
+            storage_entry(bindings::TRI_WORDS, true),
+            texel_entry(bindings::NODE_TEXELS),
+            texel_entry(bindings::TRI_TEXELS),
         ]
     }
 
@@ -101,10 +96,16 @@ impl GpuBvh {
     pub fn bind_entries(&self) -> [wgpu::BindGroupEntry<'_>; 4] {
         let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         [
-            entry(0, self.node_buf.as_entire_binding()),
-            entry(1, self.tri_buf.as_entire_binding()),
-            entry(10, wgpu::BindingResource::TextureView(&self.node_tex)),
-            entry(11, wgpu::BindingResource::TextureView(&self.tri_tex)),
+            entry(bindings::NODE_WORDS, self.node_buf.as_entire_binding()),
+            entry(bindings::TRI_WORDS, self.tri_buf.as_entire_binding()),
+            entry(
+                bindings::NODE_TEXELS,
+                wgpu::BindingResource::TextureView(&self.node_tex),
+            ),
+            entry(
+                bindings::TRI_TEXELS,
+                wgpu::BindingResource::TextureView(&self.tri_tex),
+            ),
         ]
     }
 }

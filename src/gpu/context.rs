@@ -1,17 +1,21 @@
 //! One place that opens a headless GPU device.
 
-use std::sync::Once;
+use std::sync::Arc;
 
 use wgpu::util::DeviceExt;
 
 use crate::error::{Error, Result};
 
-/// What the adapter is, for `--stats` and warnings.
+/// What the adapter is, for `--stats`, benches and warnings.
 #[derive(Clone, Debug)]
 pub struct AdapterReport {
+    /// The adapter's name (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)").
     pub name: String,
+    /// Driver name and version.
     pub driver: String,
+    /// Backend (Vulkan, Metal, …).
     pub backend: String,
+    /// A software adapter (a CPU pretending to be a GPU, like lavapipe).
     pub software: bool,
 }
 
@@ -23,18 +27,21 @@ impl std::fmt::Display for AdapterReport {
 
 /// A headless device and queue.
 pub struct GpuContext {
+    /// The wgpu device.
     pub device: wgpu::Device,
+    /// Its queue.
     pub queue: wgpu::Queue,
+    /// What the adapter is.
     pub adapter: AdapterReport,
+    /// The adapter's limits (requested in full).
     pub limits: wgpu::Limits,
+    /// Timestamp queries are available (GPU times in benches and `--stats`).
     pub timestamps: bool,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found; install a Vulkan driver (on Debian/Ubuntu: \
 apt-get install mesa-vulkan-drivers libvulkan1, which includes the lavapipe software driver) \
 or use --device cpu";
-
-static SOFTWARE_WARNING: Once = Once::new();
 
 impl GpuContext {
     /// Opens an adapter without a window. Honours `WGPU_BACKEND` (e.g. vulkan, gl) and
@@ -102,13 +109,8 @@ impl GpuContext {
             })
             .await
             .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?;
-        if report.software {
-            SOFTWARE_WARNING.call_once(|| {
-                eprintln!(
-                    "warning: {report} is a software adapter (CPU); GPU timings are not a GPU's"
-                );
-            });
-        }
+        // Errors outside an error scope (gpu::plumbing::scoped) are logged, never a panic.
+        device.on_uncaptured_error(Arc::new(|e| log::error!("GPU error: {e}")));
         Ok(GpuContext {
             device,
             queue,

@@ -1,11 +1,13 @@
-//! The GPU side: a headless wgpu device, the WGSL kernels, and BVH traversal on the GPU.
+//! The GPU side: a headless wgpu device, the shared plumbing, the WGSL sources and the
+//! trace kernel.
 
+pub mod bindings;
 mod bvh_memory;
 mod context;
+pub mod plumbing;
 pub mod shaders;
 mod trace;
 
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
-pub use context::{AdapterReport, GpuContext};
-pub(crate) use trace::storage_entry;
-pub use trace::{GpuTimings, GpuTracer, Params, TraceKernel};
+pub use context::{human_bytes, AdapterReport, GpuContext};
+pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams};

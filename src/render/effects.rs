@@ -1,9 +1,9 @@
 //! The effects a scene calls for. The set decides which code the render kernel keeps
 //! (WGSL `override` constants of one shader source) and which the CPU renderer runs.
 
-use super::scene::RenderScene;
-use super::scene_file::{Integrator, MaterialKind};
+use super::scene::{Integrator, MaterialKind, RenderScene};
 
+/// Which effects a render simulates; code for the others is compiled out of the kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct EffectSet {
     /// Shadow rays toward lights (any light).

@@ -6,16 +6,21 @@ use std::collections::HashMap;
 use glam::Vec3;
 
 use super::effects::EffectSet;
-use super::integrator::CameraFrame;
-use super::scene::{Light, RenderScene};
-use super::scene_file::{Integrator, MaterialKind};
-use crate::accel::bvh::FlatBvh;
-use crate::error::{Error, Result};
-use crate::gpu::{shaders, storage_entry, BvhMemory, GpuBvh, GpuContext};
+use super::scene::{Light, LightKind, RenderScene};
+use crate::error::Result;
+use crate::geometry::Robustness;
+use crate::gpu::plumbing::{
+    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
+    Chunks, Kernel, Readback,
+};
+use crate::gpu::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
+use crate::layout::Layout;
 
 /// Pixels per dispatch: keeps every dispatch short on a software rasteriser.
 const CHUNK: u32 = 1 << 16;
 const WORKGROUP: u32 = 64;
+/// Bytes of [`RenderParams`] (WGSL `Params`).
+const PARAMS_SIZE: u64 = std::mem::size_of::<RenderParams>() as u64;
 
 /// A triangle by original index, for shading (WGSL `Shade`).
 #[repr(C)]
@@ -85,44 +90,31 @@ pub struct RenderParams {
     pub _pad2: u32,
 }
 
+/// The scene and a layout on the device, the render kernel compiled for them, and the
+/// accumulator of samples.
 pub struct GpuRenderer<'a> {
     ctx: &'a GpuContext,
     bvh: GpuBvh,
+    layout_constants: Vec<(&'static str, f64)>,
+    kernel: Kernel,
     bind: wgpu::BindGroup,
     accum: wgpu::Buffer,
     params: wgpu::Buffer,
-    pipeline_layout: wgpu::PipelineLayout,
-    module: wgpu::ShaderModule,
-    pipelines: HashMap<EffectSet, wgpu::ComputePipeline>,
+    pipelines: HashMap<(EffectSet, Robustness), wgpu::ComputePipeline>,
     base: RenderParams,
-    pixels: u32,
-    align: u32,
-}
-
-fn kind_code(k: MaterialKind) -> u32 {
-    match k {
-        MaterialKind::Diffuse => 0,
-        MaterialKind::Mirror => 1,
-        MaterialKind::Glass => 2,
-        MaterialKind::Emissive => 3,
-    }
+    chunks: Chunks,
 }
 
 impl<'a> GpuRenderer<'a> {
-    /// Validates and uploads the BVH (in the default memory) and the scene; the
-    /// accumulation buffer starts at zero.
-    pub fn new(ctx: &'a GpuContext, scene: &RenderScene, flat: &FlatBvh) -> Result<Self> {
-        Self::with_memory(ctx, scene, flat, BvhMemory::default())
-    }
-
-    /// As [`GpuRenderer::new`], with the BVH in the given memory.
-    pub fn with_memory(
+    /// Validates and uploads the layout (in `memory`) and the scene, and compiles the
+    /// kernel; the accumulator starts at zero.
+    pub fn new(
         ctx: &'a GpuContext,
         scene: &RenderScene,
-        flat: &FlatBvh,
+        layout: &dyn Layout,
         memory: BvhMemory,
     ) -> Result<Self> {
-        let bvh = GpuBvh::upload(ctx, flat, memory)?;
+        let bvh = GpuBvh::upload(ctx, layout, memory)?;
         let pixels = scene.camera.width * scene.camera.height;
         let shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
             .map(|(i, t)| {
@@ -157,7 +149,7 @@ impl<'a> GpuRenderer<'a> {
                 });
                 GpuMaterial {
                     albedo: m.albedo.into(),
-                    kind: kind_code(m.kind),
+                    kind: m.kind.code(),
                     emission: m.emission.into(),
                     ior: m.ior,
                     tex_offset: off,
@@ -174,7 +166,7 @@ impl<'a> GpuRenderer<'a> {
                     intensity,
                 } => GpuLight {
                     v: position.into(),
-                    kind: 0,
+                    kind: LightKind::Point.code(),
                     power: intensity.into(),
                     _pad: 0,
                 },
@@ -183,7 +175,7 @@ impl<'a> GpuRenderer<'a> {
                     irradiance,
                 } => GpuLight {
                     v: direction.into(),
-                    kind: 1,
+                    kind: LightKind::Directional.code(),
                     power: irradiance.into(),
                     _pad: 0,
                 },
@@ -198,88 +190,70 @@ impl<'a> GpuRenderer<'a> {
         emitters.push([0; 2]);
 
         let accum_bytes = pixels as u64 * 16;
-        // Bindings 2..=6 (0, 1, 10 and 11 are the BVH's).
-        let sized: [(&str, &[u8]); 5] = [
-            ("the shading triangles", bytemuck::cast_slice(&shades)),
-            ("the materials", bytemuck::cast_slice(&materials)),
-            ("the lights", bytemuck::cast_slice(&lights)),
-            ("the emitters", bytemuck::cast_slice(&emitters)),
-            ("the textures", bytemuck::cast_slice(&texels)),
+        let sized: [(u32, &str, &[u8]); 5] = [
+            (
+                bindings::RENDER_SHADES,
+                "the shading triangles",
+                bytemuck::cast_slice(&shades),
+            ),
+            (
+                bindings::RENDER_MATERIALS,
+                "the materials",
+                bytemuck::cast_slice(&materials),
+            ),
+            (
+                bindings::RENDER_LIGHTS,
+                "the lights",
+                bytemuck::cast_slice(&lights),
+            ),
+            (
+                bindings::RENDER_EMITTERS,
+                "the emitters",
+                bytemuck::cast_slice(&emitters),
+            ),
+            (
+                bindings::RENDER_TEXELS,
+                "the textures",
+                bytemuck::cast_slice(&texels),
+            ),
         ];
-        for (what, bytes) in &sized {
+        for (_, what, bytes) in &sized {
             ctx.check_binding(what, bytes.len() as u64)?;
         }
         ctx.check_binding("the image accumulator", accum_bytes)?;
-        let dev = &ctx.device;
-        let buffers: Vec<wgpu::Buffer> = (sized.iter())
-            .map(|(what, bytes)| ctx.buffer_with(what, bytes, wgpu::BufferUsages::STORAGE))
+        let buffers: Vec<(u32, wgpu::Buffer)> = (sized.iter())
+            .map(|&(b, what, bytes)| (b, ctx.buffer_with(what, bytes, wgpu::BufferUsages::STORAGE)))
             .collect();
-        let accum = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accum"),
-            size: accum_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let align = ctx.limits.min_uniform_buffer_offset_alignment.max(128);
-        let chunks = pixels.div_ceil(CHUNK);
-        let params = dev.create_buffer(&wgpu::BufferDescriptor {
+        let accum = output_buffer(ctx, "accum", accum_bytes);
+        let chunks = Chunks::new(ctx, pixels, CHUNK, PARAMS_SIZE as u32);
+        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("render params"),
-            size: (chunks * align) as u64,
+            size: (chunks.count() * chunks.align) as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut entries: Vec<wgpu::BindGroupLayoutEntry> = GpuBvh::layout_entries().into();
-        entries.extend((2..7).map(|b| storage_entry(b, true)));
-        entries.push(storage_entry(7, false));
-        entries.push(wgpu::BindGroupLayoutEntry {
-            binding: 8,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: true,
-                min_binding_size: wgpu::BufferSize::new(128),
-            },
-            count: None,
-        });
-        let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("render"),
-            entries: &entries,
-        });
-        let mut bind_entries: Vec<wgpu::BindGroupEntry> = bvh.bind_entries().into();
-        bind_entries.extend(
-            (buffers.iter().zip(2..)).map(|(b, binding)| wgpu::BindGroupEntry {
-                binding,
-                resource: b.as_entire_binding(),
-            }),
-        );
-        bind_entries.push(wgpu::BindGroupEntry {
-            binding: 7,
-            resource: accum.as_entire_binding(),
-        });
-        bind_entries.push(wgpu::BindGroupEntry {
-            binding: 8,
-            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: &params,
-                offset: 0,
-                size: wgpu::BufferSize::new(128),
-            }),
-        });
-        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("render"),
-            layout: &layout,
-            entries: &bind_entries,
-        });
-        let pipeline_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("render"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let src = shaders::render_source();
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("render.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(src.as_str().into()),
-        });
-        let f = CameraFrame::new(scene);
+        let mut entries: Vec<_> = GpuBvh::layout_entries().into();
+        entries.extend(sized.iter().map(|&(b, _, _)| storage_entry(b, true)));
+        entries.push(storage_entry(bindings::RENDER_ACCUM, false));
+        entries.push(dynamic_uniform_entry(bindings::RENDER_PARAMS, PARAMS_SIZE));
+        let kernel = Kernel::new(
+            ctx,
+            "render",
+            "render",
+            &shaders::render_source(layout),
+            &entries,
+            false,
+        )?;
+        let mut bind_entries: Vec<_> = bvh.bind_entries().into();
+        bind_entries.extend(buffers.iter().map(|(b, buf)| buffer_binding(*b, buf)));
+        bind_entries.push(buffer_binding(bindings::RENDER_ACCUM, &accum));
+        bind_entries.push(uniform_binding(
+            bindings::RENDER_PARAMS,
+            &params,
+            PARAMS_SIZE,
+        ));
+        let bind = kernel.bind(ctx, &bind_entries)?;
+        let f = scene.camera.frame();
         let s = &scene.settings;
         let base = RenderParams {
             eye: f.eye.into(),
@@ -293,11 +267,7 @@ impl<'a> GpuRenderer<'a> {
             background: s.background.into(),
             seed: s.seed,
             max_bounces: s.max_bounces,
-            integrator: match s.integrator {
-                Integrator::Direct => 0,
-                Integrator::Path => 1,
-                Integrator::Ao => 2,
-            },
+            integrator: s.integrator.code(),
             n_lights,
             n_emitters,
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
@@ -307,102 +277,78 @@ impl<'a> GpuRenderer<'a> {
         Ok(GpuRenderer {
             ctx,
             bvh,
+            layout_constants: layout.overrides(),
+            kernel,
             bind,
             accum,
             params,
-            pipeline_layout,
-            module,
             pipelines: HashMap::new(),
             base,
-            pixels,
-            align,
+            chunks,
         })
     }
 
-    fn pipeline(&mut self, fx: EffectSet) -> wgpu::ComputePipeline {
-        let (dev, pl, module) = (&self.ctx.device, &self.pipeline_layout, &self.module);
-        let memory = self.bvh.override_constant();
-        self.pipelines
-            .entry(fx)
-            .or_insert_with(|| {
-                let mut constants: Vec<(&str, f64)> = (fx.flags().iter())
-                    .map(|&(name, on)| (name, if on { 1.0 } else { 0.0 }))
-                    .collect();
-                constants.push(("WORKGROUP_SIZE", WORKGROUP as f64));
-                constants.push(memory);
-                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("render"),
-                    layout: Some(pl),
-                    module,
-                    entry_point: Some("render"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
-                    cache: None,
-                })
-            })
-            .clone()
+    fn pipeline(&mut self, fx: EffectSet, rob: Robustness) -> Result<wgpu::ComputePipeline> {
+        if let Some(p) = self.pipelines.get(&(fx, rob)) {
+            return Ok(p.clone());
+        }
+        let mut constants: Vec<(&str, f64)> = (fx.flags().iter())
+            .map(|&(name, on)| (name, if on { 1.0 } else { 0.0 }))
+            .collect();
+        constants.push(("WORKGROUP_SIZE", WORKGROUP as f64));
+        constants.push(self.bvh.override_constant());
+        constants.extend(rob.overrides());
+        constants.extend(self.layout_constants.iter().copied());
+        let p = self.kernel.pipeline(self.ctx, &constants, false)?;
+        self.pipelines.insert((fx, rob), p.clone());
+        Ok(p)
     }
 
-    /// Adds sample number `sample` of every pixel to the accumulator and waits for it.
-    /// Returns the GPU's wall time for the pass in milliseconds.
-    pub fn add_sample(&mut self, fx: EffectSet, sample: u32) -> Result<f64> {
+    /// Sets the accumulator to zero.
+    pub fn clear(&mut self) -> Result<()> {
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&self.accum, 0, None);
+        self.ctx.queue.submit([enc.finish()]);
+        wait(self.ctx)
+    }
+
+    /// Adds sample number `sample` of every pixel (random numbers of `seed`) to the
+    /// accumulator, simulating `fx` with the robustness settings `rob`, and waits for it.
+    /// Returns the pass's wall time in milliseconds.
+    pub fn add_sample(
+        &mut self,
+        fx: EffectSet,
+        rob: Robustness,
+        seed: u32,
+        sample: u32,
+    ) -> Result<f64> {
         let start = std::time::Instant::now();
-        let pipeline = self.pipeline(fx);
-        let chunks = self.pixels.div_ceil(CHUNK);
-        let mut bytes = vec![0u8; (chunks * self.align) as usize];
-        for c in 0..chunks {
-            let p = RenderParams {
-                sample,
-                offset: c * CHUNK,
-                count: (self.pixels - c * CHUNK).min(CHUNK),
-                ..self.base
-            };
-            let at = (c * self.align) as usize;
-            bytes[at..at + 128].copy_from_slice(bytemuck::bytes_of(&p));
-        }
+        let pipeline = self.pipeline(fx, rob)?;
+        let base = self.base;
+        let bytes = self.chunks.uniforms(|offset, count| RenderParams {
+            seed,
+            sample,
+            offset,
+            count,
+            ..base
+        });
         self.ctx.queue.write_buffer(&self.params, 0, &bytes);
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        for c in 0..chunks {
-            let count = (self.pixels - c * CHUNK).min(CHUNK);
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &self.bind, &[c * self.align]);
-            pass.dispatch_workgroups(count.div_ceil(WORKGROUP), 1, 1);
-        }
+        self.chunks
+            .record(&mut enc, &pipeline, &self.bind, WORKGROUP, None);
         self.ctx.queue.submit([enc.finish()]);
-        self.ctx
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("GPU did not finish: {e}")))?;
+        wait(self.ctx)?;
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
     /// The accumulated sums, one per pixel, row-major.
     pub fn read_accum(&self) -> Result<Vec<Vec3>> {
-        let dev = &self.ctx.device;
-        let size = self.pixels as u64 * 16;
-        let readback = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accum readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = dev.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(&self.accum, 0, &readback, 0, size);
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let size = self.chunks.items as u64 * 16;
+        let readback = Readback::record(self.ctx, &mut enc, &[(&self.accum, size)]);
         self.ctx.queue.submit([enc.finish()]);
-        readback.slice(..).map_async(wgpu::MapMode::Read, |r| {
-            if let Err(e) = r {
-                eprintln!("error: GPU readback failed: {e}");
-            }
-        });
-        dev.poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("GPU did not finish: {e}")))?;
-        let view = readback
-            .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("GPU readback failed: {e}")))?;
-        let px: &[[f32; 4]] = bytemuck::cast_slice(&view);
+        let bytes = readback.read(self.ctx)?;
+        let px: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
         Ok(px.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect())
     }
 }

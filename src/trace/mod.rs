@@ -1,7 +1,8 @@
-//! Tracing: the CPU reference, the f64 oracle, and the ray/hit file formats.
+//! Tracing: one [`Tracer`] for the CPU and the GPU, the f64 oracle that judges both, and
+//! the ray and hit file formats.
 
-pub mod cpu;
+pub mod files;
 pub mod oracle;
-pub mod rays;
+mod tracer;
 
-pub use cpu::{trace_batch, trace_ray, Query, RayStats};
+pub use tracer::{TraceResult, Tracer, TracerOptions};

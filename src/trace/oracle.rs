@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use crate::geometry::{Hit, Ray, MISS};
-use crate::scene::{Mesh, TriStatus};
+use crate::mesh::{Mesh, TriStatus};
 
 /// Relative size of "tiny": 32 f32 ulps of the coordinates involved.
 const TIE_REL: f64 = 32.0 * f32::EPSILON as f64;

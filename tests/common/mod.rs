@@ -7,7 +7,8 @@ use std::sync::OnceLock;
 use glam::Vec3;
 use lancer::geometry::{Ray, Triangle};
 use lancer::gpu::GpuContext;
-use lancer::scene::{load_obj, Mesh};
+use lancer::mesh::{load_obj, Mesh};
+use lancer::Device;
 
 /// xorshift64*: small, seeded, reproducible.
 pub struct Rng(u64);
@@ -95,13 +96,13 @@ pub fn load_model(name: &str) -> Option<Mesh> {
     model(name).map(|p| load_obj(&p).expect("model loads"))
 }
 
-/// The adapter for this test binary. A GPU test never passes without one.
-pub fn gpu() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| match GpuContext::new() {
+/// The adapter for this test binary, as a [`Device`]. A GPU test never passes without one.
+pub fn gpu_device() -> &'static Device {
+    static DEVICE: OnceLock<Device> = OnceLock::new();
+    DEVICE.get_or_init(|| match GpuContext::new() {
         Ok(c) => {
             println!("adapter: {}", c.adapter);
-            c
+            Device::gpu(c)
         }
         Err(e) => panic!(
             "GPU tests need an adapter{}: {e}",
@@ -112,4 +113,9 @@ pub fn gpu() -> &'static GpuContext {
             }
         ),
     })
+}
+
+/// The adapter's context.
+pub fn gpu() -> &'static GpuContext {
+    gpu_device().gpu_context().expect("a GPU device")
 }

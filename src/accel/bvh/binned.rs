@@ -7,7 +7,9 @@
 
 use glam::{Mat3A, Vec3, Vec3A, Vec4};
 
-use super::build::{join, leaf, BuildOptions, Node, Prims, PARALLEL_MIN};
+use super::prims::{join, Prims, PARALLEL_MIN};
+use super::tree::{leaf, Node};
+use super::BuildOptions;
 use crate::geometry::Aabb;
 
 /// Most bins per axis the builder supports (the CLI refuses more).

@@ -1,7 +1,9 @@
 //! Object-median build: split at the median centroid on the longest centroid axis; a node
 //! becomes a leaf under the same SAH rule as the other builders.
 
-use super::build::{join, leaf, median_split, BuildOptions, Node, Prims, PARALLEL_MIN};
+use super::prims::{join, median_split, Prims, PARALLEL_MIN};
+use super::tree::{leaf, Node};
+use super::BuildOptions;
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
     let mut idx: Vec<u32> = (0..prims.boxes.len() as u32).collect();

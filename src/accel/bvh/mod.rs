@@ -1,14 +1,49 @@
-//! Bounding volume hierarchy: build (sweep SAH, binned SAH, median), flatten to the GPU
-//! layout, and statistics.
+//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median) and its
+//! statistics. Flattened layouts for the GPU live in `crate::layout`.
 
 mod binned;
-mod build;
-mod flatten;
 mod median;
+mod options;
+mod prims;
 mod stats;
 mod sweep;
+mod tree;
+
+use rayon::prelude::*;
+
+use crate::geometry::Aabb;
+use crate::mesh::Mesh;
 
 pub use binned::MAX_BINS;
-pub use build::{build, BuildOptions, Builder, Bvh, Node, MAX_DEPTH};
-pub use flatten::{FlatBvh, GpuNode, GpuTri, LEAF_TAG};
+pub use options::{BuildOptions, Builder};
 pub use stats::BvhStats;
+pub use tree::{Bvh, Node, MAX_DEPTH};
+
+use prims::Prims;
+use tree::leaf;
+
+/// Builds a BVH over the mesh's included triangles. Deterministic for a given input.
+pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
+    let ids = mesh.included();
+    let boxes: Vec<Aabb> = ids
+        .par_iter()
+        .map(|&i| mesh.triangles[i as usize].bbox())
+        .collect();
+    let centroids = boxes.par_iter().map(Aabb::center).collect();
+    let prims = Prims { boxes, centroids };
+    if ids.is_empty() {
+        return Bvh {
+            root: leaf(Aabb::EMPTY, 0, 0),
+            order: Vec::new(),
+        };
+    }
+    let (root, local) = match opts.builder {
+        Builder::Sweep => sweep::build(&prims, opts),
+        Builder::Binned => binned::build(&prims, opts),
+        Builder::Median => median::build(&prims, opts),
+    };
+    Bvh {
+        root,
+        order: local.par_iter().map(|&l| ids[l as usize]).collect(),
+    }
+}

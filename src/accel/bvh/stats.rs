@@ -1,49 +1,56 @@
+//! Shape and SAH cost of a built tree (independent of how it is flattened).
+
 use serde::Serialize;
 
-use super::{BuildOptions, FlatBvh};
+use super::{BuildOptions, Bvh, Node};
 
-/// Shape and cost of a flattened BVH.
+/// Shape and cost of a BVH.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct BvhStats {
+    /// Triangles referenced by the leaves.
     pub triangles: usize,
+    /// Inner nodes and leaves.
     pub nodes: usize,
+    /// Leaves.
     pub leaves: usize,
+    /// Deepest leaf (root = 0).
     pub max_depth: usize,
     /// Σ inner A/A_root·2·T_cube + Σ leaf A/A_root·N·T_obj.
     pub sah_cost: f64,
-    pub bytes: usize,
 }
 
 impl BvhStats {
-    pub fn of(flat: &FlatBvh, opts: &BuildOptions) -> BvhStats {
-        let root_area = flat.nodes[0].bbox().area() as f64;
+    /// Walks the tree once.
+    pub fn of(bvh: &Bvh, opts: &BuildOptions) -> BvhStats {
+        let root_area = bvh.root.bbox().area() as f64;
         let norm = if root_area > 0.0 {
             1.0 / root_area
         } else {
             0.0
         };
         let (mut leaves, mut max_depth, mut cost) = (0, 0, 0.0f64);
-        let mut stack = vec![(0usize, 0usize)];
-        while let Some((i, d)) = stack.pop() {
-            let n = &flat.nodes[i];
+        let mut stack = vec![(&bvh.root, 0usize)];
+        while let Some((n, d)) = stack.pop() {
             let a = n.bbox().area() as f64 * norm;
             max_depth = max_depth.max(d);
-            if n.is_leaf() {
-                leaves += 1;
-                cost += a * n.count() as f64 * opts.t_obj as f64;
-            } else {
-                cost += a * 2.0 * opts.t_cube as f64;
-                stack.push((i + 1, d + 1));
-                stack.push((n.a as usize, d + 1));
+            match n {
+                Node::Leaf { count, .. } => {
+                    leaves += 1;
+                    cost += a * *count as f64 * opts.t_obj as f64;
+                }
+                Node::Inner { children, .. } => {
+                    cost += a * 2.0 * opts.t_cube as f64;
+                    stack.push((&children[0], d + 1));
+                    stack.push((&children[1], d + 1));
+                }
             }
         }
         BvhStats {
-            triangles: flat.tris.len(),
-            nodes: flat.nodes.len(),
+            triangles: bvh.order.len(),
+            nodes: bvh.root.nodes() as usize,
             leaves,
             max_depth,
             sah_cost: cost,
-            bytes: flat.bytes(),
         }
     }
 }

@@ -6,7 +6,9 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::build::{join, leaf, BuildOptions, Node, Prims, PARALLEL_MIN};
+use super::prims::{join, Prims, PARALLEL_MIN};
+use super::tree::{leaf, Node};
+use super::BuildOptions;
 use crate::geometry::Aabb;
 
 struct Ctx<'a> {

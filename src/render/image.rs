@@ -27,7 +27,9 @@ pub fn to_rgb8(px: &[Vec3], width: u32, height: u32) -> image::RgbImage {
 /// The output formats, by lower-case extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageKind {
+    /// PNG, sRGB 8-bit.
     Png,
+    /// OpenEXR, linear float.
     Exr,
 }
 
@@ -47,16 +49,43 @@ pub fn image_kind(path: &Path) -> Result<ImageKind> {
     }
 }
 
-/// Saves linear radiance as PNG (sRGB) or EXR (linear float), chosen by extension.
-pub fn save_image(path: &Path, px: &[Vec3], width: u32, height: u32) -> Result<()> {
-    let fail = |e: image::ImageError| Error::input(path, None, format!("cannot write image: {e}"));
-    match image_kind(path)? {
-        ImageKind::Png => to_rgb8(px, width, height).save(path).map_err(fail),
-        ImageKind::Exr => {
-            let img = image::Rgb32FImage::from_fn(width, height, |x, y| {
-                image::Rgb(px[(y * width + x) as usize].to_array())
-            });
-            img.save(path).map_err(fail)
-        }
+/// A rendered image: linear RGB radiance per pixel, row-major from the top-left.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width × height` linear RGB values.
+    pub pixels: Vec<Vec3>,
+}
+
+impl Image {
+    /// Saves the image as PNG (sRGB 8-bit) or EXR (linear float), chosen by the extension,
+    /// written atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        save_image(path, &self.pixels, self.width, self.height)
     }
+
+    /// The image as 8-bit sRGB (values clipped to [0, 1]).
+    pub fn to_rgb8(&self) -> image::RgbImage {
+        to_rgb8(&self.pixels, self.width, self.height)
+    }
+}
+
+/// Saves linear radiance as PNG (sRGB) or EXR (linear float), chosen by extension, written
+/// atomically (a temporary file in the same folder, then a rename).
+pub fn save_image(path: &Path, px: &[Vec3], width: u32, height: u32) -> Result<()> {
+    let kind = image_kind(path)?;
+    let encode = |w: &mut std::io::BufWriter<std::fs::File>| {
+        let r = match kind {
+            ImageKind::Png => to_rgb8(px, width, height).write_to(w, image::ImageFormat::Png),
+            ImageKind::Exr => image::Rgb32FImage::from_fn(width, height, |x, y| {
+                image::Rgb(px[(y * width + x) as usize].to_array())
+            })
+            .write_to(w, image::ImageFormat::OpenExr),
+        };
+        r.map_err(std::io::Error::other)
+    };
+    crate::output::write_atomic(path, encode)
 }

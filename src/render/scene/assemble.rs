@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec2, Vec3};
 
-use super::scene_file::{
+use super::file::{
     line_of, Integrator, LightKind, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
 };
 use super::shapes;
+use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-use crate::scene::{check_usable, classify, load_obj_scene, Camera, Mesh, ObjScene, TriStatus};
+use crate::mesh::{check_usable, classify, load_obj_scene, Mesh, ObjScene, TriStatus};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -148,10 +149,7 @@ impl Builder {
         xf: impl Fn(Vec3) -> Vec3,
     ) -> Result<()> {
         if let Some(e) = &obj.mtl_error {
-            eprintln!(
-                "{}: warning: materials not read ({e}); using grey",
-                path.display()
-            );
+            log::warn!("{}: materials not read ({e}); using grey", path.display());
         }
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut mtl = Vec::new();
@@ -345,9 +343,9 @@ impl RenderScene {
                 }
                 (None, Some(shape)) => {
                     let shape = match shape {
-                        super::scene_file::Shape::Quad => shapes::quad(),
-                        super::scene_file::Shape::Box => shapes::cube(),
-                        super::scene_file::Shape::Sphere => shapes::sphere(o.segments),
+                        super::file::Shape::Quad => shapes::quad(),
+                        super::file::Shape::Box => shapes::cube(),
+                        super::file::Shape::Sphere => shapes::sphere(o.segments),
                     };
                     b.add_shape(shape, mat.unwrap_or(grey), xf);
                 }

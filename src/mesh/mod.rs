@@ -1,3 +1,11 @@
+//! Meshes: triangles in file order from OBJ/MTL (tobj), each classified (usable or why not).
+
+mod load;
+mod obj;
+
+pub use load::{check_usable, load_mesh};
+pub use obj::{load_obj, load_obj_scene, ObjScene};
+
 use glam::Vec3;
 
 use crate::geometry::{Aabb, Triangle};

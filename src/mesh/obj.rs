@@ -6,7 +6,7 @@ use std::path::Path;
 
 use glam::{Vec2, Vec3};
 
-use super::mesh::{classify, placeholder, Mesh, TriStatus};
+use super::{classify, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
 

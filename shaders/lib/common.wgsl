@@ -2,24 +2,6 @@
 // tests/layout.rs checks offsets and sizes with naga. Each function mirrors a Rust one,
 // same operations in the same order (named in the comment), so CPU and GPU agree bit for bit.
 
-// accel::bvh::GpuNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | 3.
-struct Node {
-    lo: vec3<f32>,
-    a: u32,
-    hi: vec3<f32>,
-    b: u32,
-}
-
-// accel::bvh::GpuTri: vertices, original triangle index in v0's w slot.
-struct Tri {
-    v0: vec3<f32>,
-    prim: u32,
-    v1: vec3<f32>,
-    pad1: u32,
-    v2: vec3<f32>,
-    pad2: u32,
-}
-
 // geometry::Ray
 struct Ray {
     origin: vec3<f32>,
@@ -36,13 +18,13 @@ struct Hit {
     v: f32,
 }
 
-const MISS: u32 = 0xffffffffu;
-const LEAF_TAG: u32 = 3u;
-const STACK_SIZE: u32 = 64u;     // accel::bvh::MAX_DEPTH
-const RECIP_FLOOR: f32 = 1e-30;  // geometry::ray::RECIP_FLOOR
-const FAR_WIDEN: f32 = 1.0000004; // geometry::FAR_WIDEN (Ize 2013: 1 + 2γ(3))
-const PARALLEL_INV: f32 = 5e29;   // geometry::PARALLEL_INV
-const BIG: f32 = 3.4028235e38;    // f32::MAX
+// Constants shared with Rust (MISS, STACK_SIZE, RECIP_FLOOR, FAR_WIDEN, PARALLEL_INV, BIG,
+// ...) come from the prelude gpu::shaders generates from the Rust definitions.
+
+// geometry::Robustness, as override constants (Robustness::overrides).
+override MOLLER_TRUMBORE: bool = false;  // TriangleTest::MollerTrumbore instead of watertight
+override ROBUST_SLAB: bool = true;       // SlabTest::Robust: far plane widened by FAR_WIDEN
+override OFFSET_RAYS: bool = true;       // RayOffset::ErrorBound (render kernel)
 
 // Finite test on bits: NaN/Inf comparisons are not reliable in WGSL.
 fn is_finite_bits(x: f32) -> bool {
@@ -72,7 +54,7 @@ fn safe_recip3(d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(safe_recip(d.x), safe_recip(d.y), safe_recip(d.z));
 }
 
-// Aabb::slab_hit (an axis the ray is parallel to bounds nothing if the origin is in its slab)
+// Aabb::slab_hit with Robustness::far_widen (an axis the ray is parallel to bounds nothing if the origin is in its slab)
 fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32) -> bool {
     let t0 = (lo - origin) * inv_dir;
     let t1 = (hi - origin) * inv_dir;
@@ -80,7 +62,8 @@ fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>,
     let inside = (lo <= origin) & (origin <= hi);
     let big = select(vec3<f32>(-BIG), vec3<f32>(BIG), inside);
     let tn = select(min(t0, t1), -big, parallel);
-    let tf = select(max(t0, t1) * FAR_WIDEN, big, parallel);
+    let widen = select(1.0, FAR_WIDEN, ROBUST_SLAB);
+    let tf = select(max(t0, t1) * widen, big, parallel);
     let enter = max(max(max(tn.x, tn.y), tn.z), tmin);
     let exit = min(min(min(tf.x, tf.y), tf.z), tmax);
     return enter <= exit;
@@ -123,11 +106,11 @@ struct TriHit {
 }
 
 // intersect_watertight (Woop, Benthin & Wald 2013)
-fn intersect_watertight(tri: Tri, origin: vec3<f32>, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
+fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
     var res = TriHit(false, 0.0, 0.0, 0.0);
-    let a = tri.v0 - origin;
-    let b = tri.v1 - origin;
-    let c = tri.v2 - origin;
+    let a = v0 - origin;
+    let b = v1 - origin;
+    let c = v2 - origin;
     let ax = a[w.kx] - w.s.x * a[w.kz];
     let ay = a[w.ky] - w.s.y * a[w.kz];
     let bx = b[w.kx] - w.s.x * b[w.kz];
@@ -156,17 +139,17 @@ fn intersect_watertight(tri: Tri, origin: vec3<f32>, w: Watertight, tmin: f32, t
 }
 
 // intersect_moller_trumbore
-fn intersect_moller_trumbore(tri: Tri, r: Ray, tmin: f32, tmax: f32) -> TriHit {
+fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, tmin: f32, tmax: f32) -> TriHit {
     var res = TriHit(false, 0.0, 0.0, 0.0);
-    let e1 = tri.v1 - tri.v0;
-    let e2 = tri.v2 - tri.v0;
+    let e1 = v1 - v0;
+    let e2 = v2 - v0;
     let p = cross(r.dir, e2);
     let det = dot(e1, p);
     if det == 0.0 {
         return res;
     }
     let inv = 1.0 / det;
-    let s = r.origin - tri.v0;
+    let s = r.origin - v0;
     let u = dot(s, p) * inv;
     if !(u >= 0.0 && u <= 1.0) {
         return res;
@@ -181,6 +164,14 @@ fn intersect_moller_trumbore(tri: Tri, r: Ray, tmin: f32, tmax: f32) -> TriHit {
         res = TriHit(true, t, u, v);
     }
     return res;
+}
+
+// intersect_triangle: the test Robustness::triangle_test chooses.
+fn intersect_tri(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
+    if MOLLER_TRUMBORE {
+        return intersect_moller_trumbore(v0, v1, v2, r, tmin, tmax);
+    }
+    return intersect_watertight(v0, v1, v2, r.origin, w, tmin, tmax);
 }
 
 // Hit::beats — the tie rule: smaller t, then smaller original index.

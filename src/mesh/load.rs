@@ -3,8 +3,8 @@ use std::path::Path;
 use super::{load_obj, Mesh};
 use crate::error::{Error, Result};
 
-/// Loads a mesh for tracing: refuses a file with no usable triangle, and prints one line
-/// on stderr counting what was left out of the BVH.
+/// Loads a mesh for tracing: refuses a file with no usable triangle, and logs a warning
+/// counting what was left out of the BVH.
 pub fn load_mesh(path: &Path) -> Result<Mesh> {
     let ext = path
         .extension()
@@ -18,11 +18,11 @@ pub fn load_mesh(path: &Path) -> Result<Mesh> {
     Ok(mesh)
 }
 
-/// Prints one line on stderr counting what was left out of the BVH, and refuses a mesh
-/// with no usable triangle.
+/// Logs a warning counting what was left out of the BVH, and refuses a mesh with no
+/// usable triangle.
 pub fn check_usable(path: &Path, mesh: &Mesh) -> Result<()> {
     if let Some(s) = mesh.exclusion_summary() {
-        eprintln!("{}: warning: {s}", path.display());
+        log::warn!("{}: {s}", path.display());
     }
     if mesh.included().is_empty() {
         return Err(Error::input(

@@ -1,5 +1,6 @@
-//! The CPU renderer: the integrator of shaders/render.wgsl, operation for operation, over
-//! the CPU reference tracer. It is the reference the GPU images are tested against.
+//! The CPU renderer: the integrator of shaders/kernels/render.wgsl, operation for
+//! operation, over a CPU acceleration structure (a layout's twin). It is the reference the
+//! GPU images are tested against.
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -8,52 +9,10 @@ use rayon::prelude::*;
 
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, Rng};
-use super::scene::{Light, RenderScene, Texture};
-use super::scene_file::{Integrator, MaterialKind};
-use crate::accel::bvh::FlatBvh;
-use crate::geometry::{Ray, TriangleTest};
-use crate::scene::PRIMARY_TMAX;
-use crate::trace::{trace_ray, Query, RayStats};
-
-/// The camera as both renderers use it: per-pixel steps precomputed once on the CPU.
-#[derive(Clone, Copy, Debug)]
-pub struct CameraFrame {
-    pub eye: Vec3,
-    pub fwd: Vec3,
-    /// right · half-width and up · half-height of the image plane at distance 1.
-    pub right: Vec3,
-    pub up: Vec3,
-    /// 2 / width, 2 / height.
-    pub inv_w2: f32,
-    pub inv_h2: f32,
-}
-
-impl CameraFrame {
-    pub fn new(scene: &RenderScene) -> CameraFrame {
-        let c = &scene.camera;
-        let fwd = (c.look_at - c.eye).normalize();
-        let right = fwd.cross(c.up).normalize();
-        let up = right.cross(fwd);
-        let hh = (0.5 * c.vfov_deg.to_radians()).tan();
-        let hw = hh * c.width as f32 / c.height as f32;
-        CameraFrame {
-            eye: c.eye,
-            fwd,
-            right: right * hw,
-            up: up * hh,
-            inv_w2: 2.0 / c.width as f32,
-            inv_h2: 2.0 / c.height as f32,
-        }
-    }
-
-    /// Ray through pixel (x, y) at jitter (jx, jy) ∈ [0, 1)².
-    pub fn ray(&self, x: u32, y: u32, jx: f32, jy: f32) -> Ray {
-        let sx = (x as f32 + jx) * self.inv_w2 - 1.0;
-        let sy = 1.0 - (y as f32 + jy) * self.inv_h2;
-        let d = normalize(self.fwd + self.right * sx + self.up * sy);
-        Ray::new(self.eye, d, 0.0, PRIMARY_TMAX)
-    }
-}
+use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
+use crate::accel::{Accel, Query, RayStats};
+use crate::camera::{CameraFrame, PRIMARY_TMAX};
+use crate::geometry::{Hit, Ray, RayOffset, Robustness};
 
 /// Bilinear lookup with wrap-around, in linear RGB.
 pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
@@ -76,53 +35,52 @@ pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
     )
 }
 
-/// What the renderers need besides the scene: the BVH and which effects to simulate.
+/// The CPU renderer of one scene over one acceleration structure.
 pub struct CpuRenderer<'a> {
-    pub scene: &'a RenderScene,
-    pub bvh: &'a FlatBvh,
-    pub effects: EffectSet,
-    pub frame: CameraFrame,
+    scene: &'a RenderScene,
+    accel: &'a dyn Accel,
+    robustness: Robustness,
+    frame: CameraFrame,
     /// Total emitter area (the last CDF entry).
     emit_total: f32,
 }
 
 impl<'a> CpuRenderer<'a> {
-    pub fn new(scene: &'a RenderScene, bvh: &'a FlatBvh, effects: EffectSet) -> Self {
+    /// A renderer of `scene` tracing through `accel` with the given robustness settings.
+    pub fn new(scene: &'a RenderScene, accel: &'a dyn Accel, robustness: Robustness) -> Self {
         CpuRenderer {
             scene,
-            bvh,
-            effects,
-            frame: CameraFrame::new(scene),
+            accel,
+            robustness,
+            frame: scene.camera.frame(),
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
         }
     }
 
-    fn closest(&self, r: &Ray) -> crate::geometry::Hit {
-        trace_ray(
-            self.bvh,
-            r,
-            Query::Closest,
-            TriangleTest::Watertight,
-            &mut RayStats::default(),
-        )
+    fn closest(&self, r: &Ray) -> Hit {
+        let mut stats = RayStats::default();
+        (self.accel).intersect(r, Query::Closest, &self.robustness, &mut stats)
     }
 
     fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let r = Ray::new(origin, dir, 0.0, tmax);
-        trace_ray(
-            self.bvh,
-            &r,
-            Query::Any,
-            TriangleTest::Watertight,
-            &mut RayStats::default(),
-        )
-        .is_hit()
+        let mut stats = RayStats::default();
+        (self.accel)
+            .intersect(&r, Query::Any, &self.robustness, &mut stats)
+            .is_hit()
+    }
+
+    /// The origin of a secondary ray leaving p along n (the robustness setting's offset).
+    fn leave(&self, p: Vec3, n: Vec3) -> Vec3 {
+        match self.robustness.ray_offset {
+            RayOffset::ErrorBound => offset_origin(p, n),
+            RayOffset::None => p,
+        }
     }
 
     /// Light arriving at p (normal n, facing the viewer) from every light, times cosine.
-    fn direct(&self, p: Vec3, n: Vec3, rng: &mut Rng) -> Vec3 {
-        let fx = self.effects;
-        let o = offset_origin(p, n);
+    fn direct(&self, fx: EffectSet, p: Vec3, n: Vec3, rng: &mut Rng) -> Vec3 {
+        let o = self.leave(p, n);
         let mut sum = Vec3::ZERO;
         for l in &self.scene.lights {
             match *l {
@@ -175,7 +133,7 @@ impl<'a> CpuRenderer<'a> {
             let cl = dot(nl, d).abs() / dist;
             if cs > 0.0 && cl > 0.0 {
                 let toward = if dot(nl, d) > 0.0 { -nl } else { nl };
-                let qt = offset_origin(q, toward);
+                let qt = self.leave(q, toward);
                 if !(fx.shadows && self.occluded(o, qt - o, 1.0)) {
                     let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
                     sum += mat.emission * (cs * cl / d2 * self.emit_total);
@@ -185,12 +143,12 @@ impl<'a> CpuRenderer<'a> {
         sum
     }
 
-    /// One sample of the radiance along the camera ray of a pixel.
-    pub fn sample(&self, x: u32, y: u32, sample: u32) -> Vec3 {
+    /// One sample of the radiance along the camera ray of a pixel, simulating `fx`, with
+    /// the random numbers of (seed, pixel, sample).
+    pub fn sample(&self, fx: EffectSet, seed: u32, x: u32, y: u32, sample: u32) -> Vec3 {
         let s = &self.scene.settings;
-        let fx = self.effects;
         let pixel = y * self.scene.camera.width + x;
-        let mut rng = Rng::new(s.seed, pixel, sample);
+        let mut rng = Rng::new(seed, pixel, sample);
         let (jx, jy) = (rng.next_f32(), rng.next_f32());
         let mut ray = self.frame.ray(x, y, jx, jy);
         let mut radiance = Vec3::ZERO;
@@ -219,7 +177,7 @@ impl<'a> CpuRenderer<'a> {
             }
             if fx.ao && s.integrator == Integrator::Ao {
                 let d = cosine_direction(n, &mut rng);
-                if !self.occluded(offset_origin(p, n), d, s.ao_distance) {
+                if !self.occluded(self.leave(p, n), d, s.ao_distance) {
                     radiance += beta;
                 }
                 break;
@@ -234,7 +192,7 @@ impl<'a> CpuRenderer<'a> {
             }
             if mirror {
                 beta *= mat.albedo;
-                ray = Ray::new(offset_origin(p, n), reflected, 0.0, PRIMARY_TMAX);
+                ray = Ray::new(self.leave(p, n), reflected, 0.0, PRIMARY_TMAX);
                 count_emission = true;
                 continue;
             }
@@ -250,11 +208,11 @@ impl<'a> CpuRenderer<'a> {
                 beta *= mat.albedo;
                 count_emission = true;
                 if sin2_t >= 1.0 || u < fresnel {
-                    ray = Ray::new(offset_origin(p, n), reflected, 0.0, PRIMARY_TMAX);
+                    ray = Ray::new(self.leave(p, n), reflected, 0.0, PRIMARY_TMAX);
                 } else {
                     let cos_t = (1.0 - sin2_t).sqrt();
                     let t = d * eta + n * (eta * cos_i - cos_t);
-                    ray = Ray::new(offset_origin(p, -n), t, 0.0, PRIMARY_TMAX);
+                    ray = Ray::new(self.leave(p, -n), t, 0.0, PRIMARY_TMAX);
                 }
                 continue;
             }
@@ -267,25 +225,25 @@ impl<'a> CpuRenderer<'a> {
                 }
                 _ => mat.albedo,
             };
-            radiance += beta * albedo * FRAC_1_PI * self.direct(p, n, &mut rng);
+            radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, n, &mut rng);
             if !(fx.indirect && s.integrator == Integrator::Path) || last {
                 break;
             }
             beta *= albedo;
             let dir = cosine_direction(n, &mut rng);
-            ray = Ray::new(offset_origin(p, n), dir, 0.0, PRIMARY_TMAX);
+            ray = Ray::new(self.leave(p, n), dir, 0.0, PRIMARY_TMAX);
             count_emission = !nee;
         }
         radiance
     }
 
     /// Adds samples [first, first + count) of every pixel to `accum` (row-major).
-    pub fn accumulate(&self, accum: &mut [Vec3], first: u32, count: u32) {
+    pub fn accumulate(&self, fx: EffectSet, seed: u32, accum: &mut [Vec3], first: u32, count: u32) {
         let w = self.scene.camera.width;
         accum.par_iter_mut().enumerate().for_each(|(i, a)| {
             let (x, y) = (i as u32 % w, i as u32 / w);
             for s in first..first + count {
-                *a += self.sample(x, y, s);
+                *a += self.sample(fx, seed, x, y, s);
             }
         });
     }

@@ -10,7 +10,8 @@ use toml::Spanned;
 
 use crate::error::{Error, Result};
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Integrator {
     /// Direct light (point, directional and area lights) plus mirror/glass chains.
@@ -212,5 +213,40 @@ impl SceneFile {
             let line = e.span().map(|s| line_of(src, s.start));
             Error::input(path, line, e.message().trim().to_string())
         })
+    }
+}
+
+// The codes the render kernel reads (generated into the WGSL prelude by gpu::shaders).
+
+impl Integrator {
+    /// Code in the render kernel's `Params.integrator`.
+    pub fn code(self) -> u32 {
+        match self {
+            Integrator::Direct => 0,
+            Integrator::Path => 1,
+            Integrator::Ao => 2,
+        }
+    }
+}
+
+impl MaterialKind {
+    /// Code in the render kernel's `Material.kind`.
+    pub fn code(self) -> u32 {
+        match self {
+            MaterialKind::Diffuse => 0,
+            MaterialKind::Mirror => 1,
+            MaterialKind::Glass => 2,
+            MaterialKind::Emissive => 3,
+        }
+    }
+}
+
+impl LightKind {
+    /// Code in the render kernel's `Light.kind`.
+    pub fn code(self) -> u32 {
+        match self {
+            LightKind::Point => 0,
+            LightKind::Directional => 1,
+        }
     }
 }

@@ -1,29 +1,33 @@
-//! The default GPU layout: 32-byte nodes in depth-first pre-order. An inner node's first
-//! child is at i + 1 and holds the low side of the split axis; the second child's index and
-//! the split axis are stored. A leaf holds (first, count) into the triangle array, which is
-//! in leaf order; every triangle keeps its original index.
+//! `dfs-sign`: 32-byte nodes in depth-first pre-order. An inner node's first child is at
+//! i + 1 and holds the low side of the split axis; the second child's index and the split
+//! axis are stored, and traversal visits first the child on the side the ray's direction
+//! comes from on that axis. A leaf holds (first, count) into the triangle array.
 
-use crate::geometry::{Aabb, Triangle};
-use crate::scene::Mesh;
+mod twin;
 
-use super::{Bvh, Node, MAX_DEPTH};
+use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
+use crate::geometry::Aabb;
+use crate::mesh::Mesh;
 
-/// Low two bits of `GpuNode::b` equal to this mark a leaf; otherwise they are the axis.
-pub const LEAF_TAG: u32 = 3;
+use super::{LayoutArrays, LayoutKind, LeafTri};
 
-/// One node, 32 bytes (WGSL `Node` in shaders/common.wgsl).
+/// Low two bits of `DfsNode::b` equal to this mark a leaf; otherwise they are the axis
+/// (generated into the WGSL prelude as `DFS_LEAF_TAG`).
+pub(crate) const LEAF_TAG: u32 = 3;
+
+/// One node, 32 bytes (WGSL `DfsNode` in dfs_sign.wgsl).
 /// Inner: `a` = second child index, `b` = split axis (0..=2).
 /// Leaf: `a` = first triangle, `b` = count << 2 | LEAF_TAG.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GpuNode {
+pub(crate) struct DfsNode {
     pub lo: [f32; 3],
     pub a: u32,
     pub hi: [f32; 3],
     pub b: u32,
 }
 
-impl GpuNode {
+impl DfsNode {
     pub fn is_leaf(&self) -> bool {
         self.b & 3 == LEAF_TAG
     }
@@ -41,65 +45,48 @@ impl GpuNode {
     }
 }
 
-/// One triangle, 48 bytes (WGSL `Tri`): three vertices, the original index in v0's slot w.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GpuTri {
-    pub v0: [f32; 3],
-    pub prim: u32,
-    pub v1: [f32; 3],
-    pub _pad1: u32,
-    pub v2: [f32; 3],
-    pub _pad2: u32,
-}
-
-impl GpuTri {
-    pub fn triangle(&self) -> Triangle {
-        Triangle::new(self.v0.into(), self.v1.into(), self.v2.into())
-    }
-}
-
-/// A flattened BVH, ready for the CPU tracer or upload.
+/// A BVH flattened in the `dfs-sign` layout; its [`Accel`](crate::accel::Accel) is the
+/// CPU twin of `dfs_sign.wgsl`.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct FlatBvh {
-    pub nodes: Vec<GpuNode>,
-    pub tris: Vec<GpuTri>,
+pub struct DfsSign {
+    nodes: Vec<DfsNode>,
+    tris: Vec<LeafTri>,
 }
 
-impl FlatBvh {
-    pub fn new(bvh: &Bvh, mesh: &Mesh) -> FlatBvh {
-        use rayon::prelude::*;
-        let tris = bvh
-            .order
-            .par_iter()
-            .map(|&id| {
-                let t = &mesh.triangles[id as usize];
-                GpuTri {
-                    v0: t.v[0].into(),
-                    prim: id,
-                    v1: t.v[1].into(),
-                    _pad1: 0,
-                    v2: t.v[2].into(),
-                    _pad2: 0,
-                }
-            })
-            .collect();
+impl DfsSign {
+    /// Flattens a built tree (in parallel for big trees).
+    pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> DfsSign {
+        let tris = LeafTri::gather(bvh, mesh);
         // Every subtree knows its size, so each writes its own part of the array; the big
         // ones on all threads (most of the time here is first touches of fresh pages).
         let mut nodes = bytemuck::zeroed_vec(bvh.root.nodes() as usize);
         write(&bvh.root, &mut nodes, 0);
-        FlatBvh { nodes, tris }
+        DfsSign { nodes, tris }
+    }
+}
+
+impl super::Layout for DfsSign {
+    fn kind(&self) -> LayoutKind {
+        LayoutKind::DfsSign
     }
 
-    /// Bytes the GPU holds for this BVH.
-    pub fn bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice()) + std::mem::size_of_val(self.tris.as_slice())
+    fn arrays(&self) -> LayoutArrays<'_> {
+        LayoutArrays {
+            nodes: bytemuck::cast_slice(&self.nodes),
+            tris: bytemuck::cast_slice(&self.tris),
+        }
     }
 
-    /// Checks every invariant traversal relies on (child indices in range and forward, leaf
-    /// ranges in range, depth ≤ MAX_DEPTH). Run before handing the BVH to an unchecked GPU
-    /// module; an error names the first bad node.
-    pub fn validate(&self) -> Result<(), String> {
+    fn wgsl(&self) -> String {
+        format!(
+            "const DFS_LEAF_TAG: u32 = {LEAF_TAG}u;\n{}",
+            include_str!("dfs_sign.wgsl")
+        )
+    }
+
+    /// Child indices in range and forward, leaf ranges in range, depth ≤ MAX_DEPTH, every
+    /// node reachable.
+    fn validate(&self) -> Result<(), String> {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }
@@ -148,7 +135,7 @@ const PARALLEL_NODES: usize = 1 << 12;
 
 /// Writes `node`'s subtree in pre-order into `out` (exactly its size), whose first element
 /// is node `index` of the whole array.
-fn write(node: &Node, out: &mut [GpuNode], index: u32) {
+fn write(node: &Node, out: &mut [DfsNode], index: u32) {
     let b = node.bbox();
     let (a, tag, children) = match node {
         Node::Leaf { start, count, .. } => (*start, count << 2 | LEAF_TAG, None),
@@ -158,7 +145,7 @@ fn write(node: &Node, out: &mut [GpuNode], index: u32) {
         }
     };
     let (head, rest) = out.split_first_mut().expect("a subtree has a node");
-    *head = GpuNode {
+    *head = DfsNode {
         lo: b.lo.into(),
         a,
         hi: b.hi.into(),
@@ -176,9 +163,32 @@ fn write(node: &Node, out: &mut [GpuNode], index: u32) {
     }
 }
 
-impl GpuTri {
-    /// An all-zero triangle (degenerate, never hit), padding an otherwise empty buffer.
-    pub fn zeroed_tri() -> GpuTri {
-        bytemuck::Zeroable::zeroed()
+#[cfg(test)]
+mod tests {
+    use std::mem::{offset_of, size_of};
+
+    use super::*;
+    use crate::geometry::Triangle;
+    use crate::gpu::shaders;
+    use crate::layout::Layout;
+
+    #[test]
+    fn the_wgsl_node_matches_the_rust_node() {
+        let mesh = Mesh::from_triangles(vec![Triangle::new(
+            glam::Vec3::ZERO,
+            glam::Vec3::X,
+            glam::Vec3::Y,
+        )]);
+        let layout = DfsSign::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
+        let src = shaders::trace_source(&layout);
+        let fields = [
+            ("lo", offset_of!(DfsNode, lo)),
+            ("a", offset_of!(DfsNode, a)),
+            ("hi", offset_of!(DfsNode, hi)),
+            ("b", offset_of!(DfsNode, b)),
+        ];
+        shaders::check_struct(&src, "DfsNode", size_of::<DfsNode>(), &fields).unwrap();
+        assert_eq!(size_of::<DfsNode>(), 32);
+        assert!(layout.validate().is_ok());
     }
 }

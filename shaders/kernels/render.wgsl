@@ -11,14 +11,7 @@ override TEXTURES: bool = true;
 override AO: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 
-const PI_INV: f32 = 0.3183098861837907;  // std::f32::consts::FRAC_1_PI
-const KIND_DIFFUSE: u32 = 0u;
-const KIND_MIRROR: u32 = 1u;
-const KIND_GLASS: u32 = 2u;
-const KIND_EMISSIVE: u32 = 3u;
-const INTEGRATOR_PATH: u32 = 1u;
-const INTEGRATOR_AO: u32 = 2u;
-const PRIMARY_TMAX: f32 = 3.4e38;  // scene::PRIMARY_TMAX
+// PI_INV, KIND_*, INTEGRATOR_*, LIGHT_* and PRIMARY_TMAX come from the generated prelude.
 
 // render::gpu::GpuShade: a triangle by original index, for shading.
 struct Shade {
@@ -81,14 +74,14 @@ struct Params {
     pad2: u32,
 }
 
-@group(0) @binding(2) var<storage, read> shades: array<Shade>;
-@group(0) @binding(3) var<storage, read> materials: array<Material>;
-@group(0) @binding(4) var<storage, read> lights: array<Light>;
+@group(0) @binding(BINDING_RENDER_SHADES) var<storage, read> shades: array<Shade>;
+@group(0) @binding(BINDING_RENDER_MATERIALS) var<storage, read> materials: array<Material>;
+@group(0) @binding(BINDING_RENDER_LIGHTS) var<storage, read> lights: array<Light>;
 // (original triangle index, running area sum as f32 bits)
-@group(0) @binding(5) var<storage, read> emitters: array<vec2<u32>>;
-@group(0) @binding(6) var<storage, read> texels: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> accum: array<vec4<f32>>;
-@group(0) @binding(8) var<uniform> params: Params;
+@group(0) @binding(BINDING_RENDER_EMITTERS) var<storage, read> emitters: array<vec2<u32>>;
+@group(0) @binding(BINDING_RENDER_TEXELS) var<storage, read> texels: array<vec4<f32>>;
+@group(0) @binding(BINDING_RENDER_ACCUM) var<storage, read_write> accum: array<vec4<f32>>;
+@group(0) @binding(BINDING_RENDER_PARAMS) var<uniform> params: Params;
 
 // sampling::pcg
 fn pcg(v: u32) -> u32 {
@@ -140,7 +133,7 @@ fn cosine_direction(n: vec3<f32>) -> vec3<f32> {
     return t * x + b * y + n * z;
 }
 
-// sampling::offset_origin (Wächter & Binder 2019)
+// sampling::offset_origin (Wächter & Binder 2019), or none with OFFSET_RAYS off
 fn offset_coord(p: f32, n: f32) -> f32 {
     let off = i32(256.0 * n);
     let pi = bitcast<f32>(bitcast<i32>(p) + select(off, -off, p < 0.0));
@@ -148,6 +141,9 @@ fn offset_coord(p: f32, n: f32) -> f32 {
 }
 
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    if !OFFSET_RAYS {
+        return p;
+    }
     return vec3<f32>(offset_coord(p.x, n.x), offset_coord(p.y, n.y), offset_coord(p.z, n.z));
 }
 
@@ -190,7 +186,7 @@ fn direct(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     var sum = vec3<f32>(0.0);
     for (var i = 0u; i < params.n_lights; i += 1u) {
         let l = lights[i];
-        if l.kind == 0u {
+        if l.kind == LIGHT_POINT {
             let d = l.v - p;
             let d2 = dot3(d, d);
             let c = dot3(n, d) / sqrt(d2);

@@ -45,7 +45,7 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }
-    std::fs::write(path, out).map_err(|e| Error::io(path, e))
+    crate::output::write_bytes(path, &out)
 }
 
 pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
@@ -56,7 +56,7 @@ pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
         out.extend_from_slice(&h.u.to_le_bytes());
         out.extend_from_slice(&h.v.to_le_bytes());
     }
-    std::fs::write(path, out).map_err(|e| Error::io(path, e))
+    crate::output::write_bytes(path, &out)
 }
 
 pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {

@@ -1,0 +1,54 @@
+// What every layout's traversal reads and counts: the layout's two word arrays in the chosen
+// BVH memory (gpu::BvhMemory), the shared leaf triangles (layout::LeafTri), and the work
+// counters. A layout's WGSL defines `traverse(r: Ray, any_hit: bool) -> Hit` on top of it.
+
+override COUNT_STATS: bool = false;  // count nodes visited / triangles tested
+
+// Both arrays are read as 16-byte words. lavapipe compiles every storage-buffer load into a
+// loop over the SIMD lanes, one loop per load instruction: vec4 loads instead of one per
+// field are ~15% more rays/s there.
+//
+// The same words live either in storage buffers or, with BVH_TEXTURES, in read-only
+// rgba32uint storage textures of TEXEL_ROW texels a row, which lavapipe loads with a gather
+// (~18% more rays/s). Both pairs are declared; the unused pair is a placeholder.
+override BVH_TEXTURES: bool = false;
+@group(0) @binding(BINDING_NODE_WORDS) var<storage, read> node_words: array<vec4<u32>>;
+@group(0) @binding(BINDING_TRI_WORDS) var<storage, read> tri_words: array<vec4<u32>>;
+@group(0) @binding(BINDING_NODE_TEXELS) var node_texels: texture_storage_2d<rgba32uint, read>;
+@group(0) @binding(BINDING_TRI_TEXELS) var tri_texels: texture_storage_2d<rgba32uint, read>;
+
+fn node_word(i: u32) -> vec4<u32> {
+    if BVH_TEXTURES {
+        return textureLoad(node_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
+    }
+    return node_words[i];
+}
+
+fn tri_word(i: u32) -> vec4<u32> {
+    if BVH_TEXTURES {
+        return textureLoad(tri_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
+    }
+    return tri_words[i];
+}
+
+// layout::LeafTri: vertices, original triangle index in v0's w slot.
+struct Tri {
+    v0: vec3<f32>,
+    prim: u32,
+    v1: vec3<f32>,
+    pad1: u32,
+    v2: vec3<f32>,
+    pad2: u32,
+}
+
+fn load_tri(i: u32) -> Tri {
+    let a = tri_word(3u * i);
+    let b = tri_word(3u * i + 1u);
+    let c = tri_word(3u * i + 2u);
+    return Tri(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
+               bitcast<vec3<f32>>(c.xyz), c.w);
+}
+
+// Work done by the last traverse() call (read when COUNT_STATS).
+var<private> n_nodes: u32;
+var<private> n_tris: u32;

@@ -1,0 +1,84 @@
+//! The tree the builders produce: boxes, split axes, leaf ranges into a triangle order.
+
+use crate::geometry::Aabb;
+
+/// Deepest leaf depth (root = 0). Traversal keeps one stack entry per interior ancestor,
+/// so a 64-entry stack (CPU and GPU) can never overflow.
+pub const MAX_DEPTH: usize = 64;
+
+/// A built tree. Leaves refer to ranges of [`Bvh::order`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum Node {
+    Leaf {
+        bbox: Aabb,
+        start: u32,
+        count: u32,
+    },
+    Inner {
+        bbox: Aabb,
+        axis: u8,
+        /// Nodes in this subtree, itself included: where flattening puts the second child.
+        nodes: u32,
+        children: Box<[Node; 2]>,
+    },
+}
+
+impl Node {
+    pub(crate) fn inner(bbox: Aabb, axis: usize, children: [Node; 2]) -> Node {
+        Node::Inner {
+            bbox,
+            axis: axis as u8,
+            nodes: 1 + children[0].nodes() + children[1].nodes(),
+            children: Box::new(children),
+        }
+    }
+
+    /// Nodes in this subtree, itself included.
+    pub fn nodes(&self) -> u32 {
+        match self {
+            Node::Leaf { .. } => 1,
+            Node::Inner { nodes, .. } => *nodes,
+        }
+    }
+
+    pub fn bbox(&self) -> &Aabb {
+        match self {
+            Node::Leaf { bbox, .. } | Node::Inner { bbox, .. } => bbox,
+        }
+    }
+}
+
+/// A BVH over the included triangles of a mesh: `order[i]` is the original triangle index
+/// at position i of leaf order (leaves appear left to right).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bvh {
+    pub root: Node,
+    pub order: Vec<u32>,
+}
+
+impl Drop for Bvh {
+    /// A big tree is one small allocation per inner node: the top subtrees are freed on all
+    /// threads.
+    fn drop(&mut self) {
+        fn free(node: Node, depth: u32) {
+            if let Node::Inner { children, .. } = node {
+                if depth < 4 {
+                    let [a, b] = *children;
+                    rayon::join(|| free(a, depth + 1), || free(b, depth + 1));
+                }
+            }
+        }
+        free(
+            std::mem::replace(&mut self.root, leaf(Aabb::EMPTY, 0, 0)),
+            0,
+        );
+    }
+}
+
+pub(crate) fn leaf(bbox: Aabb, start: usize, count: usize) -> Node {
+    Node::Leaf {
+        bbox,
+        start: start as u32,
+        count: count as u32,
+    }
+}

@@ -1,0 +1,92 @@
+//! Where work runs: the CPU, or a GPU adapter (lavapipe included). [`Device::open`] makes
+//! the choice and returns the reason for any fallback as a value; the caller decides
+//! whether and how to tell a person.
+
+use crate::error::Result;
+use crate::gpu::GpuContext;
+
+/// What the caller asks for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum DeviceChoice {
+    /// A GPU adapter when one opens, else the CPU (the reason is kept in
+    /// [`Device::fallback`]).
+    #[default]
+    Auto,
+    /// A GPU adapter, or an error.
+    Gpu,
+    /// The CPU tracers and renderer.
+    Cpu,
+}
+
+/// An opened device.
+pub struct Device {
+    gpu: Option<GpuContext>,
+    fallback: Option<String>,
+}
+
+impl Device {
+    /// Opens the device `choice` asks for. `WGPU_BACKEND` and `WGPU_ADAPTER_NAME` choose
+    /// among adapters (see [`GpuContext::new`]).
+    pub fn open(choice: DeviceChoice) -> Result<Device> {
+        match choice {
+            DeviceChoice::Cpu => Ok(Device::cpu()),
+            DeviceChoice::Gpu => Ok(Device::gpu(GpuContext::new()?)),
+            DeviceChoice::Auto => match GpuContext::new() {
+                Ok(ctx) => Ok(Device::gpu(ctx)),
+                Err(e) => {
+                    log::info!("no GPU: {e}");
+                    Ok(Device {
+                        gpu: None,
+                        fallback: Some(e.to_string()),
+                    })
+                }
+            },
+        }
+    }
+
+    /// The CPU.
+    pub fn cpu() -> Device {
+        Device {
+            gpu: None,
+            fallback: None,
+        }
+    }
+
+    /// An already opened GPU.
+    pub fn gpu(ctx: GpuContext) -> Device {
+        Device {
+            gpu: Some(ctx),
+            fallback: None,
+        }
+    }
+
+    /// The GPU context, or None on the CPU.
+    pub fn gpu_context(&self) -> Option<&GpuContext> {
+        self.gpu.as_ref()
+    }
+
+    /// Whether work runs on the CPU.
+    pub fn is_cpu(&self) -> bool {
+        self.gpu.is_none()
+    }
+
+    /// Why `Auto` fell back to the CPU (None when it did not).
+    pub fn fallback(&self) -> Option<&str> {
+        self.fallback.as_deref()
+    }
+
+    /// A software adapter: its GPU timings are a CPU's.
+    pub fn is_software(&self) -> bool {
+        self.gpu.as_ref().is_some_and(|g| g.adapter.software)
+    }
+}
+
+impl std::fmt::Display for Device {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.gpu {
+            Some(g) => write!(f, "gpu: {}", g.adapter),
+            None => write!(f, "cpu ({} threads)", rayon::current_num_threads()),
+        }
+    }
+}

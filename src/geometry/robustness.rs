@@ -1,0 +1,77 @@
+//! Every numerical-robustness knob in one struct, handed the same way to the CPU tracers,
+//! the CPU renderer and the GPU kernels (as override constants), so that a knob can be
+//! turned and priced without touching a tracer.
+
+use super::TriangleTest;
+
+/// The ray–box slab test.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SlabTest {
+    /// Far plane widened by 1 + 2γ(3) (Ize 2013): no false misses from rounding.
+    #[default]
+    Robust,
+    /// The textbook test: t_far unwidened (faster to state, can miss grazing rays).
+    Plain,
+}
+
+/// How secondary rays (shadow, bounce) leave the surface they start on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum RayOffset {
+    /// A few ulps of the hit point's own magnitude along the normal (Wächter & Binder 2019).
+    #[default]
+    ErrorBound,
+    /// No offset: the ray starts on the surface (shows self-intersection).
+    None,
+}
+
+/// The robustness settings of one trace or render. `Default` is the robust setting of
+/// every knob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Robustness {
+    /// Ray–triangle test.
+    pub triangle_test: TriangleTest,
+    /// Ray–box test.
+    pub slab_test: SlabTest,
+    /// Origin offset of secondary rays (renderer only).
+    pub ray_offset: RayOffset,
+    /// GPU only: shader modules with bounds checks and loop bounding (`false` = trusted
+    /// modules, offered only for a BVH the layout validated).
+    pub checked_module: bool,
+}
+
+impl Default for Robustness {
+    fn default() -> Self {
+        Robustness {
+            triangle_test: TriangleTest::Watertight,
+            slab_test: SlabTest::Robust,
+            ray_offset: RayOffset::ErrorBound,
+            checked_module: true,
+        }
+    }
+}
+
+impl Robustness {
+    /// The factor t_far is multiplied by in the slab test.
+    pub fn far_widen(&self) -> f32 {
+        match self.slab_test {
+            SlabTest::Robust => super::FAR_WIDEN,
+            SlabTest::Plain => 1.0,
+        }
+    }
+
+    /// The WGSL override constants that carry these settings (declared in
+    /// `shaders/lib/common.wgsl`).
+    pub fn overrides(&self) -> [(&'static str, f64); 3] {
+        let b = |x: bool| if x { 1.0 } else { 0.0 };
+        [
+            (
+                "MOLLER_TRUMBORE",
+                b(self.triangle_test == TriangleTest::MollerTrumbore),
+            ),
+            ("ROBUST_SLAB", b(self.slab_test == SlabTest::Robust)),
+            ("OFFSET_RAYS", b(self.ray_offset == RayOffset::ErrorBound)),
+        ]
+    }
+}

@@ -1,0 +1,54 @@
+//! Binding numbers of group 0, shared by the Rust bind groups and the WGSL declarations
+//! (generated into the prelude; the kernels write `@binding(BINDING_…)`).
+
+/// The layout's node words in a storage buffer.
+pub const NODE_WORDS: u32 = 0;
+/// The leaf triangles' words in a storage buffer.
+pub const TRI_WORDS: u32 = 1;
+/// The layout's node words in a storage texture.
+pub const NODE_TEXELS: u32 = 10;
+/// The leaf triangles' words in a storage texture.
+pub const TRI_TEXELS: u32 = 11;
+
+/// Trace kernel: rays.
+pub const TRACE_RAYS: u32 = 2;
+/// Trace kernel: hits.
+pub const TRACE_HITS: u32 = 3;
+/// Trace kernel: per-ray statistics.
+pub const TRACE_STATS: u32 = 4;
+/// Trace kernel: the dispatch's uniform.
+pub const TRACE_PARAMS: u32 = 5;
+
+/// Render kernel: shading triangles.
+pub const RENDER_SHADES: u32 = 2;
+/// Render kernel: materials.
+pub const RENDER_MATERIALS: u32 = 3;
+/// Render kernel: point and directional lights.
+pub const RENDER_LIGHTS: u32 = 4;
+/// Render kernel: emitting triangles and their area CDF.
+pub const RENDER_EMITTERS: u32 = 5;
+/// Render kernel: texture texels.
+pub const RENDER_TEXELS: u32 = 6;
+/// Render kernel: the accumulator.
+pub const RENDER_ACCUM: u32 = 7;
+/// Render kernel: the dispatch's uniform.
+pub const RENDER_PARAMS: u32 = 8;
+
+/// Every binding by its WGSL name.
+pub const ALL: &[(&str, u32)] = &[
+    ("BINDING_NODE_WORDS", NODE_WORDS),
+    ("BINDING_TRI_WORDS", TRI_WORDS),
+    ("BINDING_NODE_TEXELS", NODE_TEXELS),
+    ("BINDING_TRI_TEXELS", TRI_TEXELS),
+    ("BINDING_TRACE_RAYS", TRACE_RAYS),
+    ("BINDING_TRACE_HITS", TRACE_HITS),
+    ("BINDING_TRACE_STATS", TRACE_STATS),
+    ("BINDING_TRACE_PARAMS", TRACE_PARAMS),
+    ("BINDING_RENDER_SHADES", RENDER_SHADES),
+    ("BINDING_RENDER_MATERIALS", RENDER_MATERIALS),
+    ("BINDING_RENDER_LIGHTS", RENDER_LIGHTS),
+    ("BINDING_RENDER_EMITTERS", RENDER_EMITTERS),
+    ("BINDING_RENDER_TEXELS", RENDER_TEXELS),
+    ("BINDING_RENDER_ACCUM", RENDER_ACCUM),
+    ("BINDING_RENDER_PARAMS", RENDER_PARAMS),
+];

@@ -1,0 +1,79 @@
+// dfs-sign: 32-byte nodes in depth-first order, near child by the ray's sign on the split
+// axis. The CPU twin is twin.rs, step for step. DFS_LEAF_TAG comes from mod.rs's LEAF_TAG.
+
+// DfsNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | DFS_LEAF_TAG.
+struct DfsNode {
+    lo: vec3<f32>,
+    a: u32,
+    hi: vec3<f32>,
+    b: u32,
+}
+
+fn dfs_load_node(i: u32) -> DfsNode {
+    let a = node_word(2u * i);
+    let b = node_word(2u * i + 1u);
+    return DfsNode(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
+}
+
+// Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
+// An invalid ray (NaN, zero direction, empty interval) is a miss.
+fn traverse(r: Ray, any_hit: bool) -> Hit {
+    var best = Hit(r.tmax, MISS, 0.0, 0.0);
+    if COUNT_STATS {
+        n_nodes = 0u;
+        n_tris = 0u;
+    }
+    if ray_is_valid(r) {
+        let inv = safe_recip3(r.dir);
+        let w = watertight_setup(r.dir);
+        var stack: array<u32, STACK_SIZE>;
+        var sp = 0u;
+        var idx = 0u;
+        loop {
+            let node = dfs_load_node(idx);
+            if COUNT_STATS {
+                n_nodes += 1u;
+            }
+            var descended = false;
+            if slab_hit(node.lo, node.hi, r.origin, inv, r.tmin, best.t) {
+                if (node.b & 3u) != DFS_LEAF_TAG {
+                    var near = idx + 1u;
+                    var far = node.a;
+                    if r.dir[node.b & 3u] < 0.0 {
+                        near = node.a;
+                        far = idx + 1u;
+                    }
+                    stack[sp] = far;
+                    sp += 1u;
+                    idx = near;
+                    descended = true;
+                } else {
+                    let end = node.a + (node.b >> 2u);
+                    for (var i = node.a; i < end; i += 1u) {
+                        let tri = load_tri(i);
+                        if COUNT_STATS {
+                            n_tris += 1u;
+                        }
+                        let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
+                        if h.ok && beats(h.t, tri.prim, best.t, best.prim) {
+                            best = Hit(h.t, tri.prim, h.u, h.v);
+                            if any_hit {
+                                // Empty the stack: the pop below ends the traversal.
+                                sp = 0u;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+            if !descended {
+                if sp == 0u {
+                    break;
+                }
+                sp -= 1u;
+                idx = stack[sp];
+            }
+        }
+    }
+    return best;
+}

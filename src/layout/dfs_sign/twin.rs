@@ -1,0 +1,102 @@
+//! The CPU twin of `dfs_sign.wgsl`, step for step: the same stack discipline (push the far
+//! child, descend into the near one), the same ray-sign child order, the same slab and
+//! triangle tests in the same operation order, and the same tie rule, all in f32.
+
+use glam::{Vec3, Vec3A};
+
+use super::DfsSign;
+use crate::accel::bvh::MAX_DEPTH;
+use crate::accel::{Accel, Query, RayStats};
+use crate::geometry::{
+    intersect_triangle, Aabb, Hit, Ray, Robustness, WatertightRay, MISS, PARALLEL_INV,
+};
+
+impl Accel for DfsSign {
+    fn bounds(&self) -> Aabb {
+        if self.tris.is_empty() {
+            Aabb::EMPTY
+        } else {
+            self.nodes[0].bbox()
+        }
+    }
+
+    fn intersect(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        let mut best = Hit::miss(ray.tmax);
+        if !ray.is_valid() {
+            return best;
+        }
+        let test = robustness.triangle_test;
+        let widen = robustness.far_widen();
+        let inv = ray.inv_dir();
+        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
+        let wr = WatertightRay::new(ray.dir);
+        let mut stack = [0u32; MAX_DEPTH];
+        let mut sp = 0usize;
+        let mut idx = 0usize;
+        loop {
+            let node = &self.nodes[idx];
+            stats.nodes += 1;
+            let enter = if parallel {
+                node.bbox()
+                    .slab_hit(ray.origin, inv, ray.tmin, best.t, widen)
+            } else {
+                Aabb::slab_hit_nonparallel(
+                    Vec3A::from_array(node.lo),
+                    Vec3A::from_array(node.hi),
+                    origin_a,
+                    inv_a,
+                    ray.tmin,
+                    best.t,
+                    widen,
+                )
+            };
+            if enter {
+                if !node.is_leaf() {
+                    let (first, second) = (idx + 1, node.a as usize);
+                    let (near, far) = if ray.dir[node.axis()] < 0.0 {
+                        (second, first)
+                    } else {
+                        (first, second)
+                    };
+                    stack[sp] = far as u32;
+                    sp += 1;
+                    idx = near;
+                    continue;
+                }
+                let first = node.a as usize;
+                for lt in &self.tris[first..first + node.count() as usize] {
+                    stats.tris += 1;
+                    let tri = lt.triangle();
+                    let h = intersect_triangle(test, &tri, ray, &wr, ray.tmin, best.t);
+                    if let Some((t, u, v)) = h {
+                        if Hit::beats(t, lt.prim, best.t, best.prim) {
+                            best = Hit {
+                                t,
+                                prim: lt.prim,
+                                u,
+                                v,
+                            };
+                            if query == Query::Any {
+                                return best;
+                            }
+                        }
+                    }
+                }
+            }
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            idx = stack[sp] as usize;
+        }
+        debug_assert!(best.prim == MISS || best.t >= ray.tmin);
+        best
+    }
+}

@@ -1,0 +1,116 @@
+//! Flattened BVH layouts: the arrays the GPU reads, the WGSL that walks them, and the CPU
+//! twin that walks the same arrays in the same order.
+//!
+//! # Adding a layout
+//!
+//! A layout is one folder, `src/layout/<name>/`, plus one registry line:
+//!
+//! 1. `mod.rs`: a type holding the flattened arrays (its node type is `#[repr(C)]`,
+//!    `bytemuck::Pod`, a multiple of 16 bytes, and private to the folder) and a
+//!    `flatten(&Bvh, &Mesh)` constructor. Leaves refer to ranges of [`LeafTri`]s in leaf
+//!    order, so the triangle array, its loader and its upload are shared.
+//! 2. `<name>.wgsl`: `fn traverse(r: Ray, any_hit: bool) -> Hit`, reading nodes with
+//!    `node_word(i)` and triangles with `load_tri(i)` (`shaders/lib/traversal.wgsl`), testing
+//!    boxes with `slab_hit` and triangles with `intersect_tri` (`shaders/lib/common.wgsl`,
+//!    which honour the [`Robustness`](crate::geometry::Robustness) overrides), counting work
+//!    in `n_nodes`/`n_tris` when `COUNT_STATS`, and keeping the tie rule with `beats`.
+//!    WGSL names of its own start with the layout's name, so two layouts never collide.
+//! 3. `twin.rs`: `impl Accel` that runs the WGSL algorithm step for step in f32 — same
+//!    child order, same stack discipline, same tests in the same operation order — so the
+//!    GPU and the twin agree bit for bit (the equivalence tests in `tests/gpu_vs_cpu.rs`
+//!    run over every entry of [`LayoutKind::ALL`]).
+//! 4. `impl Layout`: name, arrays, WGSL source, overrides, validation.
+//! 5. Register it: a variant of [`LayoutKind`] and its arm in [`flatten`].
+//!
+//! Stack depth: the builders cap depth at [`MAX_DEPTH`](crate::accel::bvh::MAX_DEPTH),
+//! the kernels' stack size; a layout whose traversal needs more entries per level must
+//! say so in `validate`.
+
+mod dfs_sign;
+mod leaf_tri;
+
+use crate::accel::bvh::Bvh;
+use crate::accel::Accel;
+use crate::mesh::Mesh;
+
+pub use dfs_sign::DfsSign;
+pub use leaf_tri::LeafTri;
+
+/// The byte arrays a layout uploads: nodes and leaf triangles, each a whole number of
+/// 16-byte words (the GPU reads them as `vec4<u32>`).
+#[derive(Clone, Copy, Debug)]
+pub struct LayoutArrays<'a> {
+    /// The node array.
+    pub nodes: &'a [u8],
+    /// The triangles in leaf order ([`LeafTri`]s).
+    pub tris: &'a [u8],
+}
+
+/// A flattened BVH for the GPU, and its CPU twin (the [`Accel`] supertrait).
+pub trait Layout: Accel {
+    /// Which layout this is.
+    fn kind(&self) -> LayoutKind;
+
+    /// The arrays to upload.
+    fn arrays(&self) -> LayoutArrays<'_>;
+
+    /// Its WGSL traversal (with its own constants generated in front): defines
+    /// `traverse(r: Ray, any_hit: bool) -> Hit`.
+    fn wgsl(&self) -> String;
+
+    /// Override constants its WGSL declares, with their values for this instance.
+    fn overrides(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
+
+    /// Checks every invariant the traversal relies on (indices in range, depth within the
+    /// stack). Run before trusted (unchecked) shader modules see the arrays; the error
+    /// names the first bad node.
+    fn validate(&self) -> Result<(), String>;
+
+    /// Bytes the GPU holds for this layout.
+    fn bytes(&self) -> usize {
+        let a = self.arrays();
+        a.nodes.len() + a.tris.len()
+    }
+
+    /// Triangles referenced by leaves.
+    fn triangles(&self) -> usize {
+        self.arrays().tris.len() / std::mem::size_of::<LeafTri>()
+    }
+}
+
+/// The registry of layouts: one variant per folder.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum LayoutKind {
+    /// 32-byte nodes in depth-first order, children visited in the order the ray's sign on
+    /// the split axis gives.
+    #[default]
+    DfsSign,
+}
+
+impl LayoutKind {
+    /// Every layout, for tests and benches that run them all.
+    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign];
+
+    /// The name the command line and benches use.
+    pub fn name(self) -> &'static str {
+        match self {
+            LayoutKind::DfsSign => "dfs-sign",
+        }
+    }
+}
+
+impl std::fmt::Display for LayoutKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Flattens a built tree into the chosen layout.
+pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
+    match kind {
+        LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
+    }
+}

@@ -1,0 +1,245 @@
+//! One renderer API for both devices: build the scene's BVH once, then render with a number
+//! of samples, a time limit, a cancel flag and a progress callback. The progressive loop and
+//! the division by the sample count live here, not in callers.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+
+use super::cpu::CpuRenderer;
+use super::effects::EffectSet;
+use super::gpu::GpuRenderer;
+use super::image::Image;
+use super::scene::RenderScene;
+use crate::accel::bvh::{self, BuildOptions, BvhStats};
+use crate::device::Device;
+use crate::error::{Error, Result};
+use crate::geometry::Robustness;
+use crate::gpu::BvhMemory;
+use crate::layout::{self, Layout, LayoutKind};
+
+/// Where a render stands, for a progress callback.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Samples per pixel finished.
+    pub done: u32,
+    /// Samples per pixel asked for.
+    pub total: u32,
+    /// Time since the first sample started.
+    pub elapsed: Duration,
+    /// Camera rays per second so far (one per pixel per sample).
+    pub camera_rays_per_s: f64,
+}
+
+/// A progress callback, called after every sample.
+pub type ProgressFn = Arc<dyn Fn(&Progress) + Send + Sync>;
+
+/// Everything a render takes besides the scene and the device.
+#[derive(Clone, Default)]
+pub struct RenderOptions {
+    /// Samples per pixel (None: the scene's).
+    pub spp: Option<u32>,
+    /// Random seed (None: the scene's).
+    pub seed: Option<u32>,
+    /// Effects to simulate (None: exactly those the scene calls for).
+    pub effects: Option<EffectSet>,
+    /// Triangle and slab tests, secondary-ray offset.
+    pub robustness: Robustness,
+    /// Stop after the last sample that fits in this time (at least one sample runs).
+    pub time_limit: Option<Duration>,
+    /// Set to stop after the current sample (what has accumulated is kept).
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called after every sample.
+    pub progress: Option<ProgressFn>,
+    /// BVH builder (used by [`Renderer::new`]).
+    pub build: BuildOptions,
+    /// Flattened layout (used by [`Renderer::new`]).
+    pub layout: LayoutKind,
+    /// GPU: where the kernel reads the BVH from (used by [`Renderer::new`]).
+    pub memory: BvhMemory,
+}
+
+/// Why a render stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// Every sample asked for was taken.
+    Complete,
+    /// The time limit left no room for another sample.
+    TimeLimit,
+    /// The cancel flag was set.
+    Cancelled,
+}
+
+/// A finished (or stopped) render.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// The mean of the samples taken.
+    pub image: Image,
+    /// Samples per pixel taken.
+    pub samples: u32,
+    /// Samples per pixel asked for.
+    pub requested: u32,
+    /// Why it stopped.
+    pub stop: Stop,
+    /// The effects simulated.
+    pub effects: EffectSet,
+    /// Seconds spent sampling.
+    pub seconds: f64,
+}
+
+/// A scene's BVH built, flattened and (on a GPU) uploaded with the render kernel.
+pub struct Renderer<'a> {
+    scene: &'a RenderScene,
+    layout: Box<dyn Layout>,
+    stats: BvhStats,
+    build_ms: f64,
+    gpu: Option<GpuRenderer<'a>>,
+}
+
+impl<'a> Renderer<'a> {
+    /// Builds the scene's BVH with `options.build`, flattens it in `options.layout`, and on
+    /// a GPU uploads it (in `options.memory`) with the scene.
+    pub fn new(
+        scene: &'a RenderScene,
+        device: &'a Device,
+        options: &RenderOptions,
+    ) -> Result<Self> {
+        let start = Instant::now();
+        let tree = bvh::build(&scene.mesh, &options.build);
+        let layout = layout::flatten(options.layout, &tree, &scene.mesh);
+        let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        let stats = BvhStats::of(&tree, &options.build);
+        drop(tree);
+        let gpu = match device.gpu_context() {
+            Some(ctx) => Some(GpuRenderer::new(
+                ctx,
+                scene,
+                layout.as_ref(),
+                options.memory,
+            )?),
+            None => None,
+        };
+        Ok(Renderer {
+            scene,
+            layout,
+            stats,
+            build_ms,
+            gpu,
+        })
+    }
+
+    /// The BVH's shape and cost.
+    pub fn bvh_stats(&self) -> &BvhStats {
+        &self.stats
+    }
+
+    /// Milliseconds spent building and flattening the BVH.
+    pub fn build_ms(&self) -> f64 {
+        self.build_ms
+    }
+
+    /// The flattened layout (on the CPU, the structure traced).
+    pub fn layout(&self) -> &dyn Layout {
+        self.layout.as_ref()
+    }
+
+    /// Adds sample `sample` of every pixel to `accum` (CPU) or to the device's accumulator
+    /// (GPU) and returns the milliseconds it took. For benches; [`Renderer::render`] runs
+    /// the whole loop.
+    pub fn add_sample(
+        &mut self,
+        fx: EffectSet,
+        robustness: Robustness,
+        seed: u32,
+        sample: u32,
+        accum: &mut [Vec3],
+    ) -> Result<f64> {
+        let start = Instant::now();
+        match &mut self.gpu {
+            Some(g) => {
+                g.add_sample(fx, robustness, seed, sample)?;
+            }
+            None => {
+                let cpu = CpuRenderer::new(self.scene, self.layout.as_ref(), robustness);
+                cpu.accumulate(fx, seed, accum, sample, 1);
+            }
+        }
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    /// Renders the scene: samples 0, 1, … until `spp`, the time limit or the cancel flag,
+    /// then the mean of the samples taken. Cancelled before the first sample finished, it
+    /// returns [`Error::Cancelled`].
+    pub fn render(&mut self, options: &RenderOptions) -> Result<Rendered> {
+        let settings = &self.scene.settings;
+        let spp = options.spp.unwrap_or(settings.spp);
+        let seed = options.seed.unwrap_or(settings.seed);
+        let fx = options.effects.unwrap_or_else(|| EffectSet::of(self.scene));
+        let rob = options.robustness;
+        let (w, h) = (self.scene.camera.width, self.scene.camera.height);
+        let pixels = w as usize * h as usize;
+        let mut accum = vec![Vec3::ZERO; if self.gpu.is_some() { 0 } else { pixels }];
+        if let Some(g) = &mut self.gpu {
+            g.clear()?;
+        }
+        let cancelled = || (options.cancel.as_ref()).is_some_and(|c| c.load(Ordering::SeqCst));
+        let start = Instant::now();
+        let mut done = 0u32;
+        let mut stop = Stop::Complete;
+        while done < spp {
+            if cancelled() {
+                stop = Stop::Cancelled;
+                break;
+            }
+            let elapsed = start.elapsed().as_secs_f64();
+            if let Some(limit) = options.time_limit {
+                // Stop when one more sample at the mean rate would pass the limit.
+                if done > 0 && elapsed * (done + 1) as f64 / done as f64 > limit.as_secs_f64() {
+                    stop = Stop::TimeLimit;
+                    break;
+                }
+            }
+            self.add_sample(fx, rob, seed, done, &mut accum)?;
+            done += 1;
+            if let Some(p) = &options.progress {
+                let elapsed = start.elapsed();
+                p(&Progress {
+                    done,
+                    total: spp,
+                    elapsed,
+                    camera_rays_per_s: done as f64 * pixels as f64 / elapsed.as_secs_f64(),
+                });
+            }
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        if done == 0 {
+            return Err(Error::Cancelled(
+                "interrupted before the first sample finished: nothing to save".into(),
+            ));
+        }
+        if let Some(g) = &self.gpu {
+            accum = g.read_accum()?;
+        }
+        let inv = 1.0 / done as f32;
+        Ok(Rendered {
+            image: Image {
+                width: w,
+                height: h,
+                pixels: accum.iter().map(|c| *c * inv).collect(),
+            },
+            samples: done,
+            requested: spp,
+            stop,
+            effects: fx,
+            seconds,
+        })
+    }
+}
+
+/// Builds the scene's BVH on `device` and renders it: [`Renderer::new`] then
+/// [`Renderer::render`].
+pub fn render(scene: &RenderScene, device: &Device, options: &RenderOptions) -> Result<Rendered> {
+    Renderer::new(scene, device, options)?.render(options)
+}

@@ -1,0 +1,9 @@
+//! Scenes: the TOML file format, its assembly into one mesh with materials, textures and
+//! lights, and the built-in shapes.
+
+mod assemble;
+mod file;
+mod shapes;
+
+pub use assemble::{Light, Material, RenderScene, Settings, Texture};
+pub use file::{Integrator, LightKind, MaterialKind, SceneFile};

@@ -1,0 +1,141 @@
+//! One tracer API for both devices: build once, then `trace(&rays, query)` on the CPU twin
+//! or the GPU kernel of the same layout.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use crate::accel::bvh::{self, BuildOptions};
+use crate::accel::{Query, RayStats};
+use crate::device::Device;
+use crate::error::Result;
+use crate::geometry::{Hit, Ray, Robustness};
+use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel};
+use crate::layout::{self, Layout, LayoutKind};
+use crate::mesh::Mesh;
+
+/// How a [`Tracer`] builds, lays out and traces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TracerOptions {
+    /// BVH builder and its constants.
+    pub build: BuildOptions,
+    /// Flattened layout (GPU arrays and the CPU twin).
+    pub layout: LayoutKind,
+    /// GPU: where the kernel reads the layout from.
+    pub memory: BvhMemory,
+    /// Triangle and slab tests, checked or trusted GPU modules.
+    pub robustness: Robustness,
+    /// GPU: invocations per workgroup.
+    pub workgroup_size: u32,
+    /// Return per-ray statistics (nodes visited, triangles tested).
+    pub stats: bool,
+}
+
+impl Default for TracerOptions {
+    fn default() -> Self {
+        TracerOptions {
+            build: BuildOptions::default(),
+            layout: LayoutKind::default(),
+            memory: BvhMemory::default(),
+            robustness: Robustness::default(),
+            workgroup_size: 64,
+            stats: false,
+        }
+    }
+}
+
+/// What one `trace` call returns.
+#[derive(Clone, Debug, Default)]
+pub struct TraceResult {
+    /// One hit per ray, in ray order.
+    pub hits: Vec<Hit>,
+    /// Per-ray work, when [`TracerOptions::stats`] asked for it.
+    pub stats: Option<Vec<RayStats>>,
+    /// Wall time, and GPU time where the device measures it.
+    pub timings: Timings,
+}
+
+/// A mesh's BVH, flattened, on a device, ready to trace batches of rays.
+pub struct Tracer<'d> {
+    layout: Arc<dyn Layout>,
+    gpu: Option<GpuTracer<'d>>,
+    options: TracerOptions,
+}
+
+impl<'d> Tracer<'d> {
+    /// Builds the BVH over the mesh's usable triangles, flattens it, and uploads it when
+    /// the device is a GPU.
+    pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
+        let tree = bvh::build(mesh, &options.build);
+        let layout: Arc<dyn Layout> = layout::flatten(options.layout, &tree, mesh).into();
+        Self::with_layout(device, layout, options)
+    }
+
+    /// A tracer over an already flattened layout (`options.build` and `options.layout` are
+    /// then not used): benches and tests share one layout between tracers.
+    pub fn with_layout(
+        device: &'d Device,
+        layout: Arc<dyn Layout>,
+        options: &TracerOptions,
+    ) -> Result<Self> {
+        let gpu = match device.gpu_context() {
+            Some(ctx) => Some(GpuTracer::new(ctx, layout.as_ref(), options.memory)?),
+            None => None,
+        };
+        Ok(Tracer {
+            layout,
+            gpu,
+            options: *options,
+        })
+    }
+
+    /// The layout traced (on the CPU, its twin).
+    pub fn layout(&self) -> &Arc<dyn Layout> {
+        &self.layout
+    }
+
+    /// The options in force.
+    pub fn options(&self) -> &TracerOptions {
+        &self.options
+    }
+
+    /// Changes the options that need no rebuild or upload: robustness, workgroup size,
+    /// statistics.
+    pub fn set_kernel(&mut self, robustness: Robustness, workgroup_size: u32, stats: bool) {
+        self.options.robustness = robustness;
+        self.options.workgroup_size = workgroup_size;
+        self.options.stats = stats;
+    }
+
+    /// Traces a batch of rays: the closest hit or any hit of each.
+    pub fn trace(&mut self, rays: &[Ray], query: Query) -> Result<TraceResult> {
+        let o = self.options;
+        match &mut self.gpu {
+            Some(gpu) => {
+                let kernel = TraceKernel {
+                    query,
+                    robustness: o.robustness,
+                    stats: o.stats,
+                    workgroup_size: o.workgroup_size,
+                };
+                let (hits, stats, timings) = gpu.trace(rays, kernel)?;
+                Ok(TraceResult {
+                    hits,
+                    stats,
+                    timings,
+                })
+            }
+            None => {
+                let start = Instant::now();
+                let (hits, stats) = self.layout.trace_batch(rays, query, &o.robustness);
+                Ok(TraceResult {
+                    hits,
+                    stats: o.stats.then_some(stats),
+                    timings: Timings {
+                        gpu_ms: None,
+                        wall_ms: start.elapsed().as_secs_f64() * 1e3,
+                    },
+                })
+            }
+        }
+    }
+}
