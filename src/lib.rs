@@ -1,6 +1,51 @@
-//! lancer: a GPU compute ray tracer. The CPU builds an SAH BVH and flattens it into one of
-//! several layouts; a WGSL compute kernel traverses it, and the layout's CPU twin — the same
+//! lancer: a GPU compute ray tracer. The CPU builds an SAH BVH and flattens it into a
+//! [`Layout`]; a WGSL compute kernel traverses it, and the layout's CPU twin — the same
 //! algorithm in the same order — is the reference, judged by an f64 oracle.
+//!
+//! # Quick start
+//!
+//! Load a mesh, trace four rays on the CPU and on the GPU (any wgpu adapter; without one,
+//! `DeviceChoice::Auto` falls back to the CPU and says why), and render a scene to PNG:
+//!
+//! ```
+//! use std::path::Path;
+//! use lancer::render::render;
+//! use lancer::{Device, DeviceChoice, Query, Ray, RenderOptions, RenderScene, Vec3};
+//! use lancer::{Tracer, TracerOptions};
+//!
+//! # fn main() -> lancer::Result<()> {
+//! let mesh = lancer::mesh::load_mesh(Path::new("scenes/cornell-box.obj"))?;
+//! // Four rays from the scene's camera position straight into the box, 1 mm apart.
+//! let rays: Vec<Ray> = (0..4)
+//!     .map(|i| Ray::new(Vec3::new(270.0 + i as f32, 270.0, 1359.2), Vec3::NEG_Z, 0.0, 1e30))
+//!     .collect();
+//! for choice in [DeviceChoice::Cpu, DeviceChoice::Auto] {
+//!     let device = Device::open(choice)?;
+//!     if let Some(why) = device.fallback() {
+//!         println!("no GPU ({why}): tracing on the CPU");
+//!     }
+//!     let mut tracer = Tracer::new(&device, &mesh, &TracerOptions::default())?;
+//!     let result = tracer.trace(&rays, Query::Closest)?;
+//!     assert!(result.hits.iter().all(|h| h.is_hit()));
+//!     println!("{device}: first hit at t = {}", result.hits[0].t);
+//! }
+//!
+//! let mut scene = RenderScene::from_file(Path::new("scenes/cornell.toml"))?;
+//! (scene.camera.width, scene.camera.height) = (32, 32);
+//! let device = Device::open(DeviceChoice::Auto)?;
+//! let options = RenderOptions { spp: Some(2), ..RenderOptions::default() };
+//! let rendered = render(&scene, &device, &options)?;
+//! rendered.image.save(&std::env::temp_dir().join("lancer-quick-start.png"))?;
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! The pieces: [`accel`] (the [`Accel`] trait and the BVH builders), [`layout`] (flattened
+//! BVHs for the GPU, each with its CPU twin), [`trace`] ([`Tracer`], the f64 oracle, ray and
+//! hit files), [`render`] (scenes and the [`Renderer`]), [`gpu`] (the wgpu plumbing and the
+//! WGSL sources), [`geometry`] (rays, boxes, triangle tests, [`Robustness`]).
+
+#![warn(missing_docs)]
 
 pub mod accel;
 pub mod camera;

@@ -6,7 +6,24 @@ use std::io::Write;
 
 use clap::Parser;
 
+/// On a headless Linux machine with XDG_RUNTIME_DIR unset, the Wayland client library that
+/// wgpu's Vulkan backend probes prints "error: XDG_RUNTIME_DIR is invalid or not set" (twice)
+/// on every successful GPU run. lancer never opens a window: an absolute path where no
+/// display socket exists makes that probe fail quietly instead. Set before any thread starts.
+fn quiet_window_system_probe() {
+    if cfg!(target_os = "linux")
+        && std::env::var_os("XDG_RUNTIME_DIR").is_none()
+        && std::env::var_os("WAYLAND_DISPLAY").is_none()
+    {
+        std::env::set_var(
+            "XDG_RUNTIME_DIR",
+            std::env::temp_dir().join("lancer-headless"),
+        );
+    }
+}
+
 fn main() {
+    quiet_window_system_probe();
     let cli = cmd::Cli::parse();
     let level = match (cli.quiet, cli.verbose) {
         (true, _) => log::LevelFilter::Error,

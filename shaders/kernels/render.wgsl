@@ -147,8 +147,14 @@ fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(offset_coord(p.x, n.x), offset_coord(p.y, n.y), offset_coord(p.z, n.z));
 }
 
+// Samples in which some traversal was cut short by the driver (see traversal_done): the
+// host renders those pixels again on the CPU.
+var<private> sample_incomplete: bool;
+
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, tmax: f32) -> bool {
-    return traverse(Ray(origin, 0.0, dir, tmax), true).prim != MISS;
+    let h = traverse(Ray(origin, 0.0, dir, tmax), true);
+    sample_incomplete = sample_incomplete || !traversal_done;
+    return h.prim != MISS;
 }
 
 fn texel(m: Material, x: i32, y: i32) -> vec3<f32> {
@@ -250,6 +256,7 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
     let nee = SOFT_SHADOWS && params.n_emitters > 0u;
     for (var bounce = 0u; bounce <= params.max_bounces; bounce += 1u) {
         let hit = traverse(ray, false);
+        sample_incomplete = sample_incomplete || !traversal_done;
         if hit.prim == MISS {
             rad += beta * params.background;
             break;
@@ -331,6 +338,8 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = params.offset + gid.x;
+    sample_incomplete = false;
     let c = radiance(pixel % params.width, pixel / params.width);
-    accum[pixel] += vec4<f32>(c, 0.0);
+    // w counts the samples of this pixel that a driver cut short.
+    accum[pixel] += vec4<f32>(c, select(0.0, 1.0, sample_incomplete));
 }

@@ -21,7 +21,11 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let ri = params.offset + gid.x;
-    hits[ri] = traverse(rays[ri], ANY_HIT);
+    var h = traverse(rays[ri], ANY_HIT);
+    if !traversal_done {
+        h.prim = INCOMPLETE;  // cut short by the driver: the host traces it again
+    }
+    hits[ri] = h;
     if COUNT_STATS {
         stats[ri] = vec2<u32>(n_nodes, n_tris);
     }

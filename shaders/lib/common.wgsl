@@ -174,6 +174,12 @@ fn intersect_tri(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, w: Waterti
     return intersect_watertight(v0, v1, v2, r.origin, w, tmin, tmax);
 }
 
+// geometry::prune_bound: the best t grown by TIE_SLACK of its magnitude, never past BIG.
+fn prune_bound(best_t: f32) -> f32 {
+    let a = abs(best_t);
+    return best_t + min(a * TIE_SLACK, BIG - a);
+}
+
 // Hit::beats — the tie rule: smaller t, then smaller original index.
 fn beats(t: f32, prim: u32, best_t: f32, best_prim: u32) -> bool {
     return t < best_t || (t == best_t && prim < best_prim);

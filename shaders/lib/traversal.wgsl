@@ -52,3 +52,9 @@ fn load_tri(i: u32) -> Tri {
 // Work done by the last traverse() call (read when COUNT_STATS).
 var<private> n_nodes: u32;
 var<private> n_tris: u32;
+
+// Set by traverse() when it ends by itself (its stack empty). Left false when the driver cut
+// the traversal loop short: lavapipe up to Mesa 22 ends every loop of an invocation once
+// 65,535 loop iterations have run in all, so a ray through ~50,000 coincident triangles stops
+// early. Callers mark such rays (gpu::INCOMPLETE) instead of returning a wrong hit.
+var<private> traversal_done: bool;

@@ -13,7 +13,9 @@ pub const PARALLEL_INV: f32 = 5e29;
 /// Axis-aligned bounding box. An empty box has `lo > hi` (lo = +MAX, hi = −MAX).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// Minimum corner.
     pub lo: Vec3,
+    /// Maximum corner.
     pub hi: Vec3,
 }
 
@@ -24,15 +26,18 @@ impl Default for Aabb {
 }
 
 impl Aabb {
+    /// The empty box (lo = +MAX, hi = −MAX): growing it by anything gives that thing.
     pub const EMPTY: Aabb = Aabb {
         lo: Vec3::splat(f32::MAX),
         hi: Vec3::splat(-f32::MAX),
     };
 
+    /// Smallest box containing `points`; [`EMPTY`](Self::EMPTY) for none.
     pub fn from_points(points: &[Vec3]) -> Aabb {
         points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
     }
 
+    /// This box extended to contain the point `p`.
     pub fn grow(self, p: Vec3) -> Aabb {
         Aabb {
             lo: self.lo.min(p),
@@ -40,6 +45,7 @@ impl Aabb {
         }
     }
 
+    /// Smallest box containing both boxes.
     pub fn union(self, o: Aabb) -> Aabb {
         Aabb {
             lo: self.lo.min(o.lo),
@@ -47,10 +53,12 @@ impl Aabb {
         }
     }
 
+    /// Whether `lo > hi` on some axis (the box holds no point).
     pub fn is_empty(&self) -> bool {
         self.lo.x > self.hi.x || self.lo.y > self.hi.y || self.lo.z > self.hi.z
     }
 
+    /// `hi − lo`; zero for an empty box.
     pub fn extent(&self) -> Vec3 {
         if self.is_empty() {
             Vec3::ZERO
@@ -59,6 +67,7 @@ impl Aabb {
         }
     }
 
+    /// Midpoint of `lo` and `hi` (meaningless for an empty box).
     pub fn center(&self) -> Vec3 {
         (self.lo + self.hi) * 0.5
     }
@@ -69,6 +78,7 @@ impl Aabb {
         2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 
+    /// Axis of the largest extent: 0 = x, 1 = y, 2 = z; ties go to the lower axis.
     pub fn longest_axis(&self) -> usize {
         let e = self.extent();
         if e.x >= e.y && e.x >= e.z {
@@ -80,6 +90,7 @@ impl Aabb {
         }
     }
 
+    /// Whether `o` lies inside this box, faces included.
     pub fn contains(&self, o: &Aabb) -> bool {
         self.lo.cmple(o.lo).all() && self.hi.cmpge(o.hi).all()
     }

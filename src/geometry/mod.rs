@@ -10,7 +10,7 @@ mod triangle;
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
-pub use robustness::{RayOffset, Robustness, SlabTest};
+pub use robustness::{prune_bound, RayOffset, Robustness, SlabTest, TIE_SLACK};
 pub use triangle::{
     intersect_moller_trumbore, intersect_triangle, intersect_watertight, Triangle, TriangleTest,
     WatertightRay,

@@ -1,12 +1,17 @@
 use glam::Vec3;
 
 /// A ray as stored in ray files and GPU buffers: 32 bytes, origin, tmin, direction, tmax.
+/// WGSL twin: `Ray` in shaders/lib/common.wgsl; tests/layout.rs checks the layout.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Ray {
+    /// Start point.
     pub origin: Vec3,
+    /// Start of the hit interval: hits need t ≥ tmin.
     pub tmin: f32,
+    /// Direction, not necessarily unit: t is measured in multiples of it.
     pub dir: Vec3,
+    /// End of the hit interval: hits need t ≤ tmax.
     pub tmax: f32,
 }
 
@@ -26,6 +31,7 @@ pub fn safe_recip(d: f32) -> f32 {
 }
 
 impl Ray {
+    /// A ray from `origin` along `dir`, hitting only at t in [tmin, tmax].
     pub fn new(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
         Ray {
             origin,
@@ -35,6 +41,7 @@ impl Ray {
         }
     }
 
+    /// Per-axis [`safe_recip`] of the direction, for slab tests (finite for a finite `dir`).
     pub fn inv_dir(&self) -> Vec3 {
         Vec3::new(
             safe_recip(self.dir.x),

@@ -4,6 +4,21 @@
 
 use super::TriangleTest;
 
+/// Relative slack on the best hit's t when boxes are pruned against it (2⁻²⁰, about 8 ulps).
+/// A box's entry distance and a triangle's t are computed by different operations and round
+/// differently, so a box holding a triangle at exactly the best t can compute an entry a few
+/// ulps beyond it; cutting that box would let traversal order, not the index, decide a tie.
+pub const TIE_SLACK: f32 = 1.0 / 1_048_576.0;
+
+/// The bound boxes are tested against while the best hit is at `best_t`: `best_t` grown by
+/// [`TIE_SLACK`] of its magnitude, never past `f32::MAX` (no infinity reaches the GPU).
+/// WGSL `prune_bound` in shaders/lib/common.wgsl is the same.
+#[inline(always)]
+pub fn prune_bound(best_t: f32) -> f32 {
+    let a = best_t.abs();
+    best_t + (a * TIE_SLACK).min(f32::MAX - a)
+}
+
 /// The ray–box slab test.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]

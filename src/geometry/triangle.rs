@@ -5,24 +5,29 @@ use super::{Aabb, Ray};
 /// A triangle by its three vertices.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
+    /// The vertices; a hit's `u` and `v` weight `v[1]` and `v[2]`.
     pub v: [Vec3; 3],
 }
 
 impl Triangle {
+    /// The triangle with vertices `a`, `b`, `c`, in that order.
     pub fn new(a: Vec3, b: Vec3, c: Vec3) -> Triangle {
         Triangle { v: [a, b, c] }
     }
 
+    /// Area (half the edge cross product's length), in f32.
     pub fn area(&self) -> f32 {
         0.5 * (self.v[1] - self.v[0])
             .cross(self.v[2] - self.v[0])
             .length()
     }
 
+    /// Bounds of the three vertices.
     pub fn bbox(&self) -> Aabb {
         Aabb::from_points(&self.v)
     }
 
+    /// Whether every vertex coordinate is finite (no NaN or ±∞).
     pub fn is_finite(&self) -> bool {
         self.v.iter().all(|p| p.is_finite())
     }
@@ -49,11 +54,14 @@ pub enum TriangleTest {
 /// z, then shear so the ray becomes +z. The WGSL `watertight_setup` mirrors this.
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
+    /// Axis permutation `[kx, ky, kz]`; `kz` is the direction's dominant axis.
     pub k: [usize; 3],
+    /// Shear constants: `(d[kx] / d[kz], d[ky] / d[kz], 1 / d[kz])` for direction `d`.
     pub s: Vec3,
 }
 
 impl WatertightRay {
+    /// The set-up for rays of direction `dir` (non-zero).
     pub fn new(dir: Vec3) -> WatertightRay {
         let a = dir.abs();
         let kz = if a.x >= a.y && a.x >= a.z {

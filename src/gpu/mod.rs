@@ -10,4 +10,4 @@ mod trace;
 
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
 pub use context::{human_bytes, AdapterReport, GpuContext};
-pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams};
+pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};

@@ -4,12 +4,12 @@
 
 use crate::accel::bvh::MAX_DEPTH;
 use crate::camera::PRIMARY_TMAX;
-use crate::geometry::{FAR_WIDEN, MISS, PARALLEL_INV, RECIP_FLOOR};
+use crate::geometry::{FAR_WIDEN, MISS, PARALLEL_INV, RECIP_FLOOR, TIE_SLACK};
 use crate::layout::Layout;
 use crate::render::{Integrator, LightKind, MaterialKind};
 
 use super::bindings;
-use super::TEXEL_ROW;
+use super::{INCOMPLETE, TEXEL_ROW};
 
 /// Types, ray/box/triangle tests shared by every kernel.
 pub const COMMON: &str = include_str!("../../shaders/lib/common.wgsl");
@@ -35,9 +35,11 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
     use Shared::{F32, U32};
     let mut v = vec![
         ("MISS", U32(MISS)),                          // geometry::MISS
+        ("INCOMPLETE", U32(INCOMPLETE)),              // gpu::INCOMPLETE
         ("STACK_SIZE", U32(MAX_DEPTH as u32)),        // accel::bvh::MAX_DEPTH
         ("RECIP_FLOOR", F32(RECIP_FLOOR)),            // geometry::RECIP_FLOOR
         ("FAR_WIDEN", F32(FAR_WIDEN)),                // geometry::FAR_WIDEN
+        ("TIE_SLACK", F32(TIE_SLACK)),                // geometry::TIE_SLACK
         ("PARALLEL_INV", F32(PARALLEL_INV)),          // geometry::PARALLEL_INV
         ("BIG", F32(f32::MAX)),                       // the slab test's ±infinity stand-in
         ("TEXEL_ROW", U32(TEXEL_ROW)),                // gpu::TEXEL_ROW

@@ -14,6 +14,11 @@ use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, Robustness};
 use crate::layout::Layout;
 
+/// The prim the trace kernel reports for a ray whose traversal the driver cut short (see
+/// `traversal_done` in shaders/lib/traversal.wgsl); [`Tracer`](crate::Tracer) traces such
+/// rays again on the CPU twin. Never a triangle index: meshes hold fewer triangles.
+pub const INCOMPLETE: u32 = u32::MAX - 1;
+
 /// Rays per dispatch: ~10–20 ms on lavapipe, far less on a real GPU.
 const CHUNK: u32 = 1 << 18;
 /// Rays per batch at most (further bounded by the storage binding limit).

@@ -13,7 +13,9 @@
 //!    `node_word(i)` and triangles with `load_tri(i)` (`shaders/lib/traversal.wgsl`), testing
 //!    boxes with `slab_hit` and triangles with `intersect_tri` (`shaders/lib/common.wgsl`,
 //!    which honour the [`Robustness`](crate::geometry::Robustness) overrides), counting work
-//!    in `n_nodes`/`n_tris` when `COUNT_STATS`, and keeping the tie rule with `beats`.
+//!    in `n_nodes`/`n_tris` when `COUNT_STATS`, and keeping the tie rule: `beats` to accept a
+//!    hit, `prune_bound(best.t)` (never `best.t` itself) to cut boxes. It sets
+//!    `traversal_done` when it ends by itself (a driver may cut a long loop short).
 //!    WGSL names of its own start with the layout's name, so two layouts never collide.
 //! 3. `twin.rs`: `impl Accel` that runs the WGSL algorithm step for step in f32 — same
 //!    child order, same stack discipline, same tests in the same operation order — so the

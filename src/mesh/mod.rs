@@ -13,6 +13,7 @@ use crate::geometry::{Aabb, Triangle};
 /// Why a triangle is (not) in the BVH.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TriStatus {
+    /// Usable: it goes into the BVH.
     Ok,
     /// A vertex is NaN or infinite.
     NonFinite,
@@ -26,7 +27,9 @@ pub enum TriStatus {
 /// the reason each excluded one stays out of the BVH.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
+    /// The triangles, by triangle index (NaN placeholders for faces with bad indices).
     pub triangles: Vec<Triangle>,
+    /// Whether each triangle goes into the BVH, and why not; by triangle index.
     pub status: Vec<TriStatus>,
     /// Faces with fewer than 3 vertices: they have no triangle index.
     pub short_faces: usize,
@@ -43,10 +46,12 @@ impl Mesh {
         }
     }
 
+    /// Number of triangles, excluded ones included.
     pub fn len(&self) -> usize {
         self.triangles.len()
     }
 
+    /// Whether the mesh has no triangles at all (not even excluded ones).
     pub fn is_empty(&self) -> bool {
         self.triangles.is_empty()
     }
@@ -58,6 +63,7 @@ impl Mesh {
             .collect()
     }
 
+    /// Number of triangles with status `s`.
     pub fn count(&self, s: TriStatus) -> usize {
         self.status.iter().filter(|&&x| x == s).count()
     }

@@ -111,15 +111,20 @@ fn scan(path: &Path, src: &str) -> Result<Scan> {
 /// coordinates and material (index into `materials`, from the MTL files it names).
 #[derive(Clone, Debug, Default)]
 pub struct ObjScene {
+    /// The triangles in file order, each classified.
     pub mesh: Mesh,
     /// Texture coordinates of each triangle's corners (zero where the file gives none).
     pub uvs: Vec<[Vec2; 3]>,
+    /// Per triangle: index into `materials`, or None (no `usemtl`, or a placeholder).
     pub material_ids: Vec<Option<usize>>,
+    /// The materials of the MTL files the OBJ names (empty if they could not be read).
     pub materials: Vec<tobj::Material>,
     /// Why the MTL library could not be read, if it could not.
     pub mtl_error: Option<String>,
 }
 
+/// Loads every triangle of an OBJ file in file order (polygons fan-triangulated), without
+/// texture coordinates or materials.
 pub fn load_obj(path: &Path) -> Result<Mesh> {
     load_obj_scene(path).map(|s| s.mesh)
 }

@@ -23,70 +23,119 @@ const WORKGROUP: u32 = 64;
 const PARAMS_SIZE: u64 = std::mem::size_of::<RenderParams>() as u64;
 
 /// A triangle by original index, for shading (WGSL `Shade`).
+/// WGSL twin: `Shade` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuShade {
+    /// Vertex 0, scene space.
     pub v0: [f32; 3],
+    /// Index into the materials buffer ([`GpuMaterial`]).
     pub material: u32,
+    /// Vertex 1 (barycentric weight `u` of a hit).
     pub v1: [f32; 3],
+    /// Padding (zero).
     pub _pad1: u32,
+    /// Vertex 2 (barycentric weight `v` of a hit).
     pub v2: [f32; 3],
+    /// Padding (zero).
     pub _pad2: u32,
+    /// Texture coordinates of vertex 0.
     pub uv0: [f32; 2],
+    /// Texture coordinates of vertex 1.
     pub uv1: [f32; 2],
+    /// Texture coordinates of vertex 2.
     pub uv2: [f32; 2],
+    /// Padding (zero).
     pub _pad3: [u32; 2],
 }
 
 /// WGSL `Material`.
+/// WGSL twin: `Material` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuMaterial {
+    /// Linear RGB reflectance or transmittance tint; a texture, if any, replaces it.
     pub albedo: [f32; 3],
+    /// [`MaterialKind::code`](super::scene::MaterialKind::code): 0 diffuse, 1 mirror,
+    /// 2 glass, 3 emissive.
     pub kind: u32,
+    /// Emitted radiance, linear RGB (zero unless emissive).
     pub emission: [f32; 3],
+    /// Index of refraction (glass; 1 otherwise).
     pub ior: f32,
+    /// Index of the texture's first texel in the texel buffer (one `vec4` per texel).
     pub tex_offset: u32,
+    /// Texture width in texels (0 without a texture).
     pub tex_width: u32,
+    /// Texture height in texels (0 without a texture).
     pub tex_height: u32,
+    /// 1 if the material has a texture, else 0.
     pub has_tex: u32,
 }
 
 /// WGSL `Light`.
+/// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuLight {
+    /// Point: position. Directional: unit direction the light travels in.
     pub v: [f32; 3],
+    /// [`LightKind::code`]: 0 point, 1 directional.
     pub kind: u32,
+    /// Point: radiant intensity. Directional: irradiance. Linear RGB.
     pub power: [f32; 3],
+    /// Padding (zero).
     pub _pad: u32,
 }
 
 /// WGSL `Params` (uniform).
+/// WGSL twin: `Params` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct RenderParams {
+    /// Camera position.
     pub eye: [f32; 3],
+    /// Image width in pixels.
     pub width: u32,
+    /// Unit view direction.
     pub fwd: [f32; 3],
+    /// Image height in pixels.
     pub height: u32,
+    /// Camera right · half-width of the image plane at distance 1.
     pub right: [f32; 3],
+    /// 2 / width.
     pub inv_w2: f32,
+    /// Camera up · half-height of the image plane at distance 1.
     pub up: [f32; 3],
+    /// 2 / height.
     pub inv_h2: f32,
+    /// Radiance of rays that leave the scene, linear RGB.
     pub background: [f32; 3],
+    /// Random seed, hashed with the pixel and sample index.
     pub seed: u32,
+    /// Index of the sample this pass adds.
     pub sample: u32,
+    /// First pixel (row-major index) of this dispatch.
     pub offset: u32,
+    /// Pixels in this dispatch.
     pub count: u32,
+    /// Most bounces after the primary hit.
     pub max_bounces: u32,
+    /// [`Integrator::code`](super::scene::Integrator::code): 0 direct, 1 path, 2 AO.
     pub integrator: u32,
+    /// Point and directional lights in the lights buffer (which holds one more, zeroed).
     pub n_lights: u32,
+    /// Emissive triangles in the emitters buffer (which holds one more, zeroed).
     pub n_emitters: u32,
+    /// Total area of the emissive triangles (the last entry of the emitter CDF; 0 if none).
     pub emit_total: f32,
+    /// Ambient-occlusion ray length, scene units.
     pub ao_distance: f32,
+    /// Padding (zero).
     pub _pad0: u32,
+    /// Padding (zero).
     pub _pad1: u32,
+    /// Padding (zero).
     pub _pad2: u32,
 }
 
@@ -341,14 +390,17 @@ impl<'a> GpuRenderer<'a> {
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
-    /// The accumulated sums, one per pixel, row-major.
-    pub fn read_accum(&self) -> Result<Vec<Vec3>> {
+    /// The accumulated sums, one per pixel, row-major, and for each pixel the number of its
+    /// samples in which the driver cut a traversal short (those sums are wrong).
+    pub fn read_accum(&self) -> Result<(Vec<Vec3>, Vec<u32>)> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let size = self.chunks.items as u64 * 16;
         let readback = Readback::record(self.ctx, &mut enc, &[(&self.accum, size)]);
         self.ctx.queue.submit([enc.finish()]);
         let bytes = readback.read(self.ctx)?;
         let px: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
-        Ok(px.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect())
+        let sums = px.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+        let cut = px.iter().map(|p| p[3] as u32).collect();
+        Ok((sums, cut))
     }
 }

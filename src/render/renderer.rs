@@ -87,6 +87,10 @@ pub struct Rendered {
     pub effects: EffectSet,
     /// Seconds spent sampling.
     pub seconds: f64,
+    /// Pixels whose GPU samples the driver cut short (a loop-iteration cap, see
+    /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), rendered again on the CPU: they are the CPU
+    /// reference's, bit for bit.
+    pub cpu_pixels: usize,
 }
 
 /// A scene's BVH built, flattened and (on a GPU) uploaded with the render kernel.
@@ -219,8 +223,24 @@ impl<'a> Renderer<'a> {
                 "interrupted before the first sample finished: nothing to save".into(),
             ));
         }
+        let mut cpu_pixels = 0;
         if let Some(g) = &self.gpu {
-            accum = g.read_accum()?;
+            let (sums, cut) = g.read_accum()?;
+            accum = sums;
+            let redo: Vec<usize> = (0..cut.len()).filter(|&i| cut[i] > 0).collect();
+            if !redo.is_empty() {
+                log::warn!(
+                    "{} pixels needed more loop iterations than the GPU driver runs; \
+                     rendered them again on the CPU",
+                    redo.len()
+                );
+                let cpu = CpuRenderer::new(self.scene, self.layout.as_ref(), rob);
+                for &i in &redo {
+                    let (x, y) = (i as u32 % w, i as u32 / w);
+                    accum[i] = (0..done).fold(Vec3::ZERO, |a, s| a + cpu.sample(fx, seed, x, y, s));
+                }
+            }
+            cpu_pixels = redo.len();
         }
         let inv = 1.0 / done as f32;
         Ok(Rendered {
@@ -234,6 +254,7 @@ impl<'a> Renderer<'a> {
             stop,
             effects: fx,
             seconds,
+            cpu_pixels,
         })
     }
 }

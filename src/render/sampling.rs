@@ -16,10 +16,12 @@ pub fn pcg(v: u32) -> u32 {
 pub struct Rng(u32);
 
 impl Rng {
+    /// The stream of sample `sample` of pixel `pixel` (row-major index) under `seed`.
     pub fn new(seed: u32, pixel: u32, sample: u32) -> Rng {
         Rng(pcg(seed ^ pcg(pixel ^ pcg(sample))))
     }
 
+    /// Next value: the PCG hash of the previous one.
     pub fn next_u32(&mut self) -> u32 {
         self.0 = pcg(self.0);
         self.0

@@ -8,6 +8,7 @@ use crate::geometry::{Hit, Ray};
 
 const RAY_BYTES: usize = std::mem::size_of::<Ray>();
 
+/// Reads a ray file (32 little-endian bytes a ray); refuses a size not a multiple of 32.
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.len() % RAY_BYTES != 0 {
@@ -36,6 +37,7 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
         .collect())
 }
 
+/// Writes rays as a ray file (32 little-endian bytes a ray).
 pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
     let mut out = Vec::with_capacity(rays.len() * RAY_BYTES);
     for r in rays {
@@ -48,6 +50,7 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
     crate::output::write_bytes(path, &out)
 }
 
+/// Writes hits as a hit file (16 little-endian bytes a hit).
 pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
     let mut out = Vec::with_capacity(hits.len() * 16);
     for h in hits {
@@ -59,6 +62,7 @@ pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
     crate::output::write_bytes(path, &out)
 }
 
+/// Reads a hit file (16 little-endian bytes a hit); refuses a size not a multiple of 16.
 pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.len() % 16 != 0 {

@@ -9,7 +9,7 @@ use crate::accel::{Query, RayStats};
 use crate::device::Device;
 use crate::error::Result;
 use crate::geometry::{Hit, Ray, Robustness};
-use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel};
+use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel, INCOMPLETE};
 use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
 
@@ -52,6 +52,10 @@ pub struct TraceResult {
     pub stats: Option<Vec<RayStats>>,
     /// Wall time, and GPU time where the device measures it.
     pub timings: Timings,
+    /// Rays the GPU driver cut short (a loop-iteration cap, see
+    /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), traced again on the CPU twin: their hits
+    /// are the CPU's, bit for bit.
+    pub cpu_retraced: usize,
 }
 
 /// A mesh's BVH, flattened, on a device, ready to trace batches of rays.
@@ -117,11 +121,32 @@ impl<'d> Tracer<'d> {
                     stats: o.stats,
                     workgroup_size: o.workgroup_size,
                 };
-                let (hits, stats, timings) = gpu.trace(rays, kernel)?;
+                let (mut hits, mut stats, timings) = gpu.trace(rays, kernel)?;
+                let cut: Vec<usize> = (0..hits.len())
+                    .filter(|&i| hits[i].prim == INCOMPLETE)
+                    .collect();
+                if !cut.is_empty() {
+                    log::warn!(
+                        "{} of {} rays needed more loop iterations than the GPU driver runs; \
+                         traced them again on the CPU",
+                        cut.len(),
+                        rays.len()
+                    );
+                }
+                for &i in &cut {
+                    let mut s = RayStats::default();
+                    hits[i] = self
+                        .layout
+                        .intersect(&rays[i], query, &o.robustness, &mut s);
+                    if let Some(stats) = stats.as_mut() {
+                        stats[i] = s;
+                    }
+                }
                 Ok(TraceResult {
                     hits,
                     stats,
                     timings,
+                    cpu_retraced: cut.len(),
                 })
             }
             None => {
@@ -134,6 +159,7 @@ impl<'d> Tracer<'d> {
                         gpu_ms: None,
                         wall_ms: start.elapsed().as_secs_f64() * 1e3,
                     },
+                    cpu_retraced: 0,
                 })
             }
         }

@@ -2,6 +2,7 @@
 
 use super::tree::MAX_DEPTH;
 
+/// Which algorithm builds the BVH.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
@@ -15,8 +16,10 @@ pub enum Builder {
     Median,
 }
 
+/// How to build a BVH: the builder, the SAH cost constants, leaf and depth limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildOptions {
+    /// The build algorithm.
     pub builder: Builder,
     /// Cost of one box test; a split costs 2·t_cube (both children are tested).
     pub t_cube: f32,

@@ -9,16 +9,24 @@ pub const MAX_DEPTH: usize = 64;
 /// A built tree. Leaves refer to ranges of [`Bvh::order`].
 #[derive(Clone, Debug, PartialEq)]
 pub enum Node {
+    /// Triangles `order[start..start + count]`.
     Leaf {
+        /// Bounds of the leaf's triangles.
         bbox: Aabb,
+        /// First position in [`Bvh::order`].
         start: u32,
+        /// Number of triangles.
         count: u32,
     },
+    /// Two subtrees, split on `axis`.
     Inner {
+        /// Bounds of the subtree's triangles.
         bbox: Aabb,
+        /// Split axis: 0 = x, 1 = y, 2 = z.
         axis: u8,
         /// Nodes in this subtree, itself included: where flattening puts the second child.
         nodes: u32,
+        /// The low side of the split axis, then the high side.
         children: Box<[Node; 2]>,
     },
 }
@@ -41,6 +49,7 @@ impl Node {
         }
     }
 
+    /// Bounds of the triangles in this subtree.
     pub fn bbox(&self) -> &Aabb {
         match self {
             Node::Leaf { bbox, .. } | Node::Inner { bbox, .. } => bbox,
@@ -52,7 +61,9 @@ impl Node {
 /// at position i of leaf order (leaves appear left to right).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Bvh {
+    /// The root node.
     pub root: Node,
+    /// Original (file-order) triangle indices in leaf order; included triangles only.
     pub order: Vec<u32>,
 }
 

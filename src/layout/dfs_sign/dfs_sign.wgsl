@@ -19,6 +19,7 @@ fn dfs_load_node(i: u32) -> DfsNode {
 // An invalid ray (NaN, zero direction, empty interval) is a miss.
 fn traverse(r: Ray, any_hit: bool) -> Hit {
     var best = Hit(r.tmax, MISS, 0.0, 0.0);
+    traversal_done = !ray_is_valid(r);
     if COUNT_STATS {
         n_nodes = 0u;
         n_tris = 0u;
@@ -26,6 +27,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     if ray_is_valid(r) {
         let inv = safe_recip3(r.dir);
         let w = watertight_setup(r.dir);
+        // Boxes are cut against the best t plus a few ulps (prune_bound, as the twin does).
+        var prune = prune_bound(best.t);
         var stack: array<u32, STACK_SIZE>;
         var sp = 0u;
         var idx = 0u;
@@ -35,7 +38,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 n_nodes += 1u;
             }
             var descended = false;
-            if slab_hit(node.lo, node.hi, r.origin, inv, r.tmin, best.t) {
+            if slab_hit(node.lo, node.hi, r.origin, inv, r.tmin, prune) {
                 if (node.b & 3u) != DFS_LEAF_TAG {
                     var near = idx + 1u;
                     var far = node.a;
@@ -57,6 +60,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                         let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
                         if h.ok && beats(h.t, tri.prim, best.t, best.prim) {
                             best = Hit(h.t, tri.prim, h.u, h.v);
+                            prune = prune_bound(h.t);
                             if any_hit {
                                 // Empty the stack: the pop below ends the traversal.
                                 sp = 0u;
@@ -68,6 +72,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
             if !descended {
                 if sp == 0u {
+                    traversal_done = true;
                     break;
                 }
                 sp -= 1u;

@@ -8,7 +8,7 @@ use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle, Aabb, Hit, Ray, Robustness, WatertightRay, MISS, PARALLEL_INV,
+    intersect_triangle, prune_bound, Aabb, Hit, Ray, Robustness, WatertightRay, MISS, PARALLEL_INV,
 };
 
 impl Accel for DfsSign {
@@ -37,6 +37,9 @@ impl Accel for DfsSign {
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
         let wr = WatertightRay::new(ray.dir);
+        // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
+        // exactly the best t in a later box is still tested: equal t → smaller index.
+        let mut prune = prune_bound(best.t);
         let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut idx = 0usize;
@@ -53,7 +56,7 @@ impl Accel for DfsSign {
                     origin_a,
                     inv_a,
                     ray.tmin,
-                    best.t,
+                    prune,
                     widen,
                 )
             };
@@ -83,6 +86,7 @@ impl Accel for DfsSign {
                                 u,
                                 v,
                             };
+                            prune = prune_bound(t);
                             if query == Query::Any {
                                 return best;
                             }

@@ -16,17 +16,23 @@ use crate::error::{Error, Result};
 use crate::geometry::Triangle;
 use crate::mesh::{check_usable, classify, load_obj_scene, Mesh, ObjScene, TriStatus};
 
+/// A surface's material, as both renderers shade it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
+    /// How the surface reflects, refracts or emits.
     pub kind: MaterialKind,
     /// Linear RGB reflectance / transmittance tint.
     pub albedo: Vec3,
+    /// Emitted radiance, linear RGB (zero unless emissive).
     pub emission: Vec3,
+    /// Index of refraction (glass; 1 otherwise).
     pub ior: f32,
+    /// Index into [`RenderScene::textures`] of a diffuse texture, which replaces `albedo`.
     pub texture: Option<usize>,
 }
 
 impl Material {
+    /// An untextured diffuse material of linear RGB reflectance `albedo`.
     pub fn diffuse(albedo: Vec3) -> Material {
         Material {
             kind: MaterialKind::Diffuse,
@@ -41,42 +47,74 @@ impl Material {
 /// A texture in linear RGB, row 0 at the top (v = 1).
 #[derive(Clone, Debug)]
 pub struct Texture {
+    /// Width in texels.
     pub width: u32,
+    /// Height in texels.
     pub height: u32,
+    /// `width · height` texels, row-major from the top row.
     pub texels: Vec<Vec3>,
 }
 
+/// A point or directional light (area lights are the emissive triangles).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
     /// Radiant intensity from a point.
-    Point { position: Vec3, intensity: Vec3 },
+    Point {
+        /// Position, scene space.
+        position: Vec3,
+        /// Radiant intensity, linear RGB (falls off with 1/d²).
+        intensity: Vec3,
+    },
     /// Irradiance arriving along `direction` (unit, the way the light travels).
-    Directional { direction: Vec3, irradiance: Vec3 },
+    Directional {
+        /// Unit direction the light travels in.
+        direction: Vec3,
+        /// Irradiance on a surface facing the light, linear RGB.
+        irradiance: Vec3,
+    },
 }
 
+/// How to render: the scene file's `[render]` table, defaults filled in.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
+    /// The light transport algorithm.
     pub integrator: Integrator,
+    /// Most bounces after the primary hit (diffuse, mirror or glass).
     pub max_bounces: u32,
+    /// Samples per pixel (at least 1).
     pub spp: u32,
+    /// Random seed, hashed with the pixel and sample index.
     pub seed: u32,
+    /// Radiance of rays that leave the scene, linear RGB.
     pub background: Vec3,
+    /// Ambient-occlusion ray length, scene units; when not set (≤ 0), assembly makes it a
+    /// tenth of the scene's bounding-box diagonal.
     pub ao_distance: f32,
 }
 
+/// A scene ready to render: one mesh with per-triangle texture coordinates and materials,
+/// lights, and the emissive triangles that act as area lights.
 #[derive(Clone, Debug)]
 pub struct RenderScene {
+    /// The view and image size.
     pub camera: Camera,
+    /// Integrator and sampling settings.
     pub settings: Settings,
+    /// Every object's triangles: objects in file order, then file order within each.
     pub mesh: Mesh,
+    /// Texture coordinates of each triangle's vertices, by triangle index.
     pub uvs: Vec<[Vec2; 3]>,
     /// Material index of every triangle.
     pub material_of: Vec<u32>,
+    /// Distinct materials, indexed by `material_of`.
     pub materials: Vec<Material>,
+    /// Textures, indexed by [`Material::texture`].
     pub textures: Vec<Texture>,
+    /// Point and directional lights.
     pub lights: Vec<Light>,
     /// Emissive triangles in the BVH (area lights), with the running sum of their areas.
     pub emitters: Vec<u32>,
+    /// Running sum of the emitters' areas: `emitter_cdf[i]` = area of `emitters[..=i]`.
     pub emitter_cdf: Vec<f32>,
 }
 

@@ -10,6 +10,7 @@ use toml::Spanned;
 
 use crate::error::{Error, Result};
 
+/// The light transport algorithm (`[render] integrator`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
@@ -23,16 +24,22 @@ pub enum Integrator {
     Ao,
 }
 
+/// A parsed scene file, before its meshes, textures and names are resolved.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
+    /// `[camera]` (required).
     pub camera: CameraDef,
+    /// `[render]`: integrator and sampling; defaults when absent.
     #[serde(default)]
     pub render: RenderDef,
+    /// `[materials.NAME]`: named materials, with their source spans for error lines.
     #[serde(default)]
     pub materials: BTreeMap<String, Spanned<MaterialDef>>,
+    /// `[[objects]]`: meshes and shapes in file order, with their source spans.
     #[serde(default)]
     pub objects: Vec<Spanned<ObjectDef>>,
+    /// `[[lights]]`: point and directional lights, with their source spans.
     #[serde(default)]
     pub lights: Vec<Spanned<LightDef>>,
 }
@@ -83,12 +90,18 @@ impl Default for RenderDef {
     }
 }
 
+/// How a material scatters or emits light (a material's `type`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum MaterialKind {
+    /// Lambertian reflection of `albedo` (or of a texture).
     Diffuse,
+    /// Perfect specular reflection, tinted by `albedo`.
     Mirror,
+    /// Smooth dielectric of index `ior`: Fresnel-weighted reflection or refraction,
+    /// tinted by `albedo`.
     Glass,
+    /// Emits `emission` and reflects nothing; its triangles are area lights.
     Emissive,
 }
 
@@ -151,6 +164,7 @@ pub struct ObjectDef {
     pub segments: u32,
 }
 
+/// A light's `type`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LightKind {
