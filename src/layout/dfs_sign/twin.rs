@@ -8,7 +8,8 @@ use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle, prune_bound, Aabb, Hit, Ray, Robustness, WatertightRay, MISS, PARALLEL_INV,
+    intersect_triangle, prune_bound, Aabb, Hit, Ray, Robustness, TriangleTest, WatertightRay, MISS,
+    PARALLEL_INV,
 };
 
 impl Accel for DfsSign {
@@ -20,7 +21,26 @@ impl Accel for DfsSign {
         }
     }
 
+    #[inline]
     fn intersect(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        // One specialised loop per triangle test (the choice is not re-made per triangle).
+        match robustness.triangle_test {
+            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
+            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
+        }
+    }
+}
+
+impl DfsSign {
+    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    #[inline(always)]
+    fn walk<const MT: bool>(
         &self,
         ray: &Ray,
         query: Query,
@@ -31,7 +51,11 @@ impl Accel for DfsSign {
         if !ray.is_valid() {
             return best;
         }
-        let test = robustness.triangle_test;
+        let test = if MT {
+            TriangleTest::MollerTrumbore
+        } else {
+            TriangleTest::Watertight
+        };
         let widen = robustness.far_widen();
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
