@@ -44,7 +44,25 @@ impl Error {
         }
     }
 
-    /// An I/O error on `file`.
+    /// An input file that cannot be read (missing, a folder, no permission): exit code 2.
+    pub fn read(file: &Path, source: std::io::Error) -> Error {
+        Error::input(file, None, format!("cannot read: {source}"))
+    }
+
+    /// Text that must be UTF-8 but is not: names the line of the first bad byte.
+    pub fn not_utf8(file: &Path, bytes: &[u8], e: &std::str::Utf8Error) -> Error {
+        let at = e.valid_up_to();
+        let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+        Error::input(file, Some(line), "not UTF-8 text: save the file as UTF-8")
+    }
+
+    /// Reads a whole UTF-8 text file, with [`Error::read`] and [`Error::not_utf8`] errors.
+    pub fn read_text(file: &Path) -> Result<String> {
+        let bytes = std::fs::read(file).map_err(|e| Error::read(file, e))?;
+        String::from_utf8(bytes).map_err(|e| Error::not_utf8(file, e.as_bytes(), &e.utf8_error()))
+    }
+
+    /// An I/O error writing `file`: exit code 1.
     pub fn io(file: &Path, source: std::io::Error) -> Error {
         Error::Io {
             file: file.to_path_buf(),

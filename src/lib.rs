@@ -54,6 +54,7 @@ pub mod error;
 pub mod geometry;
 pub mod gpu;
 pub mod layout;
+pub mod limits;
 pub mod mesh;
 pub mod output;
 pub mod render;

@@ -1,6 +1,8 @@
-//! Writing outputs safely: every file is written to a temporary file in the same folder,
-//! flushed, then renamed over the target, so a failed or interrupted write never leaves a
-//! truncated file or destroys the old one.
+//! Writing outputs safely: an output path is checked before any long work (its folder exists
+//! and takes files, it is not a folder or a device, it is none of the inputs), and every
+//! file is written to a temporary file in the same folder, flushed, then renamed over the
+//! target, so a failed or interrupted write never leaves a truncated file or destroys the
+//! old one.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -42,4 +44,55 @@ fn temporary_path(path: &Path) -> PathBuf {
 /// Writes `bytes` to `path` atomically.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes))
+}
+
+/// Checks an output path before work starts: refuses (exit code 2) a path that exists but is
+/// not a regular file, one that is any of `inputs` (the same file, whatever the spelling), and
+/// one whose folder is missing or does not take new files.
+pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
+    let bad = |msg: String| Error::input(out, None, msg);
+    if let Ok(meta) = std::fs::metadata(out) {
+        if !meta.is_file() {
+            return Err(bad(
+                "exists and is not a regular file (a folder or a device): choose a file name"
+                    .into(),
+            ));
+        }
+        if let Some(input) = inputs.iter().find(|i| same_file(out, i)) {
+            return Err(bad(format!(
+                "is an input ({}): lancer never writes over its inputs; choose another name",
+                input.display()
+            )));
+        }
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(bad(format!(
+            "the folder {} does not exist: create it or choose another",
+            dir.display()
+        )));
+    }
+    let probe = temporary_path(out);
+    File::create(&probe)
+        .and_then(|_| std::fs::remove_file(&probe))
+        .map_err(|e| bad(format!("cannot write in {}: {e}", dir.display())))
+}
+
+/// Whether two paths name the same existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+        false
+    }
+    #[cfg(not(unix))]
+    {
+        matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
+    }
 }

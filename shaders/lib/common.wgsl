@@ -33,7 +33,9 @@ fn is_finite_bits(x: f32) -> bool {
 
 // Ray::is_valid
 fn ray_is_valid(r: Ray) -> bool {
-    let fin = is_finite_bits(r.origin.x) && is_finite_bits(r.origin.y) && is_finite_bits(r.origin.z)
+    let o = bitcast<vec3<u32>>(r.origin) & vec3<u32>(0x7fffffffu);
+    let near = o <= vec3<u32>(bitcast<u32>(MAX_COORD));
+    let fin = near.x && near.y && near.z
         && is_finite_bits(r.dir.x) && is_finite_bits(r.dir.y) && is_finite_bits(r.dir.z)
         && is_finite_bits(r.tmin);
     let tmax_ok = (bitcast<u32>(r.tmax) & 0x7fffffffu) <= 0x7f800000u;
@@ -172,6 +174,46 @@ fn intersect_tri(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, w: Waterti
         return intersect_moller_trumbore(v0, v1, v2, r, tmin, tmax);
     }
     return intersect_watertight(v0, v1, v2, r.origin, w, tmin, tmax);
+}
+
+// geometry::t_error_bound (pbrt-v4 §6.8.7): how far the exact t of a watertight hit may lie
+// beyond the computed one.
+fn gamma_f(n: f32) -> f32 {
+    return n * HALF_EPSILON / (1.0 - n * HALF_EPSILON);
+}
+
+fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>, w: Watertight) -> f32 {
+    var verts = array<vec3<f32>, 3>(v0 - origin, v1 - origin, v2 - origin);
+    var sx = array<f32, 3>(0.0, 0.0, 0.0);
+    var sy = array<f32, 3>(0.0, 0.0, 0.0);
+    var mx = 0.0;
+    var my = 0.0;
+    var mz = 0.0;
+    for (var i = 0; i < 3; i += 1) {
+        let a = verts[i];
+        let x = a[w.kx] - w.s.x * a[w.kz];
+        let y = a[w.ky] - w.s.y * a[w.kz];
+        let z = w.s.z * a[w.kz];
+        mx = max(mx, abs(x));
+        my = max(my, abs(y));
+        mz = max(mz, abs(z));
+        sx[i] = x;
+        sy[i] = y;
+    }
+    let u = sx[2] * sy[1] - sy[2] * sx[1];
+    let v = sx[0] * sy[2] - sy[0] * sx[2];
+    let ww = sx[1] * sy[0] - sy[1] * sx[0];
+    let det = abs(u + v + ww);
+    let me = max(max(abs(u), abs(v)), abs(ww));
+    let dz = gamma_f(3.0) * mz;
+    let dx = gamma_f(5.0) * (mx + mz);
+    let dy = gamma_f(5.0) * (my + mz);
+    let de = 2.0 * (gamma_f(2.0) * mx * my + dy * mx + dx * my);
+    let num = 3.0 * (gamma_f(3.0) * me * mz + de * mz + dz * me);
+    if num * 1e-30 >= det {
+        return 1e30;
+    }
+    return num / det;
 }
 
 // geometry::prune_bound: the best t grown by TIE_SLACK of its magnitude, never past BIG.

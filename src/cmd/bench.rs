@@ -31,16 +31,18 @@ enum BenchWhat {
 struct BenchTrace {
     /// OBJ mesh.
     mesh: PathBuf,
-    #[arg(long, default_value_t = 1024)]
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     width: u32,
-    #[arg(long, default_value_t = 1024)]
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
     /// auto and gpu measure the GPU kernels and the CPU tracer side by side; cpu only the CPU.
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// Timed runs per configuration (the median is reported).
-    #[arg(long, default_value_t = 3)]
-    repeat: usize,
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+    repeat: u64,
     #[command(flatten)]
     build: BuildArgs,
 }
@@ -66,6 +68,12 @@ fn nodes_per_ray(s: &[RayStats]) -> f64 {
 impl BenchTrace {
     fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
+        lancer::limits::check_image(
+            self.width,
+            self.height,
+            200,
+            "use a smaller --width/--height",
+        )?;
         let build_options = self.build.options();
         let layout: Arc<dyn Layout> =
             flatten(self.build.layout, &build(&mesh, &build_options), &mesh).into();
@@ -89,7 +97,7 @@ impl BenchTrace {
                 .collect()
         };
         let gpu_runs = memories.len() * gpu_configs.len();
-        let repeat = self.repeat.max(1);
+        let repeat = self.repeat as usize;
         let bar = ProgressBar::new((sets.len() * (1 + gpu_runs) * repeat) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}").unwrap());
         let mut rows = Vec::new();

@@ -14,9 +14,11 @@ pub struct HeatmapCmd {
     /// Output PNG.
     #[arg(short, long)]
     out: PathBuf,
-    #[arg(long, default_value_t = 512)]
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
     width: u32,
-    #[arg(long, default_value_t = 512)]
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
     #[command(flatten)]
     device: DeviceArgs,
@@ -54,7 +56,10 @@ impl HeatmapCmd {
             ));
         }
         let mesh = load_mesh(&self.mesh)?;
-        let (w, h) = (self.width.max(1), self.height.max(1));
+        lancer::output::check_output(&self.out, &mesh.sources)?;
+        let (w, h) = (self.width, self.height);
+        // Rays, hits, statistics and the image: about 80 bytes a pixel.
+        lancer::limits::check_image(w, h, 80, "use a smaller --width/--height")?;
         let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
         let device = self.device.open()?;
         let options = TracerOptions {

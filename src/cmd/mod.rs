@@ -59,11 +59,11 @@ pub struct BuildArgs {
     /// Largest leaf; bigger nodes are always split.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     max_leaf: u32,
-    /// SAH cost of one box test.
-    #[arg(long, default_value_t = 1.0)]
+    /// SAH cost of one box test (finite, > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
     t_cube: f32,
-    /// SAH cost of one triangle test.
-    #[arg(long, default_value_t = 1.0)]
+    /// SAH cost of one triangle test (finite, > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
     t_obj: f32,
     /// Flattened BVH layout (GPU arrays and their CPU twin).
     #[arg(long, value_enum, default_value_t = LayoutKind::default())]
@@ -139,6 +139,15 @@ impl RobustnessArgs {
             checked_module: !self.trusted,
             ..Robustness::default()
         }
+    }
+}
+
+/// A finite number above zero.
+fn positive_finite(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        Ok(x) => Err(format!("{x} is not a finite number above 0")),
+        Err(e) => Err(e.to_string()),
     }
 }
 

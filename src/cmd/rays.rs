@@ -10,9 +10,11 @@ use lancer::Result;
 pub struct RaysCmd {
     /// OBJ mesh whose default view is used.
     mesh: PathBuf,
-    #[arg(long, default_value_t = 512)]
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
     width: u32,
-    #[arg(long, default_value_t = 512)]
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
     /// Output ray file.
     #[arg(short, long)]
@@ -22,7 +24,15 @@ pub struct RaysCmd {
 impl RaysCmd {
     pub fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
-        let cam = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1));
+        lancer::output::check_output(&self.out, &mesh.sources)?;
+        // The rays in memory and their bytes on the way out: 64 bytes a ray.
+        lancer::limits::check_image(
+            self.width,
+            self.height,
+            64,
+            "use a smaller --width/--height",
+        )?;
+        let cam = Camera::default_view(&mesh.bounds(), self.width, self.height);
         let rays = cam.primary_rays();
         write_rays(&self.out, &rays)?;
         println!("{} rays written to {}", rays.len(), self.out.display());

@@ -82,6 +82,7 @@ impl RenderCmd {
             t => t.map(Duration::from_secs_f64),
         };
         let scene = load_scene(&self.scene, self.width, self.height)?;
+        lancer::output::check_output(&self.out, &scene.mesh.sources)?;
         let device = self.device.open()?;
         let cancel = Arc::new(AtomicBool::new(false));
         {

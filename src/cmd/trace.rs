@@ -37,6 +37,9 @@ pub struct TraceCmd {
 impl TraceCmd {
     pub fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
+        let mut inputs = mesh.sources.clone();
+        inputs.push(self.rays.clone());
+        lancer::output::check_output(&self.out, &inputs)?;
         let rays = read_rays(&self.rays)?;
         let device = self.device.open()?;
         let options = TracerOptions {

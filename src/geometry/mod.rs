@@ -12,6 +12,6 @@ pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{prune_bound, RayOffset, Robustness, SlabTest, TIE_SLACK};
 pub use triangle::{
-    intersect_moller_trumbore, intersect_triangle, intersect_watertight, Triangle, TriangleTest,
-    WatertightRay,
+    intersect_moller_trumbore, intersect_triangle, intersect_watertight, t_error_bound, Triangle,
+    TriangleTest, WatertightRay,
 };

@@ -4,10 +4,12 @@
 
 use super::TriangleTest;
 
-/// Relative slack on the best hit's t when boxes are pruned against it (2⁻²⁰, about 8 ulps).
-/// A box's entry distance and a triangle's t are computed by different operations and round
-/// differently, so a box holding a triangle at exactly the best t can compute an entry a few
-/// ulps beyond it; cutting that box would let traversal order, not the index, decide a tie.
+/// Relative slack on the best hit's t when boxes are pruned against it (2⁻²⁰, about 8 ulps,
+/// more than the slab test's own rounding). A box's entry distance and a triangle's t are
+/// computed by different operations and round differently, so a box holding a triangle at
+/// exactly the best t can compute an entry beyond it; cutting that box would let traversal
+/// order, not the index, decide a tie. Traversals cut against
+/// `prune_bound(t + t_error_bound(…))`: the triangle's own error bound, then this slack.
 pub const TIE_SLACK: f32 = 1.0 / 1_048_576.0;
 
 /// The bound boxes are tested against while the best hit is at `best_t`: `best_t` grown by

@@ -180,3 +180,47 @@ pub fn intersect_triangle(
         TriangleTest::MollerTrumbore => intersect_moller_trumbore(tri, ray, tmin, tmax),
     }
 }
+
+/// γ(n) = n·ε / (1 − n·ε), ε = 2⁻²⁴: the relative error bound of n f32 operations.
+const fn gamma(n: f32) -> f32 {
+    n * f32::EPSILON * 0.5 / (1.0 - n * f32::EPSILON * 0.5)
+}
+
+/// A bound on the error of the t the watertight test computes for this triangle and ray
+/// (the derivation of pbrt-v4, §6.8.7): how far the exact t may lie beyond it. Grazing rays
+/// make it large. Traversals add it to the best t before cutting boxes, so the box holding a
+/// triangle at the same exact t is never cut (the tie rule). WGSL `t_error_bound` is the
+/// same, operation for operation.
+#[inline]
+pub fn t_error_bound(tri: &Triangle, origin: Vec3, wr: &WatertightRay) -> f32 {
+    let [kx, ky, kz] = wr.k;
+    let (mut mx, mut my, mut mz) = (0.0f32, 0.0f32, 0.0f32);
+    let mut sheared = [(0.0f32, 0.0f32); 3];
+    for (i, v) in tri.v.iter().enumerate() {
+        let a = *v - origin;
+        let x = a[kx] - wr.s.x * a[kz];
+        let y = a[ky] - wr.s.y * a[kz];
+        let z = wr.s.z * a[kz];
+        mx = mx.max(x.abs());
+        my = my.max(y.abs());
+        mz = mz.max(z.abs());
+        sheared[i] = (x, y);
+    }
+    let [(ax, ay), (bx, by), (cx, cy)] = sheared;
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let det = (u + v + w).abs();
+    let me = u.abs().max(v.abs()).max(w.abs());
+    let dz = gamma(3.0) * mz;
+    let dx = gamma(5.0) * (mx + mz);
+    let dy = gamma(5.0) * (my + mz);
+    let de = 2.0 * (gamma(2.0) * mx * my + dy * mx + dx * my);
+    let num = 3.0 * (gamma(3.0) * me * mz + de * mz + dz * me);
+    // No infinity: a bound past 1e30 is as good as none.
+    if num * 1e-30 >= det {
+        1e30
+    } else {
+        num / det
+    }
+}

@@ -40,7 +40,9 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("RECIP_FLOOR", F32(RECIP_FLOOR)),            // geometry::RECIP_FLOOR
         ("FAR_WIDEN", F32(FAR_WIDEN)),                // geometry::FAR_WIDEN
         ("TIE_SLACK", F32(TIE_SLACK)),                // geometry::TIE_SLACK
+        ("HALF_EPSILON", F32(f32::EPSILON * 0.5)),    // 2⁻²⁴, in geometry::triangle's gamma
         ("PARALLEL_INV", F32(PARALLEL_INV)),          // geometry::PARALLEL_INV
+        ("MAX_COORD", F32(crate::limits::MAX_COORD)), // limits::MAX_COORD
         ("BIG", F32(f32::MAX)),                       // the slab test's ±infinity stand-in
         ("TEXEL_ROW", U32(TEXEL_ROW)),                // gpu::TEXEL_ROW
         ("PRIMARY_TMAX", F32(PRIMARY_TMAX)),          // camera::PRIMARY_TMAX

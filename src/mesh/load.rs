@@ -24,6 +24,18 @@ pub fn check_usable(path: &Path, mesh: &Mesh) -> Result<()> {
     if let Some(s) = mesh.exclusion_summary() {
         log::warn!("{}: {s}", path.display());
     }
+    let extent = mesh.bounds().extent().length();
+    if !mesh.included().is_empty() && extent < crate::limits::MIN_EXTENT {
+        return Err(Error::input(
+            path,
+            None,
+            format!(
+                "the mesh is {extent:e} across; lancer traces meshes at least {:e} across \
+                 (f32 intersection arithmetic underflows below): scale it up",
+                crate::limits::MIN_EXTENT
+            ),
+        ));
+    }
     if mesh.included().is_empty() {
         return Err(Error::input(
             path,

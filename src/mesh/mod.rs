@@ -1,6 +1,7 @@
 //! Meshes: triangles in file order from OBJ/MTL (tobj), each classified (usable or why not).
 
 mod load;
+mod mtl;
 mod obj;
 
 pub use load::{check_usable, load_mesh};
@@ -21,6 +22,9 @@ pub enum TriStatus {
     Degenerate,
     /// A face index points at no vertex (placeholder keeps later indices in file order).
     OutOfRange,
+    /// A vertex coordinate beyond ±[`MAX_COORD`](crate::limits::MAX_COORD), where f32
+    /// intersection arithmetic overflows.
+    TooFar,
 }
 
 /// Triangles in file order (index = the triangle index every API and file reports), with
@@ -33,6 +37,9 @@ pub struct Mesh {
     pub status: Vec<TriStatus>,
     /// Faces with fewer than 3 vertices: they have no triangle index.
     pub short_faces: usize,
+    /// The files the mesh was read from (the OBJ and the MTL libraries it names); outputs
+    /// may not overwrite them. Empty for meshes made in memory.
+    pub sources: Vec<std::path::PathBuf>,
 }
 
 impl Mesh {
@@ -43,6 +50,7 @@ impl Mesh {
             triangles,
             status,
             short_faces: 0,
+            sources: Vec::new(),
         }
     }
 
@@ -78,6 +86,10 @@ impl Mesh {
                 "with out-of-range indices",
             ),
             (self.short_faces, "faces with fewer than 3 vertices"),
+            (
+                self.count(TriStatus::TooFar),
+                "with a coordinate beyond ±1e12 (the supported range)",
+            ),
         ]
         .iter()
         .filter(|(n, _)| *n > 0)
@@ -99,6 +111,12 @@ impl Mesh {
 pub(crate) fn classify(t: &Triangle) -> TriStatus {
     if !t.is_finite() {
         TriStatus::NonFinite
+    } else if t
+        .v
+        .iter()
+        .any(|p| p.abs().max_element() > crate::limits::MAX_COORD)
+    {
+        TriStatus::TooFar
     } else if t.is_degenerate() {
         TriStatus::Degenerate
     } else {

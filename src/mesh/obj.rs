@@ -2,11 +2,12 @@
 //! number (bad numbers, bad indices) and faces whose vertex index points nowhere; the latter
 //! are commented out for tobj and replaced by placeholders so numbering stays in file order.
 
-use std::path::Path;
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::{classify, placeholder, Mesh, TriStatus};
+use super::{classify, mtl, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
 
@@ -131,9 +132,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
 
 /// Loads an OBJ file with its texture coordinates and MTL materials.
 pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
-    let src = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let src = String::from_utf8(src)
-        .map_err(|e| Error::input(path, None, format!("not UTF-8 text ({e})")))?;
+    let src = Error::read_text(path)?;
     let scan = scan(path, &src)?;
     let opts = tobj::LoadOptions {
         single_index: false,
@@ -142,10 +141,29 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
         ignore_lines: true,
     };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let (models, materials) = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
-        tobj::load_mtl(dir.join(p))
-    })
-    .map_err(|e| Error::input(path, None, format!("OBJ parse error: {e}")))?;
+    // The MTL libraries the OBJ names, whether each could be read, and the first bad number.
+    let mtl_files: RefCell<Vec<PathBuf>> = RefCell::new(Vec::new());
+    let mtl_unread: RefCell<Option<String>> = RefCell::new(None);
+    let mtl_bad: RefCell<Option<Error>> = RefCell::new(None);
+    let loaded = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
+        let file = dir.join(p);
+        mtl_files.borrow_mut().push(file.clone());
+        match std::fs::metadata(&file) {
+            Ok(m) if m.is_file() => {
+                if let Err(e) = mtl::check(&file) {
+                    mtl_bad.borrow_mut().get_or_insert(e);
+                }
+            }
+            Ok(_) => *mtl_unread.borrow_mut() = Some(format!("{}: not a file", file.display())),
+            Err(e) => *mtl_unread.borrow_mut() = Some(format!("{}: {e}", file.display())),
+        }
+        tobj::load_mtl(&file)
+    });
+    if let Some(e) = mtl_bad.into_inner() {
+        return Err(e);
+    }
+    let (models, materials) =
+        loaded.map_err(|e| Error::input(path, None, format!("OBJ parse error: {e}")))?;
 
     let mut triangles = Vec::new();
     let mut status = Vec::new();
@@ -194,17 +212,46 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
     fill(&mut triangles, &mut status, &mut uvs, &mut material_ids);
     let (materials, mtl_error) = match materials {
         Ok(m) => (m, None),
-        Err(e) => (Vec::new(), Some(e.to_string())),
+        Err(e) => (
+            Vec::new(),
+            Some(mtl_unread.into_inner().unwrap_or_else(|| e.to_string())),
+        ),
     };
+    if mtl_error.is_none() {
+        warn_unknown_usemtl(path, &src, &materials);
+    }
+    let mut sources = vec![path.to_path_buf()];
+    sources.extend(mtl_files.into_inner());
     Ok(ObjScene {
         mesh: Mesh {
             triangles,
             status,
             short_faces: scan.short_faces,
+            sources,
         },
         uvs,
         material_ids,
         materials,
         mtl_error,
     })
+}
+
+/// Warns, with the OBJ's file and line, about each `usemtl` that names no material of the
+/// libraries read (tobj leaves those faces without a material: they render grey).
+fn warn_unknown_usemtl(path: &Path, src: &str, materials: &[tobj::Material]) {
+    for (i, line) in src.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("usemtl") {
+            continue;
+        }
+        let name = words.collect::<Vec<_>>().join(" ");
+        if !materials.iter().any(|m| m.name == name) {
+            log::warn!(
+                "{}:{}: usemtl {name}: no material of that name in the MTL library; its \
+                 faces are grey",
+                path.display(),
+                i + 1
+            );
+        }
+    }
 }

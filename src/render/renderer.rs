@@ -110,6 +110,9 @@ impl<'a> Renderer<'a> {
         device: &'a Device,
         options: &RenderOptions,
     ) -> Result<Self> {
+        // Accumulator, image and encoding: about 48 bytes a pixel on either device.
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        crate::limits::check_image(w, h, 48, "use a smaller --width/--height")?;
         let start = Instant::now();
         let tree = bvh::build(&scene.mesh, &options.build);
         let layout = layout::flatten(options.layout, &tree, &scene.mesh);

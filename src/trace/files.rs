@@ -10,7 +10,21 @@ const RAY_BYTES: usize = std::mem::size_of::<Ray>();
 
 /// Reads a ray file (32 little-endian bytes a ray); refuses a size not a multiple of 32.
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let rays = read_ray_bytes(path)?;
+    let invalid = rays.iter().filter(|r| !r.is_valid()).count();
+    if invalid > 0 {
+        log::warn!(
+            "{}: {invalid} of {} rays are invalid (NaN/Inf, an origin beyond ±1e12, a zero \
+             direction or an empty interval); they are reported as misses",
+            path.display(),
+            rays.len()
+        );
+    }
+    Ok(rays)
+}
+
+fn read_ray_bytes(path: &Path) -> Result<Vec<Ray>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
     if bytes.len() % RAY_BYTES != 0 {
         return Err(Error::input(
             path,
@@ -64,7 +78,7 @@ pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
 
 /// Reads a hit file (16 little-endian bytes a hit); refuses a size not a multiple of 16.
 pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
     if bytes.len() % 16 != 0 {
         return Err(Error::input(
             path,

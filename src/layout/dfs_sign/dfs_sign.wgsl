@@ -60,7 +60,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                         let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
                         if h.ok && beats(h.t, tri.prim, best.t, best.prim) {
                             best = Hit(h.t, tri.prim, h.u, h.v);
-                            prune = prune_bound(h.t);
+                            prune = prune_bound(h.t + t_error_bound(tri.v0, tri.v1, tri.v2, r.origin, w));
                             if any_hit {
                                 // Empty the stack: the pop below ends the traversal.
                                 sp = 0u;

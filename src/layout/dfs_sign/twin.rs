@@ -8,8 +8,8 @@ use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle, prune_bound, Aabb, Hit, Ray, Robustness, TriangleTest, WatertightRay, MISS,
-    PARALLEL_INV,
+    intersect_triangle, prune_bound, t_error_bound, Aabb, Hit, Ray, Robustness, TriangleTest,
+    WatertightRay, MISS, PARALLEL_INV,
 };
 
 impl Accel for DfsSign {
@@ -110,7 +110,7 @@ impl DfsSign {
                                 u,
                                 v,
                             };
-                            prune = prune_bound(t);
+                            prune = prune_bound(t + t_error_bound(&tri, ray.origin, &wr));
                             if query == Query::Any {
                                 return best;
                             }

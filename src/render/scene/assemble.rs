@@ -154,6 +154,8 @@ struct Builder {
     textures: Vec<Texture>,
     texture_ids: HashMap<PathBuf, usize>,
     short_faces: usize,
+    /// Every file read: the scene, meshes, MTL libraries, textures.
+    sources: Vec<PathBuf>,
 }
 
 impl Builder {
@@ -162,6 +164,7 @@ impl Builder {
             return Ok(i);
         }
         let t = load_texture(path)?;
+        self.sources.push(path.to_path_buf());
         self.textures.push(t);
         self.texture_ids
             .insert(path.to_path_buf(), self.textures.len() - 1);
@@ -205,6 +208,7 @@ impl Builder {
             self.push(t, obj.mesh.status[i], obj.uvs[i], id);
         }
         self.short_faces += obj.mesh.short_faces;
+        self.sources.extend(obj.mesh.sources.iter().cloned());
         Ok(())
     }
 
@@ -237,7 +241,8 @@ impl Builder {
 /// Material from an MTL entry: Kd (or map_Kd) diffuse, Ke emissive, illum 5 mirror,
 /// illum 7 glass with Ni.
 fn mtl_material(b: &mut Builder, dir: &Path, m: &tobj::Material) -> Result<Material> {
-    let kd = Vec3::from(m.diffuse.unwrap_or([0.7; 3]));
+    // Above 1 is clamped (mtl::check warned with the MTL's line).
+    let kd = Vec3::from(m.diffuse.unwrap_or([0.7; 3])).min(Vec3::ONE);
     let ke = Vec3::from(m.emissive.unwrap_or([0.0; 3]));
     let mut mat = Material::diffuse(kd);
     if ke.max_element() > 0.0 {
@@ -251,7 +256,14 @@ fn mtl_material(b: &mut Builder, dir: &Path, m: &tobj::Material) -> Result<Mater
         mat.albedo = Vec3::ONE;
         mat.ior = m.optical_density.unwrap_or(1.5);
     } else if let Some(t) = &m.diffuse_texture {
-        mat.texture = Some(b.texture(&dir.join(t))?);
+        let file = dir.join(t);
+        mat.texture = Some(b.texture(&file).map_err(|e| {
+            Error::input(
+                &file,
+                None,
+                format!("map_Kd of MTL material '{}': {}", m.name, error_message(&e)),
+            )
+        })?);
     }
     Ok(mat)
 }
@@ -312,6 +324,13 @@ fn scene_material(
     )?;
     if let Some(a) = d.albedo {
         m.albedo = check_rgb(path, line, "albedo", a)?;
+        if m.albedo.max_element() > 1.0 {
+            log::warn!(
+                "{}:{line}: albedo {a:?} reflects more light than arrives; clamped to 1",
+                path.display()
+            );
+            m.albedo = m.albedo.min(Vec3::ONE);
+        }
     } else if d.kind == MaterialKind::Diffuse && d.texture.is_none() {
         m.albedo = Vec3::splat(0.7);
     }
@@ -331,7 +350,14 @@ fn scene_material(
         _ => {}
     }
     if let Some(t) = &d.texture {
-        m.texture = Some(b.texture(&dir.join(t))?);
+        let file = dir.join(t);
+        m.texture = Some(b.texture(&file).map_err(|e| {
+            Error::input(
+                path,
+                Some(line),
+                format!("texture {}: {}", file.display(), error_message(&e)),
+            )
+        })?);
     }
     Ok(m)
 }
@@ -339,11 +365,12 @@ fn scene_material(
 impl RenderScene {
     /// Reads a TOML scene file and everything it names.
     pub fn from_file(path: &Path) -> Result<RenderScene> {
-        let src = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let src = Error::read_text(path)?;
         let f = SceneFile::parse(path, &src)?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let line = |span: std::ops::Range<usize>| line_of(&src, span.start);
         let mut b = Builder::default();
+        b.sources.push(path.to_path_buf());
 
         let mut named = HashMap::new();
         for (name, d) in &f.materials {
@@ -371,6 +398,17 @@ impl RenderScene {
                 ),
                 None => None,
             };
+            let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+            let scale_ok = match o.scale {
+                Scale::Uniform(s) => s.is_finite() && s != 0.0,
+                Scale::Axes(a) => finite(&a) && a.iter().all(|&x| x != 0.0),
+            };
+            if !scale_ok {
+                return Err(bad("'scale' must be finite and non-zero".into()));
+            }
+            if !finite(&o.rotate) || !finite(&o.translate) {
+                return Err(bad("'rotate' and 'translate' must be finite numbers".into()));
+            }
             let (m, t) = transform(o);
             let xf = |p: Vec3| m * p + t;
             match (&o.mesh, o.shape) {
@@ -383,7 +421,30 @@ impl RenderScene {
                     let shape = match shape {
                         super::file::Shape::Quad => shapes::quad(),
                         super::file::Shape::Box => shapes::cube(),
-                        super::file::Shape::Sphere => shapes::sphere(o.segments),
+                        super::file::Shape::Sphere => {
+                            if o.segments < 3 {
+                                return Err(bad(format!(
+                                    "'segments' must be at least 3, got {}",
+                                    o.segments
+                                )));
+                            }
+                            // segments² triangles, ~256 bytes each through the BVH build.
+                            let tris = o.segments as u128 * o.segments as u128;
+                            if tris >= u32::MAX as u128 / 2 {
+                                return Err(bad(format!(
+                                    "'segments' {} makes {tris} triangles, more than lancer \
+                                     indexes: use fewer",
+                                    o.segments
+                                )));
+                            }
+                            crate::limits::check_memory(
+                                &format!("a sphere of {} segments ({tris} triangles)", o.segments),
+                                tris * 256,
+                                "use fewer segments",
+                            )
+                            .map_err(|e| bad(error_message(&e)))?;
+                            shapes::sphere(o.segments)
+                        }
                     };
                     b.add_shape(shape, mat.unwrap_or(grey), xf);
                 }
@@ -400,7 +461,14 @@ impl RenderScene {
             let ln = line(l.span());
             let l = l.get_ref();
             let bad = |msg: &str| Error::input(path, Some(ln), msg.to_string());
-            let power = check_rgb(path, ln, "color", l.color)? * l.intensity.max(0.0);
+            if !(l.intensity.is_finite() && l.intensity >= 0.0) {
+                return Err(bad("'intensity' must be a finite number ≥ 0"));
+            }
+            let finite = |v: Option<[f32; 3]>| v.is_none_or(|v| v.iter().all(|x| x.is_finite()));
+            if !finite(l.position) || !finite(l.direction) {
+                return Err(bad("'position' and 'direction' must be finite numbers"));
+            }
+            let power = check_rgb(path, ln, "color", l.color)? * l.intensity;
             lights.push(match l.kind {
                 LightKind::Point => Light::Point {
                     position: Vec3::from(
@@ -434,11 +502,22 @@ impl RenderScene {
                 "camera: width and height must be positive and fov in (0, 180) degrees",
             ));
         }
-        if Vec3::from(c.position) == Vec3::from(c.look_at) {
-            return Err(Error::input(
-                path,
-                Some(ln),
-                "camera: position equals look_at",
+        let cam_bad = |msg: &str| Error::input(path, Some(ln), format!("camera: {msg}"));
+        let all_finite = [c.position, c.look_at, c.up]
+            .iter()
+            .all(|v| v.iter().all(|x| x.is_finite()));
+        if !all_finite {
+            return Err(cam_bad("position, look_at and up must be finite numbers"));
+        }
+        let view = Vec3::from(c.look_at) - Vec3::from(c.position);
+        if view == Vec3::ZERO {
+            return Err(cam_bad("position equals look_at"));
+        }
+        let up = Vec3::from(c.up);
+        // The basis is right = view × up: it needs an up that is not along the view.
+        if view.normalize().cross(up.normalize_or_zero()).length() < 1e-4 {
+            return Err(cam_bad(
+                "up is zero or parallel to the view direction: give an up across the view",
             ));
         }
         let camera = Camera {
@@ -450,12 +529,27 @@ impl RenderScene {
             height: c.height,
         };
         let r = &f.render;
+        let rln = line_of(&src, src.find("[render]").unwrap_or(0));
+        if r.spp == 0 {
+            return Err(Error::input(
+                path,
+                Some(rln),
+                "render: spp must be at least 1",
+            ));
+        }
+        if let Some(d) = r.ao_distance.filter(|d| !(d.is_finite() && *d > 0.0)) {
+            return Err(Error::input(
+                path,
+                Some(rln),
+                format!("render: ao_distance must be a positive distance, got {d}"),
+            ));
+        }
         let settings = Settings {
             integrator: r.integrator,
             max_bounces: r.max_bounces,
-            spp: r.spp.max(1),
+            spp: r.spp,
             seed: r.seed,
-            background: check_rgb(path, 1, "background", r.background)?,
+            background: check_rgb(path, rln, "background", r.background)?,
             ao_distance: r.ao_distance.unwrap_or(0.0),
         };
         b.finish(path, camera, settings, lights)
@@ -504,6 +598,7 @@ impl Builder {
             triangles: self.triangles,
             status: self.status,
             short_faces: self.short_faces,
+            sources: self.sources,
         };
         check_usable(path, &mesh)?;
         if settings.ao_distance <= 0.0 {
@@ -532,5 +627,13 @@ impl Builder {
             emitters,
             emitter_cdf,
         })
+    }
+}
+
+/// The message of an error without the file prefix it carries, to re-attach elsewhere.
+fn error_message(e: &Error) -> String {
+    match e {
+        Error::Input { msg, .. } => msg.clone(),
+        other => other.to_string(),
     }
 }

@@ -1,0 +1,56 @@
+//! Sizes that would not fit are refused up front, naming the size and the limit, instead of
+//! ending in an allocation abort minutes later.
+
+use crate::error::{Error, Result};
+use crate::gpu::human_bytes;
+
+/// The largest coordinate magnitude lancer traces correctly: the watertight test forms
+/// products of three coordinates (relative to the ray origin), which must stay below
+/// f32::MAX ≈ 3.4e38; vertices beyond ±1e12 are left out of the BVH and counted.
+pub const MAX_COORD: f32 = 1e12;
+
+/// The smallest mesh (bounding-box diagonal) lancer traces correctly from its default view:
+/// below it those products fall below f32's normal range and hits are lost.
+pub const MIN_EXTENT: f32 = 1e-12;
+
+/// Memory this process may still allocate: `MemAvailable` on Linux, None where unknown.
+pub fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses work that needs `bytes` of memory (what for, in `what`) when that is more than the
+/// machine has available; `hint` says what to do instead.
+pub fn check_memory(what: &str, bytes: u128, hint: &str) -> Result<()> {
+    let Some(available) = available_memory() else {
+        return Ok(());
+    };
+    if bytes > available as u128 {
+        let need = u64::try_from(bytes).map_or("more than 16 EiB".into(), human_bytes);
+        return Err(Error::Usage(format!(
+            "{what} needs {need} of memory but {} is available: {hint}",
+            human_bytes(available)
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses an image whose pixel count does not fit the u32 pixel index the kernels use or
+/// whose buffers (`bytes_per_pixel`) do not fit in memory.
+pub fn check_image(width: u32, height: u32, bytes_per_pixel: u64, hint: &str) -> Result<()> {
+    let pixels = width as u64 * height as u64;
+    if pixels > u32::MAX as u64 {
+        return Err(Error::Usage(format!(
+            "a {width}×{height} image has {pixels} pixels, more than the {} one run can \\
+             address: {hint}",
+            u32::MAX
+        )));
+    }
+    check_memory(
+        &format!("a {width}×{height} image"),
+        pixels as u128 * bytes_per_pixel as u128,
+        hint,
+    )
+}
