@@ -4,10 +4,15 @@
 use crate::error::{Error, Result};
 use crate::gpu::human_bytes;
 
-/// The largest coordinate magnitude lancer traces correctly: the watertight test forms
-/// products of three coordinates (relative to the ray origin), which must stay below
-/// f32::MAX ≈ 3.4e38; vertices beyond ±1e12 are left out of the BVH and counted.
-pub const MAX_COORD: f32 = 1e12;
+/// The largest vertex coordinate magnitude lancer traces: the watertight test forms products
+/// of three coordinates relative to the ray origin (about 42·R³ at most for relative
+/// coordinates up to R), which must stay below f32::MAX ≈ 3.4e38, so R < 1.2e12. Vertices
+/// within ±1e11 and ray origins within ±[`MAX_ORIGIN`] keep R below that, the default
+/// view's camera included. Vertices beyond are left out of the BVH and counted.
+pub const MAX_COORD: f32 = 1e11;
+
+/// The largest ray-origin coordinate magnitude: rays from further out are invalid (misses).
+pub const MAX_ORIGIN: f32 = 1e12;
 
 /// The smallest mesh (bounding-box diagonal) lancer traces correctly from its default view:
 /// below it those products fall below f32's normal range and hits are lost.
@@ -43,7 +48,7 @@ pub fn check_image(width: u32, height: u32, bytes_per_pixel: u64, hint: &str) ->
     let pixels = width as u64 * height as u64;
     if pixels > u32::MAX as u64 {
         return Err(Error::Usage(format!(
-            "a {width}×{height} image has {pixels} pixels, more than the {} one run can \\
+            "a {width}×{height} image has {pixels} pixels, more than the {} one run can \
              address: {hint}",
             u32::MAX
         )));

@@ -34,7 +34,7 @@ fn is_finite_bits(x: f32) -> bool {
 // Ray::is_valid
 fn ray_is_valid(r: Ray) -> bool {
     let o = bitcast<vec3<u32>>(r.origin) & vec3<u32>(0x7fffffffu);
-    let near = o <= vec3<u32>(bitcast<u32>(MAX_COORD));
+    let near = o <= vec3<u32>(bitcast<u32>(MAX_ORIGIN));
     let fin = near.x && near.y && near.z
         && is_finite_bits(r.dir.x) && is_finite_bits(r.dir.y) && is_finite_bits(r.dir.z)
         && is_finite_bits(r.tmin);

@@ -51,12 +51,12 @@ impl Ray {
     }
 
     /// A ray the tracers refuse and report as a miss: any non-finite component, an origin
-    /// beyond ±[`MAX_COORD`](crate::limits::MAX_COORD) (the supported range), a zero
+    /// beyond ±[`MAX_ORIGIN`](crate::limits::MAX_ORIGIN) (the supported range), a zero
     /// direction, or an empty/NaN interval. Tested on bit patterns so that the WGSL twin
     /// (`ray_is_valid`) behaves the same where NaN comparisons are unreliable.
     pub fn is_valid(&self) -> bool {
         let finite = |x: f32| (x.to_bits() & 0x7fff_ffff) < 0x7f80_0000;
-        let in_range = |x: f32| (x.to_bits() & 0x7fff_ffff) <= crate::limits::MAX_COORD.to_bits();
+        let in_range = |x: f32| (x.to_bits() & 0x7fff_ffff) <= crate::limits::MAX_ORIGIN.to_bits();
         let all = [self.dir.x, self.dir.y, self.dir.z, self.tmin];
         // tmax may be +inf-free large (3.4e38) but must not be NaN.
         let tmax_ok = (self.tmax.to_bits() & 0x7fff_ffff) <= 0x7f80_0000;

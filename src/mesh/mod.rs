@@ -88,7 +88,7 @@ impl Mesh {
             (self.short_faces, "faces with fewer than 3 vertices"),
             (
                 self.count(TriStatus::TooFar),
-                "with a coordinate beyond ±1e12 (the supported range)",
+                "with a coordinate beyond ±1e11 (the supported range)",
             ),
         ]
         .iter()

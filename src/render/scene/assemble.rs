@@ -509,6 +509,12 @@ impl RenderScene {
         if !all_finite {
             return Err(cam_bad("position, look_at and up must be finite numbers"));
         }
+        let max = crate::limits::MAX_ORIGIN;
+        if c.position.iter().any(|x| x.abs() > max) {
+            return Err(cam_bad(&format!(
+                "position beyond ±{max:e}, the supported range of ray origins"
+            )));
+        }
         let view = Vec3::from(c.look_at) - Vec3::from(c.position);
         if view == Vec3::ZERO {
             return Err(cam_bad("position equals look_at"));
