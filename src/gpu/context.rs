@@ -51,6 +51,7 @@ impl GpuContext {
     }
 
     async fn open() -> Result<GpuContext> {
+        check_backend_variable()?;
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if std::env::var_os("WGPU_BACKEND").is_none() {
             // Compute only: the primary APIs. The GL backend probes window systems and
@@ -152,6 +153,27 @@ impl GpuContext {
         }
         Ok(())
     }
+}
+
+/// Refuses a `WGPU_BACKEND` naming no backend wgpu knows (wgpu would only log it and find
+/// no adapter).
+fn check_backend_variable() -> Result<()> {
+    let Ok(value) = std::env::var("WGPU_BACKEND") else {
+        return Ok(());
+    };
+    const NAMES: [&str; 11] = [
+        "vulkan", "vk", "dx12", "d3d12", "metal", "mtl", "opengl", "gles", "gl", "webgpu", "noop",
+    ];
+    for name in value.split(',') {
+        let name = name.trim().to_lowercase();
+        if !NAMES.contains(&name.as_str()) {
+            return Err(Error::Usage(format!(
+                "WGPU_BACKEND={value}: '{name}' is not a backend; use vulkan, gl, metal or dx12 \
+                 (comma-separated), or unset it"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// A size for people: bytes, KiB, MiB or GiB.

@@ -21,9 +21,20 @@ pub fn load_mesh(path: &Path) -> Result<Mesh> {
 /// Logs a warning counting what was left out of the BVH, and refuses a mesh with no
 /// usable triangle.
 pub fn check_usable(path: &Path, mesh: &Mesh) -> Result<()> {
+    warn_exclusions(path, mesh);
+    check_traceable(path, mesh)
+}
+
+/// Logs one warning naming `path` and counting what was left out of the BVH, if anything.
+pub fn warn_exclusions(path: &Path, mesh: &Mesh) {
     if let Some(s) = mesh.exclusion_summary() {
         log::warn!("{}: {s}", path.display());
     }
+}
+
+/// Refuses a mesh with no usable triangle, or one too small to trace (see
+/// [`MIN_EXTENT`](crate::limits::MIN_EXTENT)).
+pub fn check_traceable(path: &Path, mesh: &Mesh) -> Result<()> {
     let extent = mesh.bounds().extent().length();
     if !mesh.included().is_empty() && extent < crate::limits::MIN_EXTENT {
         return Err(Error::input(

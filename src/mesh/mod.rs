@@ -4,7 +4,7 @@ mod load;
 mod mtl;
 mod obj;
 
-pub use load::{check_usable, load_mesh};
+pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};
 pub use obj::{load_obj, load_obj_scene, ObjScene};
 
 use glam::Vec3;

@@ -14,7 +14,9 @@ use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-use crate::mesh::{check_usable, classify, load_obj_scene, Mesh, ObjScene, TriStatus};
+use crate::mesh::{
+    check_traceable, classify, load_obj_scene, warn_exclusions, Mesh, ObjScene, TriStatus,
+};
 
 /// A surface's material, as both renderers shade it.
 #[derive(Clone, Debug, PartialEq)]
@@ -207,6 +209,7 @@ impl Builder {
             let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
             self.push(t, obj.mesh.status[i], obj.uvs[i], id);
         }
+        warn_exclusions(path, &obj.mesh);
         self.short_faces += obj.mesh.short_faces;
         self.sources.extend(obj.mesh.sources.iter().cloned());
         Ok(())
@@ -606,7 +609,8 @@ impl Builder {
             short_faces: self.short_faces,
             sources: self.sources,
         };
-        check_usable(path, &mesh)?;
+        // Exclusions were counted per mesh file as each was added (add_obj).
+        check_traceable(path, &mesh)?;
         if settings.ao_distance <= 0.0 {
             settings.ao_distance = 0.1 * mesh.bounds().extent().length();
         }
