@@ -96,3 +96,41 @@ fn same_file(a: &Path, b: &Path) -> bool {
         matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("x.bin");
+        std::fs::write(&out, b"old").unwrap();
+        let e = write_atomic(&out, |w| {
+            w.write_all(b"partial")?;
+            Err(std::io::Error::other("disk full"))
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("disk full"), "{e}");
+        assert_eq!(std::fs::read(&out).unwrap(), b"old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        write_bytes(&out, b"new").unwrap();
+        assert_eq!(std::fs::read(&out).unwrap(), b"new");
+    }
+
+    #[test]
+    fn outputs_that_are_inputs_folders_or_devices_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("mesh.obj");
+        std::fs::write(&input, b"v 0 0 0\n").unwrap();
+        let spelled_otherwise = dir.path().join(".").join("mesh.obj");
+        let refuse = |out: &Path| check_output(out, std::slice::from_ref(&input)).unwrap_err();
+        assert!(refuse(&spelled_otherwise).to_string().contains("is an input"));
+        assert!(refuse(dir.path()).to_string().contains("not a regular file"));
+        assert!(refuse(Path::new("/dev/full")).to_string().contains("not a regular file"));
+        let missing = dir.path().join("nodir").join("x.png");
+        assert!(refuse(&missing).to_string().contains("does not exist"));
+        assert_eq!(refuse(&input).exit_code(), 2);
+        check_output(&dir.path().join("new.png"), &[input]).unwrap();
+    }
+}
