@@ -125,9 +125,15 @@ mod tests {
         std::fs::write(&input, b"v 0 0 0\n").unwrap();
         let spelled_otherwise = dir.path().join(".").join("mesh.obj");
         let refuse = |out: &Path| check_output(out, std::slice::from_ref(&input)).unwrap_err();
-        assert!(refuse(&spelled_otherwise).to_string().contains("is an input"));
-        assert!(refuse(dir.path()).to_string().contains("not a regular file"));
-        assert!(refuse(Path::new("/dev/full")).to_string().contains("not a regular file"));
+        assert!(refuse(&spelled_otherwise)
+            .to_string()
+            .contains("is an input"));
+        assert!(refuse(dir.path())
+            .to_string()
+            .contains("not a regular file"));
+        assert!(refuse(Path::new("/dev/full"))
+            .to_string()
+            .contains("not a regular file"));
         let missing = dir.path().join("nodir").join("x.png");
         assert!(refuse(&missing).to_string().contains("does not exist"));
         assert_eq!(refuse(&input).exit_code(), 2);

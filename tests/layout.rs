@@ -124,7 +124,7 @@ fn render_structs_match_rust() {
         fields!(GpuMaterial;
         "albedo" => albedo, "kind" => kind, "emission" => emission, "ior" => ior,
         "tex_offset" => tex_offset, "tex_width" => tex_width, "tex_height" => tex_height,
-        "has_tex" => has_tex),
+        "flags" => flags),
     );
     check(
         m,
@@ -143,7 +143,7 @@ fn render_structs_match_rust() {
         "seed" => seed, "sample" => sample, "offset" => offset, "count" => count,
         "max_bounces" => max_bounces, "integrator" => integrator, "n_lights" => n_lights,
         "n_emitters" => n_emitters, "emit_total" => emit_total, "ao_distance" => ao_distance,
-        "pad0" => _pad0, "pad1" => _pad1, "pad2" => _pad2),
+        "fixed_offset" => fixed_offset, "pad1" => _pad1, "pad2" => _pad2),
     );
     assert_eq!(size_of::<RenderParams>(), 128);
 }

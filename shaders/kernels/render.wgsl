@@ -36,7 +36,7 @@ struct Material {
     tex_offset: u32,
     tex_width: u32,
     tex_height: u32,
-    has_tex: u32,
+    flags: u32,
 }
 
 // render::gpu::GpuLight: kind 0 point (v = position, power = intensity),
@@ -69,7 +69,7 @@ struct Params {
     n_emitters: u32,
     emit_total: f32,
     ao_distance: f32,
-    pad0: u32,
+    fixed_offset: f32,
     pad1: u32,
     pad2: u32,
 }
@@ -133,18 +133,47 @@ fn cosine_direction(n: vec3<f32>) -> vec3<f32> {
     return t * x + b * y + n * z;
 }
 
-// sampling::offset_origin (Wächter & Binder 2019), or none with OFFSET_RAYS off
-fn offset_coord(p: f32, n: f32) -> f32 {
-    let off = i32(256.0 * n);
-    let pi = bitcast<f32>(bitcast<i32>(p) + select(off, -off, p < 0.0));
-    return select(pi, p + n * (1.0 / 65536.0), abs(p) < 1.0 / 32.0);
+// sampling::point_error: the error bound of v0·b0 + v1·b1 + v2·b2, per component.
+fn point_error(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, b0: f32, b1: f32, b2: f32) -> vec3<f32> {
+    return (abs(v0 * b0) + abs(v1 * b1) + abs(v2 * b2)) * POINT_ERROR;
 }
 
-fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    if !OFFSET_RAYS {
+fn next_away(x: f32, o: f32) -> f32 {
+    // f32::next_up / next_down on the bits (−0.0 steps to the smallest positive or negative).
+    let b = bitcast<u32>(x);
+    var up = b + 1u;
+    if x < 0.0 {
+        up = b - 1u;
+    } else if b == 0x80000000u {
+        up = 1u;
+    }
+    var down = b + 1u;
+    if x > 0.0 {
+        down = b - 1u;
+    } else if b == 0u {
+        down = 0x80000001u;
+    }
+    if o > 0.0 {
+        return bitcast<f32>(up);
+    }
+    if o < 0.0 {
+        return bitcast<f32>(down);
+    }
+    return x;
+}
+
+// CpuRenderer::leave: sampling::offset_origin (pbrt-v4), a fixed epsilon, or none.
+fn offset_origin(p: vec3<f32>, err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    if RAY_OFFSET == OFFSET_FIXED {
+        return p + n * params.fixed_offset;
+    }
+    if RAY_OFFSET != OFFSET_ERROR_BOUND {
         return p;
     }
-    return vec3<f32>(offset_coord(p.x, n.x), offset_coord(p.y, n.y), offset_coord(p.z, n.z));
+    let d = dot3(abs(n), err);
+    let off = n * d;
+    let po = p + off;
+    return vec3<f32>(next_away(po.x, off.x), next_away(po.y, off.y), next_away(po.z, off.z));
 }
 
 // Samples in which some traversal was cut short by the driver (see traversal_done): the
@@ -187,8 +216,8 @@ fn sample_texture(m: Material, uv: vec2<f32>) -> vec3<f32> {
 }
 
 // CpuRenderer::direct
-fn direct(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    let o = offset_origin(p, n);
+fn direct(p: vec3<f32>, p_err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let o = offset_origin(p, p_err, n);
     var sum = vec3<f32>(0.0);
     for (var i = 0u; i < params.n_lights; i += 1u) {
         let l = lights[i];
@@ -222,18 +251,25 @@ fn direct(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         let su = sqrt(next_f32());
         let b0 = 1.0 - su;
         let b1 = next_f32() * su;
-        let q = s.v0 * b0 + s.v1 * b1 + s.v2 * (1.0 - b0 - b1);
+        let b2 = 1.0 - b0 - b1;
+        let q = s.v0 * b0 + s.v1 * b1 + s.v2 * b2;
+        let q_err = point_error(s.v0, s.v1, s.v2, b0, b1, b2);
         let nl = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
         let d = q - p;
         let d2 = dot3(d, d);
         let dist = sqrt(d2);
         let cs = dot3(n, d) / dist;
-        let cl = abs(dot3(nl, d)) / dist;
+        let lm = materials[s.material];
+        // One-sided lights emit from their front (the winding's normal) only.
+        var cl = -dot3(nl, d) / dist;
+        if (lm.flags & MAT_TWO_SIDED) != 0u {
+            cl = abs(dot3(nl, d)) / dist;
+        }
         if cs > 0.0 && cl > 0.0 {
             let toward = select(nl, -nl, dot3(nl, d) > 0.0);
-            let qt = offset_origin(q, toward);
+            let qt = offset_origin(q, q_err, toward);
             if !(SHADOWS && occluded(o, qt - o, 1.0)) {
-                sum += materials[s.material].emission * (cs * cl / d2 * params.emit_total);
+                sum += lm.emission * (cs * cl / d2 * params.emit_total);
             }
         }
     }
@@ -265,18 +301,19 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
         let mat = materials[s.material];
         let w = 1.0 - hit.u - hit.v;
         let p = s.v0 * w + s.v1 * hit.u + s.v2 * hit.v;
+        let p_err = point_error(s.v0, s.v1, s.v2, w, hit.u, hit.v);
         let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
         let front = dot3(ng, ray.dir) < 0.0;
         let n = select(-ng, ng, front);
         if mat.kind == KIND_EMISSIVE {
-            if count_emission {
+            if count_emission && (front || (mat.flags & MAT_TWO_SIDED) != 0u) {
                 rad += beta * mat.emission;
             }
             break;
         }
         if AO && params.integrator == INTEGRATOR_AO {
             let d = cosine_direction(n);
-            if !occluded(offset_origin(p, n), d, params.ao_distance) {
+            if !occluded(offset_origin(p, p_err, n), d, params.ao_distance) {
                 rad += beta;
             }
             break;
@@ -291,7 +328,7 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
         }
         if mirror {
             beta *= mat.albedo;
-            ray = Ray(offset_origin(p, n), 0.0, reflected, PRIMARY_TMAX);
+            ray = Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX);
             count_emission = true;
             continue;
         }
@@ -307,26 +344,26 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
             beta *= mat.albedo;
             count_emission = true;
             if sin2_t >= 1.0 || u < fresnel {
-                ray = Ray(offset_origin(p, n), 0.0, reflected, PRIMARY_TMAX);
+                ray = Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX);
             } else {
                 let cos_t = sqrt(1.0 - sin2_t);
                 let t = d * eta + n * (eta * cos_i - cos_t);
-                ray = Ray(offset_origin(p, -n), 0.0, t, PRIMARY_TMAX);
+                ray = Ray(offset_origin(p, p_err, -n), 0.0, t, PRIMARY_TMAX);
             }
             continue;
         }
         var albedo = mat.albedo;
-        if TEXTURES && mat.has_tex != 0u {
+        if TEXTURES && (mat.flags & MAT_TEXTURED) != 0u {
             let uv = s.uv0 * w + s.uv1 * hit.u + s.uv2 * hit.v;
             albedo = sample_texture(mat, uv);
         }
-        rad += beta * albedo * PI_INV * direct(p, n);
+        rad += beta * albedo * PI_INV * direct(p, p_err, n);
         if !(INDIRECT && params.integrator == INTEGRATOR_PATH) || last {
             break;
         }
         beta *= albedo;
         let dir = cosine_direction(n);
-        ray = Ray(offset_origin(p, n), 0.0, dir, PRIMARY_TMAX);
+        ray = Ray(offset_origin(p, p_err, n), 0.0, dir, PRIMARY_TMAX);
         count_emission = !nee;
     }
     return rad;

@@ -24,7 +24,8 @@ struct Hit {
 // geometry::Robustness, as override constants (Robustness::overrides).
 override MOLLER_TRUMBORE: bool = false;  // TriangleTest::MollerTrumbore instead of watertight
 override ROBUST_SLAB: bool = true;       // SlabTest::Robust: far plane widened by FAR_WIDEN
-override OFFSET_RAYS: bool = true;       // RayOffset::ErrorBound (render kernel)
+override RAY_OFFSET: u32 = 0u;           // RayOffset::code (render kernel)
+override REJECT_NEAR_HITS: bool = true;  // Robustness::rejects_near_hits
 
 // Finite test on bits: NaN/Inf comparisons are not reliable in WGSL.
 fn is_finite_bits(x: f32) -> bool {

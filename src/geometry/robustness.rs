@@ -36,11 +36,29 @@ pub enum SlabTest {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum RayOffset {
-    /// A few ulps of the hit point's own magnitude along the normal (Wächter & Binder 2019).
+    /// Along the normal by the hit point's own error bound, computed from the triangle's
+    /// vertices (pbrt-v4 §6.8.6): no self-intersection at any position or scale.
     #[default]
     ErrorBound,
+    /// Along the normal by a fixed epsilon, [`FIXED_OFFSET`] of the scene's diagonal (the
+    /// textbook choice: acne where it is too small, tunnelling where too large).
+    Fixed,
     /// No offset: the ray starts on the surface (shows self-intersection).
     None,
+}
+
+/// The fixed epsilon of [`RayOffset::Fixed`], relative to the scene's bounding-box diagonal.
+pub const FIXED_OFFSET: f32 = 1e-4;
+
+impl RayOffset {
+    /// Code in the render kernel's `RAY_OFFSET` override.
+    pub fn code(self) -> u32 {
+        match self {
+            RayOffset::ErrorBound => 0,
+            RayOffset::Fixed => 1,
+            RayOffset::None => 2,
+        }
+    }
 }
 
 /// The robustness settings of one trace or render. `Default` is the robust setting of
@@ -78,9 +96,16 @@ impl Robustness {
         }
     }
 
+    /// Whether traversals reject a hit whose t is within its own error bound of the origin
+    /// (`t ≤ t_error_bound`, pbrt-v4): it may lie behind the origin, as the surface a
+    /// secondary ray leaves does. Part of the error-bound offset; off for the fast settings.
+    pub fn rejects_near_hits(&self) -> bool {
+        self.ray_offset == RayOffset::ErrorBound
+    }
+
     /// The WGSL override constants that carry these settings (declared in
     /// `shaders/lib/common.wgsl`).
-    pub fn overrides(&self) -> [(&'static str, f64); 3] {
+    pub fn overrides(&self) -> [(&'static str, f64); 4] {
         let b = |x: bool| if x { 1.0 } else { 0.0 };
         [
             (
@@ -88,7 +113,8 @@ impl Robustness {
                 b(self.triangle_test == TriangleTest::MollerTrumbore),
             ),
             ("ROBUST_SLAB", b(self.slab_test == SlabTest::Robust)),
-            ("OFFSET_RAYS", b(self.ray_offset == RayOffset::ErrorBound)),
+            ("RAY_OFFSET", self.ray_offset.code() as f64),
+            ("REJECT_NEAR_HITS", b(self.rejects_near_hits())),
         ]
     }
 }

@@ -182,7 +182,7 @@ pub fn intersect_triangle(
 }
 
 /// γ(n) = n·ε / (1 − n·ε), ε = 2⁻²⁴: the relative error bound of n f32 operations.
-const fn gamma(n: f32) -> f32 {
+pub(crate) const fn gamma(n: f32) -> f32 {
     n * f32::EPSILON * 0.5 / (1.0 - n * f32::EPSILON * 0.5)
 }
 

@@ -6,7 +6,8 @@ use crate::accel::bvh::MAX_DEPTH;
 use crate::camera::PRIMARY_TMAX;
 use crate::geometry::{FAR_WIDEN, MISS, PARALLEL_INV, RECIP_FLOOR, TIE_SLACK};
 use crate::layout::Layout;
-use crate::render::{Integrator, LightKind, MaterialKind};
+use crate::render::sampling::POINT_ERROR;
+use crate::render::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED};
 
 use super::bindings;
 use super::{INCOMPLETE, TEXEL_ROW};
@@ -56,6 +57,17 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("INTEGRATOR_AO", U32(Integrator::Ao.code())),
         ("LIGHT_POINT", U32(LightKind::Point.code())),
         ("LIGHT_DIRECTIONAL", U32(LightKind::Directional.code())),
+        ("MAT_TEXTURED", U32(MAT_TEXTURED)),
+        ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
+        ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
+        (
+            "OFFSET_ERROR_BOUND",
+            U32(crate::geometry::RayOffset::ErrorBound.code()),
+        ),
+        (
+            "OFFSET_FIXED",
+            U32(crate::geometry::RayOffset::Fixed.code()),
+        ),
     ];
     v.extend(bindings::ALL.iter().map(|&(name, b)| (name, U32(b))));
     v

@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::effects::EffectSet;
-use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, Rng};
+use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, point_error, Rng};
 use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
 use crate::accel::{Accel, Query, RayStats};
 use crate::camera::{CameraFrame, PRIMARY_TMAX};
@@ -43,6 +43,8 @@ pub struct CpuRenderer<'a> {
     frame: CameraFrame,
     /// Total emitter area (the last CDF entry).
     emit_total: f32,
+    /// The epsilon of [`RayOffset::Fixed`]: FIXED_OFFSET of the scene's diagonal.
+    fixed_offset: f32,
 }
 
 impl<'a> CpuRenderer<'a> {
@@ -54,6 +56,7 @@ impl<'a> CpuRenderer<'a> {
             robustness,
             frame: scene.camera.frame(),
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
+            fixed_offset: scene.fixed_offset(),
         }
     }
 
@@ -70,17 +73,20 @@ impl<'a> CpuRenderer<'a> {
             .is_hit()
     }
 
-    /// The origin of a secondary ray leaving p along n (the robustness setting's offset).
-    fn leave(&self, p: Vec3, n: Vec3) -> Vec3 {
+    /// The origin of a secondary ray leaving p (error bound `err`) to the side n points to,
+    /// by the robustness setting's offset.
+    fn leave(&self, p: Vec3, err: Vec3, n: Vec3) -> Vec3 {
         match self.robustness.ray_offset {
-            RayOffset::ErrorBound => offset_origin(p, n),
+            RayOffset::ErrorBound => offset_origin(p, err, n),
+            RayOffset::Fixed => p + n * self.fixed_offset,
             RayOffset::None => p,
         }
     }
 
-    /// Light arriving at p (normal n, facing the viewer) from every light, times cosine.
-    fn direct(&self, fx: EffectSet, p: Vec3, n: Vec3, rng: &mut Rng) -> Vec3 {
-        let o = self.leave(p, n);
+    /// Light arriving at p (error bound `err`, normal n facing the viewer) from every light,
+    /// times cosine.
+    fn direct(&self, fx: EffectSet, p: Vec3, err: Vec3, n: Vec3, rng: &mut Rng) -> Vec3 {
+        let o = self.leave(p, err, n);
         let mut sum = Vec3::ZERO;
         for l in &self.scene.lights {
             match *l {
@@ -124,18 +130,25 @@ impl<'a> CpuRenderer<'a> {
             let su = rng.next_f32().sqrt();
             let b0 = 1.0 - su;
             let b1 = rng.next_f32() * su;
-            let q = tri.v[0] * b0 + tri.v[1] * b1 + tri.v[2] * (1.0 - b0 - b1);
+            let b2 = 1.0 - b0 - b1;
+            let q = tri.v[0] * b0 + tri.v[1] * b1 + tri.v[2] * b2;
+            let q_err = point_error(&tri.v, b0, b1, b2);
             let nl = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
             let d = q - p;
             let d2 = dot(d, d);
             let dist = d2.sqrt();
             let cs = dot(n, d) / dist;
-            let cl = dot(nl, d).abs() / dist;
+            let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+            // One-sided lights emit from their front (the winding's normal) only.
+            let cl = if mat.two_sided {
+                dot(nl, d).abs() / dist
+            } else {
+                -dot(nl, d) / dist
+            };
             if cs > 0.0 && cl > 0.0 {
                 let toward = if dot(nl, d) > 0.0 { -nl } else { nl };
-                let qt = self.leave(q, toward);
+                let qt = self.leave(q, q_err, toward);
                 if !(fx.shadows && self.occluded(o, qt - o, 1.0)) {
-                    let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
                     sum += mat.emission * (cs * cl / d2 * self.emit_total);
                 }
             }
@@ -166,18 +179,19 @@ impl<'a> CpuRenderer<'a> {
             let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
             let w = 1.0 - hit.u - hit.v;
             let p = tri.v[0] * w + tri.v[1] * hit.u + tri.v[2] * hit.v;
+            let p_err = point_error(&tri.v, w, hit.u, hit.v);
             let ng = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
             let front = dot(ng, ray.dir) < 0.0;
             let n = if front { ng } else { -ng };
             if mat.kind == MaterialKind::Emissive {
-                if count_emission {
+                if count_emission && (front || mat.two_sided) {
                     radiance += beta * mat.emission;
                 }
                 break;
             }
             if fx.ao && s.integrator == Integrator::Ao {
                 let d = cosine_direction(n, &mut rng);
-                if !self.occluded(self.leave(p, n), d, s.ao_distance) {
+                if !self.occluded(self.leave(p, p_err, n), d, s.ao_distance) {
                     radiance += beta;
                 }
                 break;
@@ -192,7 +206,7 @@ impl<'a> CpuRenderer<'a> {
             }
             if mirror {
                 beta *= mat.albedo;
-                ray = Ray::new(self.leave(p, n), reflected, 0.0, PRIMARY_TMAX);
+                ray = Ray::new(self.leave(p, p_err, n), reflected, 0.0, PRIMARY_TMAX);
                 count_emission = true;
                 continue;
             }
@@ -208,11 +222,11 @@ impl<'a> CpuRenderer<'a> {
                 beta *= mat.albedo;
                 count_emission = true;
                 if sin2_t >= 1.0 || u < fresnel {
-                    ray = Ray::new(self.leave(p, n), reflected, 0.0, PRIMARY_TMAX);
+                    ray = Ray::new(self.leave(p, p_err, n), reflected, 0.0, PRIMARY_TMAX);
                 } else {
                     let cos_t = (1.0 - sin2_t).sqrt();
                     let t = d * eta + n * (eta * cos_i - cos_t);
-                    ray = Ray::new(self.leave(p, -n), t, 0.0, PRIMARY_TMAX);
+                    ray = Ray::new(self.leave(p, p_err, -n), t, 0.0, PRIMARY_TMAX);
                 }
                 continue;
             }
@@ -225,13 +239,13 @@ impl<'a> CpuRenderer<'a> {
                 }
                 _ => mat.albedo,
             };
-            radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, n, &mut rng);
+            radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, p_err, n, &mut rng);
             if !(fx.indirect && s.integrator == Integrator::Path) || last {
                 break;
             }
             beta *= albedo;
             let dir = cosine_direction(n, &mut rng);
-            ray = Ray::new(self.leave(p, n), dir, 0.0, PRIMARY_TMAX);
+            ray = Ray::new(self.leave(p, p_err, n), dir, 0.0, PRIMARY_TMAX);
             count_emission = !nee;
         }
         radiance

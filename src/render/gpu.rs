@@ -69,9 +69,15 @@ pub struct GpuMaterial {
     pub tex_width: u32,
     /// Texture height in texels (0 without a texture).
     pub tex_height: u32,
-    /// 1 if the material has a texture, else 0.
-    pub has_tex: u32,
+    /// Bits: [`MAT_TEXTURED`] (albedo from the texture), [`MAT_TWO_SIDED`] (emits from
+    /// both faces).
+    pub flags: u32,
 }
+
+/// [`GpuMaterial::flags`] bit: the albedo comes from the material's texture.
+pub const MAT_TEXTURED: u32 = 1;
+/// [`GpuMaterial::flags`] bit: an emitter that emits from both faces.
+pub const MAT_TWO_SIDED: u32 = 2;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -131,8 +137,8 @@ pub struct RenderParams {
     pub emit_total: f32,
     /// Ambient-occlusion ray length, scene units.
     pub ao_distance: f32,
-    /// Padding (zero).
-    pub _pad0: u32,
+    /// The epsilon of the fixed ray offset (RayOffset::Fixed), scene units.
+    pub fixed_offset: f32,
     /// Padding (zero).
     pub _pad1: u32,
     /// Padding (zero).
@@ -204,7 +210,8 @@ impl<'a> GpuRenderer<'a> {
                     tex_offset: off,
                     tex_width: w,
                     tex_height: h,
-                    has_tex: m.texture.is_some() as u32,
+                    flags: if m.texture.is_some() { MAT_TEXTURED } else { 0 }
+                        | if m.two_sided { MAT_TWO_SIDED } else { 0 },
                 }
             })
             .collect();
@@ -321,6 +328,7 @@ impl<'a> GpuRenderer<'a> {
             n_emitters,
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
             ao_distance: s.ao_distance,
+            fixed_offset: scene.fixed_offset(),
             ..RenderParams::default()
         };
         Ok(GpuRenderer {

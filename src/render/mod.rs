@@ -12,10 +12,12 @@ mod scene;
 
 pub use cpu::{sample_texture, CpuRenderer};
 pub use effects::EffectSet;
-pub use gpu::{GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams};
+pub use gpu::{
+    GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED, MAT_TWO_SIDED,
+};
 pub use image::{image_kind, save_image, to_rgb8, Image, ImageKind};
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
-pub use sampling::{offset_origin, pcg, Rng};
+pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::{
     Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile, Settings, Texture,
 };

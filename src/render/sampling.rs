@@ -84,23 +84,34 @@ pub fn cosine_direction(n: Vec3, rng: &mut Rng) -> Vec3 {
     t * x + b * y + n * z
 }
 
-/// Wächter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection" (Ray
-/// Tracing Gems, ch. 6): moves p off the surface along n by a few ulps of p's own
-/// magnitude (a relative, not a scene-size, offset); near the origin by a tiny constant.
-pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65_536.0;
-    const INT_SCALE: f32 = 256.0;
-    let f = |p: f32, n: f32| {
-        let of = (INT_SCALE * n) as i32;
-        let pi = f32::from_bits(
-            (p.to_bits() as i32).wrapping_add(if p < 0.0 { -of } else { of }) as u32,
-        );
-        if p.abs() < ORIGIN {
-            p + FLOAT_SCALE * n
+/// The relative error bound γ(7) of a point interpolated from a triangle's vertices by
+/// barycentric weights (pbrt-v4 §6.8.5): per component, |p − p_exact| ≤ POINT_ERROR ·
+/// (|b0·v0| + |b1·v1| + |b2·v2|).
+pub const POINT_ERROR: f32 = crate::geometry::gamma(7.0);
+
+/// The error bound of the point `v0·b0 + v1·b1 + v2·b2`, per component (see
+/// [`POINT_ERROR`]). WGSL `point_error` is the same.
+#[inline]
+pub fn point_error(v: &[Vec3; 3], b0: f32, b1: f32, b2: f32) -> Vec3 {
+    ((v[0] * b0).abs() + (v[1] * b1).abs() + (v[2] * b2).abs()) * POINT_ERROR
+}
+
+/// pbrt-v4's ray-origin offset (§6.8.6): moves p along n (facing the side the ray leaves
+/// to) by the projection of its error bound `err` onto n, then one more float outwards per
+/// component, so the new origin lies strictly on that side of the exact surface, wherever p
+/// lies in the scene: no self-intersection, and no scene-size epsilon.
+pub fn offset_origin(p: Vec3, err: Vec3, n: Vec3) -> Vec3 {
+    let d = dot(n.abs(), err);
+    let off = n * d;
+    let po = p + off;
+    let away = |x: f32, o: f32| {
+        if o > 0.0 {
+            x.next_up()
+        } else if o < 0.0 {
+            x.next_down()
         } else {
-            pi
+            x
         }
     };
-    Vec3::new(f(p.x, n.x), f(p.y, n.y), f(p.z, n.z))
+    Vec3::new(away(po.x, off.x), away(po.y, off.y), away(po.z, off.z))
 }

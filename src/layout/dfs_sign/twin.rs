@@ -57,6 +57,7 @@ impl DfsSign {
             TriangleTest::Watertight
         };
         let widen = robustness.far_widen();
+        let reject_near = robustness.rejects_near_hits();
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
@@ -103,14 +104,21 @@ impl DfsSign {
                     let tri = lt.triangle();
                     let h = intersect_triangle(test, &tri, ray, &wr, ray.tmin, best.t);
                     if let Some((t, u, v)) = h {
-                        if Hit::beats(t, lt.prim, best.t, best.prim) {
+                        if !Hit::beats(t, lt.prim, best.t, best.prim) {
+                            continue;
+                        }
+                        let dt = t_error_bound(&tri, ray.origin, &wr);
+                        if reject_near && t <= dt {
+                            continue;
+                        }
+                        {
                             best = Hit {
                                 t,
                                 prim: lt.prim,
                                 u,
                                 v,
                             };
-                            prune = prune_bound(t + t_error_bound(&tri, ray.origin, &wr));
+                            prune = prune_bound(t + dt);
                             if query == Query::Any {
                                 return best;
                             }

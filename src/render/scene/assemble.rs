@@ -31,6 +31,9 @@ pub struct Material {
     pub ior: f32,
     /// Index into [`RenderScene::textures`] of a diffuse texture, which replaces `albedo`.
     pub texture: Option<usize>,
+    /// Emissive: emits from both faces (default: the front face only, the one the
+    /// vertices' winding makes the normal of — the convention of Mitsuba and pbrt).
+    pub two_sided: bool,
 }
 
 impl Material {
@@ -42,6 +45,7 @@ impl Material {
             emission: Vec3::ZERO,
             ior: 1.0,
             texture: None,
+            two_sided: false,
         }
     }
 }
@@ -325,6 +329,11 @@ fn scene_material(
         d.emission.is_some() && d.kind != MaterialKind::Emissive,
         "emissive",
     )?;
+    only(
+        "two_sided",
+        d.two_sided && d.kind != MaterialKind::Emissive,
+        "emissive",
+    )?;
     if let Some(a) = d.albedo {
         m.albedo = check_rgb(path, line, "albedo", a)?;
         if m.albedo.max_element() > 1.0 {
@@ -343,6 +352,7 @@ fn scene_material(
                 .emission
                 .ok_or_else(|| bad("needs 'emission = [r, g, b]'".into()))?;
             m.emission = check_rgb(path, line, "emission", e)?;
+            m.two_sided = d.two_sided;
         }
         MaterialKind::Glass => {
             m.ior = d.ior.unwrap_or(1.5);
@@ -363,6 +373,14 @@ fn scene_material(
         })?);
     }
     Ok(m)
+}
+
+impl RenderScene {
+    /// The epsilon of [`RayOffset::Fixed`](crate::geometry::RayOffset::Fixed): a fixed
+    /// fraction of the scene's bounding-box diagonal.
+    pub fn fixed_offset(&self) -> f32 {
+        crate::geometry::FIXED_OFFSET * self.mesh.bounds().extent().length()
+    }
 }
 
 impl RenderScene {

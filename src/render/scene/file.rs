@@ -118,6 +118,9 @@ pub struct MaterialDef {
     pub ior: Option<f32>,
     /// Emitted radiance (emissive).
     pub emission: Option<[f32; 3]>,
+    /// Emissive: emit from both faces (default: the front face only).
+    #[serde(default)]
+    pub two_sided: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
