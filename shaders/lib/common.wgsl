@@ -100,17 +100,38 @@ fn watertight_setup(dir: vec3<f32>) -> Watertight {
     return Watertight(kx, ky, kz, vec3<f32>(dir[kx] * sz, dir[ky] * sz, sz));
 }
 
-// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2).
+// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2), and t's error bound
+// as the quotient num / det (geometry::TriHit).
 struct TriHit {
     ok: bool,
     t: f32,
     u: f32,
     v: f32,
+    num: f32,
+    det: f32,
+}
+
+// TriHit::maybe_behind_origin
+fn maybe_behind_origin(h: TriHit) -> bool {
+    return abs(h.t) * h.det <= h.num;
+}
+
+// TriHit::t_error
+fn t_error(h: TriHit) -> f32 {
+    if h.num * 1e-30 >= h.det {
+        return 1e30;
+    }
+    return h.num / h.det;
+}
+
+// TriHit::prune
+fn hit_prune(h: TriHit) -> f32 {
+    return prune_bound(h.t + t_error(h));
 }
 
 // intersect_watertight (Woop, Benthin & Wald 2013)
 fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
-    var res = TriHit(false, 0.0, 0.0, 0.0);
+    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
     let a = v0 - origin;
     let b = v1 - origin;
     let c = v2 - origin;
@@ -136,14 +157,18 @@ fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec
     let tt = u * az + v * bz + ww * cz;
     let t = tt / det;
     if t >= tmin && t <= tmax {
-        res = TriHit(true, t, v / det, ww / det);
+        let mx = max(max(abs(ax), abs(bx)), abs(cx));
+        let my = max(max(abs(ay), abs(by)), abs(cy));
+        let mz = max(max(abs(az), abs(bz)), abs(cz));
+        let me = max(max(abs(u), abs(v)), abs(ww));
+        res = TriHit(true, t, v / det, ww / det, t_error_numerator(mx, my, mz, me), abs(det));
     }
     return res;
 }
 
 // intersect_moller_trumbore
 fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, tmin: f32, tmax: f32) -> TriHit {
-    var res = TriHit(false, 0.0, 0.0, 0.0);
+    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
     let e1 = v1 - v0;
     let e2 = v2 - v0;
     let p = cross(r.dir, e2);
@@ -164,7 +189,7 @@ fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray
     }
     let t = dot(e2, q) * inv;
     if t >= tmin && t <= tmax {
-        res = TriHit(true, t, u, v);
+        res = TriHit(true, t, u, v, 0.0, 1.0);
     }
     return res;
 }
@@ -172,7 +197,11 @@ fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray
 // intersect_triangle: the test Robustness::triangle_test chooses.
 fn intersect_tri(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
     if MOLLER_TRUMBORE {
-        return intersect_moller_trumbore(v0, v1, v2, r, tmin, tmax);
+        var h = intersect_moller_trumbore(v0, v1, v2, r, tmin, tmax);
+        if h.ok {
+            h.num = t_error_bound(v0, v1, v2, r.origin, w);
+        }
+        return h;
     }
     return intersect_watertight(v0, v1, v2, r.origin, w, tmin, tmax);
 }
@@ -204,17 +233,17 @@ fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
     let u = sx[2] * sy[1] - sy[2] * sx[1];
     let v = sx[0] * sy[2] - sy[0] * sx[2];
     let ww = sx[1] * sy[0] - sy[1] * sx[0];
-    let det = abs(u + v + ww);
     let me = max(max(abs(u), abs(v)), abs(ww));
+    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, me), abs(u + v + ww)));
+}
+
+// t_error_numerator
+fn t_error_numerator(mx: f32, my: f32, mz: f32, me: f32) -> f32 {
     let dz = gamma_f(3.0) * mz;
     let dx = gamma_f(5.0) * (mx + mz);
     let dy = gamma_f(5.0) * (my + mz);
     let de = 2.0 * (gamma_f(2.0) * mx * my + dy * mx + dx * my);
-    let num = 3.0 * (gamma_f(3.0) * me * mz + de * mz + dz * me);
-    if num * 1e-30 >= det {
-        return 1e30;
-    }
-    return num / det;
+    return 3.0 * (gamma_f(3.0) * me * mz + de * mz + dz * me);
 }
 
 // geometry::prune_bound: the best t grown by TIE_SLACK of its magnitude, never past BIG.

@@ -13,6 +13,7 @@ pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{prune_bound, RayOffset, Robustness, SlabTest, FIXED_OFFSET, TIE_SLACK};
 pub(crate) use triangle::gamma;
 pub use triangle::{
-    intersect_moller_trumbore, intersect_triangle, intersect_watertight, t_error_bound, Triangle,
+    intersect_moller_trumbore, intersect_triangle, intersect_triangle_bounded,
+    intersect_watertight, intersect_watertight_bounded, t_error_bound, TriHit, Triangle,
     TriangleTest, WatertightRay,
 };

@@ -97,6 +97,61 @@ pub fn intersect_watertight(
     tmin: f32,
     tmax: f32,
 ) -> Option<(f32, f32, f32)> {
+    intersect_watertight_bounded(tri, origin, wr, tmin, tmax).map(|h| (h.t, h.u, h.v))
+}
+
+/// A triangle hit with what bounds its t's error: |t − t_exact| ≤ `err_num` / `det`
+/// ([`t_error_bound`]), kept as a quotient so that the hot path divides only when it must.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriHit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// Barycentric weight of vertex 1.
+    pub u: f32,
+    /// Barycentric weight of vertex 2.
+    pub v: f32,
+    /// Numerator of the t error bound.
+    pub err_num: f32,
+    /// |det| of the watertight test, the bound's denominator.
+    pub det: f32,
+}
+
+impl TriHit {
+    /// Whether the exact t may be ≤ 0 (the hit may lie at or behind the origin, as the
+    /// surface a secondary ray leaves does): |t|·det ≤ err_num, with no division.
+    #[inline(always)]
+    pub fn maybe_behind_origin(&self) -> bool {
+        self.t.abs() * self.det <= self.err_num
+    }
+
+    /// The bound boxes are cut against once this hit is the best:
+    /// [`prune_bound`](super::prune_bound)`(t + t_error)`.
+    #[inline(always)]
+    pub fn prune(&self) -> f32 {
+        super::prune_bound(self.t + self.t_error())
+    }
+
+    /// The bound on t's error, never infinite (past 1e30 it is 1e30).
+    #[inline(always)]
+    pub fn t_error(&self) -> f32 {
+        if self.err_num * 1e-30 >= self.det {
+            1e30
+        } else {
+            self.err_num / self.det
+        }
+    }
+}
+
+/// [`intersect_watertight`], also returning the bound on t's error, computed from the
+/// test's own intermediate values (only for a hit). WGSL `intersect_watertight` is the same.
+#[inline]
+pub fn intersect_watertight_bounded(
+    tri: &Triangle,
+    origin: Vec3,
+    wr: &WatertightRay,
+    tmin: f32,
+    tmax: f32,
+) -> Option<TriHit> {
     let [kx, ky, kz] = wr.k;
     let a = tri.v[0] - origin;
     let b = tri.v[1] - origin;
@@ -124,7 +179,17 @@ pub fn intersect_watertight(
     let t = tt / det;
     // Written so that a NaN t fails.
     if t >= tmin && t <= tmax {
-        Some((t, v / det, w / det))
+        let mx = ax.abs().max(bx.abs()).max(cx.abs());
+        let my = ay.abs().max(by.abs()).max(cy.abs());
+        let mz = az.abs().max(bz.abs()).max(cz.abs());
+        let me = u.abs().max(v.abs()).max(w.abs());
+        Some(TriHit {
+            t,
+            u: v / det,
+            v: w / det,
+            err_num: t_error_numerator(mx, my, mz, me),
+            det: det.abs(),
+        })
     } else {
         None
     }
@@ -161,6 +226,32 @@ pub fn intersect_moller_trumbore(
         Some((t, u, v))
     } else {
         None
+    }
+}
+
+/// The chosen triangle test with its t error bound (for Möller–Trumbore, the watertight
+/// computation's bound, [`t_error_bound`]).
+#[inline(always)]
+pub fn intersect_triangle_bounded(
+    test: TriangleTest,
+    tri: &Triangle,
+    ray: &Ray,
+    wr: &WatertightRay,
+    tmin: f32,
+    tmax: f32,
+) -> Option<TriHit> {
+    match test {
+        TriangleTest::Watertight => intersect_watertight_bounded(tri, ray.origin, wr, tmin, tmax),
+        TriangleTest::MollerTrumbore => {
+            intersect_moller_trumbore(tri, ray, tmin, tmax).map(|(t, u, v)| TriHit {
+                t,
+                u,
+                v,
+                // The watertight computation's bound, as a quotient over 1.
+                err_num: t_error_bound(tri, ray.origin, wr),
+                det: 1.0,
+            })
+        }
     }
 }
 
@@ -210,17 +301,27 @@ pub fn t_error_bound(tri: &Triangle, origin: Vec3, wr: &WatertightRay) -> f32 {
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
-    let det = (u + v + w).abs();
     let me = u.abs().max(v.abs()).max(w.abs());
-    let dz = gamma(3.0) * mz;
-    let dx = gamma(5.0) * (mx + mz);
-    let dy = gamma(5.0) * (my + mz);
-    let de = 2.0 * (gamma(2.0) * mx * my + dy * mx + dx * my);
-    let num = 3.0 * (gamma(3.0) * me * mz + de * mz + dz * me);
-    // No infinity: a bound past 1e30 is as good as none.
-    if num * 1e-30 >= det {
-        1e30
-    } else {
-        num / det
+    TriHit {
+        t: 0.0,
+        u: 0.0,
+        v: 0.0,
+        err_num: t_error_numerator(mx, my, mz, me),
+        det: (u + v + w).abs(),
     }
+    .t_error()
+}
+
+/// The t error bound's numerator from the largest sheared coordinates (x, y, z) and the
+/// largest edge function: 3·(γ₃·e·z + δe·z + δz·e); the bound is it over |det|.
+#[inline(always)]
+fn t_error_numerator(mx: f32, my: f32, mz: f32, me: f32) -> f32 {
+    const G2: f32 = gamma(2.0);
+    const G3: f32 = gamma(3.0);
+    const G5: f32 = gamma(5.0);
+    let dz = G3 * mz;
+    let dx = G5 * (mx + mz);
+    let dy = G5 * (my + mz);
+    let de = 2.0 * (G2 * mx * my + dy * mx + dx * my);
+    3.0 * (G3 * me * mz + de * mz + dz * me)
 }

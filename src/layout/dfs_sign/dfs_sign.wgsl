@@ -58,15 +58,10 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                             n_tris += 1u;
                         }
                         let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
-                        var dt = 0.0;
-                        var take = h.ok && beats(h.t, tri.prim, best.t, best.prim);
-                        if take {
-                            dt = t_error_bound(tri.v0, tri.v1, tri.v2, r.origin, w);
-                            take = !(REJECT_NEAR_HITS && h.t <= dt);
-                        }
-                        if take {
+                        if h.ok && beats(h.t, tri.prim, best.t, best.prim)
+                            && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
                             best = Hit(h.t, tri.prim, h.u, h.v);
-                            prune = prune_bound(h.t + dt);
+                            prune = hit_prune(h);
                             if any_hit {
                                 // Empty the stack: the pop below ends the traversal.
                                 sp = 0u;

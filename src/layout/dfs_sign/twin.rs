@@ -8,7 +8,7 @@ use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle, prune_bound, t_error_bound, Aabb, Hit, Ray, Robustness, TriangleTest,
+    intersect_triangle_bounded, prune_bound, Aabb, Hit, Ray, Robustness, TriHit, TriangleTest,
     WatertightRay, MISS, PARALLEL_INV,
 };
 
@@ -102,13 +102,13 @@ impl DfsSign {
                 for lt in &self.tris[first..first + node.count() as usize] {
                     stats.tris += 1;
                     let tri = lt.triangle();
-                    let h = intersect_triangle(test, &tri, ray, &wr, ray.tmin, best.t);
-                    if let Some((t, u, v)) = h {
+                    let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
+                    if let Some(h) = h {
+                        let TriHit { t, u, v, .. } = h;
                         if !Hit::beats(t, lt.prim, best.t, best.prim) {
                             continue;
                         }
-                        let dt = t_error_bound(&tri, ray.origin, &wr);
-                        if reject_near && t <= dt {
+                        if reject_near && h.maybe_behind_origin() {
                             continue;
                         }
                         {
@@ -118,7 +118,7 @@ impl DfsSign {
                                 u,
                                 v,
                             };
-                            prune = prune_bound(t + dt);
+                            prune = h.prune();
                             if query == Query::Any {
                                 return best;
                             }
