@@ -10,7 +10,7 @@ mod trace;
 
 use clap::{Args, Parser, Subcommand};
 use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
-use lancer::geometry::{SlabTest, TriangleTest};
+use lancer::geometry::{RayOffset, SlabTest, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::{Device, DeviceChoice, LayoutKind, Result, Robustness};
 
@@ -126,6 +126,10 @@ pub struct RobustnessArgs {
     /// Slab (ray–box) test.
     #[arg(long, value_enum, default_value_t = SlabTest::Robust)]
     slab_test: SlabTest,
+    /// How secondary rays leave a surface: by the hit point's error bound (and near hits
+    /// within a t error bound rejected), a fixed epsilon of 1e-4 of the scene's diagonal, or none.
+    #[arg(long, value_enum, default_value_t = RayOffset::ErrorBound)]
+    ray_offset: RayOffset,
     /// GPU: run the shader module without bounds checks / loop bounding (BVH validated first).
     #[arg(long)]
     trusted: bool,
@@ -136,8 +140,8 @@ impl RobustnessArgs {
         Robustness {
             triangle_test: self.triangle_test,
             slab_test: self.slab_test,
+            ray_offset: self.ray_offset,
             checked_module: !self.trusted,
-            ..Robustness::default()
         }
     }
 }

@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lancer::render::{image_kind, EffectSet, Progress, RenderOptions, Renderer, Stop};
 use lancer::{Error, RenderScene, Result};
 
-use super::{spelled, BuildArgs, DeviceArgs};
+use super::{spelled, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -42,6 +42,8 @@ pub struct RenderCmd {
     stats: bool,
     #[command(flatten)]
     build: BuildArgs,
+    #[command(flatten)]
+    robustness: RobustnessArgs,
 }
 
 /// Loads a scene with the command line's overrides applied.
@@ -113,7 +115,7 @@ impl RenderCmd {
             build: self.build.options(),
             layout: self.build.layout,
             memory: self.device.bvh_memory,
-            ..RenderOptions::default()
+            robustness: self.robustness.robustness(),
         };
         let mut renderer = Renderer::new(&scene, &device, &options)?;
         let done = renderer.render(&options);

@@ -298,7 +298,10 @@ impl<'a> GpuRenderer<'a> {
             "render",
             &shaders::render_source(layout),
             &entries,
-            false,
+            // Trusted modules are offered: the layout was validated by GpuBvh::upload, the
+            // scene's indices (materials, emitters, texels) are built here in range, and
+            // every pixel index is guarded by params.count.
+            true,
         )?;
         let mut bind_entries: Vec<_> = bvh.bind_entries().into();
         bind_entries.extend(buffers.iter().map(|(b, buf)| buffer_binding(*b, buf)));
@@ -356,7 +359,7 @@ impl<'a> GpuRenderer<'a> {
         constants.push(self.bvh.override_constant());
         constants.extend(rob.overrides());
         constants.extend(self.layout_constants.iter().copied());
-        let p = self.kernel.pipeline(self.ctx, &constants, false)?;
+        let p = (self.kernel).pipeline(self.ctx, &constants, !rob.checked_module)?;
         self.pipelines.insert((fx, rob), p.clone());
         Ok(p)
     }
