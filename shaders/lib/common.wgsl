@@ -160,8 +160,9 @@ fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec
         let mx = max(max(abs(ax), abs(bx)), abs(cx));
         let my = max(max(abs(ay), abs(by)), abs(cy));
         let mz = max(max(abs(az), abs(bz)), abs(cz));
+        let mzu = max(max(abs(a[w.kz]), abs(b[w.kz])), abs(c[w.kz]));
         let me = max(max(abs(u), abs(v)), abs(ww));
-        res = TriHit(true, t, v / det, ww / det, t_error_numerator(mx, my, mz, me), abs(det));
+        res = TriHit(true, t, v / det, ww / det, t_error_numerator(mx, my, mz, mzu, me), abs(det));
     }
     return res;
 }
@@ -219,6 +220,7 @@ fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
     var mx = 0.0;
     var my = 0.0;
     var mz = 0.0;
+    var mzu = 0.0;
     for (var i = 0; i < 3; i += 1) {
         let a = verts[i];
         let x = a[w.kx] - w.s.x * a[w.kz];
@@ -227,6 +229,7 @@ fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
         mx = max(mx, abs(x));
         my = max(my, abs(y));
         mz = max(mz, abs(z));
+        mzu = max(mzu, abs(a[w.kz]));
         sx[i] = x;
         sy[i] = y;
     }
@@ -234,14 +237,14 @@ fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
     let v = sx[0] * sy[2] - sy[0] * sx[2];
     let ww = sx[1] * sy[0] - sy[1] * sx[0];
     let me = max(max(abs(u), abs(v)), abs(ww));
-    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, me), abs(u + v + ww)));
+    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, mzu, me), abs(u + v + ww)));
 }
 
 // t_error_numerator
-fn t_error_numerator(mx: f32, my: f32, mz: f32, me: f32) -> f32 {
+fn t_error_numerator(mx: f32, my: f32, mz: f32, mzu: f32, me: f32) -> f32 {
     let dz = gamma_f(3.0) * mz;
-    let dx = gamma_f(5.0) * (mx + mz);
-    let dy = gamma_f(5.0) * (my + mz);
+    let dx = gamma_f(5.0) * (mx + mzu);
+    let dy = gamma_f(5.0) * (my + mzu);
     let de = 2.0 * (gamma_f(2.0) * mx * my + dy * mx + dx * my);
     return 3.0 * (gamma_f(3.0) * me * mz + de * mz + dz * me);
 }

@@ -182,12 +182,13 @@ pub fn intersect_watertight_bounded(
         let mx = ax.abs().max(bx.abs()).max(cx.abs());
         let my = ay.abs().max(by.abs()).max(cy.abs());
         let mz = az.abs().max(bz.abs()).max(cz.abs());
+        let mzu = a[kz].abs().max(b[kz].abs()).max(c[kz].abs());
         let me = u.abs().max(v.abs()).max(w.abs());
         Some(TriHit {
             t,
             u: v / det,
             v: w / det,
-            err_num: t_error_numerator(mx, my, mz, me),
+            err_num: t_error_numerator(mx, my, mz, mzu, me),
             det: det.abs(),
         })
     } else {
@@ -285,7 +286,7 @@ pub(crate) const fn gamma(n: f32) -> f32 {
 #[inline]
 pub fn t_error_bound(tri: &Triangle, origin: Vec3, wr: &WatertightRay) -> f32 {
     let [kx, ky, kz] = wr.k;
-    let (mut mx, mut my, mut mz) = (0.0f32, 0.0f32, 0.0f32);
+    let (mut mx, mut my, mut mz, mut mzu) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
     let mut sheared = [(0.0f32, 0.0f32); 3];
     for (i, v) in tri.v.iter().enumerate() {
         let a = *v - origin;
@@ -295,6 +296,7 @@ pub fn t_error_bound(tri: &Triangle, origin: Vec3, wr: &WatertightRay) -> f32 {
         mx = mx.max(x.abs());
         my = my.max(y.abs());
         mz = mz.max(z.abs());
+        mzu = mzu.max(a[kz].abs());
         sheared[i] = (x, y);
     }
     let [(ax, ay), (bx, by), (cx, cy)] = sheared;
@@ -306,22 +308,24 @@ pub fn t_error_bound(tri: &Triangle, origin: Vec3, wr: &WatertightRay) -> f32 {
         t: 0.0,
         u: 0.0,
         v: 0.0,
-        err_num: t_error_numerator(mx, my, mz, me),
+        err_num: t_error_numerator(mx, my, mz, mzu, me),
         det: (u + v + w).abs(),
     }
     .t_error()
 }
 
-/// The t error bound's numerator from the largest sheared coordinates (x, y, z) and the
-/// largest edge function: 3·(γ₃·e·z + δe·z + δz·e); the bound is it over |det|.
+/// The t error bound's numerator from the largest sheared coordinates (x, y, scaled z), the
+/// largest unscaled z (`mzu`: the error of the shear x − s·z scales with z before the 1/d_z
+/// scaling, so the bound holds for directions of any length) and the largest edge function:
+/// 3·(γ₃·e·z + δe·z + δz·e); the bound is it over |det|.
 #[inline(always)]
-fn t_error_numerator(mx: f32, my: f32, mz: f32, me: f32) -> f32 {
+fn t_error_numerator(mx: f32, my: f32, mz: f32, mzu: f32, me: f32) -> f32 {
     const G2: f32 = gamma(2.0);
     const G3: f32 = gamma(3.0);
     const G5: f32 = gamma(5.0);
     let dz = G3 * mz;
-    let dx = G5 * (mx + mz);
-    let dy = G5 * (my + mz);
+    let dx = G5 * (mx + mzu);
+    let dy = G5 * (my + mzu);
     let de = 2.0 * (G2 * mx * my + dy * mx + dx * my);
     3.0 * (G3 * me * mz + de * mz + dz * me)
 }
