@@ -232,7 +232,7 @@ fn scene_file_errors_name_file_and_line() {
     check(
         "nomat.toml",
         &format!("{cam}\n[[objects]]\nshape = \"box\"\nmaterial = \"gold\"\n"),
-        "no material named 'gold'",
+        "no material named \"gold\"",
     );
     check(
         "badior.toml",

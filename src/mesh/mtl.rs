@@ -15,9 +15,17 @@ pub(crate) fn check(path: &Path) -> Result<()> {
         if !matches!(key, "Kd" | "Ka" | "Ks" | "Ke" | "Ni" | "Ns" | "d" | "Tr") {
             continue;
         }
-        // Only tokens that read as numbers; tobj handles other forms ("Kd spectral …").
-        let values: Vec<f32> = words.filter_map(|w| w.parse().ok()).collect();
+        let tokens: Vec<&str> = words.collect();
         let bad = |msg: String| Error::input(path, Some(i + 1), msg);
+        // tobj reads the first three tokens of a colour and panics on fewer.
+        if matches!(key, "Kd" | "Ka" | "Ks" | "Ke") && tokens.len() < 3 {
+            return Err(bad(format!(
+                "{key} needs three numbers (r g b), found {}",
+                tokens.len()
+            )));
+        }
+        // Only tokens that read as numbers; tobj refuses other forms ("Kd spectral …").
+        let values: Vec<f32> = tokens.iter().filter_map(|w| w.parse().ok()).collect();
         if let Some(x) = values.iter().find(|x| !x.is_finite()) {
             return Err(bad(format!("{key} {x}: values must be finite numbers")));
         }

@@ -151,7 +151,9 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
         match std::fs::metadata(&file) {
             Ok(m) if m.is_file() => {
                 if let Err(e) = mtl::check(&file) {
+                    // Checked first: tobj panics on some malformed lines (a short colour).
                     mtl_bad.borrow_mut().get_or_insert(e);
+                    return Err(tobj::LoadError::MaterialParseError);
                 }
             }
             Ok(_) => *mtl_unread.borrow_mut() = Some(format!("{}: not a file", file.display())),

@@ -268,7 +268,7 @@ fn mtl_material(b: &mut Builder, dir: &Path, m: &tobj::Material) -> Result<Mater
             Error::input(
                 &file,
                 None,
-                format!("map_Kd of MTL material '{}': {}", m.name, error_message(&e)),
+                format!("map_Kd of MTL material {:?}: {}", m.name, error_message(&e)),
             )
         })?);
     }
@@ -304,7 +304,7 @@ fn scene_material(
     name: &str,
     d: &MaterialDef,
 ) -> Result<Material> {
-    let bad = |msg: String| Error::input(path, Some(line), format!("material '{name}': {msg}"));
+    let bad = |msg: String| Error::input(path, Some(line), format!("material {name:?}: {msg}"));
     let only = |field: &str, set: bool, kinds: &str| {
         if set {
             Err(bad(format!("'{field}' applies to {kinds} materials only")))
@@ -415,7 +415,7 @@ impl RenderScene {
                 Some(n) => Some(
                     *named
                         .get(n)
-                        .ok_or_else(|| bad(format!("no material named '{n}' in [materials]")))?,
+                        .ok_or_else(|| bad(format!("no material named {n:?} in [materials]")))?,
                 ),
                 None => None,
             };
