@@ -4,6 +4,8 @@
 //! the same arrays, in the same order, as the GPU kernel.
 
 pub mod bvh;
+pub mod grid;
+
 mod query;
 
 use rayon::prelude::*;

@@ -1,0 +1,90 @@
+//! The memory a build may use: [`GridOptions::max_bytes`](super::GridOptions::max_bytes) and
+//! the memory available on the machine. Builds reserve what they are about to allocate (the
+//! structure and its temporaries) before allocating it, so a grid that would not fit ends in
+//! an error naming its size and the limit, never in an allocation abort.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{Error, Result};
+use crate::gpu::human_bytes;
+use crate::limits::available_memory;
+
+/// Most references a grid holds: cell ranges are u32 offsets.
+pub(crate) const MAX_REFS: u64 = u32::MAX as u64;
+
+/// A memory limit shared by the parts of one build (parallel ones included).
+#[derive(Debug)]
+pub(crate) struct Budget {
+    /// The structure being built, for messages ("a uniform grid of 64×64×64 cells").
+    what: String,
+    /// Bytes the build may reserve.
+    limit: u64,
+    /// Where the limit comes from, for messages.
+    source: &'static str,
+    /// Bytes reserved so far.
+    used: AtomicU64,
+}
+
+impl Budget {
+    /// The limit for one build: `max_bytes` or the available memory, the smaller.
+    pub fn new(what: String, max_bytes: Option<u64>) -> Budget {
+        let avail = available_memory();
+        let (limit, source) = match (max_bytes, avail) {
+            (Some(m), Some(a)) if a < m => (a, "the memory available"),
+            (Some(m), _) => (m, "GridOptions::max_bytes"),
+            (None, Some(a)) => (a, "the memory available"),
+            (None, None) => (u64::MAX, "the address space"),
+        };
+        Budget {
+            what,
+            limit,
+            source,
+            used: AtomicU64::new(0),
+        }
+    }
+
+    /// Bytes not yet reserved.
+    pub fn left(&self) -> u64 {
+        self.limit.saturating_sub(self.used.load(Ordering::Relaxed))
+    }
+
+    /// Reserves `bytes`, or refuses (reserving nothing) when they do not fit.
+    pub fn reserve(&self, bytes: u128) -> Result<()> {
+        let b = u64::try_from(bytes).unwrap_or(u64::MAX);
+        let mut used = self.used.load(Ordering::Relaxed);
+        loop {
+            let total = used.saturating_add(b);
+            if total > self.limit {
+                return Err(self.too_big(used as u128 + bytes));
+            }
+            match self
+                .used
+                .compare_exchange_weak(used, total, Ordering::Relaxed, Ordering::Relaxed)
+            {
+                Ok(_) => return Ok(()),
+                Err(u) => used = u,
+            }
+        }
+    }
+
+    /// The error for a build that needs at least `bytes`.
+    pub fn too_big(&self, bytes: u128) -> Error {
+        let need = u64::try_from(bytes).map_or("more than 16 EiB".into(), human_bytes);
+        Error::Usage(format!(
+            "{} needs at least {need} of memory, over the limit of {} ({}): lower the grid's \
+             density or its max_cells / max_resolution, or raise GridOptions::max_bytes",
+            self.what,
+            human_bytes(self.limit),
+            self.source
+        ))
+    }
+
+    /// The error for a build whose references pass the u32 offsets of its cells.
+    pub fn too_many_refs(&self, refs: u64) -> Error {
+        Error::Usage(format!(
+            "{} needs more than {refs} triangle references, over the limit of {MAX_REFS} \
+             (u32 cell offsets): lower the grid's density or its max_cells / max_resolution",
+            self.what
+        ))
+    }
+}
