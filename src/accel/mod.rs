@@ -5,6 +5,7 @@
 
 pub mod bvh;
 pub mod grid;
+pub mod kdtree;
 
 mod query;
 
