@@ -12,28 +12,31 @@ use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, Verdict};
 use lancer::{LayoutKind, Query, Robustness};
 
-/// Traces `rays` through every layout's CPU twin, judges every answer, prints the counts
-/// and fails on any wrong one. Returns the counts of the last layout.
+/// Traces `rays` through every layout's CPU twin and every other structure, judges every
+/// answer, prints the counts and fails on any wrong one. Returns the counts of the BVH in
+/// its default layout.
 fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usize) {
-    let mut counts = (0, 0);
-    for &layout in LayoutKind::ALL {
-        counts = check_layout(name, mesh, rays, builder, layout);
-    }
-    counts
+    let mut kinds: Vec<AccelKind> = LayoutKind::ALL.iter().map(|&l| AccelKind::Bvh(l)).collect();
+    kinds.extend(AccelKind::ALL.iter().filter(|k| !matches!(k, AccelKind::Bvh(_))));
+    let counts: Vec<(usize, usize)> = kinds
+        .iter()
+        .map(|&kind| check_accel(name, mesh, rays, builder, kind))
+        .collect();
+    counts[0]
 }
 
-fn check_layout(
+fn check_accel(
     name: &str,
     mesh: &Mesh,
     rays: &[Ray],
     builder: Builder,
-    layout: LayoutKind,
+    kind: AccelKind,
 ) -> (usize, usize) {
     let opts = BuildOptions {
         builder,
         ..BuildOptions::default()
     };
-    let accel = build(AccelKind::Bvh(layout), mesh, &opts);
+    let accel = build(kind, mesh, &opts).unwrap();
     let (hits, _) = accel.trace_batch(rays, Query::Closest, &Robustness::default());
     let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
     for (r, h) in rays.iter().zip(&hits) {
@@ -44,7 +47,7 @@ fn check_layout(
         }
     }
     println!(
-        "{name} ({builder:?}, {layout}): {agree} agree, {tie} ties, {} wrong",
+        "{name} ({builder:?}, {kind}): {agree} agree, {tie} ties, {} wrong",
         wrong.len()
     );
     assert!(
@@ -112,7 +115,7 @@ fn the_judge_rejects_wrong_answers() {
     let mut rng = Rng::new(1);
     let mesh = soup(&mut rng, 500, 0.3);
     let rays = random_rays(&mut rng, 500, &mesh);
-    let accel = build(AccelKind::default(), &mesh, &BuildOptions::default());
+    let accel = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
     let (hits, _) = accel.trace_batch(&rays, Query::Closest, &Robustness::default());
     let (r, h) = rays
         .iter()

@@ -63,7 +63,7 @@ fn check(name: &str, mesh: &Mesh, tree: &KdTree, rays: &[Ray]) -> (usize, usize)
 /// BVH does not (counted and printed: a BVH bug, not the kd-tree's). Returns that count.
 fn same_as_bvh(name: &str, mesh: &Mesh, tree: &KdTree, rays: &[Ray]) -> usize {
     let rob = Robustness::default();
-    let bvh = build(AccelKind::default(), mesh, &BuildOptions::default());
+    let bvh = build(AccelKind::default(), mesh, &BuildOptions::default()).unwrap();
     let (a, _) = tree.trace_batch(rays, Query::Closest, &rob);
     let (b, _) = bvh.trace_batch(rays, Query::Closest, &rob);
     let (mut differ, mut bvh_wrong) = (0, 0);
@@ -635,7 +635,7 @@ fn bunny_speed_against_the_bvh() {
     pool.install(|| {
         let mut all: Vec<(String, Box<dyn Accel>, f64)> = Vec::new();
         let t = Instant::now();
-        let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default());
+        let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
         all.push(("bvh".into(), bvh, t.elapsed().as_secs_f64()));
         // Variants as K_I:λ:max_depth, comma-separated (0 = the automatic depth cap).
         let variants =

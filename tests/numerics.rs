@@ -8,7 +8,7 @@ use lancer::mesh::Mesh;
 use lancer::{Query, RayStats};
 
 fn flat(mesh: &Mesh) -> Box<dyn Accel> {
-    build(AccelKind::default(), mesh, &BuildOptions::default())
+    build(AccelKind::default(), mesh, &BuildOptions::default()).unwrap()
 }
 
 /// One ray through the default layout's CPU twin with the given triangle test.

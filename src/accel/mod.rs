@@ -52,11 +52,19 @@ pub trait Accel: Send + Sync {
     }
 }
 
-/// Which acceleration structure to build.
+/// Which acceleration structure to build: the registry, one variant per folder.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum AccelKind {
     /// A BVH, traversed through the given flattened layout's CPU twin.
     Bvh(LayoutKind),
+    /// An SAH kd-tree ([`kdtree::KdTree`]).
+    KdTree,
+    /// A uniform grid ([`grid::UniformGrid`]).
+    UniformGrid,
+    /// A two-level grid ([`grid::TwoLevelGrid`]).
+    TwoLevelGrid,
+    /// A hashed grid, only non-empty cells stored ([`grid::HashedGrid`]).
+    HashedGrid,
 }
 
 impl Default for AccelKind {
@@ -65,12 +73,50 @@ impl Default for AccelKind {
     }
 }
 
-/// Builds an acceleration structure over the mesh's usable triangles.
-pub fn build(kind: AccelKind, mesh: &Mesh, options: &bvh::BuildOptions) -> Box<dyn Accel> {
-    match kind {
+impl AccelKind {
+    /// Every structure, the BVH in its default layout first (benches and tests run them all).
+    pub const ALL: &'static [AccelKind] = &[
+        AccelKind::Bvh(LayoutKind::DfsSign),
+        AccelKind::KdTree,
+        AccelKind::UniformGrid,
+        AccelKind::TwoLevelGrid,
+        AccelKind::HashedGrid,
+    ];
+
+    /// The name the command line and benches use.
+    pub fn name(self) -> &'static str {
+        match self {
+            AccelKind::Bvh(_) => "bvh",
+            AccelKind::KdTree => "kdtree",
+            AccelKind::UniformGrid => "grid",
+            AccelKind::TwoLevelGrid => "grid2",
+            AccelKind::HashedGrid => "hashgrid",
+        }
+    }
+}
+
+impl std::fmt::Display for AccelKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Builds an acceleration structure over the mesh's usable triangles (each structure with its
+/// default options; the BVH with `options`). Structures that would not fit in memory are
+/// refused with the size and the limit named.
+pub fn build(
+    kind: AccelKind,
+    mesh: &Mesh,
+    options: &bvh::BuildOptions,
+) -> crate::Result<Box<dyn Accel>> {
+    Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
             layout::flatten(layout, &tree, mesh)
         }
-    }
+        AccelKind::KdTree => Box::new(kdtree::KdTree::build(mesh, &Default::default())?),
+        AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
+        AccelKind::TwoLevelGrid => Box::new(grid::TwoLevelGrid::build(mesh, &Default::default())?),
+        AccelKind::HashedGrid => Box::new(grid::HashedGrid::build(mesh, &Default::default())?),
+    })
 }

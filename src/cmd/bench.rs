@@ -25,6 +25,8 @@ enum BenchWhat {
     Trace(BenchTrace),
     /// Milliseconds per spp on GPU and CPU, specialised vs all-effects kernel.
     Render(super::bench_render::BenchRender),
+    /// Every acceleration structure on one mesh (CPU): build, memory, work and speed.
+    Structures(super::bench_structures::BenchStructures),
 }
 
 #[derive(Args)]
@@ -52,6 +54,7 @@ impl BenchCmd {
         match self.what {
             BenchWhat::Trace(b) => b.run(),
             BenchWhat::Render(b) => b.run(),
+            BenchWhat::Structures(b) => b.run(),
         }
     }
 }

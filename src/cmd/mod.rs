@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_render;
+mod bench_structures;
 mod build;
 mod heatmap;
 mod rays;
@@ -12,7 +13,7 @@ use clap::{Args, Parser, Subcommand};
 use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
 use lancer::geometry::{RayOffset, SlabTest, TriangleTest};
 use lancer::gpu::BvhMemory;
-use lancer::{Device, DeviceChoice, LayoutKind, Result, Robustness};
+use lancer::{AccelKind, Device, DeviceChoice, LayoutKind, Result, Robustness};
 
 #[derive(Parser)]
 #[command(
@@ -79,6 +80,50 @@ impl BuildArgs {
             max_leaf: self.max_leaf as usize,
             bins: self.bins as usize,
             ..BuildOptions::default()
+        }
+    }
+}
+
+/// The acceleration structure on the command line (the BVH in the chosen `--layout`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum AccelArg {
+    /// Bounding volume hierarchy (CPU and GPU).
+    #[default]
+    Bvh,
+    /// SAH kd-tree (CPU).
+    Kdtree,
+    /// Uniform grid (CPU).
+    Grid,
+    /// Two-level grid (CPU).
+    Grid2,
+    /// Hashed grid (CPU).
+    Hashgrid,
+}
+
+impl AccelArg {
+    /// The structure to build, the BVH in `layout`.
+    pub fn kind(self, layout: LayoutKind) -> AccelKind {
+        match self {
+            AccelArg::Bvh => AccelKind::Bvh(layout),
+            AccelArg::Kdtree => AccelKind::KdTree,
+            AccelArg::Grid => AccelKind::UniformGrid,
+            AccelArg::Grid2 => AccelKind::TwoLevelGrid,
+            AccelArg::Hashgrid => AccelKind::HashedGrid,
+        }
+    }
+
+    /// Opens the device for this structure: only the BVH has GPU kernels, so the others run
+    /// on the CPU (`auto` says so; `gpu` is refused).
+    pub fn open(self, device: &DeviceArgs) -> Result<Device> {
+        if self == AccelArg::Bvh {
+            return device.open();
+        }
+        match device.device {
+            DeviceChoice::Gpu => Err(lancer::Error::Usage(format!(
+                "--accel {} runs on the CPU only (only the BVH has GPU kernels): use --device cpu",
+                self.kind(LayoutKind::default())
+            ))),
+            _ => Ok(Device::cpu()),
         }
     }
 }

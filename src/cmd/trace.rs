@@ -5,7 +5,7 @@ use lancer::mesh::load_mesh;
 use lancer::trace::files::{read_rays, write_hits};
 use lancer::{Query, RayStats, Result, Tracer, TracerOptions};
 
-use super::{spelled, BuildArgs, DeviceArgs, RobustnessArgs};
+use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct TraceCmd {
@@ -32,6 +32,9 @@ pub struct TraceCmd {
     workgroup_size: u32,
     #[command(flatten)]
     build: BuildArgs,
+    /// Acceleration structure (all but the BVH run on the CPU).
+    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
+    accel: AccelArg,
 }
 
 impl TraceCmd {
@@ -41,7 +44,7 @@ impl TraceCmd {
         inputs.push(self.rays.clone());
         lancer::output::check_output(&self.out, &inputs)?;
         let rays = read_rays(&self.rays)?;
-        let device = self.device.open()?;
+        let device = self.accel.open(&self.device)?;
         let options = TracerOptions {
             build: self.build.options(),
             layout: self.build.layout,
@@ -50,15 +53,31 @@ impl TraceCmd {
             workgroup_size: self.workgroup_size,
             stats: self.stats,
         };
-        let mut tracer = Tracer::new(&device, &mesh, &options)?;
         let query = if self.any_hit {
             Query::Any
         } else {
             Query::Closest
         };
-        let result = tracer.trace(&rays, query)?;
+        let result = if self.accel == AccelArg::Bvh {
+            Tracer::new(&device, &mesh, &options)?.trace(&rays, query)?
+        } else {
+            let kind = self.accel.kind(self.build.layout);
+            let accel = lancer::accel::build(kind, &mesh, &options.build)?;
+            let start = std::time::Instant::now();
+            let (hits, stats) = accel.trace_batch(&rays, query, &options.robustness);
+            lancer::TraceResult {
+                hits,
+                stats: self.stats.then_some(stats),
+                timings: lancer::gpu::Timings {
+                    gpu_ms: None,
+                    wall_ms: start.elapsed().as_secs_f64() * 1e3,
+                },
+                cpu_retraced: 0,
+            }
+        };
         if self.stats {
             println!("device    {device}");
+            println!("structure {}", self.accel.kind(self.build.layout));
             println!("layout    {}", self.build.layout);
             if !device.is_cpu() {
                 println!("bvh       in {}", spelled(self.device.bvh_memory));
