@@ -5,7 +5,7 @@ use lancer::camera::Camera;
 use lancer::mesh::load_mesh;
 use lancer::{Error, Query, Result, Tracer, TracerOptions};
 
-use super::{BuildArgs, DeviceArgs};
+use super::{AccelArg, BuildArgs, DeviceArgs};
 
 #[derive(Args)]
 pub struct HeatmapCmd {
@@ -24,6 +24,10 @@ pub struct HeatmapCmd {
     device: DeviceArgs,
     #[command(flatten)]
     build: BuildArgs,
+    /// Acceleration structure (all but the BVH run on the CPU); the map counts its nodes or
+    /// cells visited.
+    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
+    accel: AccelArg,
 }
 
 /// Black → purple → orange → yellow ramp for t in [0, 1].
@@ -61,7 +65,7 @@ impl HeatmapCmd {
         // Rays, hits, statistics and the image: about 80 bytes a pixel.
         lancer::limits::check_image(w, h, 80, "use a smaller --width/--height")?;
         let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
-        let device = self.device.open()?;
+        let device = self.accel.open(&self.device)?;
         let options = TracerOptions {
             build: self.build.options(),
             layout: self.build.layout,
@@ -69,11 +73,19 @@ impl HeatmapCmd {
             stats: true,
             ..TracerOptions::default()
         };
-        let mut tracer = Tracer::new(&device, &mesh, &options)?;
-        let stats = tracer
-            .trace(&rays, Query::Closest)?
-            .stats
-            .unwrap_or_default();
+        let stats = if self.accel == AccelArg::Bvh {
+            let mut tracer = Tracer::new(&device, &mesh, &options)?;
+            tracer
+                .trace(&rays, Query::Closest)?
+                .stats
+                .unwrap_or_default()
+        } else {
+            let kind = self.accel.kind(self.build.layout);
+            let accel = lancer::accel::build(kind, &mesh, &options.build)?;
+            accel
+                .trace_batch(&rays, Query::Closest, &options.robustness)
+                .1
+        };
         let max = stats.iter().map(|s| s.nodes).max().unwrap_or(1).max(1);
         let mean = stats.iter().map(|s| s.nodes as f64).sum::<f64>() / stats.len() as f64;
         let mut img = image::RgbImage::new(w, h);
