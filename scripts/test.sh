@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 have_vulkan() {
-  ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1 && ldconfig -p | grep -q libvulkan.so.1
+  ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1 && ldconfig -p | grep libvulkan.so.1 >/dev/null
 }
 
 if ! have_vulkan; then
