@@ -17,7 +17,11 @@ use lancer::{LayoutKind, Query, Robustness};
 /// its default layout.
 fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usize) {
     let mut kinds: Vec<AccelKind> = LayoutKind::ALL.iter().map(|&l| AccelKind::Bvh(l)).collect();
-    kinds.extend(AccelKind::ALL.iter().filter(|k| !matches!(k, AccelKind::Bvh(_))));
+    kinds.extend(
+        AccelKind::ALL
+            .iter()
+            .filter(|k| !matches!(k, AccelKind::Bvh(_))),
+    );
     let counts: Vec<(usize, usize)> = kinds
         .iter()
         .map(|&kind| check_accel(name, mesh, rays, builder, kind))

@@ -56,7 +56,12 @@ impl<'a> CpuRenderer<'a> {
             robustness,
             frame: scene.camera.frame(),
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
-            fixed_offset: scene.fixed_offset(),
+            // The scene's bounds are a pass over every triangle: only when the knob needs them.
+            fixed_offset: if robustness.ray_offset == RayOffset::Fixed {
+                scene.fixed_offset()
+            } else {
+                0.0
+            },
         }
     }
 

@@ -40,7 +40,8 @@ fn read_ray_bytes(path: &Path) -> Result<Vec<Ray>> {
     Ok(bytes
         .chunks_exact(RAY_BYTES)
         .map(|c| {
-            let f = |i: usize| f32::from_le_bytes(c[i * 4..i * 4 + 4].try_into().unwrap());
+            let f =
+                |i: usize| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]);
             Ray::new(
                 glam::Vec3::new(f(0), f(1), f(2)),
                 glam::Vec3::new(f(4), f(5), f(6)),
@@ -89,7 +90,7 @@ pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
     Ok(bytes
         .chunks_exact(16)
         .map(|c| {
-            let w = |i: usize| <[u8; 4]>::try_from(&c[i * 4..i * 4 + 4]).unwrap();
+            let w = |i: usize| [c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]];
             Hit {
                 t: f32::from_le_bytes(w(0)),
                 prim: u32::from_le_bytes(w(1)),

@@ -184,7 +184,7 @@ fn node(
                 idx.par_chunks(PARALLEL_MIN)
                     .map(fill)
                     .reduce_with(merge_bins)
-                    .expect("n > 0")
+                    .unwrap_or_else(|| fill(idx))
             } else {
                 fill(idx)
             };

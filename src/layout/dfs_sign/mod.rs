@@ -144,7 +144,10 @@ fn write(node: &Node, out: &mut [DfsNode], index: u32) {
             (second, *axis as u32, Some(children))
         }
     };
-    let (head, rest) = out.split_first_mut().expect("a subtree has a node");
+    // Every subtree has at least its own node, so `out` is never empty.
+    let Some((head, rest)) = out.split_first_mut() else {
+        return;
+    };
     *head = DfsNode {
         lo: b.lo.into(),
         a,
