@@ -73,19 +73,12 @@ impl HeatmapCmd {
             stats: true,
             ..TracerOptions::default()
         };
-        let stats = if self.accel == AccelArg::Bvh {
-            let mut tracer = Tracer::new(&device, &mesh, &options)?;
-            tracer
-                .trace(&rays, Query::Closest)?
-                .stats
-                .unwrap_or_default()
-        } else {
-            let kind = self.accel.kind(self.build.layout);
-            let accel = lancer::accel::build(kind, &mesh, &options.build)?;
-            accel
-                .trace_batch(&rays, Query::Closest, &options.robustness)
-                .1
-        };
+        let kind = self.accel.kind(self.build.layout);
+        let mut tracer = Tracer::with_structure(&device, &mesh, kind, &options)?;
+        let stats = tracer
+            .trace(&rays, Query::Closest)?
+            .stats
+            .unwrap_or_default();
         let max = stats.iter().map(|s| s.nodes).max().unwrap_or(1).max(1);
         let mean = stats.iter().map(|s| s.nodes as f64).sum::<f64>() / stats.len() as f64;
         let mut img = image::RgbImage::new(w, h);

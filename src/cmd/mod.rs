@@ -112,19 +112,13 @@ impl AccelArg {
         }
     }
 
-    /// Opens the device for this structure: only the BVH has GPU kernels, so the others run
-    /// on the CPU (`auto` says so; `gpu` is refused).
+    /// Opens the device for this structure: only the BVH has GPU kernels, so `auto` runs
+    /// the others on the CPU (`gpu` is left to the library, which refuses it by name).
     pub fn open(self, device: &DeviceArgs) -> Result<Device> {
-        if self == AccelArg::Bvh {
-            return device.open();
+        if self != AccelArg::Bvh && device.device == DeviceChoice::Auto {
+            return Ok(Device::cpu());
         }
-        match device.device {
-            DeviceChoice::Gpu => Err(lancer::Error::Usage(format!(
-                "--accel {} runs on the CPU only (only the BVH has GPU kernels): use --device cpu",
-                self.kind(LayoutKind::default())
-            ))),
-            _ => Ok(Device::cpu()),
-        }
+        device.open()
     }
 }
 

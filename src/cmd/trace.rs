@@ -58,23 +58,8 @@ impl TraceCmd {
         } else {
             Query::Closest
         };
-        let result = if self.accel == AccelArg::Bvh {
-            Tracer::new(&device, &mesh, &options)?.trace(&rays, query)?
-        } else {
-            let kind = self.accel.kind(self.build.layout);
-            let accel = lancer::accel::build(kind, &mesh, &options.build)?;
-            let start = std::time::Instant::now();
-            let (hits, stats) = accel.trace_batch(&rays, query, &options.robustness);
-            lancer::TraceResult {
-                hits,
-                stats: self.stats.then_some(stats),
-                timings: lancer::gpu::Timings {
-                    gpu_ms: None,
-                    wall_ms: start.elapsed().as_secs_f64() * 1e3,
-                },
-                cpu_retraced: 0,
-            }
-        };
+        let kind = self.accel.kind(self.build.layout);
+        let result = Tracer::with_structure(&device, &mesh, kind, &options)?.trace(&rays, query)?;
         if self.stats {
             println!("device    {device}");
             println!("structure {}", self.accel.kind(self.build.layout));

@@ -5,9 +5,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::accel::bvh::{self, BuildOptions};
-use crate::accel::{Query, RayStats};
+use crate::accel::{self, Accel, AccelKind, Query, RayStats};
 use crate::device::Device;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, Robustness};
 use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel, INCOMPLETE};
 use crate::layout::{self, Layout, LayoutKind};
@@ -58,9 +58,13 @@ pub struct TraceResult {
     pub cpu_retraced: usize,
 }
 
-/// A mesh's BVH, flattened, on a device, ready to trace batches of rays.
+/// A mesh's acceleration structure on a device, ready to trace batches of rays: a BVH
+/// flattened in a layout (CPU twin or GPU kernel), or another structure on the CPU.
 pub struct Tracer<'d> {
-    layout: Arc<dyn Layout>,
+    /// What the CPU traces (for a BVH, the layout's twin; it also re-traces rays a GPU
+    /// driver cut short).
+    cpu: Arc<dyn Accel>,
+    layout: Option<Arc<dyn Layout>>,
     gpu: Option<GpuTracer<'d>>,
     options: TracerOptions,
 }
@@ -72,6 +76,31 @@ impl<'d> Tracer<'d> {
         let tree = bvh::build(mesh, &options.build);
         let layout: Arc<dyn Layout> = layout::flatten(options.layout, &tree, mesh).into();
         Self::with_layout(device, layout, options)
+    }
+
+    /// Builds the structure `kind` over the mesh (a BVH in `kind`'s layout, else one of the
+    /// CPU structures). Structures other than the BVH have no GPU kernels: on a GPU device
+    /// they are refused, naming the fix.
+    pub fn with_structure(
+        device: &'d Device,
+        mesh: &Mesh,
+        kind: AccelKind,
+        options: &TracerOptions,
+    ) -> Result<Self> {
+        if let AccelKind::Bvh(layout) = kind {
+            return Self::new(device, mesh, &TracerOptions { layout, ..*options });
+        }
+        if !device.is_cpu() {
+            return Err(Error::Usage(format!(
+                "the {kind} structure runs on the CPU only (only the BVH has GPU kernels): use --device cpu"
+            )));
+        }
+        Ok(Tracer {
+            cpu: accel::build(kind, mesh, &options.build)?.into(),
+            layout: None,
+            gpu: None,
+            options: *options,
+        })
     }
 
     /// A tracer over an already flattened layout (`options.build` and `options.layout` are
@@ -86,15 +115,16 @@ impl<'d> Tracer<'d> {
             None => None,
         };
         Ok(Tracer {
-            layout,
+            cpu: layout.clone(),
+            layout: Some(layout),
             gpu,
             options: *options,
         })
     }
 
-    /// The layout traced (on the CPU, its twin).
-    pub fn layout(&self) -> &Arc<dyn Layout> {
-        &self.layout
+    /// The BVH layout traced (on the CPU, its twin); None for other structures.
+    pub fn layout(&self) -> Option<&Arc<dyn Layout>> {
+        self.layout.as_ref()
     }
 
     /// The options in force.
@@ -135,9 +165,7 @@ impl<'d> Tracer<'d> {
                 }
                 for &i in &cut {
                     let mut s = RayStats::default();
-                    hits[i] = self
-                        .layout
-                        .intersect(&rays[i], query, &o.robustness, &mut s);
+                    hits[i] = self.cpu.intersect(&rays[i], query, &o.robustness, &mut s);
                     if let Some(stats) = stats.as_mut() {
                         stats[i] = s;
                     }
@@ -151,7 +179,7 @@ impl<'d> Tracer<'d> {
             }
             None => {
                 let start = Instant::now();
-                let (hits, stats) = self.layout.trace_batch(rays, query, &o.robustness);
+                let (hits, stats) = self.cpu.trace_batch(rays, query, &o.robustness);
                 Ok(TraceResult {
                     hits,
                     stats: o.stats.then_some(stats),
