@@ -239,3 +239,32 @@ fn bench_render_prints_both_kernels() {
     assert!(text.contains("| cpu | all effects |"), "{text}");
     assert!(text.contains("effects: shadows textures"), "{text}");
 }
+
+#[test]
+fn check_compares_every_layout_on_the_gpu_with_its_twin() {
+    let Some(teapot) = common::model("teapot.obj") else {
+        return;
+    };
+    let out = lancer_ok(&[
+        "check",
+        s(&teapot),
+        "--width",
+        "48",
+        "--height",
+        "32",
+        "--device",
+        "gpu",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for layout in lancer::LayoutKind::ALL {
+        for set in ["primary", "shadow", "bounce"] {
+            let row = format!("| {layout} | {set} |");
+            assert!(text.contains(&row), "no row {row} in:\n{text}");
+        }
+    }
+    assert!(text.contains("every answer agrees"), "{text}");
+    // No GPU, no check: a device error (exit 1), not a silent pass on the CPU alone.
+    let out = lancer(&["check", s(&teapot), "--device", "cpu"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no GPU adapter"));
+}

@@ -4,6 +4,7 @@ mod bench;
 mod bench_render;
 mod bench_structures;
 mod build;
+mod check;
 mod heatmap;
 mod rays;
 mod render;
@@ -46,11 +47,14 @@ enum Cmd {
     Heatmap(heatmap::HeatmapCmd),
     /// Measure speed.
     Bench(bench::BenchCmd),
+    /// Trace the same rays on each layout's CPU twin and GPU kernel and compare the answers
+    /// (exit code 1 on any disagreement).
+    Check(check::CheckCmd),
 }
 
-/// BVH build options shared by the subcommands that build one.
+/// BVH builder options shared by the subcommands that build one.
 #[derive(Args, Clone, Debug)]
-pub struct BuildArgs {
+pub struct BuilderArgs {
     /// Builder.
     #[arg(long, value_enum, default_value_t = Builder::Sweep)]
     builder: Builder,
@@ -66,12 +70,9 @@ pub struct BuildArgs {
     /// SAH cost of one triangle test (finite, > 0).
     #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
     t_obj: f32,
-    /// Flattened BVH layout (GPU arrays and their CPU twin).
-    #[arg(long, value_enum, default_value_t = LayoutKind::default())]
-    layout: LayoutKind,
 }
 
-impl BuildArgs {
+impl BuilderArgs {
     pub fn options(&self) -> BuildOptions {
         BuildOptions {
             builder: self.builder,
@@ -81,6 +82,22 @@ impl BuildArgs {
             bins: self.bins as usize,
             ..BuildOptions::default()
         }
+    }
+}
+
+/// BVH builder options and the flattened layout.
+#[derive(Args, Clone, Debug)]
+pub struct BuildArgs {
+    #[command(flatten)]
+    builder: BuilderArgs,
+    /// Flattened BVH layout (GPU arrays and their CPU twin).
+    #[arg(long, value_enum, default_value_t = LayoutKind::default())]
+    layout: LayoutKind,
+}
+
+impl BuildArgs {
+    pub fn options(&self) -> BuildOptions {
+        self.builder.options()
     }
 }
 
@@ -134,6 +151,11 @@ pub struct DeviceArgs {
 }
 
 impl DeviceArgs {
+    /// Where the kernels read the BVH from.
+    pub fn bvh_memory(&self) -> BvhMemory {
+        self.bvh_memory
+    }
+
     /// Opens the device, printing why `auto` fell back to the CPU and when timings come
     /// from a software adapter.
     pub fn open(&self) -> Result<Device> {
@@ -208,5 +230,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Cmd::Rays(c) => c.run(),
         Cmd::Heatmap(c) => c.run(),
         Cmd::Bench(c) => c.run(),
+        Cmd::Check(c) => c.run(),
     }
 }

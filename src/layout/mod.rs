@@ -70,6 +70,11 @@ pub trait Layout: Accel {
     /// names the first bad node.
     fn validate(&self) -> Result<(), String>;
 
+    /// Bytes of one node record: what a traversal loads per node it counts in
+    /// [`RayStats::nodes`](crate::accel::RayStats), so nodes × this + triangles × 48 is the
+    /// memory traffic of a ray.
+    fn node_bytes(&self) -> usize;
+
     /// Bytes the GPU holds for this layout.
     fn bytes(&self) -> usize {
         let a = self.arrays();

@@ -70,6 +70,10 @@ impl super::Layout for DfsSign {
         LayoutKind::DfsSign
     }
 
+    fn node_bytes(&self) -> usize {
+        std::mem::size_of::<DfsNode>()
+    }
+
     fn arrays(&self) -> LayoutArrays<'_> {
         LayoutArrays {
             nodes: bytemuck::cast_slice(&self.nodes),
