@@ -268,3 +268,44 @@ fn check_compares_every_layout_on_the_gpu_with_its_twin() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no GPU adapter"));
 }
+
+#[test]
+fn bench_layouts_measures_every_layout_and_writes_json() {
+    let Some(teapot) = common::model("teapot.obj") else {
+        return;
+    };
+    let dir = Scratch::new();
+    let json = dir.path("layouts.json");
+    let out = lancer_ok(&[
+        "bench",
+        "layouts",
+        s(&teapot),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--repeat",
+        "1",
+        "--json",
+        s(&json),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let runs = v["runs"].as_array().unwrap();
+    for layout in lancer::LayoutKind::ALL {
+        assert!(
+            text.contains(&format!("| {layout} | per-ray | primary |")),
+            "{text}"
+        );
+        let mine: Vec<_> = runs
+            .iter()
+            .filter(|r| r["layout"] == layout.name())
+            .collect();
+        assert_eq!(mine.len(), 3, "primary, shadow, bounce for {layout}");
+        for r in mine {
+            // Work was counted: every ray visits the root at least.
+            assert!(r["nodes_per_ray"].as_f64().unwrap() >= 1.0, "{r}");
+            assert!(r["cpu_mrays_per_s"].as_f64().unwrap() > 0.0, "{r}");
+        }
+    }
+}

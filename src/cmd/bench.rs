@@ -27,6 +27,9 @@ enum BenchWhat {
     Render(super::bench_render::BenchRender),
     /// Every acceleration structure on one mesh (CPU): build, memory, work and speed.
     Structures(super::bench_structures::BenchStructures),
+    /// Every flattened layout on one mesh: bytes, work and bytes loaded per ray, CPU twin
+    /// and GPU speed for primary, shadow and bounce rays.
+    Layouts(super::bench_layouts::BenchLayouts),
 }
 
 #[derive(Args)]
@@ -55,6 +58,7 @@ impl BenchCmd {
             BenchWhat::Trace(b) => b.run(),
             BenchWhat::Render(b) => b.run(),
             BenchWhat::Structures(b) => b.run(),
+            BenchWhat::Layouts(b) => b.run(),
         }
     }
 }

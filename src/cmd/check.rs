@@ -7,14 +7,13 @@ use std::sync::Arc;
 
 use clap::Args;
 use lancer::accel::bvh::build;
-use lancer::camera::Camera;
 use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::trace::compare::compare_hits;
-use lancer::trace::files::{bounce_rays, default_light, read_rays, shadow_rays};
+use lancer::trace::files::read_rays;
 use lancer::{Device, Error, Query, Ray, Result, Tracer, TracerOptions};
 
-use super::{BuilderArgs, DeviceArgs, RobustnessArgs};
+use super::{view_ray_sets, BuilderArgs, DeviceArgs, RobustnessArgs};
 
 /// A layout, or all of them.
 #[derive(Clone, Copy, Debug)]
@@ -99,24 +98,9 @@ impl CheckCmd {
                 ]
             }
             None => {
-                lancer::limits::check_image(
-                    self.width,
-                    self.height,
-                    200,
-                    "use a smaller --width/--height",
-                )?;
-                let primary =
-                    Camera::default_view(&mesh.bounds(), self.width, self.height).primary_rays();
                 let reference = flatten(LayoutKind::default(), &tree, &mesh);
                 let rob = self.robustness.robustness();
-                let (hits, _) = reference.trace_batch(&primary, Query::Closest, &rob);
-                let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
-                let bounce = bounce_rays(&mesh, &primary, &hits, 1);
-                vec![
-                    ("primary".into(), Query::Closest, primary),
-                    ("shadow".into(), Query::Any, shadow),
-                    ("bounce".into(), Query::Closest, bounce),
-                ]
+                view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?
             }
         };
         println!("adapter {}", ctx.adapter);

@@ -1,6 +1,7 @@
 //! Subcommands of the `lancer` binary: parse, call the library, print.
 
 mod bench;
+mod bench_layouts;
 mod bench_render;
 mod bench_structures;
 mod build;
@@ -214,6 +215,31 @@ fn positive_finite(s: &str) -> std::result::Result<f32, String> {
         Ok(x) => Err(format!("{x} is not a finite number above 0")),
         Err(e) => Err(e.to_string()),
     }
+}
+
+/// The rays benches and checks trace: the default view's primary rays (closest hit), shadow
+/// rays from their hits to the default light (any hit) and diffuse bounce rays from the same
+/// hits (closest hit, incoherent).
+pub fn view_ray_sets(
+    mesh: &lancer::Mesh,
+    accel: &dyn lancer::Accel,
+    width: u32,
+    height: u32,
+    robustness: &Robustness,
+) -> Result<Vec<(String, lancer::Query, Vec<lancer::Ray>)>> {
+    use lancer::trace::files::{bounce_rays, default_light, shadow_rays};
+    use lancer::Query;
+    lancer::limits::check_image(width, height, 200, "use a smaller --width/--height")?;
+    let primary =
+        lancer::camera::Camera::default_view(&mesh.bounds(), width, height).primary_rays();
+    let (hits, _) = accel.trace_batch(&primary, Query::Closest, robustness);
+    let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
+    let bounce = bounce_rays(mesh, &primary, &hits, 1);
+    Ok(vec![
+        ("primary".into(), Query::Closest, primary),
+        ("shadow".into(), Query::Any, shadow),
+        ("bounce".into(), Query::Closest, bounce),
+    ])
 }
 
 /// A value as the command line spells it.
