@@ -1,19 +1,5 @@
-// dfs-sign: 32-byte nodes in depth-first order, near child by the ray's sign on the split
-// axis. The CPU twin is twin.rs, step for step. DFS_LEAF_TAG comes from mod.rs's LEAF_TAG.
-
-// DfsNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | DFS_LEAF_TAG.
-struct DfsNode {
-    lo: vec3<f32>,
-    a: u32,
-    hi: vec3<f32>,
-    b: u32,
-}
-
-fn dfs_load_node(i: u32) -> DfsNode {
-    let a = node_word(2u * i);
-    let b = node_word(2u * i + 1u);
-    return DfsNode(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
-}
+// dfs-sign: 32-byte nodes in depth-first order (dfs_node.wgsl), near child by the ray's sign
+// on the split axis. The CPU twin is twin.rs, step for step.
 
 // Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
 // An invalid ray (NaN, zero direction, empty interval) is a miss.

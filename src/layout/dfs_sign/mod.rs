@@ -45,6 +45,14 @@ impl DfsNode {
     }
 }
 
+/// The WGSL node struct and loader, with the leaf tag generated from [`LEAF_TAG`].
+pub(crate) fn node_wgsl() -> String {
+    format!(
+        "const DFS_LEAF_TAG: u32 = {LEAF_TAG}u;\n{}",
+        include_str!("dfs_node.wgsl")
+    )
+}
+
 /// A BVH flattened in the `dfs-sign` layout; its [`Accel`](crate::accel::Accel) is the
 /// CPU twin of `dfs_sign.wgsl`.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -82,10 +90,7 @@ impl super::Layout for DfsSign {
     }
 
     fn wgsl(&self) -> String {
-        format!(
-            "const DFS_LEAF_TAG: u32 = {LEAF_TAG}u;\n{}",
-            include_str!("dfs_sign.wgsl")
-        )
+        format!("{}{}", node_wgsl(), include_str!("dfs_sign.wgsl"))
     }
 
     /// Child indices in range and forward, leaf ranges in range, depth ≤ MAX_DEPTH, every
