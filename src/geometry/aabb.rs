@@ -103,6 +103,21 @@ impl Aabb {
     /// [max(t_near, tmin), min(t_far, tmax)] is non-empty. WGSL `slab_hit` is the same.
     #[inline]
     pub fn slab_hit(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32, widen: f32) -> bool {
+        let (enter, exit) = self.slab_interval(origin, inv_dir, tmin, tmax, widen);
+        enter <= exit
+    }
+
+    /// The interval [enter, exit] of [`slab_hit`](Self::slab_hit): the ray is in the box
+    /// for t in it, and hits the box when enter ≤ exit. WGSL `slab_interval` is the same.
+    #[inline]
+    pub fn slab_interval(
+        &self,
+        origin: Vec3,
+        inv_dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        widen: f32,
+    ) -> (f32, f32) {
         let t0 = (self.lo - origin) * inv_dir;
         let t1 = (self.hi - origin) * inv_dir;
         let parallel = inv_dir.abs().cmpge(Vec3::splat(PARALLEL_INV));
@@ -118,7 +133,7 @@ impl Aabb {
         // max/min with the ray bounds last.
         let enter = tn.x.max(tn.y).max(tn.z).max(tmin);
         let exit = tf.x.min(tf.y).min(tf.z).min(tmax);
-        enter <= exit
+        (enter, exit)
     }
 
     /// [`slab_hit`](Self::slab_hit) for a ray with no parallel axis (|inv| < PARALLEL_INV on
@@ -135,6 +150,23 @@ impl Aabb {
         tmax: f32,
         widen: f32,
     ) -> bool {
+        let (enter, exit) =
+            Self::slab_interval_nonparallel(lo, hi, origin, inv_dir, tmin, tmax, widen);
+        enter <= exit
+    }
+
+    /// The interval of [`slab_hit_nonparallel`](Self::slab_hit_nonparallel), equal to
+    /// [`slab_interval`](Self::slab_interval)'s for such rays (up to the sign of a zero).
+    #[inline(always)]
+    pub fn slab_interval_nonparallel(
+        lo: Vec3A,
+        hi: Vec3A,
+        origin: Vec3A,
+        inv_dir: Vec3A,
+        tmin: f32,
+        tmax: f32,
+        widen: f32,
+    ) -> (f32, f32) {
         let t0 = (lo - origin) * inv_dir;
         let t1 = (hi - origin) * inv_dir;
         let tn = t0.min(t1);
@@ -145,7 +177,7 @@ impl Aabb {
         let exit = tf.min_element();
         let enter = if enter > tmin { enter } else { tmin };
         let exit = if exit < tmax { exit } else { tmax };
-        enter <= exit
+        (enter, exit)
     }
 
     /// Convenience wrapper for a whole ray.

@@ -4,7 +4,10 @@
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
-use crate::geometry::Triangle;
+use crate::accel::RayStats;
+use crate::geometry::{
+    intersect_triangle_bounded, Hit, Ray, Robustness, Triangle, TriangleTest, WatertightRay,
+};
 use crate::mesh::Mesh;
 
 /// One triangle, 48 bytes: three vertices, the original index in v0's slot w.
@@ -48,5 +51,73 @@ impl LeafTri {
                 }
             })
             .collect()
+    }
+}
+
+/// One ray's fixed state in a twin's leaf step: the triangle test's ray set-up and whether
+/// near hits are rejected (see [`Robustness::rejects_near_hits`]).
+pub(crate) struct LeafRay<'a> {
+    /// The ray.
+    pub ray: &'a Ray,
+    /// Its watertight set-up.
+    pub wr: WatertightRay,
+    /// Whether a hit that may lie behind the origin is dropped.
+    pub reject_near: bool,
+}
+
+impl<'a> LeafRay<'a> {
+    /// The set-up for `ray` under `robustness`.
+    #[inline(always)]
+    pub fn new(ray: &'a Ray, robustness: &Robustness) -> Self {
+        LeafRay {
+            ray,
+            wr: WatertightRay::new(ray.dir),
+            reject_near: robustness.rejects_near_hits(),
+        }
+    }
+
+    /// The leaf step every twin takes (WGSL `test_leaf` in shaders/lib/traversal.wgsl):
+    /// tests `tris` in order with Möller–Trumbore when `MT`, else the watertight test; a hit
+    /// that beats `best` by the tie rule replaces it and moves `prune`. Returns true when an
+    /// any-hit query is answered (the traversal ends).
+    #[inline(always)]
+    pub fn test_leaf<const MT: bool>(
+        &self,
+        tris: &[LeafTri],
+        any_hit: bool,
+        best: &mut Hit,
+        prune: &mut f32,
+        stats: &mut RayStats,
+    ) -> bool {
+        let test = if MT {
+            TriangleTest::MollerTrumbore
+        } else {
+            TriangleTest::Watertight
+        };
+        let ray = self.ray;
+        for lt in tris {
+            stats.tris += 1;
+            let tri = lt.triangle();
+            let Some(h) = intersect_triangle_bounded(test, &tri, ray, &self.wr, ray.tmin, best.t)
+            else {
+                continue;
+            };
+            if !Hit::beats(h.t, lt.prim, best.t, best.prim)
+                || (self.reject_near && h.maybe_behind_origin())
+            {
+                continue;
+            }
+            *best = Hit {
+                t: h.t,
+                prim: lt.prim,
+                u: h.u,
+                v: h.v,
+            };
+            *prune = h.prune();
+            if any_hit {
+                return true;
+            }
+        }
+        false
     }
 }

@@ -28,13 +28,15 @@
 //! the kernels' stack size; a layout whose traversal needs more entries per level must
 //! say so in `validate`.
 
+mod dfs_distance;
 mod dfs_sign;
-mod leaf_tri;
+pub(crate) mod leaf_tri;
 
 use crate::accel::bvh::Bvh;
 use crate::accel::Accel;
 use crate::mesh::Mesh;
 
+pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
 
@@ -95,16 +97,20 @@ pub enum LayoutKind {
     /// the split axis gives.
     #[default]
     DfsSign,
+    /// The dfs-sign nodes, both children tested and entered nearest first by entry
+    /// distance; the farther is culled on the pop once a closer hit is known.
+    DfsDistance,
 }
 
 impl LayoutKind {
     /// Every layout, for tests and benches that run them all.
-    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign];
+    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign, LayoutKind::DfsDistance];
 
     /// The name the command line and benches use.
     pub fn name(self) -> &'static str {
         match self {
             LayoutKind::DfsSign => "dfs-sign",
+            LayoutKind::DfsDistance => "dfs-distance",
         }
     }
 }
@@ -119,5 +125,6 @@ impl std::fmt::Display for LayoutKind {
 pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
+        LayoutKind::DfsDistance => Box::new(DfsDistance::flatten(bvh, mesh)),
     }
 }

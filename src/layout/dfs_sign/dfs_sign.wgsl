@@ -36,25 +36,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                     sp += 1u;
                     idx = near;
                     descended = true;
-                } else {
-                    let end = node.a + (node.b >> 2u);
-                    for (var i = node.a; i < end; i += 1u) {
-                        let tri = load_tri(i);
-                        if COUNT_STATS {
-                            n_tris += 1u;
-                        }
-                        let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
-                        if h.ok && beats(h.t, tri.prim, best.t, best.prim)
-                            && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
-                            best = Hit(h.t, tri.prim, h.u, h.v);
-                            prune = hit_prune(h);
-                            if any_hit {
-                                // Empty the stack: the pop below ends the traversal.
-                                sp = 0u;
-                                break;
-                            }
-                        }
-                    }
+                } else if test_leaf(node.a, node.b >> 2u, r, w, any_hit, &best, &prune) {
+                    // Answered: empty the stack, the pop below ends the traversal.
+                    sp = 0u;
                 }
             }
             if !descended {

@@ -57,8 +57,8 @@ pub(crate) fn node_wgsl() -> String {
 /// CPU twin of `dfs_sign.wgsl`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DfsSign {
-    nodes: Vec<DfsNode>,
-    tris: Vec<LeafTri>,
+    pub(super) nodes: Vec<DfsNode>,
+    pub(super) tris: Vec<LeafTri>,
 }
 
 impl DfsSign {

@@ -7,10 +7,8 @@ use glam::{Vec3, Vec3A};
 use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{
-    intersect_triangle_bounded, prune_bound, Aabb, Hit, Ray, Robustness, TriHit, TriangleTest,
-    WatertightRay, MISS, PARALLEL_INV,
-};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, TriangleTest, MISS, PARALLEL_INV};
+use crate::layout::leaf_tri::LeafRay;
 
 impl Accel for DfsSign {
     fn bounds(&self) -> Aabb {
@@ -51,17 +49,11 @@ impl DfsSign {
         if !ray.is_valid() {
             return best;
         }
-        let test = if MT {
-            TriangleTest::MollerTrumbore
-        } else {
-            TriangleTest::Watertight
-        };
         let widen = robustness.far_widen();
-        let reject_near = robustness.rejects_near_hits();
+        let leaf = LeafRay::new(ray, robustness);
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
-        let wr = WatertightRay::new(ray.dir);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
@@ -99,31 +91,9 @@ impl DfsSign {
                     continue;
                 }
                 let first = node.a as usize;
-                for lt in &self.tris[first..first + node.count() as usize] {
-                    stats.tris += 1;
-                    let tri = lt.triangle();
-                    let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
-                    if let Some(h) = h {
-                        let TriHit { t, u, v, .. } = h;
-                        if !Hit::beats(t, lt.prim, best.t, best.prim) {
-                            continue;
-                        }
-                        if reject_near && h.maybe_behind_origin() {
-                            continue;
-                        }
-                        {
-                            best = Hit {
-                                t,
-                                prim: lt.prim,
-                                u,
-                                v,
-                            };
-                            prune = h.prune();
-                            if query == Query::Any {
-                                return best;
-                            }
-                        }
-                    }
+                let tris = &self.tris[first..first + node.count() as usize];
+                if leaf.test_leaf::<MT>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                    return best;
                 }
             }
             if sp == 0 {
