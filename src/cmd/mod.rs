@@ -5,6 +5,7 @@ mod bench_layouts;
 mod bench_render;
 mod bench_structures;
 mod build;
+mod chart;
 mod check;
 mod heatmap;
 mod rays;
