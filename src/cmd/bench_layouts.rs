@@ -42,6 +42,9 @@ pub struct BenchLayouts {
     /// Also write the results as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Also draw Mrays/s per layout and ray set as a PNG bar chart here.
+    #[arg(long)]
+    chart: Option<PathBuf>,
     #[command(flatten)]
     build: BuilderArgs,
 }
@@ -183,6 +186,38 @@ impl BenchLayouts {
                 "| {} | {} | {} | {} | {:.1} | {:.1} | {:.0} | {:.2} | {gpu} |",
                 r.layout, r.mode, r.rays, r.count, r.nodes, r.tris, r.bytes_loaded, r.cpu_mrays
             );
+        }
+        if let Some(path) = &self.chart {
+            let mut categories = Vec::new();
+            for (name, _, _) in &sets {
+                categories.push(format!("{name} CPU"));
+                if !device.is_cpu() {
+                    categories.push(format!("{name} GPU"));
+                }
+            }
+            let mut series: Vec<(String, Vec<f64>)> = Vec::new();
+            for &kind in &kinds {
+                let mut values = Vec::new();
+                for r in rows.iter().filter(|r| r.layout == kind) {
+                    values.push(r.cpu_mrays);
+                    if !device.is_cpu() {
+                        values.push(r.gpu_mrays.unwrap_or(f64::NAN));
+                    }
+                }
+                series.push((format!("{kind} ({})", rows[0].mode), values));
+            }
+            let gpu_name = device
+                .gpu_context()
+                .map_or("none".into(), |c| c.adapter.driver.clone());
+            let title = format!(
+                "{} {}x{}: CPU {} threads, GPU {gpu_name}",
+                self.mesh.file_name().unwrap_or_default().to_string_lossy(),
+                self.width,
+                self.height,
+                rayon::current_num_threads()
+            );
+            super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)?;
+            println!("\nchart -> {}", path.display());
         }
         if let Some(path) = &self.json {
             let json = serde_json::json!({
