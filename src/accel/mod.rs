@@ -3,10 +3,12 @@
 //! [`Layout`](crate::layout::Layout), whose CPU twin is the BVH's `Accel`: the CPU walks
 //! the same arrays, in the same order, as the GPU kernel.
 
+pub mod bih;
 pub mod bvh;
 pub mod grid;
 pub mod kdtree;
 
+mod plane_ray;
 mod query;
 
 use rayon::prelude::*;
@@ -65,6 +67,8 @@ pub enum AccelKind {
     TwoLevelGrid,
     /// A hashed grid, only non-empty cells stored ([`grid::HashedGrid`]).
     HashedGrid,
+    /// A bounding interval hierarchy ([`bih::Bih`]).
+    Bih,
 }
 
 impl Default for AccelKind {
@@ -81,6 +85,7 @@ impl AccelKind {
         AccelKind::UniformGrid,
         AccelKind::TwoLevelGrid,
         AccelKind::HashedGrid,
+        AccelKind::Bih,
     ];
 
     /// The name the command line and benches use.
@@ -91,6 +96,7 @@ impl AccelKind {
             AccelKind::UniformGrid => "grid",
             AccelKind::TwoLevelGrid => "grid2",
             AccelKind::HashedGrid => "hashgrid",
+            AccelKind::Bih => "bih",
         }
     }
 }
@@ -118,5 +124,6 @@ pub fn build(
         AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
         AccelKind::TwoLevelGrid => Box::new(grid::TwoLevelGrid::build(mesh, &Default::default())?),
         AccelKind::HashedGrid => Box::new(grid::HashedGrid::build(mesh, &Default::default())?),
+        AccelKind::Bih => Box::new(bih::Bih::build(mesh, &Default::default())?),
     })
 }

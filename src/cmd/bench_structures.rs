@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lancer::accel::bih::Bih;
 use lancer::accel::bvh::{build, BuildOptions, BvhStats};
 use lancer::accel::grid::{GridStats, HashedGrid, TwoLevelGrid, UniformGrid};
 use lancer::accel::kdtree::KdTree;
@@ -75,6 +76,11 @@ fn build_one(kind: AccelKind, mesh: &lancer::Mesh) -> Result<Built> {
             let g = HashedGrid::build(mesh, &Default::default())?;
             let info = grid(g.stats());
             (Box::new(g), info)
+        }
+        AccelKind::Bih => {
+            let t = Bih::build(mesh, &Default::default())?;
+            let s = t.stats();
+            (Box::new(t), (s.bytes as u64, 0, s.max_depth.to_string()))
         }
     };
     Ok(Built {

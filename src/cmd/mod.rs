@@ -117,6 +117,8 @@ pub enum AccelArg {
     Grid2,
     /// Hashed grid (CPU).
     Hashgrid,
+    /// Bounding interval hierarchy (CPU).
+    Bih,
 }
 
 impl AccelArg {
@@ -128,6 +130,7 @@ impl AccelArg {
             AccelArg::Grid => AccelKind::UniformGrid,
             AccelArg::Grid2 => AccelKind::TwoLevelGrid,
             AccelArg::Hashgrid => AccelKind::HashedGrid,
+            AccelArg::Bih => AccelKind::Bih,
         }
     }
 

@@ -4,10 +4,11 @@
 //! both, near first — with the near side given by the sign of the direction on the split
 //! axis.
 //!
-//! Robust by construction:
+//! Robust by construction (the interval ends and the ray's scaling are shared with the BIH,
+//! `accel::plane_ray`):
 //! - every interval end is one computed plane distance (or tmin/tmax), never a sum, so its
-//!   error stays within γ(3) of its value, and is kept widened outward by [`TIE_SLACK`] of
-//!   its magnitude ([`widen_lo`], [`widen_hi`]); d is compared with the widened ends, so a
+//!   error stays within γ(3) of its value, and is kept widened outward by `TIE_SLACK` of
+//!   its magnitude (`widen_lo`, `widen_hi`); d is compared with the widened ends, so a
 //!   cell the ray truly reaches is never skipped, d exactly on near or far included (both
 //!   children are then visited);
 //! - an axis the ray is parallel to (|1/d| ≥ [`PARALLEL_INV`], the slab test's own rule)
@@ -17,7 +18,7 @@
 //!   tiny or huge direction is traversed like its unit twin.
 //!
 //! The tie rule: a popped node is skipped only when its entry lies beyond the best t plus
-//! its error bound plus [`TIE_SLACK`] (the BVH's `prune_bound`), so a triangle at exactly the
+//! its error bound plus `TIE_SLACK` (the BVH's `prune_bound`), so a triangle at exactly the
 //! best t in a later leaf — a coincident copy, a triangle split across the plane — is still
 //! tested, and equal t goes to the smaller original index ([`Hit::beats`]).
 //!
@@ -28,45 +29,15 @@
 //! at least as long), so correctness does not depend on it.
 
 use super::{KdTree, MAX_KD_DEPTH};
+use crate::accel::plane_ray::{widen_hi, widen_lo, PlaneRay};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle_bounded, safe_recip, Aabb, Hit, Ray, Robustness, Triangle, TriangleTest,
-    WatertightRay, PARALLEL_INV, TIE_SLACK,
+    intersect_triangle_bounded, Aabb, Hit, Ray, Robustness, Triangle, TriangleTest, WatertightRay,
+    PARALLEL_INV,
 };
 
 /// Triangle ids remembered per ray.
 const MAILBOX: usize = 8;
-
-/// The lower end of an interval that starts at the computed distance `t`, widened by
-/// [`TIE_SLACK`] (2⁻²⁰ ≈ 9.5e-7) of its magnitude. Every distance is one computed plane
-/// distance, within γ(3) ≈ 3.6e-7 of its exact value; comparing a widened end with another
-/// computed distance covers both errors (2γ(3)/(1 − γ(3)) < 2⁻²⁰), whatever the signs.
-#[inline(always)]
-fn widen_lo(t: f32) -> f32 {
-    t - TIE_SLACK * t.abs()
-}
-
-/// The upper end of an interval that ends at the computed distance `t`, widened likewise
-/// (may round to +∞ next to f32::MAX, which compares rightly).
-#[inline(always)]
-fn widen_hi(t: f32) -> f32 {
-    t + TIE_SLACK * t.abs()
-}
-
-/// (2^k, 2^−k) for the k that brings `m` (> 0, finite) into [1, 2), k within ±126.
-#[inline(always)]
-fn pow2_scales(m: f32) -> (f32, f32) {
-    let e = ((m.to_bits() >> 23) & 0xff) as i32 - 127;
-    let k = (-e).clamp(-126, 126);
-    let pow2 = |k: i32| f32::from_bits(((k + 127) as u32) << 23);
-    (pow2(k), pow2(-k))
-}
-
-/// A plane distance, kept finite.
-#[inline(always)]
-fn finite(t: f32) -> f32 {
-    t.clamp(-f32::MAX, f32::MAX)
-}
 
 impl Accel for KdTree {
     fn bounds(&self) -> Aabb {
@@ -90,34 +61,6 @@ impl Accel for KdTree {
 }
 
 impl KdTree {
-    /// The ray's widened [near, far] interval in the root cell, or None when it misses the
-    /// cell; `o` the origin, `inv` the reciprocal direction, [tmin, tmax] the ray's interval
-    /// (all in the traversal's scaled units).
-    fn root_interval(
-        &self,
-        o: [f32; 3],
-        inv: [f32; 3],
-        tmin: f32,
-        tmax: f32,
-    ) -> Option<(f32, f32)> {
-        let (mut tn, mut tf) = (tmin, tmax);
-        for k in 0..3 {
-            let (lo, hi) = (self.bounds.lo[k], self.bounds.hi[k]);
-            if inv[k].abs() >= PARALLEL_INV {
-                if o[k] < lo || o[k] > hi {
-                    return None;
-                }
-                continue;
-            }
-            let t0 = finite((lo - o[k]) * inv[k]);
-            let t1 = finite((hi - o[k]) * inv[k]);
-            let (a, b) = if inv[k] > 0.0 { (t0, t1) } else { (t1, t0) };
-            tn = tn.max(widen_lo(a));
-            tf = tf.min(widen_hi(b));
-        }
-        (tn <= tf).then_some((tn, tf))
-    }
-
     /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
     // `!(d < lo)` is meant: a NaN d (parallel, origin on the plane) visits both children.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -138,26 +81,19 @@ impl KdTree {
         } else {
             TriangleTest::Watertight
         };
-        // The traversal runs on t' = t / 2^k for the direction scaled by 2^k so that its
-        // largest component lies in [1, 2): exact (a power of two), and it makes "parallel"
-        // mean a component below 2e-30 of the largest, so a ray whose direction is tiny (or
-        // huge) overall is traversed like its unit twin. Triangles see the ray unscaled.
-        let (scale, unscale) = pow2_scales(ray.dir.abs().max_element());
-        // An axis the ray is parallel to (the slab test's rule, |1/d| ≥ PARALLEL_INV) gets
-        // 1/d = ±∞, sign kept.
-        let inv = (ray.dir * scale).to_array().map(|c| {
-            let r = safe_recip(c);
+        // Plane distances in the units of the direction scaled to a largest component in
+        // [1, 2) (PlaneRay); an axis the ray is parallel to gets 1/d = ±∞, sign kept.
+        let pr = PlaneRay::new(ray);
+        let inv = pr.inv.map(|r| {
             if r.abs() >= PARALLEL_INV {
                 f32::INFINITY.copysign(r)
             } else {
                 r
             }
         });
-        let o = ray.origin.to_array();
-        let tmax = finite(ray.tmax.min(f32::MAX) * unscale);
-        let tmin = finite(ray.tmin * unscale);
+        let (o, tmax) = (pr.o, pr.tmax);
         // [lo, hi]: the ray's interval in the current cell, widened (widen_lo, widen_hi).
-        let Some((mut lo, mut hi)) = self.root_interval(o, inv, tmin, tmax) else {
+        let Some((mut lo, mut hi)) = pr.root_interval(&self.bounds) else {
             stats.nodes += 1;
             return best;
         };
@@ -240,7 +176,7 @@ impl KdTree {
                     if query == Query::Any {
                         return best;
                     }
-                    prune = finite(h.prune() * unscale);
+                    prune = pr.scaled(h.prune());
                 }
             }
             // Next: the nearest pending node whose entry is not beyond the best hit.
