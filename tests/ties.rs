@@ -131,13 +131,23 @@ fn fifty_thousand_copies_agree_bit_for_bit() {
     let mesh = Mesh::from_triangles(tris);
     let rays = Camera::default_view(&mesh.bounds(), 64, 48).primary_rays();
     check_closest("50,000 copies", &mesh, &rays);
-    // Any hit: the same first hit in traversal order on every device, and a real one.
+    // Any hit: the first hit in the layout's traversal order, the same on every device (the
+    // CPU twin, both GPU memories), and a real one. Layouts order children differently, so
+    // two layouts may return different copies.
     let all = everywhere(&mesh, &rays, Query::Any);
     for (dev, hits) in &all {
-        assert_eq!(hits, &all[0].1, "{dev} any-hit differs from {}", all[0].0);
-    }
-    for (r, h) in rays.iter().zip(&all[0].1) {
-        assert!(!matches!(judge_any(&mesh, r, h), Verdict::Wrong(_)));
+        let layout = dev.split(' ').nth(1).unwrap_or_default();
+        let twin = format!("cpu {layout}");
+        let (_, want) = all.iter().find(|(d, _)| *d == twin).unwrap();
+        assert_eq!(hits, want, "{dev} any-hit differs from {twin}");
+        if *dev == twin {
+            for (r, h) in rays.iter().zip(hits) {
+                assert!(
+                    !matches!(judge_any(&mesh, r, h), Verdict::Wrong(_)),
+                    "{dev}"
+                );
+            }
+        }
     }
 }
 

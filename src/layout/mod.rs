@@ -29,6 +29,7 @@
 //! say so in `validate`.
 
 mod dfs_distance;
+mod bvh2_wide_node;
 mod dfs_sign;
 pub(crate) mod leaf_tri;
 
@@ -37,6 +38,7 @@ use crate::accel::Accel;
 use crate::mesh::Mesh;
 
 pub use dfs_distance::DfsDistance;
+pub use bvh2_wide_node::Bvh2WideNode;
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
 
@@ -100,17 +102,21 @@ pub enum LayoutKind {
     /// The dfs-sign nodes, both children tested and entered nearest first by entry
     /// distance; the farther is culled on the pop once a closer hit is known.
     DfsDistance,
+    /// 64-byte nodes holding both children's boxes (Aila & Laine 2009): both tested per
+    /// visit, the nearer hit child first.
+    Bvh2WideNode,
 }
 
 impl LayoutKind {
     /// Every layout, for tests and benches that run them all.
-    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign, LayoutKind::DfsDistance];
+    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign, LayoutKind::DfsDistance, LayoutKind::Bvh2WideNode];
 
     /// The name the command line and benches use.
     pub fn name(self) -> &'static str {
         match self {
             LayoutKind::DfsSign => "dfs-sign",
             LayoutKind::DfsDistance => "dfs-distance",
+            LayoutKind::Bvh2WideNode => "bvh2-wide-node",
         }
     }
 }
@@ -126,5 +132,6 @@ pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
         LayoutKind::DfsDistance => Box::new(DfsDistance::flatten(bvh, mesh)),
+        LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::flatten(bvh, mesh)),
     }
 }

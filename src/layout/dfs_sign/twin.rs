@@ -65,7 +65,7 @@ impl DfsSign {
             stats.nodes += 1;
             let enter = if parallel {
                 node.bbox()
-                    .slab_hit(ray.origin, inv, ray.tmin, best.t, widen)
+                    .slab_hit(ray.origin, inv, ray.tmin, prune, widen)
             } else {
                 Aabb::slab_hit_nonparallel(
                     Vec3A::from_array(node.lo),
