@@ -539,7 +539,7 @@ fn the_memory_cap_refuses_with_an_error() {
     assert!(dup > 400, "needles are duplicated: {:?}", fits.stats());
     for parallel in [false, true] {
         let tight = KdOptions {
-            max_memory: Some(2000 * 100 + 20_000),
+            max_memory: Some(2000 * 150 + 20_000),
             parallel,
             ..KdOptions::default()
         };

@@ -66,8 +66,8 @@ impl DfsSign {
 }
 
 impl super::Layout for DfsSign {
-    fn kind(&self) -> LayoutKind {
-        LayoutKind::DfsSign
+    fn name(&self) -> &'static str {
+        LayoutKind::DfsSign.name()
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
