@@ -4,9 +4,7 @@
 //! (`traverse.rs`).
 
 use super::traverse::MAILBOX;
-use super::{
-    KdTree, ABOVE_EMPTY, ABOVE_SHIFT, BELOW_EMPTY, COUNT_SHIFT, LEAF_TAG, MAX_KD_DEPTH,
-};
+use super::{KdTree, ABOVE_EMPTY, ABOVE_SHIFT, BELOW_EMPTY, COUNT_SHIFT, LEAF_TAG, MAX_KD_DEPTH};
 use crate::accel::AccelKind;
 use crate::layout::{Layout, LayoutArrays};
 
@@ -96,7 +94,10 @@ impl Layout for KdTree {
                 ));
             }
             let flags = node.empty_children();
-            let truth = (self.nodes[i + 1].is_empty_leaf(), self.nodes[above].is_empty_leaf());
+            let truth = (
+                self.nodes[i + 1].is_empty_leaf(),
+                self.nodes[above].is_empty_leaf(),
+            );
             if flags != truth {
                 return Err(format!(
                     "inner node {i} flags its children empty {flags:?}, they are {truth:?}"
@@ -129,7 +130,11 @@ mod tests {
         let tris = (0..64)
             .map(|i| {
                 let c = Vec3::new(i as f32, (i % 7) as f32 * 0.3, (i % 5) as f32 * 0.2);
-                Triangle::new(c, c + Vec3::new(0.4, 0.0, 0.0), c + Vec3::new(0.0, 0.4, 0.1))
+                Triangle::new(
+                    c,
+                    c + Vec3::new(0.4, 0.0, 0.0),
+                    c + Vec3::new(0.0, 0.4, 0.1),
+                )
             })
             .collect();
         KdTree::build(&Mesh::from_triangles(tris), &KdOptions::default()).unwrap()
@@ -167,7 +172,9 @@ mod tests {
         let inner = (tree.nodes.iter())
             .position(|n| !n.is_leaf() && n.empty_children() == (false, false))
             .unwrap();
-        let leaf = (tree.nodes.iter()).position(|n| n.count() > 0 && n.is_leaf()).unwrap();
+        let leaf = (tree.nodes.iter())
+            .position(|n| n.count() > 0 && n.is_leaf())
+            .unwrap();
         let corrupt = |f: &dyn Fn(&mut KdTree)| {
             let mut t = tree.clone();
             f(&mut t);

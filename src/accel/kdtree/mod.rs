@@ -137,11 +137,12 @@ impl Node {
     }
     /// An inner node; `below` and `above` are its children (for their emptiness).
     pub(crate) fn inner(axis: usize, split: f32, above_idx: u32, below: Node, above: Node) -> Node {
+        let flag = |child: Node, bit: u32| if child.is_empty_leaf() { bit } else { 0 };
         Node {
             a: split.to_bits(),
             b: (above_idx << ABOVE_SHIFT)
-                | if above.is_empty_leaf() { ABOVE_EMPTY } else { 0 }
-                | if below.is_empty_leaf() { BELOW_EMPTY } else { 0 }
+                | flag(above, ABOVE_EMPTY)
+                | flag(below, BELOW_EMPTY)
                 | axis as u32,
         }
     }

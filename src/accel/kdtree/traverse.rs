@@ -39,8 +39,8 @@
 use super::{KdTree, MAX_KD_DEPTH};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle_bounded, prune_bound, safe_recip, Aabb, Hit, Ray, Robustness,
-    TriangleTest, WatertightRay, MISS, PARALLEL_INV,
+    intersect_triangle_bounded, prune_bound, safe_recip, Aabb, Hit, Ray, Robustness, TriangleTest,
+    WatertightRay, MISS, PARALLEL_INV,
 };
 
 /// Triangles remembered per ray (kdtree.wgsl holds them in two `vec4<u32>`).
