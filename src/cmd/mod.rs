@@ -109,7 +109,7 @@ pub enum AccelArg {
     /// Bounding volume hierarchy (CPU and GPU).
     #[default]
     Bvh,
-    /// SAH kd-tree (CPU).
+    /// SAH kd-tree (CPU and GPU).
     Kdtree,
     /// Uniform grid (CPU).
     Grid,
@@ -134,10 +134,12 @@ impl AccelArg {
         }
     }
 
-    /// Opens the device for this structure: only the BVH has GPU kernels, so `auto` runs
-    /// the others on the CPU (`gpu` is left to the library, which refuses it by name).
+    /// Opens the device for this structure: only the BVH and the kd-tree have GPU kernels,
+    /// so `auto` runs the others on the CPU (`gpu` is left to the library, which refuses it
+    /// by name).
     pub fn open(self, device: &DeviceArgs) -> Result<Device> {
-        if self != AccelArg::Bvh && device.device == DeviceChoice::Auto {
+        let gpu = matches!(self, AccelArg::Bvh | AccelArg::Kdtree);
+        if !gpu && device.device == DeviceChoice::Auto {
             return Ok(Device::cpu());
         }
         device.open()

@@ -29,6 +29,18 @@ pub struct LeafTri {
 }
 
 impl LeafTri {
+    /// Triangle `prim` with vertices `v`.
+    pub fn new(v: [glam::Vec3; 3], prim: u32) -> LeafTri {
+        LeafTri {
+            v0: v[0].into(),
+            prim,
+            v1: v[1].into(),
+            pad1: 0,
+            v2: v[2].into(),
+            pad2: 0,
+        }
+    }
+
     /// The triangle's vertices.
     #[inline(always)]
     pub fn triangle(&self) -> Triangle {
@@ -39,17 +51,7 @@ impl LeafTri {
     pub fn gather(bvh: &Bvh, mesh: &Mesh) -> Vec<LeafTri> {
         bvh.order
             .par_iter()
-            .map(|&id| {
-                let t = &mesh.triangles[id as usize];
-                LeafTri {
-                    v0: t.v[0].into(),
-                    prim: id,
-                    v1: t.v[1].into(),
-                    pad1: 0,
-                    v2: t.v[2].into(),
-                    pad2: 0,
-                }
-            })
+            .map(|&id| LeafTri::new(mesh.triangles[id as usize].v, id))
             .collect()
     }
 }

@@ -1,7 +1,10 @@
-//! Flattened BVH layouts: the arrays the GPU reads, the WGSL that walks them, and the CPU
-//! twin that walks the same arrays in the same order.
+//! Layouts: a structure's GPU arrays, the WGSL that walks them, and the CPU twin that walks
+//! the same arrays in the same order. The flattened BVH layouts live here, one folder each
+//! (registered in [`LayoutKind`]); other structures with a GPU form implement [`Layout`] in
+//! their own folder (the kd-tree: `src/accel/kdtree/gpu.rs`) and are built for the GPU by
+//! [`accel::build_gpu`](crate::accel::build_gpu).
 //!
-//! # Adding a layout
+//! # Adding a BVH layout
 //!
 //! A layout is one folder, `src/layout/<name>/`, plus one registry line:
 //!
@@ -52,10 +55,13 @@ pub struct LayoutArrays<'a> {
     pub tris: &'a [u8],
 }
 
-/// A flattened BVH for the GPU, and its CPU twin (the [`Accel`] supertrait).
+/// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
+/// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays
+/// in the same order as the WGSL. A flattened BVH ([`LayoutKind`]) or another structure
+/// with a GPU kernel (the kd-tree).
 pub trait Layout: Accel {
-    /// Which layout this is.
-    fn kind(&self) -> LayoutKind;
+    /// Its name, for messages, tests and benches (a BVH layout's [`LayoutKind::name`]).
+    fn name(&self) -> &'static str;
 
     /// The arrays to upload.
     fn arrays(&self) -> LayoutArrays<'_>;

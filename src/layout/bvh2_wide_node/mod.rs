@@ -165,8 +165,8 @@ fn write(node: &Node, out: &mut [WideNode], index: u32) {
 }
 
 impl super::Layout for Bvh2WideNode {
-    fn kind(&self) -> LayoutKind {
-        LayoutKind::Bvh2WideNode
+    fn name(&self) -> &'static str {
+        LayoutKind::Bvh2WideNode.name()
     }
 
     fn node_bytes(&self) -> usize {

@@ -34,8 +34,8 @@ impl DfsDistance {
 }
 
 impl super::Layout for DfsDistance {
-    fn kind(&self) -> LayoutKind {
-        LayoutKind::DfsDistance
+    fn name(&self) -> &'static str {
+        LayoutKind::DfsDistance.name()
     }
 
     fn node_bytes(&self) -> usize {

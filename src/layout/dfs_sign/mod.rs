@@ -74,8 +74,8 @@ impl DfsSign {
 }
 
 impl super::Layout for DfsSign {
-    fn kind(&self) -> LayoutKind {
-        LayoutKind::DfsSign
+    fn name(&self) -> &'static str {
+        LayoutKind::DfsSign.name()
     }
 
     fn node_bytes(&self) -> usize {
