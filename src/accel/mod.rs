@@ -6,6 +6,7 @@
 pub mod bvh;
 pub mod grid;
 pub mod kdtree;
+pub mod octree;
 
 mod query;
 
@@ -65,6 +66,8 @@ pub enum AccelKind {
     TwoLevelGrid,
     /// A hashed grid, only non-empty cells stored ([`grid::HashedGrid`]).
     HashedGrid,
+    /// An octree ([`octree::Octree`]).
+    Octree,
 }
 
 impl Default for AccelKind {
@@ -81,6 +84,7 @@ impl AccelKind {
         AccelKind::UniformGrid,
         AccelKind::TwoLevelGrid,
         AccelKind::HashedGrid,
+        AccelKind::Octree,
     ];
 
     /// The name the command line and benches use.
@@ -91,6 +95,7 @@ impl AccelKind {
             AccelKind::UniformGrid => "grid",
             AccelKind::TwoLevelGrid => "grid2",
             AccelKind::HashedGrid => "hashgrid",
+            AccelKind::Octree => "octree",
         }
     }
 }
@@ -118,5 +123,6 @@ pub fn build(
         AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
         AccelKind::TwoLevelGrid => Box::new(grid::TwoLevelGrid::build(mesh, &Default::default())?),
         AccelKind::HashedGrid => Box::new(grid::HashedGrid::build(mesh, &Default::default())?),
+        AccelKind::Octree => Box::new(octree::Octree::build(mesh, &Default::default())?),
     })
 }

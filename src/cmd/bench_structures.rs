@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::{build, BuildOptions, BvhStats};
 use lancer::accel::grid::{GridStats, HashedGrid, TwoLevelGrid, UniformGrid};
 use lancer::accel::kdtree::KdTree;
+use lancer::accel::octree::Octree;
 use lancer::camera::Camera;
 use lancer::layout::{flatten, LayoutKind};
 use lancer::mesh::load_mesh;
@@ -75,6 +76,16 @@ fn build_one(kind: AccelKind, mesh: &lancer::Mesh) -> Result<Built> {
             let g = HashedGrid::build(mesh, &Default::default())?;
             let info = grid(g.stats());
             (Box::new(g), info)
+        }
+        AccelKind::Octree => {
+            let t = Octree::build(mesh, &Default::default())?;
+            let s = t.stats();
+            let info = (
+                s.bytes as u64,
+                s.duplicated_references as u64,
+                s.max_depth.to_string(),
+            );
+            (Box::new(t), info)
         }
     };
     Ok(Built {

@@ -98,6 +98,8 @@ pub enum AccelArg {
     Grid2,
     /// Hashed grid (CPU).
     Hashgrid,
+    /// Octree (CPU).
+    Octree,
 }
 
 impl AccelArg {
@@ -109,6 +111,7 @@ impl AccelArg {
             AccelArg::Grid => AccelKind::UniformGrid,
             AccelArg::Grid2 => AccelKind::TwoLevelGrid,
             AccelArg::Hashgrid => AccelKind::HashedGrid,
+            AccelArg::Octree => AccelKind::Octree,
         }
     }
 
