@@ -1,5 +1,6 @@
 //! An octree over a mesh's triangles: a cube around the mesh, split at its centre into eight
-//! children, recursively, until a cell holds few triangles or the depth cap is reached.
+//! children, recursively, until a cell holds few triangles, a split is not expected to save
+//! work ([`OctreeOptions`]) or the depth cap is reached.
 //!
 //! An octree is a hierarchy of 2×2×2 grids, and it is built and walked with the grids'
 //! pieces: each triangle is referenced in every child cell it overlaps (the grids' binning,
