@@ -8,6 +8,7 @@ pub mod bih;
 pub mod bvh;
 pub mod grid;
 pub mod kdtree;
+pub mod octree;
 
 mod plane_ray;
 mod query;
@@ -72,6 +73,8 @@ pub enum AccelKind {
     HashedGrid,
     /// A bounding interval hierarchy ([`bih::Bih`]).
     Bih,
+    /// An octree ([`octree::Octree`]).
+    Octree,
 }
 
 impl Default for AccelKind {
@@ -89,6 +92,7 @@ impl AccelKind {
         AccelKind::TwoLevelGrid,
         AccelKind::HashedGrid,
         AccelKind::Bih,
+        AccelKind::Octree,
     ];
 
     /// The name the command line and benches use.
@@ -100,6 +104,7 @@ impl AccelKind {
             AccelKind::TwoLevelGrid => "grid2",
             AccelKind::HashedGrid => "hashgrid",
             AccelKind::Bih => "bih",
+            AccelKind::Octree => "octree",
         }
     }
 }
@@ -128,6 +133,7 @@ pub fn build(
         AccelKind::TwoLevelGrid => Box::new(grid::TwoLevelGrid::build(mesh, &Default::default())?),
         AccelKind::HashedGrid => Box::new(grid::HashedGrid::build(mesh, &Default::default())?),
         AccelKind::Bih => Box::new(bih::Bih::build(mesh, &Default::default())?),
+        AccelKind::Octree => Box::new(octree::Octree::build(mesh, &Default::default())?),
     })
 }
 
@@ -147,6 +153,7 @@ pub fn build_gpu(
         AccelKind::UniformGrid
         | AccelKind::TwoLevelGrid
         | AccelKind::HashedGrid
-        | AccelKind::Bih => None,
+        | AccelKind::Bih
+        | AccelKind::Octree => None,
     })
 }

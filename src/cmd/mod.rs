@@ -119,6 +119,8 @@ pub enum AccelArg {
     Hashgrid,
     /// Bounding interval hierarchy (CPU).
     Bih,
+    /// Octree (CPU).
+    Octree,
 }
 
 impl AccelArg {
@@ -131,6 +133,7 @@ impl AccelArg {
             AccelArg::Grid2 => AccelKind::TwoLevelGrid,
             AccelArg::Hashgrid => AccelKind::HashedGrid,
             AccelArg::Bih => AccelKind::Bih,
+            AccelArg::Octree => AccelKind::Octree,
         }
     }
 
