@@ -4,6 +4,7 @@ mod bench;
 mod bench_render;
 mod bench_structures;
 mod build;
+mod chart;
 mod heatmap;
 mod rays;
 mod render;
