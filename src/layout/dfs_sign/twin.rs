@@ -8,9 +8,16 @@ use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle_bounded, prune_bound, Aabb, Hit, Ray, Robustness, TriHit, TriangleTest,
-    WatertightRay, MISS, PARALLEL_INV,
+    intersect_triangle_bounded, prune_bound, Aabb, Hit, Precision, Ray, Robustness, TriHit,
+    TriangleTest, WatertightRay, MISS, PARALLEL_INV,
 };
+use crate::trace::oracle;
+
+/// The triangle tests `walk` is specialised for.
+const WATERTIGHT: u8 = 0;
+const MOLLER_TRUMBORE: u8 = 1;
+/// The f64 oracle's test ([`Precision::F64`]).
+const F64: u8 = 2;
 
 impl Accel for DfsSign {
     fn bounds(&self) -> Aabb {
@@ -30,17 +37,20 @@ impl Accel for DfsSign {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
+        match (robustness.precision, robustness.triangle_test) {
+            (Precision::F64, _) => self.walk::<F64>(ray, query, robustness, stats),
+            (_, TriangleTest::Watertight) => self.walk::<WATERTIGHT>(ray, query, robustness, stats),
+            (_, TriangleTest::MollerTrumbore) => {
+                self.walk::<MOLLER_TRUMBORE>(ray, query, robustness, stats)
+            }
         }
     }
 }
 
 impl DfsSign {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST`.
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -51,7 +61,7 @@ impl DfsSign {
         if !ray.is_valid() {
             return best;
         }
-        let test = if MT {
+        let test = if TEST == MOLLER_TRUMBORE {
             TriangleTest::MollerTrumbore
         } else {
             TriangleTest::Watertight
@@ -102,7 +112,11 @@ impl DfsSign {
                 for lt in &self.tris[first..first + node.count() as usize] {
                     stats.tris += 1;
                     let tri = lt.triangle();
-                    let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
+                    let h = if TEST == F64 {
+                        oracle::triangle_hit(&tri, ray, ray.tmin, best.t)
+                    } else {
+                        intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t)
+                    };
                     if let Some(h) = h {
                         let TriHit { t, u, v, .. } = h;
                         if !Hit::beats(t, lt.prim, best.t, best.prim) {
