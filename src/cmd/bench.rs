@@ -27,6 +27,8 @@ enum BenchWhat {
     Render(super::bench_render::BenchRender),
     /// Every acceleration structure on one mesh (CPU): build, memory, work and speed.
     Structures(super::bench_structures::BenchStructures),
+    /// What each robustness knob costs in time and the error it leaves, CPU and GPU.
+    Accuracy(super::bench_accuracy::BenchAccuracy),
 }
 
 #[derive(Args)]
@@ -55,6 +57,7 @@ impl BenchCmd {
             BenchWhat::Trace(b) => b.run(),
             BenchWhat::Render(b) => b.run(),
             BenchWhat::Structures(b) => b.run(),
+            BenchWhat::Accuracy(b) => b.run(),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Subcommands of the `lancer` binary: parse, call the library, print.
 
 mod bench;
+mod bench_accuracy;
 mod bench_render;
 mod bench_structures;
 mod build;
