@@ -67,7 +67,9 @@ fn slab_interval(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<
     let big = select(vec3<f32>(-BIG), vec3<f32>(BIG), inside);
     let tn = select(min(t0, t1), -big, parallel);
     let widen = select(1.0, FAR_WIDEN, ROBUST_SLAB);
-    let tf = select(max(t0, t1) * widen, big, parallel);
+    // Outwards whatever t_far's sign (Aabb::slab_hit).
+    let far = max(t0, t1);
+    let tf = select(max(far * widen, far * (2.0 - widen)), big, parallel);
     let enter = max(max(max(tn.x, tn.y), tn.z), tmin);
     let exit = min(min(min(tf.x, tf.y), tf.z), tmax);
     return vec2<f32>(enter, exit);

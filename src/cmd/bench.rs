@@ -32,6 +32,8 @@ enum BenchWhat {
     /// Every flattened layout on one mesh: bytes, work and bytes loaded per ray, CPU twin
     /// and GPU speed for primary, shadow and bounce rays.
     Layouts(super::bench_layouts::BenchLayouts),
+    /// What each robustness knob costs in time and the error it leaves, CPU and GPU.
+    Accuracy(super::bench_accuracy::BenchAccuracy),
 }
 
 #[derive(Args)]
@@ -64,6 +66,7 @@ impl BenchCmd {
             BenchWhat::Render(b) => b.run(),
             BenchWhat::Structures(b) => b.run(),
             BenchWhat::Layouts(b) => b.run(),
+            BenchWhat::Accuracy(b) => b.run(),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Subcommands of the `lancer` binary: parse, call the library, print.
 
 mod bench;
+mod bench_accuracy;
 mod bench_layouts;
 mod bench_render;
 mod bench_structures;
@@ -14,7 +15,7 @@ mod trace;
 
 use clap::{Args, Parser, Subcommand};
 use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
-use lancer::geometry::{RayOffset, SlabTest, TriangleTest};
+use lancer::geometry::{Precision, RayOffset, SlabTest, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::{AccelKind, Device, DeviceChoice, LayoutKind, Result, Robustness};
 
@@ -204,6 +205,10 @@ pub struct RobustnessArgs {
     /// GPU: run the shader module without bounds checks / loop bounding (BVH validated first).
     #[arg(long)]
     trusted: bool,
+    /// CPU: triangle tests in f32 (the GPU's arithmetic) or f64 (the oracle's, to price the
+    /// f32 error); a GPU device refuses f64.
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    precision: Precision,
 }
 
 impl RobustnessArgs {
@@ -213,6 +218,7 @@ impl RobustnessArgs {
             slab_test: self.slab_test,
             ray_offset: self.ray_offset,
             checked_module: !self.trusted,
+            precision: self.precision,
         }
     }
 }

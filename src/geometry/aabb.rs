@@ -96,7 +96,9 @@ impl Aabb {
     }
 
     /// Robust slab test: `inv_dir` from [`safe_recip`](super::safe_recip), so no 0·∞ NaN can
-    /// arise; far distances multiplied by `widen` ([`FAR_WIDEN`] robust, 1 plain). An axis the ray is parallel to
+    /// arise; far distances moved outwards by the factor `widen` ([`FAR_WIDEN`] robust, 1
+    /// plain): t·widen for t ≥ 0, t·(2 − widen) for t < 0 (a box behind the origin, for a
+    /// ray with tmin < 0, must not shrink). An axis the ray is parallel to
     /// (|inv| ≥ PARALLEL_INV, i.e. |d| ≲ 2e-30) does not limit the interval when the origin
     /// lies within that slab, boundary planes included, and empties it otherwise — so an
     /// origin exactly on either face plane behaves the same. Returns whether
@@ -121,7 +123,9 @@ impl Aabb {
         let t0 = (self.lo - origin) * inv_dir;
         let t1 = (self.hi - origin) * inv_dir;
         let parallel = inv_dir.abs().cmpge(Vec3::splat(PARALLEL_INV));
-        let (mut tn, mut tf) = (t0.min(t1), t0.max(t1) * widen);
+        let far = t0.max(t1);
+        // Outwards whatever t_far's sign: a negative t_far times widen would move inwards.
+        let (mut tn, mut tf) = (t0.min(t1), (far * widen).max(far * (2.0 - widen)));
         // Rare (axis-aligned rays): a predictable branch keeps the common path short; the
         // result equals the WGSL select() form on every input.
         if parallel.any() {
@@ -170,7 +174,8 @@ impl Aabb {
         let t0 = (lo - origin) * inv_dir;
         let t1 = (hi - origin) * inv_dir;
         let tn = t0.min(t1);
-        let tf = t0.max(t1) * widen;
+        let far = t0.max(t1);
+        let tf = (far * widen).max(far * (2.0 - widen));
         // min/max of non-NaN values is exact in any association (±0 may differ, which no
         // comparison below can see).
         let enter = tn.max_element();

@@ -31,8 +31,8 @@
 //! the kernels' stack size; a layout whose traversal needs more entries per level must
 //! say so in `validate`.
 
-mod dfs_distance;
 mod bvh2_wide_node;
+mod dfs_distance;
 mod dfs_sign;
 pub(crate) mod leaf_tri;
 
@@ -40,8 +40,8 @@ use crate::accel::bvh::Bvh;
 use crate::accel::Accel;
 use crate::mesh::Mesh;
 
-pub use dfs_distance::DfsDistance;
 pub use bvh2_wide_node::Bvh2WideNode;
+pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
 
@@ -115,7 +115,11 @@ pub enum LayoutKind {
 
 impl LayoutKind {
     /// Every layout, for tests and benches that run them all.
-    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign, LayoutKind::DfsDistance, LayoutKind::Bvh2WideNode];
+    pub const ALL: &'static [LayoutKind] = &[
+        LayoutKind::DfsSign,
+        LayoutKind::DfsDistance,
+        LayoutKind::Bvh2WideNode,
+    ];
 
     /// The name the command line and benches use.
     pub fn name(self) -> &'static str {

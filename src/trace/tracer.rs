@@ -8,7 +8,7 @@ use crate::accel::bvh::{self, BuildOptions};
 use crate::accel::{self, Accel, AccelKind, Query, RayStats};
 use crate::device::Device;
 use crate::error::{Error, Result};
-use crate::geometry::{Hit, Ray, Robustness};
+use crate::geometry::{Hit, Precision, Ray, Robustness};
 use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel, INCOMPLETE};
 use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
@@ -149,6 +149,12 @@ impl<'d> Tracer<'d> {
     /// Traces a batch of rays: the closest hit or any hit of each.
     pub fn trace(&mut self, rays: &[Ray], query: Query) -> Result<TraceResult> {
         let o = self.options;
+        if o.robustness.precision != Precision::F32 && self.layout.is_none() {
+            return Err(Error::Usage(
+                "f64 precision is the BVH's (its CPU twin's): use --accel bvh or --precision f32"
+                    .into(),
+            ));
+        }
         match &mut self.gpu {
             Some(gpu) => {
                 let kernel = TraceKernel {

@@ -8,8 +8,8 @@ use glam::{Vec3, Vec3A};
 use super::{is_leaf, Bvh2WideNode, ChildRef, COUNT_SHIFT};
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, TriangleTest, MISS, PARALLEL_INV};
-use crate::layout::leaf_tri::LeafRay;
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for Bvh2WideNode {
     fn bounds(&self) -> Aabb {
@@ -28,17 +28,14 @@ impl Accel for Bvh2WideNode {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
-        }
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
     }
 }
 
 impl Bvh2WideNode {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -96,7 +93,7 @@ impl Bvh2WideNode {
                 let first = cur.0 as usize;
                 let count = (cur.1 >> COUNT_SHIFT) as usize;
                 let tris = &self.tris[first..first + count];
-                if leaf.test_leaf::<MT>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
                     return best;
                 }
             } else {

@@ -7,8 +7,8 @@ use glam::{Vec3, Vec3A};
 use super::{DfsDistance, DfsNode};
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, TriangleTest, PARALLEL_INV};
-use crate::layout::leaf_tri::LeafRay;
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for DfsDistance {
     fn bounds(&self) -> Aabb {
@@ -23,17 +23,15 @@ impl Accel for DfsDistance {
         robustness: &Robustness,
         stats: &mut RayStats,
     ) -> Hit {
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
-        }
+        // One specialised loop per triangle test (the choice is not re-made per triangle).
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
     }
 }
 
 impl DfsDistance {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -109,7 +107,7 @@ impl DfsDistance {
             } else {
                 let first = node.a as usize;
                 let tris = &self.flat.tris[first..first + node.count() as usize];
-                if leaf.test_leaf::<MT>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
                     return best;
                 }
             }

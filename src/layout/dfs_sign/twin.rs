@@ -7,8 +7,8 @@ use glam::{Vec3, Vec3A};
 use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, TriangleTest, MISS, PARALLEL_INV};
-use crate::layout::leaf_tri::LeafRay;
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for DfsSign {
     fn bounds(&self) -> Aabb {
@@ -28,17 +28,14 @@ impl Accel for DfsSign {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
-        }
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
     }
 }
 
 impl DfsSign {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -92,7 +89,7 @@ impl DfsSign {
                 }
                 let first = node.a as usize;
                 let tris = &self.tris[first..first + node.count() as usize];
-                if leaf.test_leaf::<MT>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
                     return best;
                 }
             }
