@@ -133,7 +133,7 @@ fn bunny_against_the_oracle_and_dfs_sign() {
     let dfs = flatten(LayoutKind::DfsSign, &bvh, &mesh);
     for l in [&accel, &dfs] {
         let per_tri = l.bytes() as f64 / l.triangles() as f64;
-        println!("bunny {}: {per_tri:.1} bytes per triangle", l.kind());
+        println!("bunny {}: {per_tri:.1} bytes per triangle", l.name());
     }
     let mut rng = Rng::new(7);
     let rays = random_rays(&mut rng, 3000, &mesh);
