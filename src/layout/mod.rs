@@ -28,6 +28,7 @@
 //! the kernels' stack size; a layout whose traversal needs more entries per level must
 //! say so in `validate`.
 
+mod cwbvh;
 mod dfs_sign;
 mod leaf_tri;
 
@@ -35,6 +36,7 @@ use crate::accel::bvh::Bvh;
 use crate::accel::Accel;
 use crate::mesh::Mesh;
 
+pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
 
@@ -90,16 +92,20 @@ pub enum LayoutKind {
     /// the split axis gives.
     #[default]
     DfsSign,
+    /// 80-byte compressed 8-wide nodes (Ylitie et al. 2017): children's boxes in 8 bits per
+    /// plane, slots ordered by ray octant, a stack of node groups.
+    Cwbvh,
 }
 
 impl LayoutKind {
     /// Every layout, for tests and benches that run them all.
-    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign];
+    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign, LayoutKind::Cwbvh];
 
     /// The name the command line and benches use.
     pub fn name(self) -> &'static str {
         match self {
             LayoutKind::DfsSign => "dfs-sign",
+            LayoutKind::Cwbvh => "cwbvh",
         }
     }
 }
@@ -114,5 +120,6 @@ impl std::fmt::Display for LayoutKind {
 pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
+        LayoutKind::Cwbvh => Box::new(Cwbvh::flatten(bvh, mesh)),
     }
 }
