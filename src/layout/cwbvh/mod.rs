@@ -148,14 +148,14 @@ impl Cwbvh {
     /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
     /// unless they are whole records and pass [`validate`](super::Layout::validate).
     pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Cwbvh, String> {
-        if arrays.nodes.len() % NODE_BYTES != 0 {
+        if !arrays.nodes.len().is_multiple_of(NODE_BYTES) {
             return Err(format!(
                 "node array of {} bytes is not whole {NODE_BYTES}-byte nodes",
                 arrays.nodes.len()
             ));
         }
         let nodes: Vec<CwNode> = bytemuck::pod_collect_to_vec(arrays.nodes);
-        if arrays.tris.len() % std::mem::size_of::<LeafTri>() != 0 {
+        if !(arrays.tris.len()).is_multiple_of(std::mem::size_of::<LeafTri>()) {
             return Err(format!(
                 "triangle array of {} bytes is not whole triangles",
                 arrays.tris.len()
@@ -362,8 +362,8 @@ impl super::Layout for Cwbvh {
                     self.nodes.len()
                 ));
             }
-            for c in base..base + inner {
-                if std::mem::replace(&mut reached[c], true) {
+            for (c, r) in reached.iter_mut().enumerate().skip(base).take(inner) {
+                if std::mem::replace(r, true) {
                     return Err(format!("node {c} is reached twice"));
                 }
                 stack.push((c, depth + 1));
