@@ -32,6 +32,7 @@
 //! say so in `validate`.
 
 mod bvh2_wide_node;
+mod cwbvh;
 mod dfs_distance;
 mod dfs_sign;
 pub(crate) mod leaf_tri;
@@ -41,6 +42,7 @@ use crate::accel::Accel;
 use crate::mesh::Mesh;
 
 pub use bvh2_wide_node::Bvh2WideNode;
+pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
@@ -111,6 +113,9 @@ pub enum LayoutKind {
     /// 64-byte nodes holding both children's boxes (Aila & Laine 2009): both tested per
     /// visit, the nearer hit child first.
     Bvh2WideNode,
+    /// 80-byte compressed 8-wide nodes (Ylitie et al. 2017): children's boxes in 8 bits per
+    /// plane, slots ordered by ray octant, a stack of node groups.
+    Cwbvh,
 }
 
 impl LayoutKind {
@@ -119,6 +124,7 @@ impl LayoutKind {
         LayoutKind::DfsSign,
         LayoutKind::DfsDistance,
         LayoutKind::Bvh2WideNode,
+        LayoutKind::Cwbvh,
     ];
 
     /// The name the command line and benches use.
@@ -127,6 +133,7 @@ impl LayoutKind {
             LayoutKind::DfsSign => "dfs-sign",
             LayoutKind::DfsDistance => "dfs-distance",
             LayoutKind::Bvh2WideNode => "bvh2-wide-node",
+            LayoutKind::Cwbvh => "cwbvh",
         }
     }
 }
@@ -143,5 +150,6 @@ pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
         LayoutKind::DfsDistance => Box::new(DfsDistance::flatten(bvh, mesh)),
         LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::flatten(bvh, mesh)),
+        LayoutKind::Cwbvh => Box::new(Cwbvh::flatten(bvh, mesh)),
     }
 }
