@@ -14,28 +14,29 @@ use crate::geometry::{prune_bound, safe_recip, Aabb, Ray, PARALLEL_INV};
 /// [`TIE_SLACK`](crate::geometry::TIE_SLACK) (2⁻²⁰ ≈ 9.5e-7) of its magnitude. Every distance is one computed plane
 /// distance, within γ(3) ≈ 3.6e-7 of its exact value; comparing a widened end with another
 /// computed distance covers both errors (2γ(3)/(1 − γ(3)) < 2⁻²⁰), whatever the signs.
-/// Never past −f32::MAX (the mirror of [`prune_bound`], which WGSL has too).
+/// Never past −f32::MAX (the mirror of [`prune_bound`], which WGSL has too). WGSL `kd_widen_lo`.
 #[inline(always)]
 pub(crate) fn widen_lo(t: f32) -> f32 {
     -prune_bound(-t)
 }
 
 /// The upper end of an interval that ends at the computed distance `t`, widened likewise:
-/// [`prune_bound`], never past f32::MAX.
+/// [`prune_bound`], never past f32::MAX. WGSL `kd_widen_hi`.
 #[inline(always)]
 pub(crate) fn widen_hi(t: f32) -> f32 {
     prune_bound(t)
 }
 
-/// A plane distance, kept finite.
+/// A plane distance, kept finite. WGSL `kd_finite`.
 #[inline(always)]
 pub(crate) fn finite(t: f32) -> f32 {
     t.clamp(-f32::MAX, f32::MAX)
 }
 
 /// (2^k, 2^−k) for the k that brings `m` (> 0, finite) into [1, 2), k within ±126.
+/// WGSL `kd_pow2`.
 #[inline(always)]
-fn pow2_scales(m: f32) -> (f32, f32) {
+pub(crate) fn pow2_scales(m: f32) -> (f32, f32) {
     let e = ((m.to_bits() >> 23) & 0xff) as i32 - 127;
     let k = (-e).clamp(-126, 126);
     let pow2 = |k: i32| f32::from_bits(((k + 127) as u32) << 23);

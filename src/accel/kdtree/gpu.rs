@@ -194,9 +194,6 @@ mod tests {
             }),
             corrupt(&|t| t.bounds.hi.x = f32::INFINITY),
         ];
-        for e in &errors {
-            println!("{e}");
-        }
         assert!(errors[0].contains("outside") && errors[1].contains("flags"));
         assert!(errors[2].contains("refers to triangles") && errors[3].contains("padded"));
         assert!(errors[4].contains("not finite"));

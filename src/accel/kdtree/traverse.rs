@@ -37,47 +37,15 @@
 //! CPU's).
 
 use super::{KdTree, MAX_KD_DEPTH};
+use crate::accel::plane_ray::{finite, pow2_scales, widen_hi, widen_lo};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle_bounded, prune_bound, safe_recip, Aabb, Hit, Ray, Robustness, TriangleTest,
+    intersect_triangle_bounded, safe_recip, Aabb, Hit, Ray, Robustness, TriangleTest,
     WatertightRay, MISS, PARALLEL_INV,
 };
 
 /// Triangles remembered per ray (kdtree.wgsl holds them in two `vec4<u32>`).
 pub(crate) const MAILBOX: usize = 8;
-
-/// The lower end of an interval that starts at the computed distance `t`, widened by
-/// [`TIE_SLACK`](crate::geometry::TIE_SLACK) (2⁻²⁰ ≈ 9.5e-7) of its magnitude (finite: [`prune_bound`] mirrored).
-/// Every distance is one computed plane distance, within γ(3) ≈ 3.6e-7 of its exact value;
-/// comparing a widened end with another computed distance covers both errors
-/// (2γ(3)/(1 − γ(3)) < 2⁻²⁰), whatever the signs. WGSL `kd_widen_lo`.
-#[inline(always)]
-fn widen_lo(t: f32) -> f32 {
-    -prune_bound(-t)
-}
-
-/// The upper end of an interval that ends at the computed distance `t`, widened likewise
-/// (finite: [`prune_bound`] itself). WGSL `kd_widen_hi`.
-#[inline(always)]
-fn widen_hi(t: f32) -> f32 {
-    prune_bound(t)
-}
-
-/// (2^k, 2^−k) for the k that brings `m` (> 0, finite) into [1, 2), k within ±126.
-/// WGSL `kd_pow2`.
-#[inline(always)]
-fn pow2_scales(m: f32) -> (f32, f32) {
-    let e = ((m.to_bits() >> 23) & 0xff) as i32 - 127;
-    let k = (-e).clamp(-126, 126);
-    let pow2 = |k: i32| f32::from_bits(((k + 127) as u32) << 23);
-    (pow2(k), pow2(-k))
-}
-
-/// A distance, kept finite. WGSL `kd_finite`.
-#[inline(always)]
-fn finite(t: f32) -> f32 {
-    t.clamp(-f32::MAX, f32::MAX)
-}
 
 impl Accel for KdTree {
     fn bounds(&self) -> Aabb {
