@@ -3,8 +3,11 @@
 //! axis-parallel rays on split planes; coincident triangles keep the tie rule; the memory
 //! cap refuses instead of aborting; the stats add up.
 
+#[path = "common/accel_check.rs"]
+mod accel_check;
 mod common;
 
+use accel_check::{brute_force, check, same_as_bvh};
 use common::hard::{
     coincident_stacks, corner_rays, extreme_rays, grid, invalid_rays, shrinking_corner,
     soup_on_a_grid, split_plane_rays, stack_rays,
@@ -15,124 +18,13 @@ use lancer::accel::bvh::BuildOptions;
 use lancer::accel::kdtree::{KdOptions, KdTree, MAX_KD_DEPTH};
 use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
-use lancer::geometry::{
-    intersect_triangle_bounded, Hit, Ray, Triangle, TriangleTest, WatertightRay,
-};
+use lancer::geometry::{Hit, Ray, Triangle, TriangleTest};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, judge_any, Verdict};
+use lancer::trace::oracle::{self, judge, Verdict};
 use lancer::{Query, RayStats, Robustness};
 
 fn kd(mesh: &Mesh) -> KdTree {
     KdTree::build(mesh, &KdOptions::default()).expect("kd-tree builds")
-}
-
-/// Judges closest and any-hit answers of `tree` for every ray; fails on any wrong one.
-/// Returns (agree, ties) of the closest-hit answers.
-fn check(name: &str, mesh: &Mesh, tree: &KdTree, rays: &[Ray]) -> (usize, usize) {
-    let rob = Robustness::default();
-    let mut counts = (0, 0);
-    for query in [Query::Closest, Query::Any] {
-        let (hits, _) = tree.trace_batch(rays, query, &rob);
-        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-        for (r, h) in rays.iter().zip(&hits) {
-            let v = match query {
-                Query::Closest => judge(mesh, r, h),
-                Query::Any => judge_any(mesh, r, h),
-            };
-            match v {
-                Verdict::Agree => agree += 1,
-                Verdict::Tie(_) => tie += 1,
-                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
-            }
-        }
-        println!(
-            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
-            wrong.len()
-        );
-        assert!(
-            wrong.is_empty(),
-            "{name} {query:?}: {} wrong, first: {}",
-            wrong.len(),
-            wrong[0]
-        );
-        if query == Query::Closest {
-            counts = (agree, tie);
-        }
-    }
-    counts
-}
-
-/// The kd-tree's closest hits equal the BVH's, bit for bit, except where the oracle names
-/// a genuine tie for one of the two answers, or the kd-tree agrees with the oracle and the
-/// BVH does not (counted and printed: a BVH bug, not the kd-tree's). Returns that count.
-fn same_as_bvh(name: &str, mesh: &Mesh, tree: &KdTree, rays: &[Ray]) -> usize {
-    let rob = Robustness::default();
-    let bvh = build(AccelKind::default(), mesh, &BuildOptions::default()).unwrap();
-    let (a, _) = tree.trace_batch(rays, Query::Closest, &rob);
-    let (b, _) = bvh.trace_batch(rays, Query::Closest, &rob);
-    let (mut differ, mut bvh_wrong) = (0, 0);
-    for ((r, x), y) in rays.iter().zip(&a).zip(&b) {
-        if x == y {
-            continue;
-        }
-        differ += 1;
-        assert!(
-            x.prim != y.prim,
-            "{name}: same prim {} but kd {x:?} ≠ bvh {y:?}",
-            x.prim
-        );
-        let (vx, vy) = (judge(mesh, r, x), judge(mesh, r, y));
-        if vx == Verdict::Agree && matches!(vy, Verdict::Wrong(_)) {
-            bvh_wrong += 1;
-            if bvh_wrong == 1 {
-                println!("{name}: the BVH is wrong on {r:?}: {vy:?}; the kd-tree gives {x:?}");
-            }
-            continue;
-        }
-        assert!(
-            matches!(vx, Verdict::Tie(_)) || matches!(vy, Verdict::Tie(_)),
-            "{name}: {r:?}: kd {x:?} ({vx:?}) ≠ bvh {y:?} ({vy:?}) and the oracle names no tie"
-        );
-    }
-    println!(
-        "{name}: kd = bvh on {} of {} rays ({bvh_wrong} where only the BVH is wrong)",
-        rays.len() - differ,
-        rays.len()
-    );
-    bvh_wrong
-}
-
-/// Every triangle tested in index order with the tracers' own f32 test and tie rule (and
-/// their near-hit rejection): the answer a traversal must give bit for bit, unless a
-/// triangle reports a hit a few ulps outside its own cells (never seen).
-fn brute_force(mesh: &Mesh, rays: &[Ray]) -> Vec<Hit> {
-    let rob = Robustness::default();
-    rays.iter()
-        .map(|r| {
-            let mut best = Hit::miss(r.tmax);
-            if !r.is_valid() {
-                return best;
-            }
-            let wr = WatertightRay::new(r.dir);
-            for i in mesh.included() {
-                let tri = &mesh.triangles[i as usize];
-                let h = intersect_triangle_bounded(rob.triangle_test, tri, r, &wr, r.tmin, best.t);
-                if let Some(h) = h {
-                    if Hit::beats(h.t, i, best.t, best.prim)
-                        && !(rob.rejects_near_hits() && h.maybe_behind_origin())
-                    {
-                        best = Hit {
-                            t: h.t,
-                            prim: i,
-                            u: h.u,
-                            v: h.v,
-                        };
-                    }
-                }
-            }
-            best
-        })
-        .collect()
 }
 
 #[test]
