@@ -26,6 +26,10 @@ pub enum Error {
         /// The system's error.
         source: std::io::Error,
     },
+    /// Two compared results differ beyond the tolerance (`lancer compare`, `lancer check`).
+    /// The CLI exits with code 1, as `cmp` and `diff` do.
+    #[error("{0}")]
+    Differ(String),
     /// No usable GPU, or a GPU limit the scene exceeds.
     #[error("{0}")]
     Gpu(String),
@@ -75,7 +79,7 @@ impl Error {
         match self {
             Error::Input { .. } | Error::Usage(_) => 2,
             Error::Cancelled(_) => 130,
-            Error::Io { .. } | Error::Gpu(_) => 1,
+            Error::Io { .. } | Error::Gpu(_) | Error::Differ(_) => 1,
         }
     }
 }

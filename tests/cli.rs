@@ -309,3 +309,89 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
         }
     }
 }
+
+#[test]
+fn compare_tells_equal_from_different_images_and_hit_files() {
+    let d = Scratch::new();
+    let quad = d.quad();
+    let (a, b, diff) = (d.path("a.png"), d.path("b.png"), d.path("diff.png"));
+    lancer_ok(&[
+        "heatmap",
+        s(&quad),
+        "-o",
+        s(&a),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--device",
+        "cpu",
+    ]);
+    let mut img = image::open(&a).unwrap().to_rgb8();
+    for x in 0..8 {
+        img.put_pixel(x, 3, image::Rgb([255, 0, 0]));
+    }
+    img.save(&b).unwrap();
+    let same = lancer_ok(&["compare", s(&a), s(&a)]);
+    assert!(String::from_utf8_lossy(&same.stdout).contains("0 pixels (0.000 %)"));
+    let differ = lancer(&["compare", s(&a), s(&b), "-o", s(&diff)]);
+    assert_eq!(differ.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&differ.stdout).contains("8 pixels"));
+    assert!(image::open(&diff).is_ok(), "no difference picture");
+    lancer_ok(&["compare", s(&a), s(&b), "--tolerance", "5"]);
+    let rays = d.path("r.bin");
+    let (ha, hb) = (d.path("a.hits"), d.path("b.hits"));
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "-o",
+        s(&rays),
+    ]);
+    lancer_ok(&[
+        "trace",
+        s(&quad),
+        "--rays",
+        s(&rays),
+        "--out",
+        s(&ha),
+        "--device",
+        "cpu",
+    ]);
+    let mixed = lancer(&["compare", s(&ha), s(&a)]);
+    assert_eq!(mixed.status.code(), Some(2));
+    // One hit moved further along its ray: a wrong answer, with or without the oracle.
+    let mut bytes = std::fs::read(&ha).unwrap();
+    let k = (bytes
+        .chunks(16)
+        .position(|h| h[4..8] != [0xff; 4])
+        .expect("a hit"))
+        * 16;
+    let t = f32::from_le_bytes(bytes[k..k + 4].try_into().unwrap()) * 1.5;
+    bytes[k..k + 4].copy_from_slice(&t.to_le_bytes());
+    std::fs::write(&hb, bytes).unwrap();
+    lancer_ok(&[
+        "compare",
+        s(&ha),
+        s(&ha),
+        "--mesh",
+        s(&quad),
+        "--rays",
+        s(&rays),
+    ]);
+    assert_eq!(lancer(&["compare", s(&ha), s(&hb)]).status.code(), Some(1));
+    let judged = lancer(&[
+        "compare",
+        s(&ha),
+        s(&hb),
+        "--mesh",
+        s(&quad),
+        "--rays",
+        s(&rays),
+    ]);
+    assert_eq!(judged.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&judged.stdout).contains("1 disagree"));
+}

@@ -102,8 +102,10 @@ pub fn cube() -> Indexed {
 /// Rays aimed exactly at every vertex and at points of every shared edge (the edge's
 /// midpoint and a random point on it, computed from the f32 vertices), half from outside
 /// (3 radii out) and half from inside (near the centre), `n` in all. An outside ray comes
-/// from a direction in front of every face that holds its target (at least 0.1 along each
-/// face normal): a ray that only grazes the surface may miss it rightly, and is not a leak.
+/// from a direction in front of every face around its target's vertex or edge (at least 0.1
+/// along each face normal): a ray that only grazes the surface may miss it rightly, and is
+/// not a leak.
+/// A target with no such direction (in a crease of a non-convex mesh) is aimed at from inside.
 pub fn aimed_rays(
     v: &[Vec3],
     f: &[[u32; 3]],
@@ -117,42 +119,49 @@ pub fn aimed_rays(
         (b - a).cross(c - a).normalize()
     };
     let mut vertex_faces: Vec<Vec<Vec3>> = vec![Vec::new(); v.len()];
-    let mut edge_faces: HashMap<(u32, u32), Vec<Vec3>> = HashMap::new();
+    let mut edges = Vec::new();
     for t in f {
         let nrm = normal(t);
         for k in 0..3 {
             let (p, q) = (t[k], t[(k + 1) % 3]);
             vertex_faces[p as usize].push(nrm);
-            edge_faces
-                .entry((p.min(q), p.max(q)))
-                .or_default()
-                .push(nrm);
+            edges.push((p.min(q), p.max(q)));
         }
     }
-    // (target, normals of the faces that hold it)
-    let mut targets: Vec<(Vec3, &[Vec3])> = v
-        .iter()
-        .zip(&vertex_faces)
-        .map(|(p, n)| (*p, &n[..]))
+    edges.sort_unstable();
+    edges.dedup();
+    // (target, the vertices whose faces the ray must meet from the front): an outside ray
+    // passes its f32-rounded target by up to an ulp of the coordinates, so it must be in
+    // front of every face near the target, not only of those that hold it — else at a
+    // crease of a real mesh it may rightly pass beside the surface.
+    let mut targets: Vec<(Vec3, u32, u32)> = (v.iter().enumerate())
+        .map(|(i, p)| (*p, i as u32, i as u32))
         .collect();
-    let mut edges: Vec<_> = edge_faces.iter().collect();
-    edges.sort_by_key(|(k, _)| **k);
-    for ((p, q), normals) in edges {
-        let (p, q) = (v[*p as usize], v[*q as usize]);
-        targets.push((p + (q - p) * 0.5, normals));
-        targets.push((p + (q - p) * rng.next_f32(), normals));
+    for (p, q) in edges {
+        let (a, b) = (v[p as usize], v[q as usize]);
+        targets.push((a + (b - a) * 0.5, p, q));
+        targets.push((a + (b - a) * rng.next_f32(), p, q));
     }
     (0..n)
         .map(|i| {
-            let (target, normals) = targets[i % targets.len()];
-            let origin = if i % 2 == 0 {
-                let mut u = random_dir(rng);
-                while normals.iter().any(|nrm| u.dot(*nrm) < 0.1) {
-                    u = random_dir(rng);
-                }
-                target + u * (3.0 * radius)
-            } else {
-                centre + random_dir(rng) * (0.05 * radius * rng.next_f32())
+            let (target, p, q) = targets[i % targets.len()];
+            let normals = || {
+                vertex_faces[p as usize]
+                    .iter()
+                    .chain(&vertex_faces[q as usize])
+            };
+            // A direction in front of every face at the target; a target in a crease (a
+            // real mesh's) may have none: it is then aimed at from inside.
+            let outside = (i % 2 == 0)
+                .then(|| {
+                    (0..256)
+                        .map(|_| random_dir(rng))
+                        .find(|u| normals().all(|nrm| u.dot(*nrm) >= 0.1))
+                })
+                .flatten();
+            let origin = match outside {
+                Some(u) => target + u * (3.0 * radius),
+                None => centre + random_dir(rng) * (0.05 * radius * rng.next_f32()),
             };
             Ray::new(origin, target - origin, 0.0, 3.4e38)
         })

@@ -3,7 +3,7 @@
 //! with the fast settings where they should fail); `lancer bench accuracy` prices them.
 //!
 //! - [`closed`]: closed meshes and rays aimed exactly at their vertices and shared edges:
-//!   every miss is a **leak**.
+//!   every miss is a **leak**; [`close_holes`] makes a real mesh closed.
 //! - [`cases`]: constructed rays — axis-parallel and signed-zero directions, origins on slab
 //!   planes, flat boxes, grazing rays, rays through a box corner, boxes behind the origin,
 //!   rays in a triangle's plane — whose **false misses** (the oracle and the triangle test
@@ -11,6 +11,7 @@
 //! - [`secondary`]: shadow and bounce rays leaving surface points: **self-hits**.
 
 pub mod cases;
+pub mod close_holes;
 pub mod closed;
 pub mod secondary;
 

@@ -140,7 +140,7 @@ impl CheckCmd {
             }
         }
         if bad > 0 {
-            return Err(Error::Gpu(format!(
+            return Err(Error::Differ(format!(
                 "{bad} answers disagree between the GPU and the CPU twin (listed above)"
             )));
         }

@@ -3,6 +3,7 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::camera::Camera;
 use lancer::mesh::load_mesh;
+use lancer::render::heat_ramp;
 use lancer::{Error, Query, Result, Tracer, TracerOptions};
 
 use super::{AccelArg, BuildArgs, DeviceArgs};
@@ -28,22 +29,6 @@ pub struct HeatmapCmd {
     /// counts its nodes or cells visited.
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
-}
-
-/// Black → purple → orange → yellow ramp for t in [0, 1].
-fn ramp(t: f32) -> [u8; 3] {
-    const STOPS: [[f32; 3]; 5] = [
-        [0.0, 0.0, 0.02],
-        [0.34, 0.06, 0.43],
-        [0.73, 0.21, 0.33],
-        [0.98, 0.55, 0.04],
-        [0.99, 1.0, 0.64],
-    ];
-    let x = t.clamp(0.0, 1.0) * 4.0;
-    let i = (x as usize).min(3);
-    let f = x - i as f32;
-    let c = |k: usize| STOPS[i][k] + (STOPS[i + 1][k] - STOPS[i][k]) * f;
-    [0, 1, 2].map(|k| (c(k) * 255.0).round() as u8)
 }
 
 impl HeatmapCmd {
@@ -83,7 +68,7 @@ impl HeatmapCmd {
         let mean = stats.iter().map(|s| s.nodes as f64).sum::<f64>() / stats.len() as f64;
         let mut img = image::RgbImage::new(w, h);
         for (p, s) in img.pixels_mut().zip(&stats) {
-            *p = image::Rgb(ramp(s.nodes as f32 / max as f32));
+            *p = image::Rgb(heat_ramp(s.nodes as f32 / max as f32));
         }
         lancer::output::write_atomic(&self.out, |w| {
             img.write_to(w, image::ImageFormat::Png)

@@ -8,6 +8,7 @@ mod bench_structures;
 mod build;
 mod chart;
 mod check;
+mod compare;
 mod heatmap;
 mod rays;
 mod render;
@@ -53,6 +54,9 @@ enum Cmd {
     /// Trace the same rays on each layout's CPU twin and GPU kernel and compare the answers
     /// (exit code 1 on any disagreement).
     Check(check::CheckCmd),
+    /// Compare two images (difference statistics and picture) or two hit files (judged by
+    /// the f64 oracle with --mesh and --rays); exit code 1 when they differ.
+    Compare(compare::CompareCmd),
 }
 
 /// BVH builder options shared by the subcommands that build one.
@@ -232,6 +236,15 @@ fn positive_finite(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
+/// A finite number at or above zero.
+fn non_negative_finite(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        Ok(x) => Err(format!("{x} is not a finite number at or above 0")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 /// The rays benches and checks trace: the default view's primary rays (closest hit), shadow
 /// rays from their hits to the default light (any hit) and diffuse bounce rays from the same
 /// hits (closest hit, incoherent).
@@ -272,5 +285,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Cmd::Heatmap(c) => c.run(),
         Cmd::Bench(c) => c.run(),
         Cmd::Check(c) => c.run(),
+        Cmd::Compare(c) => c.run(),
     }
 }

@@ -24,6 +24,23 @@ pub fn to_rgb8(px: &[Vec3], width: u32, height: u32) -> image::RgbImage {
     })
 }
 
+/// Black → purple → orange → yellow for t in [0, 1] (clamped): heatmaps and difference
+/// pictures.
+pub fn heat_ramp(t: f32) -> [u8; 3] {
+    const STOPS: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.02],
+        [0.34, 0.06, 0.43],
+        [0.73, 0.21, 0.33],
+        [0.98, 0.55, 0.04],
+        [0.99, 1.0, 0.64],
+    ];
+    let x = if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) } * 4.0;
+    let i = (x as usize).min(3);
+    let f = x - i as f32;
+    let c = |k: usize| STOPS[i][k] + (STOPS[i + 1][k] - STOPS[i][k]) * f;
+    [0, 1, 2].map(|k| (c(k) * 255.0).round() as u8)
+}
+
 /// The output formats, by lower-case extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageKind {

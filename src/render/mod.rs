@@ -6,6 +6,7 @@ mod cpu;
 mod effects;
 mod gpu;
 mod image;
+mod image_compare;
 mod renderer;
 pub(crate) mod sampling;
 mod scene;
@@ -15,7 +16,8 @@ pub use effects::EffectSet;
 pub use gpu::{
     GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED, MAT_TWO_SIDED,
 };
-pub use image::{image_kind, save_image, to_rgb8, Image, ImageKind};
+pub use image::{heat_ramp, image_kind, save_image, to_rgb8, Image, ImageKind};
+pub use image_compare::{compare_images, load_image, ImageDiff};
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
 pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::{
