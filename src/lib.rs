@@ -45,6 +45,7 @@
 #![warn(missing_docs)]
 
 pub mod accel;
+pub mod accuracy;
 pub mod camera;
 pub mod device;
 pub mod error;

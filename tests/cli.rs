@@ -239,3 +239,73 @@ fn bench_render_prints_both_kernels() {
     assert!(text.contains("| cpu | all effects |"), "{text}");
     assert!(text.contains("effects: shadows textures"), "{text}");
 }
+
+#[test]
+fn check_compares_every_layout_on_the_gpu_with_its_twin() {
+    let Some(teapot) = common::model("teapot.obj") else {
+        return;
+    };
+    let out = lancer_ok(&[
+        "check",
+        s(&teapot),
+        "--width",
+        "48",
+        "--height",
+        "32",
+        "--device",
+        "gpu",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for layout in lancer::LayoutKind::ALL {
+        for set in ["primary", "shadow", "bounce"] {
+            let row = format!("| {layout} | {set} |");
+            assert!(text.contains(&row), "no row {row} in:\n{text}");
+        }
+    }
+    assert!(text.contains("every answer agrees"), "{text}");
+    // No GPU, no check: a device error (exit 1), not a silent pass on the CPU alone.
+    let out = lancer(&["check", s(&teapot), "--device", "cpu"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no GPU adapter"));
+}
+
+#[test]
+fn bench_layouts_measures_every_layout_and_writes_json() {
+    let Some(teapot) = common::model("teapot.obj") else {
+        return;
+    };
+    let dir = Scratch::new();
+    let json = dir.path("layouts.json");
+    let out = lancer_ok(&[
+        "bench",
+        "layouts",
+        s(&teapot),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--repeat",
+        "1",
+        "--json",
+        s(&json),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let runs = v["runs"].as_array().unwrap();
+    for layout in lancer::LayoutKind::ALL {
+        assert!(
+            text.contains(&format!("| {layout} | per-ray | primary |")),
+            "{text}"
+        );
+        let mine: Vec<_> = runs
+            .iter()
+            .filter(|r| r["layout"] == layout.name())
+            .collect();
+        assert_eq!(mine.len(), 3, "primary, shadow, bounce for {layout}");
+        for r in mine {
+            // Work was counted: every ray visits the root at least.
+            assert!(r["nodes_per_ray"].as_f64().unwrap() >= 1.0, "{r}");
+            assert!(r["cpu_mrays_per_s"].as_f64().unwrap() > 0.0, "{r}");
+        }
+    }
+}

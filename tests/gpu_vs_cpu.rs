@@ -11,7 +11,7 @@ use lancer::camera::Camera;
 use lancer::geometry::{Hit, Ray, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{judge, judge_any, Verdict};
+use lancer::trace::compare::compare_hits;
 use lancer::{Device, LayoutKind, Query, Robustness, Tracer, TracerOptions};
 
 /// One specialisation of the trace kernel.
@@ -40,12 +40,6 @@ fn cpu_hits(mesh: &Mesh, rays: &[Ray], query: Query) -> Vec<Hit> {
     let cpu = Device::cpu();
     let mut t = Tracer::new(&cpu, mesh, &TracerOptions::default()).unwrap();
     t.trace(rays, query).unwrap().hits
-}
-
-fn ulps(a: f32, b: f32) -> u32 {
-    (a.to_bits() as i64 - b.to_bits() as i64)
-        .unsigned_abs()
-        .min(u32::MAX as u64) as u32
 }
 
 /// Compares GPU (BVH in the default memory) with CPU on `rays` for every layout; returns
@@ -89,41 +83,17 @@ fn compare_layout(
         .trace(rays, kernel.query)
         .unwrap();
     let (cpu, cpu_stats, gpu_hits, gpu_stats) = (c.hits, c.stats.unwrap(), g.hits, g.stats);
-    let judge_one = |r: &Ray, h: &Hit| match kernel.query {
-        Query::Closest => judge(mesh, r, h),
-        Query::Any => judge_any(mesh, r, h),
-    };
-    let (mut agree, mut tie, mut bad) = (0, 0, Vec::new());
-    for (i, ((r, c), g)) in rays.iter().zip(&cpu).zip(&gpu_hits).enumerate() {
-        if c.prim == g.prim {
-            let t_ok = !c.is_hit() || ulps(c.t, g.t) <= 2;
-            if t_ok {
-                agree += 1;
-            } else {
-                bad.push(format!(
-                    "ray {i}: t {} vs {} ({} ulp)",
-                    c.t,
-                    g.t,
-                    ulps(c.t, g.t)
-                ));
-            }
-            continue;
-        }
-        // Different answers: both must be right, or a tie, by the oracle.
-        match (judge_one(r, c), judge_one(r, g)) {
-            (Verdict::Wrong(w), _) => bad.push(format!("ray {i}: CPU wrong: {w}")),
-            (_, Verdict::Wrong(w)) => bad.push(format!("ray {i}: GPU wrong: {w} (CPU {c:?})")),
-            _ => tie += 1,
-        }
-    }
+    let cmp = compare_hits(mesh, rays, kernel.query, &cpu, &gpu_hits);
+    let (agree, tie, bad) = (cmp.agree, cmp.ties, cmp.disagree);
     println!(
-        "{name} {:?}: {agree} agree, {tie} tie, {} disagree",
+        "{name} {:?}: {agree} agree ({} identical), {tie} tie, {} disagree",
         kernel.query,
+        cmp.identical,
         bad.len()
     );
     assert!(
         bad.is_empty(),
-        "{name}: {} disagree; first: {}",
+        "{name}: {} disagree; first: {:?}",
         bad.len(),
         bad[0]
     );

@@ -42,7 +42,7 @@ fn all_shaders_validate() {
                 naga::valid::Capabilities::all(),
             )
             .validate(&m)
-            .unwrap_or_else(|e| panic!("{} {name}: {}", layout.kind(), e.emit_to_string(&src)));
+            .unwrap_or_else(|e| panic!("{} {name}: {}", layout.name(), e.emit_to_string(&src)));
         }
     }
 }

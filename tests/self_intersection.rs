@@ -7,56 +7,16 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{gpu_device, Rng};
+use common::gpu_device;
 use glam::Vec3;
+use lancer::accuracy::secondary;
 use lancer::geometry::{RayOffset, Robustness};
-use lancer::mesh::{load_obj, Mesh};
-use lancer::render::{offset_origin, point_error, render, RenderOptions, RenderScene};
-use lancer::{Device, Query, Ray, Tracer, TracerOptions};
+use lancer::mesh::load_obj;
+use lancer::render::{render, RenderOptions, RenderScene};
+use lancer::{Device, Query, Tracer, TracerOptions};
 
 fn scenes_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
-}
-
-/// Secondary rays from `n` random surface points: a bounce (random direction on the normal's
-/// side) and a shadow ray toward a random point of the mesh, each leaving by `offset`.
-/// Returns (rays, the triangle each leaves).
-fn secondary_rays(mesh: &Mesh, n: usize, offset: RayOffset, seed: u64) -> (Vec<Ray>, Vec<u32>) {
-    let mut rng = Rng::new(seed);
-    let fixed = lancer::geometry::FIXED_OFFSET * mesh.bounds().extent().length();
-    let (mut rays, mut own) = (Vec::new(), Vec::new());
-    let usable = mesh.included();
-    for _ in 0..n {
-        let prim = usable[rng.u64() as usize % usable.len()];
-        let t = &mesh.triangles[prim as usize];
-        let (mut u, mut v) = (rng.f32(), rng.f32());
-        if u + v > 1.0 {
-            (u, v) = (1.0 - u, 1.0 - v);
-        }
-        let w = 1.0 - u - v;
-        let p = t.v[0] * w + t.v[1] * u + t.v[2] * v;
-        let err = point_error(&t.v, w, u, v);
-        let ng = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize();
-        for side in [ng, -ng] {
-            let o = match offset {
-                RayOffset::ErrorBound => offset_origin(p, err, side),
-                RayOffset::Fixed => p + side * fixed,
-                RayOffset::None => p,
-            };
-            let mut d = rng.dir();
-            if d.dot(side) < 0.0 {
-                d = -d;
-            }
-            rays.push(Ray::new(o, d, 0.0, 3.4e38));
-            let q = &mesh.triangles[usable[rng.u64() as usize % usable.len()] as usize];
-            let target = (q.v[0] + q.v[1] + q.v[2]) / 3.0;
-            if (target - o).dot(side) > 0.0 {
-                rays.push(Ray::new(o, target - o, 0.0, 1.0));
-            }
-            own.resize(rays.len(), prim);
-        }
-    }
-    (rays, own)
 }
 
 /// Self-hits of secondary rays over the Cornell box moved by `shift` and scaled by `scale`.
@@ -67,10 +27,10 @@ fn self_hits(scale: f32, shift: f32, offset: RayOffset, device: &Device) -> (usi
             *p = *p * scale + Vec3::splat(shift);
         }
     }
-    let (rays, own) = secondary_rays(&mesh, 4000, offset, 7);
+    let (rays, own) = secondary::secondary_rays(&mesh, 4000, offset, 7);
     let mut tracer = Tracer::new(device, &mesh, &TracerOptions::default()).unwrap();
     let hits = tracer.trace(&rays, Query::Closest).unwrap().hits;
-    let selfs = hits.iter().zip(&own).filter(|(h, o)| h.prim == **o).count();
+    let selfs = secondary::self_hits(&hits, &own);
     (selfs, rays.len())
 }
 

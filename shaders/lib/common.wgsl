@@ -57,8 +57,9 @@ fn safe_recip3(d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(safe_recip(d.x), safe_recip(d.y), safe_recip(d.z));
 }
 
-// Aabb::slab_hit with Robustness::far_widen (an axis the ray is parallel to bounds nothing if the origin is in its slab)
-fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32) -> bool {
+// Aabb::slab_interval with Robustness::far_widen (an axis the ray is parallel to bounds nothing
+// if the origin is in its slab): [enter, exit] of the ray in the box, hit when enter <= exit.
+fn slab_interval(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32) -> vec2<f32> {
     let t0 = (lo - origin) * inv_dir;
     let t1 = (hi - origin) * inv_dir;
     let parallel = abs(inv_dir) >= vec3<f32>(PARALLEL_INV);
@@ -66,10 +67,18 @@ fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>,
     let big = select(vec3<f32>(-BIG), vec3<f32>(BIG), inside);
     let tn = select(min(t0, t1), -big, parallel);
     let widen = select(1.0, FAR_WIDEN, ROBUST_SLAB);
-    let tf = select(max(t0, t1) * widen, big, parallel);
+    // Outwards whatever t_far's sign (Aabb::slab_hit).
+    let far = max(t0, t1);
+    let tf = select(max(far * widen, far * (2.0 - widen)), big, parallel);
     let enter = max(max(max(tn.x, tn.y), tn.z), tmin);
     let exit = min(min(min(tf.x, tf.y), tf.z), tmax);
-    return enter <= exit;
+    return vec2<f32>(enter, exit);
+}
+
+// Aabb::slab_hit
+fn slab_hit(lo: vec3<f32>, hi: vec3<f32>, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32) -> bool {
+    let i = slab_interval(lo, hi, origin, inv_dir, tmin, tmax);
+    return i.x <= i.y;
 }
 
 // WatertightRay: permutation k (dominant axis last) and shear s.

@@ -49,6 +49,30 @@ fn load_tri(i: u32) -> Tri {
                bitcast<vec3<f32>>(c.xyz), c.w);
 }
 
+// The leaf step of every layout's traversal (layout::LeafRay::test_leaf, step for step):
+// tests triangles first..first+count in order; a hit that beats *best by the tie rule
+// replaces it and moves *prune. Returns true when an any-hit query is answered.
+fn test_leaf(first: u32, count: u32, r: Ray, w: Watertight, any_hit: bool,
+             best: ptr<function, Hit>, prune: ptr<function, f32>) -> bool {
+    let end = first + count;
+    for (var i = first; i < end; i += 1u) {
+        let tri = load_tri(i);
+        if COUNT_STATS {
+            n_tris += 1u;
+        }
+        let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, (*best).t);
+        if h.ok && beats(h.t, tri.prim, (*best).t, (*best).prim)
+            && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
+            *best = Hit(h.t, tri.prim, h.u, h.v);
+            *prune = hit_prune(h);
+            if any_hit {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 // Work done by the last traverse() call (read when COUNT_STATS).
 var<private> n_nodes: u32;
 var<private> n_tris: u32;

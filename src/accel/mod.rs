@@ -1,18 +1,24 @@
-//! Acceleration structures on the CPU: one trait, [`Accel`], and one entry point,
-//! [`build`]. The BVH is built by [`bvh`] and traversed through a flattened
-//! [`Layout`](crate::layout::Layout), whose CPU twin is the BVH's `Accel`: the CPU walks
-//! the same arrays, in the same order, as the GPU kernel.
+//! Acceleration structures: one trait, [`Accel`], and two entry points, [`build`] (the CPU
+//! form of every structure) and [`build_gpu`] (the GPU form of those that have one). The BVH
+//! is built by [`bvh`] and traversed through a flattened [`Layout`], whose CPU twin is the
+//! BVH's `Accel`: the CPU walks the same arrays, in the same order, as the GPU kernel. The
+//! kd-tree is its own [`Layout`] (its CPU traversal is the twin of its WGSL).
 
+pub mod bih;
 pub mod bvh;
 pub mod grid;
 pub mod kdtree;
+pub mod octree;
 
+mod plane_ray;
 mod query;
+
+use std::sync::Arc;
 
 use rayon::prelude::*;
 
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
-use crate::layout::{self, LayoutKind};
+use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
 
 pub use query::{Query, RayStats};
@@ -65,6 +71,10 @@ pub enum AccelKind {
     TwoLevelGrid,
     /// A hashed grid, only non-empty cells stored ([`grid::HashedGrid`]).
     HashedGrid,
+    /// A bounding interval hierarchy ([`bih::Bih`]).
+    Bih,
+    /// An octree ([`octree::Octree`]).
+    Octree,
 }
 
 impl Default for AccelKind {
@@ -81,6 +91,8 @@ impl AccelKind {
         AccelKind::UniformGrid,
         AccelKind::TwoLevelGrid,
         AccelKind::HashedGrid,
+        AccelKind::Bih,
+        AccelKind::Octree,
     ];
 
     /// The name the command line and benches use.
@@ -91,6 +103,8 @@ impl AccelKind {
             AccelKind::UniformGrid => "grid",
             AccelKind::TwoLevelGrid => "grid2",
             AccelKind::HashedGrid => "hashgrid",
+            AccelKind::Bih => "bih",
+            AccelKind::Octree => "octree",
         }
     }
 }
@@ -118,5 +132,28 @@ pub fn build(
         AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
         AccelKind::TwoLevelGrid => Box::new(grid::TwoLevelGrid::build(mesh, &Default::default())?),
         AccelKind::HashedGrid => Box::new(grid::HashedGrid::build(mesh, &Default::default())?),
+        AccelKind::Bih => Box::new(bih::Bih::build(mesh, &Default::default())?),
+        AccelKind::Octree => Box::new(octree::Octree::build(mesh, &Default::default())?),
+    })
+}
+
+/// Builds the GPU form of structure `kind` (arrays, WGSL traversal and CPU twin), or None
+/// when it has no GPU kernel (nothing is built then). Options as for [`build`].
+pub fn build_gpu(
+    kind: AccelKind,
+    mesh: &Mesh,
+    options: &bvh::BuildOptions,
+) -> crate::Result<Option<Arc<dyn Layout>>> {
+    Ok(match kind {
+        AccelKind::Bvh(layout) => {
+            let tree = bvh::build(mesh, options);
+            Some(layout::flatten(layout, &tree, mesh).into())
+        }
+        AccelKind::KdTree => Some(Arc::new(kdtree::KdTree::build(mesh, &Default::default())?)),
+        AccelKind::UniformGrid
+        | AccelKind::TwoLevelGrid
+        | AccelKind::HashedGrid
+        | AccelKind::Bih
+        | AccelKind::Octree => None,
     })
 }

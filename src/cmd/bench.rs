@@ -3,15 +3,17 @@ use std::sync::Arc;
 
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use lancer::accel::bvh::build;
+use lancer::accel::build_gpu;
 use lancer::camera::Camera;
 use lancer::gpu::BvhMemory;
-use lancer::layout::{flatten, Layout};
+use lancer::layout::Layout;
 use lancer::mesh::load_mesh;
 use lancer::trace::files::{default_light, shadow_rays};
-use lancer::{DeviceChoice, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions};
+use lancer::{
+    DeviceChoice, Error, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
+};
 
-use super::{open_device, spelled, BuildArgs};
+use super::{open_device, spelled, AccelArg, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchCmd {
@@ -27,6 +29,11 @@ enum BenchWhat {
     Render(super::bench_render::BenchRender),
     /// Every acceleration structure on one mesh (CPU): build, memory, work and speed.
     Structures(super::bench_structures::BenchStructures),
+    /// Every flattened layout on one mesh: bytes, work and bytes loaded per ray, CPU twin
+    /// and GPU speed for primary, shadow and bounce rays.
+    Layouts(super::bench_layouts::BenchLayouts),
+    /// What each robustness knob costs in time and the error it leaves, CPU and GPU.
+    Accuracy(super::bench_accuracy::BenchAccuracy),
 }
 
 #[derive(Args)]
@@ -47,6 +54,9 @@ struct BenchTrace {
     repeat: u64,
     #[command(flatten)]
     build: BuildArgs,
+    /// Acceleration structure: one with a GPU kernel (the BVH in `--layout`, the kd-tree).
+    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
+    accel: AccelArg,
 }
 
 impl BenchCmd {
@@ -55,6 +65,8 @@ impl BenchCmd {
             BenchWhat::Trace(b) => b.run(),
             BenchWhat::Render(b) => b.run(),
             BenchWhat::Structures(b) => b.run(),
+            BenchWhat::Layouts(b) => b.run(),
+            BenchWhat::Accuracy(b) => b.run(),
         }
     }
 }
@@ -78,8 +90,12 @@ impl BenchTrace {
             "use a smaller --width/--height",
         )?;
         let build_options = self.build.options();
-        let layout: Arc<dyn Layout> =
-            flatten(self.build.layout, &build(&mesh, &build_options), &mesh).into();
+        let kind = self.accel.kind(self.build.layout);
+        let layout: Arc<dyn Layout> = build_gpu(kind, &mesh, &build_options)?.ok_or_else(|| {
+            Error::Usage(format!(
+                "the {kind} structure has no GPU kernel: use `lancer bench structures`"
+            ))
+        })?;
         let primary = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1))
             .primary_rays();
         let rob = Robustness::default();
@@ -166,12 +182,12 @@ impl BenchTrace {
         }
         bar.finish_and_clear();
         println!(
-            "mesh {}  {} triangles  {}x{}  layout {}",
+            "mesh {}  {} triangles in leaves  {}x{}  structure {}",
             self.mesh.display(),
             layout.triangles(),
             self.width,
             self.height,
-            self.build.layout
+            layout.name()
         );
         if let Some(ctx) = device.gpu_context() {
             println!("adapter {}", ctx.adapter);

@@ -6,9 +6,11 @@ use std::time::Instant;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lancer::accel::bih::Bih;
 use lancer::accel::bvh::{build, BuildOptions, BvhStats};
 use lancer::accel::grid::{GridStats, HashedGrid, TwoLevelGrid, UniformGrid};
 use lancer::accel::kdtree::KdTree;
+use lancer::accel::octree::Octree;
 use lancer::camera::Camera;
 use lancer::layout::{flatten, LayoutKind};
 use lancer::mesh::load_mesh;
@@ -75,6 +77,21 @@ fn build_one(kind: AccelKind, mesh: &lancer::Mesh) -> Result<Built> {
             let g = HashedGrid::build(mesh, &Default::default())?;
             let info = grid(g.stats());
             (Box::new(g), info)
+        }
+        AccelKind::Bih => {
+            let t = Bih::build(mesh, &Default::default())?;
+            let s = t.stats();
+            (Box::new(t), (s.bytes as u64, 0, s.max_depth.to_string()))
+        }
+        AccelKind::Octree => {
+            let t = Octree::build(mesh, &Default::default())?;
+            let s = t.stats();
+            let info = (
+                s.bytes as u64,
+                s.duplicated_references as u64,
+                s.max_depth.to_string(),
+            );
+            (Box::new(t), info)
         }
     };
     Ok(Built {

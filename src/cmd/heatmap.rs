@@ -24,8 +24,8 @@ pub struct HeatmapCmd {
     device: DeviceArgs,
     #[command(flatten)]
     build: BuildArgs,
-    /// Acceleration structure (all but the BVH run on the CPU); the map counts its nodes or
-    /// cells visited.
+    /// Acceleration structure (all but the BVH and the kd-tree run on the CPU); the map
+    /// counts its nodes or cells visited.
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
 }

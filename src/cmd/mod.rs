@@ -1,9 +1,13 @@
 //! Subcommands of the `lancer` binary: parse, call the library, print.
 
 mod bench;
+mod bench_accuracy;
+mod bench_layouts;
 mod bench_render;
 mod bench_structures;
 mod build;
+mod chart;
+mod check;
 mod heatmap;
 mod rays;
 mod render;
@@ -11,7 +15,7 @@ mod trace;
 
 use clap::{Args, Parser, Subcommand};
 use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
-use lancer::geometry::{RayOffset, SlabTest, TriangleTest};
+use lancer::geometry::{Precision, RayOffset, SlabTest, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::{AccelKind, Device, DeviceChoice, LayoutKind, Result, Robustness};
 
@@ -46,11 +50,14 @@ enum Cmd {
     Heatmap(heatmap::HeatmapCmd),
     /// Measure speed.
     Bench(bench::BenchCmd),
+    /// Trace the same rays on each layout's CPU twin and GPU kernel and compare the answers
+    /// (exit code 1 on any disagreement).
+    Check(check::CheckCmd),
 }
 
-/// BVH build options shared by the subcommands that build one.
+/// BVH builder options shared by the subcommands that build one.
 #[derive(Args, Clone, Debug)]
-pub struct BuildArgs {
+pub struct BuilderArgs {
     /// Builder.
     #[arg(long, value_enum, default_value_t = Builder::Sweep)]
     builder: Builder,
@@ -66,12 +73,9 @@ pub struct BuildArgs {
     /// SAH cost of one triangle test (finite, > 0).
     #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
     t_obj: f32,
-    /// Flattened BVH layout (GPU arrays and their CPU twin).
-    #[arg(long, value_enum, default_value_t = LayoutKind::default())]
-    layout: LayoutKind,
 }
 
-impl BuildArgs {
+impl BuilderArgs {
     pub fn options(&self) -> BuildOptions {
         BuildOptions {
             builder: self.builder,
@@ -84,13 +88,29 @@ impl BuildArgs {
     }
 }
 
+/// BVH builder options and the flattened layout.
+#[derive(Args, Clone, Debug)]
+pub struct BuildArgs {
+    #[command(flatten)]
+    builder: BuilderArgs,
+    /// Flattened BVH layout (GPU arrays and their CPU twin).
+    #[arg(long, value_enum, default_value_t = LayoutKind::default())]
+    layout: LayoutKind,
+}
+
+impl BuildArgs {
+    pub fn options(&self) -> BuildOptions {
+        self.builder.options()
+    }
+}
+
 /// The acceleration structure on the command line (the BVH in the chosen `--layout`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum AccelArg {
     /// Bounding volume hierarchy (CPU and GPU).
     #[default]
     Bvh,
-    /// SAH kd-tree (CPU).
+    /// SAH kd-tree (CPU and GPU).
     Kdtree,
     /// Uniform grid (CPU).
     Grid,
@@ -98,6 +118,10 @@ pub enum AccelArg {
     Grid2,
     /// Hashed grid (CPU).
     Hashgrid,
+    /// Bounding interval hierarchy (CPU).
+    Bih,
+    /// Octree (CPU).
+    Octree,
 }
 
 impl AccelArg {
@@ -109,13 +133,17 @@ impl AccelArg {
             AccelArg::Grid => AccelKind::UniformGrid,
             AccelArg::Grid2 => AccelKind::TwoLevelGrid,
             AccelArg::Hashgrid => AccelKind::HashedGrid,
+            AccelArg::Bih => AccelKind::Bih,
+            AccelArg::Octree => AccelKind::Octree,
         }
     }
 
-    /// Opens the device for this structure: only the BVH has GPU kernels, so `auto` runs
-    /// the others on the CPU (`gpu` is left to the library, which refuses it by name).
+    /// Opens the device for this structure: only the BVH and the kd-tree have GPU kernels,
+    /// so `auto` runs the others on the CPU (`gpu` is left to the library, which refuses it
+    /// by name).
     pub fn open(self, device: &DeviceArgs) -> Result<Device> {
-        if self != AccelArg::Bvh && device.device == DeviceChoice::Auto {
+        let gpu = matches!(self, AccelArg::Bvh | AccelArg::Kdtree);
+        if !gpu && device.device == DeviceChoice::Auto {
             return Ok(Device::cpu());
         }
         device.open()
@@ -134,6 +162,11 @@ pub struct DeviceArgs {
 }
 
 impl DeviceArgs {
+    /// Where the kernels read the BVH from.
+    pub fn bvh_memory(&self) -> BvhMemory {
+        self.bvh_memory
+    }
+
     /// Opens the device, printing why `auto` fell back to the CPU and when timings come
     /// from a software adapter.
     pub fn open(&self) -> Result<Device> {
@@ -172,6 +205,10 @@ pub struct RobustnessArgs {
     /// GPU: run the shader module without bounds checks / loop bounding (BVH validated first).
     #[arg(long)]
     trusted: bool,
+    /// CPU: triangle tests in f32 (the GPU's arithmetic) or f64 (the oracle's, to price the
+    /// f32 error); a GPU device refuses f64.
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    precision: Precision,
 }
 
 impl RobustnessArgs {
@@ -181,6 +218,7 @@ impl RobustnessArgs {
             slab_test: self.slab_test,
             ray_offset: self.ray_offset,
             checked_module: !self.trusted,
+            precision: self.precision,
         }
     }
 }
@@ -192,6 +230,31 @@ fn positive_finite(s: &str) -> std::result::Result<f32, String> {
         Ok(x) => Err(format!("{x} is not a finite number above 0")),
         Err(e) => Err(e.to_string()),
     }
+}
+
+/// The rays benches and checks trace: the default view's primary rays (closest hit), shadow
+/// rays from their hits to the default light (any hit) and diffuse bounce rays from the same
+/// hits (closest hit, incoherent).
+pub fn view_ray_sets(
+    mesh: &lancer::Mesh,
+    accel: &dyn lancer::Accel,
+    width: u32,
+    height: u32,
+    robustness: &Robustness,
+) -> Result<Vec<(String, lancer::Query, Vec<lancer::Ray>)>> {
+    use lancer::trace::files::{bounce_rays, default_light, shadow_rays};
+    use lancer::Query;
+    lancer::limits::check_image(width, height, 200, "use a smaller --width/--height")?;
+    let primary =
+        lancer::camera::Camera::default_view(&mesh.bounds(), width, height).primary_rays();
+    let (hits, _) = accel.trace_batch(&primary, Query::Closest, robustness);
+    let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
+    let bounce = bounce_rays(mesh, &primary, &hits, 1);
+    Ok(vec![
+        ("primary".into(), Query::Closest, primary),
+        ("shadow".into(), Query::Any, shadow),
+        ("bounce".into(), Query::Closest, bounce),
+    ])
 }
 
 /// A value as the command line spells it.
@@ -208,5 +271,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Cmd::Rays(c) => c.run(),
         Cmd::Heatmap(c) => c.run(),
         Cmd::Bench(c) => c.run(),
+        Cmd::Check(c) => c.run(),
     }
 }

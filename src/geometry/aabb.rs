@@ -96,17 +96,36 @@ impl Aabb {
     }
 
     /// Robust slab test: `inv_dir` from [`safe_recip`](super::safe_recip), so no 0·∞ NaN can
-    /// arise; far distances multiplied by `widen` ([`FAR_WIDEN`] robust, 1 plain). An axis the ray is parallel to
+    /// arise; far distances moved outwards by the factor `widen` ([`FAR_WIDEN`] robust, 1
+    /// plain): t·widen for t ≥ 0, t·(2 − widen) for t < 0 (a box behind the origin, for a
+    /// ray with tmin < 0, must not shrink). An axis the ray is parallel to
     /// (|inv| ≥ PARALLEL_INV, i.e. |d| ≲ 2e-30) does not limit the interval when the origin
     /// lies within that slab, boundary planes included, and empties it otherwise — so an
     /// origin exactly on either face plane behaves the same. Returns whether
     /// [max(t_near, tmin), min(t_far, tmax)] is non-empty. WGSL `slab_hit` is the same.
     #[inline]
     pub fn slab_hit(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32, widen: f32) -> bool {
+        let (enter, exit) = self.slab_interval(origin, inv_dir, tmin, tmax, widen);
+        enter <= exit
+    }
+
+    /// The interval [enter, exit] of [`slab_hit`](Self::slab_hit): the ray is in the box
+    /// for t in it, and hits the box when enter ≤ exit. WGSL `slab_interval` is the same.
+    #[inline]
+    pub fn slab_interval(
+        &self,
+        origin: Vec3,
+        inv_dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        widen: f32,
+    ) -> (f32, f32) {
         let t0 = (self.lo - origin) * inv_dir;
         let t1 = (self.hi - origin) * inv_dir;
         let parallel = inv_dir.abs().cmpge(Vec3::splat(PARALLEL_INV));
-        let (mut tn, mut tf) = (t0.min(t1), t0.max(t1) * widen);
+        let far = t0.max(t1);
+        // Outwards whatever t_far's sign: a negative t_far times widen would move inwards.
+        let (mut tn, mut tf) = (t0.min(t1), (far * widen).max(far * (2.0 - widen)));
         // Rare (axis-aligned rays): a predictable branch keeps the common path short; the
         // result equals the WGSL select() form on every input.
         if parallel.any() {
@@ -118,7 +137,7 @@ impl Aabb {
         // max/min with the ray bounds last.
         let enter = tn.x.max(tn.y).max(tn.z).max(tmin);
         let exit = tf.x.min(tf.y).min(tf.z).min(tmax);
-        enter <= exit
+        (enter, exit)
     }
 
     /// [`slab_hit`](Self::slab_hit) for a ray with no parallel axis (|inv| < PARALLEL_INV on
@@ -135,17 +154,35 @@ impl Aabb {
         tmax: f32,
         widen: f32,
     ) -> bool {
+        let (enter, exit) =
+            Self::slab_interval_nonparallel(lo, hi, origin, inv_dir, tmin, tmax, widen);
+        enter <= exit
+    }
+
+    /// The interval of [`slab_hit_nonparallel`](Self::slab_hit_nonparallel), equal to
+    /// [`slab_interval`](Self::slab_interval)'s for such rays (up to the sign of a zero).
+    #[inline(always)]
+    pub fn slab_interval_nonparallel(
+        lo: Vec3A,
+        hi: Vec3A,
+        origin: Vec3A,
+        inv_dir: Vec3A,
+        tmin: f32,
+        tmax: f32,
+        widen: f32,
+    ) -> (f32, f32) {
         let t0 = (lo - origin) * inv_dir;
         let t1 = (hi - origin) * inv_dir;
         let tn = t0.min(t1);
-        let tf = t0.max(t1) * widen;
+        let far = t0.max(t1);
+        let tf = (far * widen).max(far * (2.0 - widen));
         // min/max of non-NaN values is exact in any association (±0 may differ, which no
         // comparison below can see).
         let enter = tn.max_element();
         let exit = tf.min_element();
         let enter = if enter > tmin { enter } else { tmin };
         let exit = if exit < tmax { exit } else { tmax };
-        enter <= exit
+        (enter, exit)
     }
 
     /// Convenience wrapper for a whole ray.

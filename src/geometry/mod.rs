@@ -10,7 +10,9 @@ mod triangle;
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
-pub use robustness::{prune_bound, RayOffset, Robustness, SlabTest, FIXED_OFFSET, TIE_SLACK};
+pub use robustness::{
+    prune_bound, Precision, RayOffset, Robustness, SlabTest, FIXED_OFFSET, TIE_SLACK,
+};
 pub(crate) use triangle::gamma;
 pub use triangle::{
     intersect_moller_trumbore, intersect_triangle, intersect_triangle_bounded,

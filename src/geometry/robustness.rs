@@ -61,6 +61,19 @@ impl RayOffset {
     }
 }
 
+/// The arithmetic of the CPU's triangle tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum Precision {
+    /// f32, the GPU's arithmetic: CPU and GPU agree bit for bit.
+    #[default]
+    F32,
+    /// f64: the oracle's watertight test (`trace::oracle`) as the tracer's triangle test,
+    /// whatever [`TriangleTest`] says, over the same f32 boxes. CPU only (the BVH's twin):
+    /// it prices the f32 error itself.
+    F64,
+}
+
 /// The robustness settings of one trace or render. `Default` is the robust setting of
 /// every knob.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -74,6 +87,8 @@ pub struct Robustness {
     /// GPU only: shader modules with bounds checks and loop bounding (`false` = trusted
     /// modules, offered only for a BVH the layout validated).
     pub checked_module: bool,
+    /// CPU only: f32 or f64 triangle tests (a GPU device refuses f64).
+    pub precision: Precision,
 }
 
 impl Default for Robustness {
@@ -83,6 +98,7 @@ impl Default for Robustness {
             slab_test: SlabTest::Robust,
             ray_offset: RayOffset::ErrorBound,
             checked_module: true,
+            precision: Precision::F32,
         }
     }
 }
@@ -101,6 +117,18 @@ impl Robustness {
     /// secondary ray leaves does. Part of the error-bound offset; off for the fast settings.
     pub fn rejects_near_hits(&self) -> bool {
         self.ray_offset == RayOffset::ErrorBound
+    }
+
+    /// Refuses the settings no GPU kernel has (f64 precision), naming the fix.
+    pub fn check_gpu(&self) -> crate::Result<()> {
+        if self.precision == Precision::F64 {
+            return Err(crate::Error::Usage(
+                "f64 precision runs on the CPU only (the GPU kernels compute in f32): \
+                 use --device cpu or --precision f32"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     /// The WGSL override constants that carry these settings (declared in

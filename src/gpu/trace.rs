@@ -155,6 +155,7 @@ impl<'a> GpuTracer<'a> {
         kernel: TraceKernel,
     ) -> Result<(Vec<Hit>, Option<Vec<RayStats>>, Timings)> {
         self.check_workgroup(kernel.workgroup_size)?;
+        kernel.robustness.check_gpu()?;
         let start = Instant::now();
         let limit = self
             .ctx

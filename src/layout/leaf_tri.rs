@@ -4,8 +4,12 @@
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
-use crate::geometry::Triangle;
+use crate::accel::RayStats;
+use crate::geometry::{
+    intersect_triangle_bounded, Hit, Ray, Robustness, Triangle, TriangleTest, WatertightRay,
+};
 use crate::mesh::Mesh;
+use crate::trace::oracle;
 
 /// One triangle, 48 bytes: three vertices, the original index in v0's slot w.
 #[repr(C)]
@@ -26,6 +30,18 @@ pub struct LeafTri {
 }
 
 impl LeafTri {
+    /// Triangle `prim` with vertices `v`.
+    pub fn new(v: [glam::Vec3; 3], prim: u32) -> LeafTri {
+        LeafTri {
+            v0: v[0].into(),
+            prim,
+            v1: v[1].into(),
+            pad1: 0,
+            v2: v[2].into(),
+            pad2: 0,
+        }
+    }
+
     /// The triangle's vertices.
     #[inline(always)]
     pub fn triangle(&self) -> Triangle {
@@ -36,17 +52,115 @@ impl LeafTri {
     pub fn gather(bvh: &Bvh, mesh: &Mesh) -> Vec<LeafTri> {
         bvh.order
             .par_iter()
-            .map(|&id| {
-                let t = &mesh.triangles[id as usize];
-                LeafTri {
-                    v0: t.v[0].into(),
-                    prim: id,
-                    v1: t.v[1].into(),
-                    pad1: 0,
-                    v2: t.v[2].into(),
-                    pad2: 0,
-                }
-            })
+            .map(|&id| LeafTri::new(mesh.triangles[id as usize].v, id))
             .collect()
+    }
+}
+
+/// The triangle tests a twin's traversal is specialised for (a const generic: the choice is
+/// not re-made per triangle).
+pub(crate) mod leaf_test {
+    use crate::geometry::{Precision, Robustness, TriangleTest};
+
+    /// The watertight test (f32).
+    pub const WATERTIGHT: u8 = 0;
+    /// Möller–Trumbore (f32).
+    pub const MOLLER_TRUMBORE: u8 = 1;
+    /// The f64 oracle's test ([`Precision::F64`]).
+    pub const F64: u8 = 2;
+
+    /// The test `robustness` asks for.
+    #[inline(always)]
+    pub fn of(robustness: &Robustness) -> u8 {
+        match (robustness.precision, robustness.triangle_test) {
+            (Precision::F64, _) => F64,
+            (_, TriangleTest::Watertight) => WATERTIGHT,
+            (_, TriangleTest::MollerTrumbore) => MOLLER_TRUMBORE,
+        }
+    }
+}
+
+/// Calls `$walk::<TEST>($args)` with the const triangle test `robustness` asks for.
+macro_rules! with_leaf_test {
+    ($robustness:expr, $self:ident . $walk:ident ( $($arg:expr),* )) => {{
+        use $crate::layout::leaf_tri::leaf_test;
+        match leaf_test::of($robustness) {
+            leaf_test::F64 => $self.$walk::<{ leaf_test::F64 }>($($arg),*),
+            leaf_test::MOLLER_TRUMBORE => $self.$walk::<{ leaf_test::MOLLER_TRUMBORE }>($($arg),*),
+            _ => $self.$walk::<{ leaf_test::WATERTIGHT }>($($arg),*),
+        }
+    }};
+}
+pub(crate) use with_leaf_test;
+
+/// One ray's fixed state in a twin's leaf step: the triangle test's ray set-up and whether
+/// near hits are rejected (see [`Robustness::rejects_near_hits`]).
+pub(crate) struct LeafRay<'a> {
+    /// The ray.
+    pub ray: &'a Ray,
+    /// Its watertight set-up.
+    pub wr: WatertightRay,
+    /// Whether a hit that may lie behind the origin is dropped.
+    pub reject_near: bool,
+}
+
+impl<'a> LeafRay<'a> {
+    /// The set-up for `ray` under `robustness`.
+    #[inline(always)]
+    pub fn new(ray: &'a Ray, robustness: &Robustness) -> Self {
+        LeafRay {
+            ray,
+            wr: WatertightRay::new(ray.dir),
+            reject_near: robustness.rejects_near_hits(),
+        }
+    }
+
+    /// The leaf step every twin takes (WGSL `test_leaf` in shaders/lib/traversal.wgsl):
+    /// tests `tris` in order with the test `TEST` ([`leaf_test`]); a hit
+    /// that beats `best` by the tie rule replaces it and moves `prune`. Returns true when an
+    /// any-hit query is answered (the traversal ends).
+    #[inline(always)]
+    pub fn test_leaf<const TEST: u8>(
+        &self,
+        tris: &[LeafTri],
+        any_hit: bool,
+        best: &mut Hit,
+        prune: &mut f32,
+        stats: &mut RayStats,
+    ) -> bool {
+        let test = if TEST == leaf_test::MOLLER_TRUMBORE {
+            TriangleTest::MollerTrumbore
+        } else {
+            TriangleTest::Watertight
+        };
+        let ray = self.ray;
+        for lt in tris {
+            stats.tris += 1;
+            let tri = lt.triangle();
+            let h = if TEST == leaf_test::F64 {
+                oracle::triangle_hit(&tri, ray, ray.tmin, best.t)
+            } else {
+                intersect_triangle_bounded(test, &tri, ray, &self.wr, ray.tmin, best.t)
+            };
+            let Some(h) = h else {
+                continue;
+            };
+            if !Hit::beats(h.t, lt.prim, best.t, best.prim)
+                || (self.reject_near && h.maybe_behind_origin())
+            {
+                continue;
+            }
+            *best = Hit {
+                t: h.t,
+                prim: lt.prim,
+                u: h.u,
+                v: h.v,
+            };
+            *prune = h.prune();
+            if any_hit {
+                return true;
+            }
+        }
+        false
     }
 }

@@ -1,7 +1,10 @@
-//! Flattened BVH layouts: the arrays the GPU reads, the WGSL that walks them, and the CPU
-//! twin that walks the same arrays in the same order.
+//! Layouts: a structure's GPU arrays, the WGSL that walks them, and the CPU twin that walks
+//! the same arrays in the same order. The flattened BVH layouts live here, one folder each
+//! (registered in [`LayoutKind`]); other structures with a GPU form implement [`Layout`] in
+//! their own folder (the kd-tree: `src/accel/kdtree/gpu.rs`) and are built for the GPU by
+//! [`accel::build_gpu`](crate::accel::build_gpu).
 //!
-//! # Adding a layout
+//! # Adding a BVH layout
 //!
 //! A layout is one folder, `src/layout/<name>/`, plus one registry line:
 //!
@@ -28,15 +31,21 @@
 //! the kernels' stack size; a layout whose traversal needs more entries per level must
 //! say so in `validate`.
 
+mod bvh2_wide_node;
 mod bvh4;
+mod cwbvh;
+mod dfs_distance;
 mod dfs_sign;
-mod leaf_tri;
+pub(crate) mod leaf_tri;
 
 use crate::accel::bvh::Bvh;
 use crate::accel::Accel;
 use crate::mesh::Mesh;
 
+pub use bvh2_wide_node::Bvh2WideNode;
 pub use bvh4::Bvh4;
+pub use cwbvh::{CwChild, Cwbvh};
+pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
 
@@ -50,10 +59,13 @@ pub struct LayoutArrays<'a> {
     pub tris: &'a [u8],
 }
 
-/// A flattened BVH for the GPU, and its CPU twin (the [`Accel`] supertrait).
+/// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
+/// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays
+/// in the same order as the WGSL. A flattened BVH ([`LayoutKind`]) or another structure
+/// with a GPU kernel (the kd-tree).
 pub trait Layout: Accel {
-    /// Which layout this is.
-    fn kind(&self) -> LayoutKind;
+    /// Its name, for messages, tests and benches (a BVH layout's [`LayoutKind::name`]).
+    fn name(&self) -> &'static str;
 
     /// The arrays to upload.
     fn arrays(&self) -> LayoutArrays<'_>;
@@ -71,6 +83,11 @@ pub trait Layout: Accel {
     /// stack). Run before trusted (unchecked) shader modules see the arrays; the error
     /// names the first bad node.
     fn validate(&self) -> Result<(), String>;
+
+    /// Bytes of one node record: what a traversal loads per node it counts in
+    /// [`RayStats::nodes`](crate::accel::RayStats), so nodes × this + triangles × 48 is the
+    /// memory traffic of a ray.
+    fn node_bytes(&self) -> usize;
 
     /// Bytes the GPU holds for this layout.
     fn bytes(&self) -> usize {
@@ -92,19 +109,37 @@ pub enum LayoutKind {
     /// the split axis gives.
     #[default]
     DfsSign,
-    /// 128-byte 4-wide nodes collapsed from the binary tree by SAH, four boxes tested at once,
-    /// hit children visited nearest first.
+    /// The dfs-sign nodes, both children tested and entered nearest first by entry
+    /// distance; the farther is culled on the pop once a closer hit is known.
+    DfsDistance,
+    /// 64-byte nodes holding both children's boxes (Aila & Laine 2009): both tested per
+    /// visit, the nearer hit child first.
+    Bvh2WideNode,
+    /// 80-byte compressed 8-wide nodes (Ylitie et al. 2017): children's boxes in 8 bits per
+    /// plane, slots ordered by ray octant, a stack of node groups.
+    Cwbvh,
+    /// 128-byte 4-wide nodes collapsed from the binary tree by SAH: the four children's boxes
+    /// tested per visit, the hit ones visited nearest first.
     Bvh4,
 }
 
 impl LayoutKind {
     /// Every layout, for tests and benches that run them all.
-    pub const ALL: &'static [LayoutKind] = &[LayoutKind::DfsSign, LayoutKind::Bvh4];
+    pub const ALL: &'static [LayoutKind] = &[
+        LayoutKind::DfsSign,
+        LayoutKind::DfsDistance,
+        LayoutKind::Bvh2WideNode,
+        LayoutKind::Cwbvh,
+        LayoutKind::Bvh4,
+    ];
 
     /// The name the command line and benches use.
     pub fn name(self) -> &'static str {
         match self {
             LayoutKind::DfsSign => "dfs-sign",
+            LayoutKind::DfsDistance => "dfs-distance",
+            LayoutKind::Bvh2WideNode => "bvh2-wide-node",
+            LayoutKind::Cwbvh => "cwbvh",
             LayoutKind::Bvh4 => "bvh4",
         }
     }
@@ -120,6 +155,9 @@ impl std::fmt::Display for LayoutKind {
 pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
+        LayoutKind::DfsDistance => Box::new(DfsDistance::flatten(bvh, mesh)),
+        LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::flatten(bvh, mesh)),
+        LayoutKind::Cwbvh => Box::new(Cwbvh::flatten(bvh, mesh)),
         LayoutKind::Bvh4 => Box::new(Bvh4::flatten(bvh, mesh)),
     }
 }

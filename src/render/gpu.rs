@@ -382,6 +382,7 @@ impl<'a> GpuRenderer<'a> {
         seed: u32,
         sample: u32,
     ) -> Result<f64> {
+        rob.check_gpu()?;
         let start = std::time::Instant::now();
         let pipeline = self.pipeline(fx, rob)?;
         let base = self.base;

@@ -121,3 +121,43 @@ pub fn shadow_rays(primary: &[Ray], hits: &[Hit], light: glam::Vec3) -> Vec<Ray>
 pub fn default_light(bounds: &crate::geometry::Aabb) -> glam::Vec3 {
     bounds.center() + glam::Vec3::new(0.25, 0.3, 0.9) * bounds.extent().length()
 }
+
+/// Diffuse bounce rays: from the hit points of `primary`, one cosine-distributed direction
+/// about the hit triangle's normal (turned towards the incoming ray), for every ray that hit
+/// — the incoherent rays of a path tracer's second bounce. Deterministic in `seed`.
+pub fn bounce_rays(mesh: &crate::mesh::Mesh, primary: &[Ray], hits: &[Hit], seed: u64) -> Vec<Ray> {
+    // SplitMix64: a well-mixed u64 from a counter, two uniform numbers a ray.
+    let mix = |mut z: u64| {
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    let unit = |z: u64| (z >> 40) as f32 / (1u64 << 24) as f32;
+    primary
+        .iter()
+        .zip(hits)
+        .enumerate()
+        .filter_map(|(i, (r, h))| {
+            let tri = mesh.triangles.get(h.prim as usize)?;
+            let n = (tri.v[1] - tri.v[0])
+                .cross(tri.v[2] - tri.v[0])
+                .normalize_or_zero();
+            if n == glam::Vec3::ZERO {
+                return None;
+            }
+            let n = if n.dot(r.dir) > 0.0 { -n } else { n };
+            let z = mix(seed.wrapping_add(0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1)));
+            let (u1, u2) = (unit(z), unit(mix(z)));
+            let (t, b) = n.any_orthonormal_pair();
+            let (rad, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+            let d = t * (rad * phi.cos()) + b * (rad * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt();
+            let p = r.origin + r.dir * h.t;
+            Some(Ray::new(
+                p,
+                d.normalize(),
+                1e-4 * h.t,
+                crate::camera::PRIMARY_TMAX,
+            ))
+        })
+        .collect()
+}

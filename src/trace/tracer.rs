@@ -8,7 +8,7 @@ use crate::accel::bvh::{self, BuildOptions};
 use crate::accel::{self, Accel, AccelKind, Query, RayStats};
 use crate::device::Device;
 use crate::error::{Error, Result};
-use crate::geometry::{Hit, Ray, Robustness};
+use crate::geometry::{Hit, Precision, Ray, Robustness};
 use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel, INCOMPLETE};
 use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
@@ -59,7 +59,8 @@ pub struct TraceResult {
 }
 
 /// A mesh's acceleration structure on a device, ready to trace batches of rays: a BVH
-/// flattened in a layout (CPU twin or GPU kernel), or another structure on the CPU.
+/// flattened in a layout or another structure's GPU form (CPU twin or GPU kernel), or a
+/// structure on the CPU.
 pub struct Tracer<'d> {
     /// What the CPU traces (for a BVH, the layout's twin; it also re-traces rays a GPU
     /// driver cut short).
@@ -78,9 +79,9 @@ impl<'d> Tracer<'d> {
         Self::with_layout(device, layout, options)
     }
 
-    /// Builds the structure `kind` over the mesh (a BVH in `kind`'s layout, else one of the
-    /// CPU structures). Structures other than the BVH have no GPU kernels: on a GPU device
-    /// they are refused, naming the fix.
+    /// Builds the structure `kind` over the mesh: on a GPU device its GPU form
+    /// ([`accel::build_gpu`]: a BVH in `kind`'s layout, or the kd-tree), on the CPU its CPU
+    /// form. Structures with no GPU kernel are refused on a GPU device, naming the fix.
     pub fn with_structure(
         device: &'d Device,
         mesh: &Mesh,
@@ -91,9 +92,13 @@ impl<'d> Tracer<'d> {
             return Self::new(device, mesh, &TracerOptions { layout, ..*options });
         }
         if !device.is_cpu() {
-            return Err(Error::Usage(format!(
-                "the {kind} structure runs on the CPU only (only the BVH has GPU kernels): use --device cpu"
-            )));
+            return match accel::build_gpu(kind, mesh, &options.build)? {
+                Some(layout) => Self::with_layout(device, layout, options),
+                None => Err(Error::Usage(format!(
+                    "the {kind} structure runs on the CPU only (only the BVH and the kd-tree \
+                     have GPU kernels): use --device cpu"
+                ))),
+            };
         }
         Ok(Tracer {
             cpu: accel::build(kind, mesh, &options.build)?.into(),
@@ -122,7 +127,8 @@ impl<'d> Tracer<'d> {
         })
     }
 
-    /// The BVH layout traced (on the CPU, its twin); None for other structures.
+    /// The layout traced (on the CPU, its twin): a BVH layout, or on a GPU device another
+    /// structure's GPU form; None for a structure traced on the CPU only.
     pub fn layout(&self) -> Option<&Arc<dyn Layout>> {
         self.layout.as_ref()
     }
@@ -143,6 +149,12 @@ impl<'d> Tracer<'d> {
     /// Traces a batch of rays: the closest hit or any hit of each.
     pub fn trace(&mut self, rays: &[Ray], query: Query) -> Result<TraceResult> {
         let o = self.options;
+        if o.robustness.precision != Precision::F32 && self.layout.is_none() {
+            return Err(Error::Usage(
+                "f64 precision is the BVH's (its CPU twin's): use --accel bvh or --precision f32"
+                    .into(),
+            ));
+        }
         match &mut self.gpu {
             Some(gpu) => {
                 let kernel = TraceKernel {

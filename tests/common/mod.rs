@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: a seeded RNG, random soups and rays, models.
 #![allow(dead_code)]
 
+pub mod hard;
+
 use std::path::PathBuf;
 use std::sync::OnceLock;
 

@@ -1,7 +1,8 @@
-//! The memory a build may use: [`GridOptions::max_bytes`](super::GridOptions::max_bytes) and
-//! the memory available on the machine. Builds reserve what they are about to allocate (the
-//! structure and its temporaries) before allocating it, so a grid that would not fit ends in
-//! an error naming its size and the limit, never in an allocation abort.
+//! The memory a build may use: [`GridOptions::max_bytes`](super::GridOptions::max_bytes) (or
+//! another structure's own option, [`Budget::with_knobs`]) and the memory available on the
+//! machine. Builds reserve what they are about to allocate (the structure and its
+//! temporaries) before allocating it, so a structure that would not fit ends in an error
+//! naming its size and the limit, never in an allocation abort.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -21,17 +22,36 @@ pub(crate) struct Budget {
     limit: u64,
     /// Where the limit comes from, for messages.
     source: &'static str,
+    /// The option that sets the limit, and what to change instead, for messages.
+    option: &'static str,
+    hint: &'static str,
     /// Bytes reserved so far.
     used: AtomicU64,
 }
 
 impl Budget {
-    /// The limit for one build: `max_bytes` or the available memory, the smaller.
+    /// The limit for one grid build: `max_bytes` or the available memory, the smaller.
     pub fn new(what: String, max_bytes: Option<u64>) -> Budget {
+        Budget::with_knobs(
+            what,
+            max_bytes,
+            "GridOptions::max_bytes",
+            "lower the grid's density or its max_cells / max_resolution",
+        )
+    }
+
+    /// The limit for one build of any structure: `max_bytes` (the option named `option`) or
+    /// the available memory, the smaller; `hint` says what to lower instead.
+    pub fn with_knobs(
+        what: String,
+        max_bytes: Option<u64>,
+        option: &'static str,
+        hint: &'static str,
+    ) -> Budget {
         let avail = available_memory();
         let (limit, source) = match (max_bytes, avail) {
             (Some(m), Some(a)) if a < m => (a, "the memory available"),
-            (Some(m), _) => (m, "GridOptions::max_bytes"),
+            (Some(m), _) => (m, option),
             (None, Some(a)) => (a, "the memory available"),
             (None, None) => (u64::MAX, "the address space"),
         };
@@ -39,6 +59,8 @@ impl Budget {
             what,
             limit,
             source,
+            option,
+            hint,
             used: AtomicU64::new(0),
         }
     }
@@ -71,11 +93,12 @@ impl Budget {
     pub fn too_big(&self, bytes: u128) -> Error {
         let need = u64::try_from(bytes).map_or("more than 16 EiB".into(), human_bytes);
         Error::Usage(format!(
-            "{} needs at least {need} of memory, over the limit of {} ({}): lower the grid's \
-             density or its max_cells / max_resolution, or raise GridOptions::max_bytes",
+            "{} needs at least {need} of memory, over the limit of {} ({}): {}, or raise {}",
             self.what,
             human_bytes(self.limit),
-            self.source
+            self.source,
+            self.hint,
+            self.option,
         ))
     }
 
@@ -83,8 +106,8 @@ impl Budget {
     pub fn too_many_refs(&self, refs: u64) -> Error {
         Error::Usage(format!(
             "{} needs more than {refs} triangle references, over the limit of {MAX_REFS} \
-             (u32 cell offsets): lower the grid's density or its max_cells / max_resolution",
-            self.what
+             (u32 cell offsets): {}",
+            self.what, self.hint
         ))
     }
 }

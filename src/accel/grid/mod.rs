@@ -15,14 +15,16 @@
 //! would not fit in [`GridOptions::max_bytes`] or the memory available: references are counted
 //! (a conservative count, stopped as soon as it passes the limit) before anything is allocated.
 
-mod binning;
-mod budget;
+// Shared with the octree (a hierarchy of 2×2×2 grids): binning, budget, margins, the
+// triangles' local order and the per-ray walk state.
+pub(crate) mod binning;
+pub(crate) mod budget;
 mod dda;
-mod frame;
+pub(crate) mod frame;
 mod hashed;
 mod overlap;
-mod prims;
-mod ray_walk;
+pub(crate) mod prims;
+pub(crate) mod ray_walk;
 mod two_level;
 mod uniform;
 

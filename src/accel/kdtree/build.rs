@@ -39,8 +39,8 @@ const RIGHT: u8 = 1;
 const BOTH: u8 = 2;
 
 /// Build memory per triangle reference: up to six 8-byte events while its node is pending,
-/// and its 4-byte entry in the finished tree.
-const BYTES_PER_REF: u64 = 6 * 8 + 4;
+/// its 4-byte entry in the finished build, and its 48-byte leaf triangle in the tree.
+const BYTES_PER_REF: u64 = 6 * 8 + 4 + 48;
 
 /// Build memory per triangle beyond its references: the 40-byte triangle and a flag byte
 /// per thread.

@@ -5,16 +5,23 @@
 //!
 //! - `build.rs`: events, the SAH sweep, classification and the split of sorted event lists.
 //! - `clip.rs`: Sutherland–Hodgman clipping of a triangle to a cell, conservatively.
-//! - `traverse.rs`: the [`Accel`](crate::accel::Accel) implementation.
+//! - `traverse.rs`: the [`Accel`](crate::accel::Accel) implementation, which is also the CPU
+//!   twin of the GPU traversal;
+//! - `gpu.rs` and `kdtree.wgsl`: the tree as a [`Layout`](crate::layout::Layout): its own
+//!   node and triangle arrays uploaded as they are, walked by the WGSL step for step as
+//!   `traverse.rs` walks them.
 
 mod build;
 mod clip;
+mod gpu;
 mod traverse;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::error::Result;
 use crate::geometry::{Aabb, Triangle};
+use crate::layout::LeafTri;
 use crate::mesh::Mesh;
 
 /// Deepest leaf any kd-tree may have: the traversal's stack holds one entry per level.
@@ -92,18 +99,31 @@ pub struct KdStats {
     /// References beyond one per triangle: triangles that straddle split planes are
     /// referenced by every leaf they reach.
     pub duplicated_references: usize,
-    /// Memory of the built tree: nodes, references and triangles.
+    /// Memory of the built tree: nodes and leaf triangles (a 48-byte copy per reference).
     pub bytes: usize,
 }
 
-/// A node: 8 bytes. Inner: the split position, and (index of the child above the split << 4
-/// | above child is an empty leaf << 3 | below child is an empty leaf << 2 | axis); the child
-/// below is the next node. Leaf: (first reference, count << 2 | 3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A node: 8 bytes, two to a 16-byte GPU word (WGSL `kd_load_node` in kdtree.wgsl).
+/// Inner: `a` = the split position's bits, `b` = index of the child above the split <<
+/// [`ABOVE_SHIFT`] | [`ABOVE_EMPTY`] | [`BELOW_EMPTY`] | axis; the child below is the next
+/// node. Leaf: `a` = first triangle, `b` = count << [`COUNT_SHIFT`] | [`LEAF_TAG`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct Node {
     a: u32,
     b: u32,
 }
+
+/// The low two bits of `b`: a leaf when equal to this, else the split axis.
+pub(crate) const LEAF_TAG: u32 = 3;
+/// Inner-node flag: the child below the split is an empty leaf.
+pub(crate) const BELOW_EMPTY: u32 = 1 << 2;
+/// Inner-node flag: the child above the split is an empty leaf.
+pub(crate) const ABOVE_EMPTY: u32 = 1 << 3;
+/// Where an inner node's `b` holds the above child's index.
+pub(crate) const ABOVE_SHIFT: u32 = 4;
+/// Where a leaf's `b` holds its triangle count.
+pub(crate) const COUNT_SHIFT: u32 = 2;
 
 /// Largest node index or leaf size a [`Node`] can hold.
 pub(crate) const NODE_FIELD_MAX: usize = (1 << 28) - 1;
@@ -112,22 +132,23 @@ impl Node {
     pub(crate) fn leaf(first: u32, count: u32) -> Node {
         Node {
             a: first,
-            b: (count << 2) | 3,
+            b: (count << COUNT_SHIFT) | LEAF_TAG,
         }
     }
     /// An inner node; `below` and `above` are its children (for their emptiness).
     pub(crate) fn inner(axis: usize, split: f32, above_idx: u32, below: Node, above: Node) -> Node {
+        let flag = |child: Node, bit: u32| if child.is_empty_leaf() { bit } else { 0 };
         Node {
             a: split.to_bits(),
-            b: (above_idx << 4)
-                | (above.is_empty_leaf() as u32) << 3
-                | (below.is_empty_leaf() as u32) << 2
+            b: (above_idx << ABOVE_SHIFT)
+                | flag(above, ABOVE_EMPTY)
+                | flag(below, BELOW_EMPTY)
                 | axis as u32,
         }
     }
     #[inline(always)]
     pub(crate) fn is_leaf(self) -> bool {
-        self.b & 3 == 3
+        self.b & 3 == LEAF_TAG
     }
     pub(crate) fn is_empty_leaf(self) -> bool {
         self.is_leaf() && self.count() == 0
@@ -142,12 +163,12 @@ impl Node {
     }
     #[inline(always)]
     pub(crate) fn above(self) -> usize {
-        (self.b >> 4) as usize
+        (self.b >> ABOVE_SHIFT) as usize
     }
     /// Whether the child below / above the split is an empty leaf (not worth a visit).
     #[inline(always)]
     pub(crate) fn empty_children(self) -> (bool, bool) {
-        (self.b & 4 != 0, self.b & 8 != 0)
+        (self.b & BELOW_EMPTY != 0, self.b & ABOVE_EMPTY != 0)
     }
     #[inline(always)]
     pub(crate) fn first(self) -> usize {
@@ -155,7 +176,7 @@ impl Node {
     }
     #[inline(always)]
     pub(crate) fn count(self) -> usize {
-        (self.b >> 2) as usize
+        (self.b >> COUNT_SHIFT) as usize
     }
     /// This node moved into a larger array: children `nodes` and references `refs` later.
     pub(crate) fn shifted(self, nodes: u32, refs: u32) -> Node {
@@ -167,7 +188,7 @@ impl Node {
         } else {
             Node {
                 a: self.a,
-                b: self.b + (nodes << 4),
+                b: self.b + (nodes << ABOVE_SHIFT),
             }
         }
     }
@@ -181,15 +202,20 @@ pub(crate) struct KdTri {
 }
 
 /// A kd-tree over the included triangles of a mesh, traced on the CPU through
-/// [`Accel`](crate::accel::Accel). Hits report original triangle indices.
+/// [`Accel`](crate::accel::Accel) and on the GPU as a [`Layout`](crate::layout::Layout)
+/// (the same arrays). Hits report original triangle indices.
+///
+/// A leaf's triangles are copies ([`LeafTri`], 48 bytes, ascending original index within a
+/// leaf), one per reference, rather than 4-byte indices into one triangle array: a triangle
+/// test then loads 3 words instead of 4, the fourth dependent on a load before it, at 44
+/// more bytes per reference (the bunny: 360 k references, 17 MiB instead of 4 MiB).
 #[derive(Clone, Debug)]
 pub struct KdTree {
-    /// Depth-first nodes; the root is node 0 (a single empty leaf for an empty mesh).
+    /// Depth-first nodes; the root is node 0 (a single empty leaf for an empty mesh). An
+    /// unreachable empty leaf pads an odd count to whole 16-byte words.
     pub(crate) nodes: Vec<Node>,
-    /// The leaves' references: positions in `tris`, ascending within a leaf.
-    pub(crate) refs: Vec<u32>,
-    /// The included triangles, in original-index order (so position order = index order).
-    pub(crate) tris: Vec<KdTri>,
+    /// The leaves' triangles: leaf (first, count) is `tris[first..first + count]`.
+    pub(crate) tris: Vec<LeafTri>,
     /// Bounds of the included triangles: the root cell.
     pub(crate) bounds: Aabb,
     stats: KdStats,
@@ -212,9 +238,15 @@ impl KdTree {
             .iter()
             .fold(Aabb::EMPTY, |b, t| b.union(Triangle { v: t.v }.bbox()));
         let cap = opts.depth_cap(tris.len());
-        let built = build::build(&tris, &bounds, opts, cap)?;
+        let mut built = build::build(&tris, &bounds, opts, cap)?;
         let leaves = built.nodes.iter().filter(|n| n.is_leaf()).count();
         let empty_leaves = built.nodes.iter().filter(|n| n.is_empty_leaf()).count();
+        let leaf_tris: Vec<LeafTri> = (built.refs.par_iter())
+            .map(|&r| {
+                let t = &tris[r as usize];
+                LeafTri::new(t.v, t.prim)
+            })
+            .collect();
         let stats = KdStats {
             triangles: tris.len(),
             nodes: built.nodes.len(),
@@ -225,13 +257,14 @@ impl KdTree {
             references: built.refs.len(),
             duplicated_references: built.refs.len().saturating_sub(tris.len()),
             bytes: built.nodes.len() * std::mem::size_of::<Node>()
-                + built.refs.len() * 4
-                + tris.len() * std::mem::size_of::<KdTri>(),
+                + leaf_tris.len() * std::mem::size_of::<LeafTri>(),
         };
+        if built.nodes.len() % 2 == 1 {
+            built.nodes.push(Node::leaf(0, 0));
+        }
         Ok(KdTree {
             nodes: built.nodes,
-            refs: built.refs,
-            tris,
+            tris: leaf_tris,
             bounds,
             stats,
         })
@@ -244,7 +277,7 @@ impl KdTree {
 
     /// Every inner node's split as (axis 0 = x, 1 = y, 2 = z; position), depth-first.
     pub fn split_planes(&self) -> Vec<(usize, f32)> {
-        self.nodes
+        self.nodes[..self.stats.nodes]
             .iter()
             .filter(|n| !n.is_leaf())
             .map(|n| (n.axis(), n.split()))

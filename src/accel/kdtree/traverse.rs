@@ -4,69 +4,48 @@
 //! both, near first — with the near side given by the sign of the direction on the split
 //! axis.
 //!
-//! Robust by construction:
+//! It is also the CPU twin of the GPU traversal, `kdtree.wgsl`, which walks the same node and
+//! triangle arrays (see `gpu.rs`) with the same operations in the same order, so hits and
+//! statistics agree bit for bit; every helper below names its WGSL twin.
+//!
+//! Robust by construction, and with no NaN and no ∞ kept anywhere (runtime ∞/NaN are
+//! indeterminate in WGSL; a product that overflows is clamped at once, as the slab test's
+//! distances are):
 //! - every interval end is one computed plane distance (or tmin/tmax), never a sum, so its
-//!   error stays within γ(3) of its value, and is kept widened outward by [`TIE_SLACK`] of
+//!   error stays within γ(3) of its value, and is kept widened outward by [`TIE_SLACK`](crate::geometry::TIE_SLACK) of
 //!   its magnitude ([`widen_lo`], [`widen_hi`]); d is compared with the widened ends, so a
 //!   cell the ray truly reaches is never skipped, d exactly on near or far included (both
 //!   children are then visited);
 //! - an axis the ray is parallel to (|1/d| ≥ [`PARALLEL_INV`], the slab test's own rule)
-//!   is decided by the origin's side alone, both sides when the origin lies on the plane;
-//! - distances are clamped to ±f32::MAX (no ∞, no NaN from ∞ − ∞), and measured along the
-//!   direction scaled by a power of two to a largest component in [1, 2) (exact), so a
-//!   tiny or huge direction is traversed like its unit twin.
+//!   is decided by the origin's side alone, both sides when the origin lies on the plane,
+//!   and leaves the interval as it is;
+//! - distances are clamped to ±f32::MAX ([`finite`]), and measured along the direction
+//!   scaled by a power of two to a largest component in [1, 2) (exact), so a tiny or huge
+//!   direction is traversed like its unit twin.
 //!
 //! The tie rule: a popped node is skipped only when its entry lies beyond the best t plus
-//! its error bound plus [`TIE_SLACK`] (the BVH's `prune_bound`), so a triangle at exactly the
+//! its error bound plus [`TIE_SLACK`](crate::geometry::TIE_SLACK) (the BVH's `prune_bound`), so a triangle at exactly the
 //! best t in a later leaf — a coincident copy, a triangle split across the plane — is still
 //! tested, and equal t goes to the smaller original index ([`Hit::beats`]).
 //!
 //! Empty leaves are flagged in their parent and never visited.
 //!
-//! Mailboxing: the last [`MAILBOX`] references tested are remembered per ray and not tested
-//! again. A skipped test could only repeat an answer already weighed (its interval was then
-//! at least as long), so correctness does not depend on it.
+//! Mailboxing: the last [`MAILBOX`] triangles tested (by original index) are remembered per
+//! ray and not tested again. A test's answer does not depend on the cell it is made in, so
+//! a repeated test could only repeat an answer already weighed: hits do not depend on it,
+//! only the triangle-test count does (the GPU keeps the same mailbox, so its counts are the
+//! CPU's).
 
 use super::{KdTree, MAX_KD_DEPTH};
+use crate::accel::plane_ray::{finite, pow2_scales, widen_hi, widen_lo};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle_bounded, safe_recip, Aabb, Hit, Ray, Robustness, Triangle, TriangleTest,
-    WatertightRay, PARALLEL_INV, TIE_SLACK,
+    intersect_triangle_bounded, safe_recip, Aabb, Hit, Ray, Robustness, TriangleTest,
+    WatertightRay, MISS, PARALLEL_INV,
 };
 
-/// Triangle ids remembered per ray.
-const MAILBOX: usize = 8;
-
-/// The lower end of an interval that starts at the computed distance `t`, widened by
-/// [`TIE_SLACK`] (2⁻²⁰ ≈ 9.5e-7) of its magnitude. Every distance is one computed plane
-/// distance, within γ(3) ≈ 3.6e-7 of its exact value; comparing a widened end with another
-/// computed distance covers both errors (2γ(3)/(1 − γ(3)) < 2⁻²⁰), whatever the signs.
-#[inline(always)]
-fn widen_lo(t: f32) -> f32 {
-    t - TIE_SLACK * t.abs()
-}
-
-/// The upper end of an interval that ends at the computed distance `t`, widened likewise
-/// (may round to +∞ next to f32::MAX, which compares rightly).
-#[inline(always)]
-fn widen_hi(t: f32) -> f32 {
-    t + TIE_SLACK * t.abs()
-}
-
-/// (2^k, 2^−k) for the k that brings `m` (> 0, finite) into [1, 2), k within ±126.
-#[inline(always)]
-fn pow2_scales(m: f32) -> (f32, f32) {
-    let e = ((m.to_bits() >> 23) & 0xff) as i32 - 127;
-    let k = (-e).clamp(-126, 126);
-    let pow2 = |k: i32| f32::from_bits(((k + 127) as u32) << 23);
-    (pow2(k), pow2(-k))
-}
-
-/// A plane distance, kept finite.
-#[inline(always)]
-fn finite(t: f32) -> f32 {
-    t.clamp(-f32::MAX, f32::MAX)
-}
+/// Triangles remembered per ray (kdtree.wgsl holds them in two `vec4<u32>`).
+pub(crate) const MAILBOX: usize = 8;
 
 impl Accel for KdTree {
     fn bounds(&self) -> Aabb {
@@ -91,19 +70,21 @@ impl Accel for KdTree {
 
 impl KdTree {
     /// The ray's widened [near, far] interval in the root cell, or None when it misses the
-    /// cell; `o` the origin, `inv` the reciprocal direction, [tmin, tmax] the ray's interval
-    /// (all in the traversal's scaled units).
+    /// cell; `o` the origin, `inv` the reciprocal direction, `parallel` its axes the ray is
+    /// parallel to, [tmin, tmax] the ray's interval (all in the traversal's scaled units).
+    /// WGSL: the start of `traverse`.
     fn root_interval(
         &self,
         o: [f32; 3],
         inv: [f32; 3],
+        parallel: [bool; 3],
         tmin: f32,
         tmax: f32,
     ) -> Option<(f32, f32)> {
         let (mut tn, mut tf) = (tmin, tmax);
         for k in 0..3 {
             let (lo, hi) = (self.bounds.lo[k], self.bounds.hi[k]);
-            if inv[k].abs() >= PARALLEL_INV {
+            if parallel[k] {
                 if o[k] < lo || o[k] > hi {
                     return None;
                 }
@@ -112,15 +93,18 @@ impl KdTree {
             let t0 = finite((lo - o[k]) * inv[k]);
             let t1 = finite((hi - o[k]) * inv[k]);
             let (a, b) = if inv[k] > 0.0 { (t0, t1) } else { (t1, t0) };
-            tn = tn.max(widen_lo(a));
-            tf = tf.min(widen_hi(b));
+            let (a, b) = (widen_lo(a), widen_hi(b));
+            if a > tn {
+                tn = a;
+            }
+            if b < tf {
+                tf = b;
+            }
         }
         (tn <= tf).then_some((tn, tf))
     }
 
     /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
-    // `!(d < lo)` is meant: a NaN d (parallel, origin on the plane) visits both children.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     #[inline(always)]
     fn walk<const MT: bool>(
         &self,
@@ -130,7 +114,8 @@ impl KdTree {
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
-        if !ray.is_valid() || self.tris.is_empty() {
+        // An empty tree is a single empty leaf.
+        if !ray.is_valid() || self.nodes[0].is_empty_leaf() {
             return best;
         }
         let test = if MT {
@@ -142,32 +127,26 @@ impl KdTree {
         // largest component lies in [1, 2): exact (a power of two), and it makes "parallel"
         // mean a component below 2e-30 of the largest, so a ray whose direction is tiny (or
         // huge) overall is traversed like its unit twin. Triangles see the ray unscaled.
-        let (scale, unscale) = pow2_scales(ray.dir.abs().max_element());
-        // An axis the ray is parallel to (the slab test's rule, |1/d| ≥ PARALLEL_INV) gets
-        // 1/d = ±∞, sign kept.
-        let inv = (ray.dir * scale).to_array().map(|c| {
-            let r = safe_recip(c);
-            if r.abs() >= PARALLEL_INV {
-                f32::INFINITY.copysign(r)
-            } else {
-                r
-            }
-        });
+        let dir = ray.dir;
+        let (scale, unscale) = pow2_scales(dir.x.abs().max(dir.y.abs()).max(dir.z.abs()));
+        let inv = (dir * scale).to_array().map(safe_recip);
+        let parallel = inv.map(|r| r.abs() >= PARALLEL_INV);
         let o = ray.origin.to_array();
         let tmax = finite(ray.tmax.min(f32::MAX) * unscale);
         let tmin = finite(ray.tmin * unscale);
         // [lo, hi]: the ray's interval in the current cell, widened (widen_lo, widen_hi).
-        let Some((mut lo, mut hi)) = self.root_interval(o, inv, tmin, tmax) else {
+        let Some((mut lo, mut hi)) = self.root_interval(o, inv, parallel, tmin, tmax) else {
             stats.nodes += 1;
             return best;
         };
         let wr = WatertightRay::new(ray.dir);
         let reject_near = robustness.rejects_near_hits();
         let mut prune = tmax;
+        // Pending far children with their intervals: at most one per level.
         let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_KD_DEPTH];
         let mut sp = 0usize;
         let mut idx = 0usize;
-        let mut mailbox = [u32::MAX; MAILBOX];
+        let mut mailbox = [MISS; MAILBOX];
         let mut slot = 0usize;
         loop {
             let node = self.nodes[idx];
@@ -176,24 +155,32 @@ impl KdTree {
                 let (k, s) = (node.axis(), node.split());
                 let (below, above) = (idx + 1, node.above());
                 let (below_empty, above_empty) = node.empty_children();
-                // ±∞ past f32's range or on an axis the ray is parallel to (inv = ±∞); NaN
-                // when parallel with the origin on the plane, which visits both children.
-                let d = (s - o[k]) * inv[k];
                 let (near, far, near_empty, far_empty) = if inv[k] > 0.0 {
                     (below, above, below_empty, above_empty)
                 } else {
                     (above, below, above_empty, below_empty)
                 };
+                // Which children the interval reaches, and the plane's widened distance
+                // (dl, dh) to cut it with. On an axis the ray is parallel to, the origin's
+                // side decides (both sides when it lies on the plane), the interval stays.
+                let (reach_near, reach_far, dl, dh) = if parallel[k] {
+                    let (on_below, on_above) = (o[k] <= s, o[k] >= s);
+                    if inv[k] > 0.0 {
+                        (on_below, on_above, lo, hi)
+                    } else {
+                        (on_above, on_below, lo, hi)
+                    }
+                } else {
+                    let d = finite((s - o[k]) * inv[k]);
+                    (d >= lo, d <= hi, widen_lo(d), widen_hi(d))
+                };
                 // Empty leaves are not visited: they hold nothing to test.
-                let visit_near = !(d < lo) && !near_empty;
-                let visit_far = !(d > hi) && !far_empty;
-                // max/min written so that a NaN d leaves the interval as it is.
+                let visit_near = reach_near && !near_empty;
+                let visit_far = reach_far && !far_empty;
                 if visit_near {
                     if visit_far {
-                        let dl = widen_lo(d);
                         stack[sp] = (far as u32, if dl > lo { dl } else { lo }, hi);
                         sp += 1;
-                        let dh = widen_hi(d);
                         if dh < hi {
                             hi = dh;
                         }
@@ -202,7 +189,6 @@ impl KdTree {
                     continue;
                 }
                 if visit_far {
-                    let dl = widen_lo(d);
                     if dl > lo {
                         lo = dl;
                     }
@@ -212,18 +198,17 @@ impl KdTree {
                 // Nothing to visit below this node; on to the stack.
             } else {
                 let first = node.first();
-                for &r in &self.refs[first..first + node.count()] {
-                    if mailbox.contains(&r) {
+                for lt in &self.tris[first..first + node.count()] {
+                    if mailbox.contains(&lt.prim) {
                         continue;
                     }
-                    mailbox[slot] = r;
+                    mailbox[slot] = lt.prim;
                     slot = (slot + 1) % MAILBOX;
                     stats.tris += 1;
-                    let kt = &self.tris[r as usize];
-                    let tri = Triangle { v: kt.v };
+                    let tri = lt.triangle();
                     let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
                     let Some(h) = h else { continue };
-                    if !Hit::beats(h.t, kt.prim, best.t, best.prim) {
+                    if !Hit::beats(h.t, lt.prim, best.t, best.prim) {
                         continue;
                     }
                     // As the BVH: a hit that may lie behind the origin (the surface a
@@ -233,7 +218,7 @@ impl KdTree {
                     }
                     best = Hit {
                         t: h.t,
-                        prim: kt.prim,
+                        prim: lt.prim,
                         u: h.u,
                         v: h.v,
                     };

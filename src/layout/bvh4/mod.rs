@@ -1,9 +1,10 @@
 //! `bvh4`: a 4-wide BVH collapsed from the binary SAH tree. Each node holds up to four
 //! children with their boxes side by side (structure of arrays: the four x minima, the four
-//! y minima, …), so one ray tests all four boxes in SIMD lanes (glam `Vec4` in the twin,
-//! `vec4<f32>` in `bvh4.wgsl`); it visits the children it hits nearest first and pushes the
-//! others, with their entry distances, on the stack. A child is an inner node or a leaf:
-//! a range of the shared [`LeafTri`]s.
+//! y minima, …: one node is eight 16-byte loads); a ray tests the used slots' boxes with the
+//! shared slab test (`Aabb::slab_interval`, WGSL `slab_interval`), visits the children it
+//! hits nearest first and pushes the others, with their entry distances, on the stack. A
+//! child is an inner node or a leaf: a range of the shared [`LeafTri`]s, tested by the
+//! shared leaf step.
 //!
 //! Node: 128 bytes (8 words of 16 bytes): six `[f32; 4]` box planes, four child references,
 //! four child kinds. On the Stanford bunny (69,451 triangles, default sweep build): 12,454
@@ -27,7 +28,6 @@
 //! not per `traverse` call. (On lavapipe, a function-local stack of 192 12-byte entries
 //! made the kernel ~10× slower than `dfs-sign` on the bunny's primary rays.)
 
-mod slab4;
 mod twin;
 
 use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
@@ -49,9 +49,17 @@ const _: () = assert!(NODE_BYTES == 128 && NODE_BYTES.is_multiple_of(16));
 /// unused slot, anything else the triangle count of a leaf.
 pub(crate) const INNER: u32 = u32::MAX;
 
-/// Most nodes a layout may have: stack entries hold `node << 2 | slot` in a u32 (4 GiB of
-/// nodes, past any binding limit).
-const MAX_NODES: usize = 1 << 30;
+/// Bits of a stack entry that name the slot (generated into the WGSL as `BVH4_SLOT_BITS`):
+/// an entry is `node << SLOT_BITS | slot`.
+pub(crate) const SLOT_BITS: u32 = WIDTH.trailing_zeros();
+const _: () = assert!(1 << SLOT_BITS == WIDTH);
+
+/// The slot of a stack entry.
+pub(crate) const SLOT_MASK: u32 = (1 << SLOT_BITS) - 1;
+
+/// Most nodes a layout may have: the node indices a stack entry can name (4 GiB of nodes,
+/// past any binding limit).
+const MAX_NODES: usize = 1 << (32 - SLOT_BITS);
 
 /// Traversal stack entries (generated into the WGSL as `BVH4_STACK_SIZE`): three per level
 /// for 4-wide depths 0..=31 (see the module doc).
@@ -173,8 +181,12 @@ fn emit(node: &Node, d: usize, b: usize, out: &mut Vec<Bvh4Node>) -> u32 {
 }
 
 impl super::Layout for Bvh4 {
-    fn kind(&self) -> LayoutKind {
-        LayoutKind::Bvh4
+    fn name(&self) -> &'static str {
+        LayoutKind::Bvh4.name()
+    }
+
+    fn node_bytes(&self) -> usize {
+        NODE_BYTES
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
@@ -186,7 +198,11 @@ impl super::Layout for Bvh4 {
 
     fn wgsl(&self) -> String {
         format!(
-            "const BVH4_INNER: u32 = {INNER}u;\nconst BVH4_STACK_SIZE: u32 = {STACK_SIZE}u;\n{}",
+            "const BVH4_INNER: u32 = {INNER}u;\n\
+             const BVH4_STACK_SIZE: u32 = {STACK_SIZE}u;\n\
+             const BVH4_NODE_WORDS: u32 = {}u;\n\
+             const BVH4_SLOT_BITS: u32 = {SLOT_BITS}u;\n{}",
+            NODE_BYTES / 16,
             include_str!("bvh4.wgsl")
         )
     }
@@ -198,7 +214,7 @@ impl super::Layout for Bvh4 {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }
-        // Stack entries hold node << 2 | slot.
+        // Stack entries hold node << SLOT_BITS | slot.
         if self.nodes.len() > MAX_NODES {
             return Err(format!(
                 "{} nodes, more than the {MAX_NODES} a stack entry can name",

@@ -1,19 +1,16 @@
-//! The CPU twin of `bvh4.wgsl`, step for step: the same four-box slab test (slab4.rs), the
-//! same child order (entry distance, then slot), the same stack of (node and slot, entry)
-//! entries popped only while their entry is within the prune bound, the same triangle
-//! tests in the same operation order and the same tie rule, all in f32.
+//! The CPU twin of `bvh4.wgsl`, step for step: the used slots' boxes through the shared slab
+//! test (`Aabb::slab_interval`), the same child order (entry distance, then slot), the same
+//! stack of (node and slot, entry) entries popped only while their entry is within the
+//! prune bound, and the shared leaf step (`LeafRay::test_leaf`: triangle test, tie rule).
 
-use glam::Vec4;
+use glam::{Vec3, Vec3A};
 
-use super::slab4::{slab_hit4, RayLanes};
-use super::{Bvh4, Bvh4Node, INNER, STACK_SIZE, WIDTH};
+use super::{Bvh4, Bvh4Node, INNER, SLOT_BITS, SLOT_MASK, STACK_SIZE, WIDTH};
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{
-    intersect_triangle_bounded, prune_bound, Aabb, Hit, Ray, Robustness, TriHit, TriangleTest,
-    WatertightRay, MISS,
-};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
-/// A pushed child: its node and slot (`node << 2 | slot`), and the entry distance its box
+/// A pushed child: its node and slot (`node << SLOT_BITS | slot`), and the entry distance its box
 /// was entered at (WGSL `Bvh4Entry`). 8 bytes, not the child and kind themselves (12): a
 /// popped entry reads them again from the node, and the kernels' stack stays small.
 #[derive(Clone, Copy, Debug)]
@@ -39,10 +36,7 @@ impl Accel for Bvh4 {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
-        }
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
     }
 }
 
@@ -62,9 +56,9 @@ fn ranks(hit: u32, enter: [f32; WIDTH]) -> [u32; WIDTH] {
 }
 
 impl Bvh4 {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -75,14 +69,22 @@ impl Bvh4 {
         if !ray.is_valid() {
             return best;
         }
-        let test = if MT {
-            TriangleTest::MollerTrumbore
-        } else {
-            TriangleTest::Watertight
+        let widen = robustness.far_widen();
+        let leaf = LeafRay::new(ray, robustness);
+        let inv = ray.inv_dir();
+        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
+        // The shared slab test on slot k's box: the scalar one (parallel-axis rule) for a
+        // ray parallel to an axis, else its SIMD form, which equals it on such rays.
+        let interval = |node: &Bvh4Node, k: usize, tmax: f32| {
+            let b = node.bbox(k);
+            if parallel {
+                b.slab_interval(ray.origin, inv, ray.tmin, tmax, widen)
+            } else {
+                let (lo, hi) = (Vec3A::from(b.lo), Vec3A::from(b.hi));
+                Aabb::slab_interval_nonparallel(lo, hi, origin_a, inv_a, ray.tmin, tmax, widen)
+            }
         };
-        let reject_near = robustness.rejects_near_hits();
-        let lanes = RayLanes::new(ray.origin, ray.inv_dir(), robustness.far_widen());
-        let wr = WatertightRay::new(ray.dir);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
@@ -98,12 +100,15 @@ impl Bvh4 {
                 let index = child;
                 let node: &Bvh4Node = &self.nodes[index as usize];
                 stats.nodes += 1;
-                let plane = |p: [f32; WIDTH]| Vec4::from_array(p);
-                let lo = [plane(node.lo_x), plane(node.lo_y), plane(node.lo_z)];
-                let hi = [plane(node.hi_x), plane(node.hi_y), plane(node.hi_z)];
-                let (hit4, enter4) = slab_hit4(lo, hi, &lanes, ray.tmin, prune);
-                let used = (0..WIDTH).fold(0, |m, k| m | ((node.kind[k] != 0) as u32) << k);
-                let hit = hit4.bitmask() & used;
+                // Used slots whose boxes the ray enters before the prune bound.
+                let (mut hit, mut enter) = (0u32, [0.0f32; WIDTH]);
+                for (k, slot_enter) in enter.iter_mut().enumerate() {
+                    if node.kind[k] != 0 {
+                        let (e, x) = interval(node, k, prune);
+                        *slot_enter = e;
+                        hit |= ((e <= x) as u32) << k;
+                    }
+                }
                 if hit != 0 {
                     descended = true;
                     let n = hit.count_ones();
@@ -112,18 +117,17 @@ impl Bvh4 {
                         (child, kind) = (node.child[k], node.kind[k]);
                     } else {
                         // The nearest is visited next; the others pushed farthest first.
-                        let enter = enter4.to_array();
                         let rank = ranks(hit, enter);
-                        for k in 0..WIDTH {
+                        for (k, (&r, &e)) in rank.iter().zip(&enter).enumerate() {
                             if hit >> k & 1 == 0 {
                                 continue;
                             }
-                            if rank[k] == 0 {
+                            if r == 0 {
                                 (child, kind) = (node.child[k], node.kind[k]);
                             } else {
-                                stack[sp + (n - 1 - rank[k]) as usize] = Entry {
-                                    slot: index << 2 | k as u32,
-                                    enter: enter[k],
+                                stack[sp + (n - 1 - r) as usize] = Entry {
+                                    slot: index << SLOT_BITS | k as u32,
+                                    enter: e,
                                 };
                             }
                         }
@@ -132,29 +136,9 @@ impl Bvh4 {
                 }
             } else {
                 let first = child as usize;
-                for lt in &self.tris[first..first + kind as usize] {
-                    stats.tris += 1;
-                    let tri = lt.triangle();
-                    let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
-                    if let Some(h) = h {
-                        let TriHit { t, u, v, .. } = h;
-                        if !Hit::beats(t, lt.prim, best.t, best.prim) {
-                            continue;
-                        }
-                        if reject_near && h.maybe_behind_origin() {
-                            continue;
-                        }
-                        best = Hit {
-                            t,
-                            prim: lt.prim,
-                            u,
-                            v,
-                        };
-                        prune = h.prune();
-                        if query == Query::Any {
-                            return best;
-                        }
-                    }
+                let tris = &self.tris[first..first + kind as usize];
+                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                    return best;
                 }
             }
             if !descended {
@@ -167,7 +151,8 @@ impl Bvh4 {
                     sp -= 1;
                     let e = stack[sp];
                     if e.enter <= prune {
-                        let (node, k) = (&self.nodes[(e.slot >> 2) as usize], e.slot as usize & 3);
+                        let node = &self.nodes[(e.slot >> SLOT_BITS) as usize];
+                        let k = (e.slot & SLOT_MASK) as usize;
                         (child, kind) = (node.child[k], node.kind[k]);
                         break;
                     }

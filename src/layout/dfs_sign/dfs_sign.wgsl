@@ -1,19 +1,5 @@
-// dfs-sign: 32-byte nodes in depth-first order, near child by the ray's sign on the split
-// axis. The CPU twin is twin.rs, step for step. DFS_LEAF_TAG comes from mod.rs's LEAF_TAG.
-
-// DfsNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | DFS_LEAF_TAG.
-struct DfsNode {
-    lo: vec3<f32>,
-    a: u32,
-    hi: vec3<f32>,
-    b: u32,
-}
-
-fn dfs_load_node(i: u32) -> DfsNode {
-    let a = node_word(2u * i);
-    let b = node_word(2u * i + 1u);
-    return DfsNode(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
-}
+// dfs-sign: 32-byte nodes in depth-first order (dfs_node.wgsl), near child by the ray's sign
+// on the split axis. The CPU twin is twin.rs, step for step.
 
 // Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
 // An invalid ray (NaN, zero direction, empty interval) is a miss.
@@ -50,25 +36,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                     sp += 1u;
                     idx = near;
                     descended = true;
-                } else {
-                    let end = node.a + (node.b >> 2u);
-                    for (var i = node.a; i < end; i += 1u) {
-                        let tri = load_tri(i);
-                        if COUNT_STATS {
-                            n_tris += 1u;
-                        }
-                        let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
-                        if h.ok && beats(h.t, tri.prim, best.t, best.prim)
-                            && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
-                            best = Hit(h.t, tri.prim, h.u, h.v);
-                            prune = hit_prune(h);
-                            if any_hit {
-                                // Empty the stack: the pop below ends the traversal.
-                                sp = 0u;
-                                break;
-                            }
-                        }
-                    }
+                } else if test_leaf(node.a, node.b >> 2u, r, w, any_hit, &best, &prune) {
+                    // Answered: empty the stack, the pop below ends the traversal.
+                    sp = 0u;
                 }
             }
             if !descended {

@@ -45,12 +45,20 @@ impl DfsNode {
     }
 }
 
+/// The WGSL node struct and loader, with the leaf tag generated from [`LEAF_TAG`].
+pub(crate) fn node_wgsl() -> String {
+    format!(
+        "const DFS_LEAF_TAG: u32 = {LEAF_TAG}u;\n{}",
+        include_str!("dfs_node.wgsl")
+    )
+}
+
 /// A BVH flattened in the `dfs-sign` layout; its [`Accel`](crate::accel::Accel) is the
 /// CPU twin of `dfs_sign.wgsl`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DfsSign {
-    nodes: Vec<DfsNode>,
-    tris: Vec<LeafTri>,
+    pub(super) nodes: Vec<DfsNode>,
+    pub(super) tris: Vec<LeafTri>,
 }
 
 impl DfsSign {
@@ -66,8 +74,12 @@ impl DfsSign {
 }
 
 impl super::Layout for DfsSign {
-    fn kind(&self) -> LayoutKind {
-        LayoutKind::DfsSign
+    fn name(&self) -> &'static str {
+        LayoutKind::DfsSign.name()
+    }
+
+    fn node_bytes(&self) -> usize {
+        std::mem::size_of::<DfsNode>()
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
@@ -78,10 +90,7 @@ impl super::Layout for DfsSign {
     }
 
     fn wgsl(&self) -> String {
-        format!(
-            "const DFS_LEAF_TAG: u32 = {LEAF_TAG}u;\n{}",
-            include_str!("dfs_sign.wgsl")
-        )
+        format!("{}{}", node_wgsl(), include_str!("dfs_sign.wgsl"))
     }
 
     /// Child indices in range and forward, leaf ranges in range, depth ≤ MAX_DEPTH, every

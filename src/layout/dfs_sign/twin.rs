@@ -7,10 +7,8 @@ use glam::{Vec3, Vec3A};
 use super::DfsSign;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{
-    intersect_triangle_bounded, prune_bound, Aabb, Hit, Ray, Robustness, TriHit, TriangleTest,
-    WatertightRay, MISS, PARALLEL_INV,
-};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for DfsSign {
     fn bounds(&self) -> Aabb {
@@ -30,17 +28,14 @@ impl Accel for DfsSign {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
-        }
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
     }
 }
 
 impl DfsSign {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -51,17 +46,11 @@ impl DfsSign {
         if !ray.is_valid() {
             return best;
         }
-        let test = if MT {
-            TriangleTest::MollerTrumbore
-        } else {
-            TriangleTest::Watertight
-        };
         let widen = robustness.far_widen();
-        let reject_near = robustness.rejects_near_hits();
+        let leaf = LeafRay::new(ray, robustness);
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
-        let wr = WatertightRay::new(ray.dir);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
@@ -73,7 +62,7 @@ impl DfsSign {
             stats.nodes += 1;
             let enter = if parallel {
                 node.bbox()
-                    .slab_hit(ray.origin, inv, ray.tmin, best.t, widen)
+                    .slab_hit(ray.origin, inv, ray.tmin, prune, widen)
             } else {
                 Aabb::slab_hit_nonparallel(
                     Vec3A::from_array(node.lo),
@@ -99,31 +88,9 @@ impl DfsSign {
                     continue;
                 }
                 let first = node.a as usize;
-                for lt in &self.tris[first..first + node.count() as usize] {
-                    stats.tris += 1;
-                    let tri = lt.triangle();
-                    let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
-                    if let Some(h) = h {
-                        let TriHit { t, u, v, .. } = h;
-                        if !Hit::beats(t, lt.prim, best.t, best.prim) {
-                            continue;
-                        }
-                        if reject_near && h.maybe_behind_origin() {
-                            continue;
-                        }
-                        {
-                            best = Hit {
-                                t,
-                                prim: lt.prim,
-                                u,
-                                v,
-                            };
-                            prune = h.prune();
-                            if query == Query::Any {
-                                return best;
-                            }
-                        }
-                    }
+                let tris = &self.tris[first..first + node.count() as usize];
+                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                    return best;
                 }
             }
             if sp == 0 {

@@ -1,0 +1,248 @@
+//! `lancer bench layouts`: every flattened layout on one mesh, side by side in one run:
+//! flatten time, bytes, work per ray (nodes, triangles, bytes loaded), and speed of the CPU
+//! twin and of the GPU kernel for primary, shadow and diffuse bounce rays.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use lancer::accel::bvh::build;
+use lancer::gpu::BvhMemory;
+use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
+use lancer::mesh::load_mesh;
+use lancer::{Device, DeviceChoice, RayStats, Result, Robustness, Tracer, TracerOptions};
+
+use super::check::{layout_choice, LayoutChoice};
+use super::{open_device, spelled, view_ray_sets, BuilderArgs};
+
+#[derive(Args)]
+pub struct BenchLayouts {
+    /// OBJ mesh.
+    mesh: PathBuf,
+    /// Width of the default view (primary rays; shadow and bounce rays start at their hits).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
+    width: u32,
+    /// Height of the default view.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
+    height: u32,
+    /// auto and gpu measure the GPU kernels and the CPU twins side by side; cpu only the twins.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
+    /// GPU: where the kernels read the layout from.
+    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
+    bvh_memory: BvhMemory,
+    /// Layouts to measure: a name or all.
+    #[arg(long = "layout", value_name = "NAME|all", default_value = "all", value_parser = layout_choice)]
+    layouts: LayoutChoice,
+    /// Timed runs per layout and ray set (the median is reported).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+    repeat: u64,
+    /// Also write the results as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Also draw Mrays/s per layout and ray set as a PNG bar chart here.
+    #[arg(long)]
+    chart: Option<PathBuf>,
+    #[command(flatten)]
+    build: BuilderArgs,
+}
+
+/// One layout × ray set.
+struct Row {
+    layout: LayoutKind,
+    mode: &'static str,
+    rays: String,
+    count: usize,
+    nodes: f64,
+    tris: f64,
+    bytes_loaded: f64,
+    cpu_mrays: f64,
+    gpu_mrays: Option<f64>,
+}
+
+/// One layout's size.
+struct Size {
+    layout: LayoutKind,
+    flatten_ms: f64,
+    bytes: usize,
+    per_tri: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+impl BenchLayouts {
+    pub fn run(self) -> Result<()> {
+        let mesh = load_mesh(&self.mesh)?;
+        let tree = build(&mesh, &self.build.options());
+        let reference = flatten(LayoutKind::default(), &tree, &mesh);
+        let rob = Robustness::default();
+        let sets = view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?;
+        let device = open_device(self.device)?;
+        let kinds = self.layouts.kinds();
+        let repeat = self.repeat as usize;
+        let per_set = if device.is_cpu() { repeat } else { 2 * repeat };
+        let bar = ProgressBar::new((kinds.len() * sets.len() * per_set) as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        let cpu = Device::cpu();
+        let (mut sizes, mut rows) = (Vec::new(), Vec::new());
+        for &kind in &kinds {
+            bar.set_message(kind.name());
+            let start = Instant::now();
+            let layout: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+            let flatten_ms = start.elapsed().as_secs_f64() * 1e3;
+            sizes.push(Size {
+                layout: kind,
+                flatten_ms,
+                bytes: layout.bytes(),
+                per_tri: layout.bytes() as f64 / mesh.len().max(1) as f64,
+            });
+            let options = TracerOptions {
+                layout: kind,
+                memory: self.bvh_memory,
+                stats: true,
+                ..TracerOptions::default()
+            };
+            let mut twin = Tracer::with_layout(&cpu, layout.clone(), &options)?;
+            let mut gpu = match device.is_cpu() {
+                true => None,
+                false => Some(Tracer::with_layout(&device, layout.clone(), &options)?),
+            };
+            for (name, query, rays) in &sets {
+                let n = rays.len() as f64;
+                let stats = twin.trace(rays, *query)?.stats.unwrap_or_default();
+                let (nodes, tris) = RayStats::means(&stats);
+                twin.set_kernel(rob, options.workgroup_size, false);
+                let mut times = Vec::new();
+                for _ in 0..repeat {
+                    times.push(twin.trace(rays, *query)?.timings.wall_ms * 1e-3);
+                    bar.inc(1);
+                }
+                twin.set_kernel(rob, options.workgroup_size, true);
+                let gpu_mrays = match gpu.as_mut() {
+                    None => None,
+                    Some(g) => {
+                        g.set_kernel(rob, options.workgroup_size, false);
+                        g.trace(&rays[..rays.len().min(1024)], *query)?; // compile outside the timing
+                        let mut times = Vec::new();
+                        for _ in 0..repeat {
+                            let t = g.trace(rays, *query)?.timings;
+                            times.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
+                            bar.inc(1);
+                        }
+                        Some(n / median(times) / 1e6)
+                    }
+                };
+                rows.push(Row {
+                    layout: kind,
+                    mode: "per-ray",
+                    rays: name.clone(),
+                    count: rays.len(),
+                    nodes,
+                    tris,
+                    bytes_loaded: nodes * layout.node_bytes() as f64
+                        + tris * std::mem::size_of::<LeafTri>() as f64,
+                    cpu_mrays: n / median(times) / 1e6,
+                    gpu_mrays,
+                });
+            }
+        }
+        bar.finish_and_clear();
+        let adapter = device
+            .gpu_context()
+            .map_or("none (CPU only)".to_string(), |c| c.adapter.to_string());
+        println!(
+            "mesh {}  {} triangles  view {}x{}  builder {}  {} CPU threads",
+            self.mesh.display(),
+            mesh.len(),
+            self.width,
+            self.height,
+            spelled(self.build.options().builder),
+            rayon::current_num_threads()
+        );
+        println!("adapter {adapter}  (BVH in {})", spelled(self.bvh_memory));
+        println!();
+        println!("| layout | flatten ms | bytes | bytes/triangle |");
+        println!("|---|---|---|---|");
+        for s in &sizes {
+            println!(
+                "| {} | {:.1} | {} | {:.1} |",
+                s.layout, s.flatten_ms, s.bytes, s.per_tri
+            );
+        }
+        println!();
+        println!("| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |");
+        println!("|---|---|---|---|---|---|---|---|---|");
+        for r in &rows {
+            let gpu = r.gpu_mrays.map_or("–".to_string(), |g| format!("{g:.2}"));
+            println!(
+                "| {} | {} | {} | {} | {:.1} | {:.1} | {:.0} | {:.2} | {gpu} |",
+                r.layout, r.mode, r.rays, r.count, r.nodes, r.tris, r.bytes_loaded, r.cpu_mrays
+            );
+        }
+        if let Some(path) = &self.chart {
+            let mut categories = Vec::new();
+            for (name, _, _) in &sets {
+                categories.push(format!("{name} CPU"));
+                if !device.is_cpu() {
+                    categories.push(format!("{name} GPU"));
+                }
+            }
+            let mut series: Vec<(String, Vec<f64>)> = Vec::new();
+            for &kind in &kinds {
+                let mut values = Vec::new();
+                for r in rows.iter().filter(|r| r.layout == kind) {
+                    values.push(r.cpu_mrays);
+                    if !device.is_cpu() {
+                        values.push(r.gpu_mrays.unwrap_or(f64::NAN));
+                    }
+                }
+                series.push((format!("{kind} ({})", rows[0].mode), values));
+            }
+            let gpu_name = device
+                .gpu_context()
+                .map_or("none".into(), |c| c.adapter.driver.clone());
+            let title = format!(
+                "{} {}x{}: CPU {} threads, GPU {gpu_name}",
+                self.mesh.file_name().unwrap_or_default().to_string_lossy(),
+                self.width,
+                self.height,
+                rayon::current_num_threads()
+            );
+            super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)?;
+            println!("\nchart -> {}", path.display());
+        }
+        if let Some(path) = &self.json {
+            let json = serde_json::json!({
+                "mesh": self.mesh.display().to_string(),
+                "triangles": mesh.len(),
+                "width": self.width,
+                "height": self.height,
+                "adapter": adapter,
+                "bvh_memory": spelled(self.bvh_memory),
+                "cpu_threads": rayon::current_num_threads(),
+                "layouts": sizes.iter().map(|s| serde_json::json!({
+                    "layout": s.layout.name(), "flatten_ms": s.flatten_ms,
+                    "bytes": s.bytes, "bytes_per_triangle": s.per_tri,
+                })).collect::<Vec<_>>(),
+                "runs": rows.iter().map(|r| serde_json::json!({
+                    "layout": r.layout.name(), "mode": r.mode, "rays": r.rays, "count": r.count,
+                    "nodes_per_ray": r.nodes, "triangles_per_ray": r.tris,
+                    "bytes_loaded_per_ray": r.bytes_loaded,
+                    "cpu_mrays_per_s": r.cpu_mrays, "gpu_mrays_per_s": r.gpu_mrays,
+                })).collect::<Vec<_>>(),
+            });
+            let text = serde_json::to_string_pretty(&json).unwrap_or_default();
+            lancer::output::write_bytes(path, text.as_bytes())?;
+            println!("\nJSON -> {}", path.display());
+        }
+        Ok(())
+    }
+}

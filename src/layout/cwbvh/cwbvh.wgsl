@@ -1,0 +1,136 @@
+// cwbvh: the compressed 8-wide BVH of Ylitie, Karras & Laine 2017, octant-ordered traversal
+// with a stack of node groups. The CPU twin is twin.rs, step for step. CWBVH_TRI_BITS,
+// CWBVH_COUNT_SHIFT, CWBVH_WIDTH and CWBVH_STACK_SIZE come from mod.rs.
+
+// CwbvhNode, 80 bytes (mod.rs CwNode). e_imask: step exponents x, y, z and imask, one byte
+// each, low byte first. child_meta, q_lo, q_hi: one byte per slot, slots 0-3 in .x, 4-7 in .y;
+// q_lo[axis] / q_hi[axis] are the children's low / high planes on that axis.
+struct CwbvhNode {
+    p: vec3<f32>,
+    e_imask: u32,
+    child_base: u32,
+    tri_base: u32,
+    child_meta: vec2<u32>,
+    q_lo: array<vec2<u32>, 3>,
+    q_hi: array<vec2<u32>, 3>,
+}
+
+fn cwbvh_load_node(i: u32) -> CwbvhNode {
+    let a = node_word(5u * i);
+    let b = node_word(5u * i + 1u);
+    let c = node_word(5u * i + 2u);
+    let d = node_word(5u * i + 3u);
+    let e = node_word(5u * i + 4u);
+    return CwbvhNode(bitcast<vec3<f32>>(a.xyz), a.w, b.x, b.y, b.zw,
+                     array<vec2<u32>, 3>(c.xy, c.zw, d.xy), array<vec2<u32>, 3>(d.zw, e.xy, e.zw));
+}
+
+// The hit mask of the node's children whose dequantised boxes the ray enters before `prune`
+// (twin: RayBox::child_hits): an internal child in slot s at bit CWBVH_TRI_BITS + (s ^ oct_inv),
+// a leaf's triangles at their offsets from tri_base.
+fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, prune: f32, oct_inv: u32) -> u32 {
+    let ex = vec3<u32>(n.e_imask, n.e_imask >> 8u, n.e_imask >> 16u) & vec3<u32>(0xffu);
+    let scale = bitcast<vec3<f32>>(ex << vec3<u32>(23u));
+    let imask = n.e_imask >> 24u;
+    let index_mask = (1u << CWBVH_COUNT_SHIFT) - 1u;
+    var hits = 0u;
+    for (var h = 0u; h < 2u; h += 1u) {
+        let hi_half = h == 1u;
+        let child_meta = select(n.child_meta.x, n.child_meta.y, hi_half);
+        let lo4 = select(vec3<u32>(n.q_lo[0].x, n.q_lo[1].x, n.q_lo[2].x),
+                         vec3<u32>(n.q_lo[0].y, n.q_lo[1].y, n.q_lo[2].y), hi_half);
+        let hi4 = select(vec3<u32>(n.q_hi[0].x, n.q_hi[1].x, n.q_hi[2].x),
+                         vec3<u32>(n.q_hi[0].y, n.q_hi[1].y, n.q_hi[2].y), hi_half);
+        for (var b = 0u; b < 4u; b += 1u) {
+            let sh = 8u * b;
+            let m = (child_meta >> sh) & 0xffu;
+            if m != 0u {
+                // quantise::dequantise: p + q * scale (exact product, so contraction-proof).
+                let qlo = vec3<f32>((lo4 >> vec3<u32>(sh)) & vec3<u32>(0xffu));
+                let qhi = vec3<f32>((hi4 >> vec3<u32>(sh)) & vec3<u32>(0xffu));
+                let lo = n.p + qlo * scale;
+                let hi = n.p + qhi * scale;
+                if slab_hit(lo, hi, r.origin, inv, r.tmin, prune) {
+                    let inner = (imask >> (4u * h + b)) & 1u;
+                    hits |= (m >> CWBVH_COUNT_SHIFT) << ((m & index_mask) ^ (oct_inv * inner));
+                }
+            }
+        }
+    }
+    return hits;
+}
+
+// Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
+// An invalid ray (NaN, zero direction, empty interval) is a miss.
+fn traverse(r: Ray, any_hit: bool) -> Hit {
+    var best = Hit(r.tmax, MISS, 0.0, 0.0);
+    traversal_done = !ray_is_valid(r);
+    if COUNT_STATS {
+        n_nodes = 0u;
+        n_tris = 0u;
+    }
+    if ray_is_valid(r) {
+        let inv = safe_recip3(r.dir);
+        let w = watertight_setup(r.dir);
+        let node_bits = ~((1u << CWBVH_TRI_BITS) - 1u);
+        let octant = select(0u, 1u, r.dir.x < 0.0) | select(0u, 2u, r.dir.y < 0.0)
+            | select(0u, 4u, r.dir.z < 0.0);
+        let oct_inv = (CWBVH_WIDTH - 1u) ^ octant;
+        // Boxes are cut against the best t plus a few ulps (prune_bound, as the twin does).
+        var prune = prune_bound(best.t);
+        var stack: array<vec2<u32>, CWBVH_STACK_SIZE>;
+        var sp = 0u;
+        // x: first child node; y: hit internal children (high byte) | imask. At the top of
+        // the loop it always holds a node: first the root, alone in the top bit.
+        var group = vec2<u32>(0u, 1u << 31u);
+        loop {
+            let bit = firstLeadingBit(group.y);
+            group.y &= ~(1u << bit);
+            if (group.y & node_bits) != 0u {
+                stack[sp] = group;
+                sp += 1u;
+            }
+            let slot = (bit - CWBVH_TRI_BITS) ^ oct_inv;
+            let idx = group.x + countOneBits(group.y & ((1u << slot) - 1u));
+            let node = cwbvh_load_node(idx);
+            if COUNT_STATS {
+                n_nodes += 1u;
+            }
+            let hits = cwbvh_child_hits(node, r, inv, prune, oct_inv);
+            group = vec2<u32>(node.child_base, (hits & node_bits) | (node.e_imask >> 24u));
+            var tri_hits = hits & ~node_bits;
+            var stop = false;
+            while tri_hits != 0u {
+                let b = firstTrailingBit(tri_hits);
+                tri_hits &= tri_hits - 1u;
+                let tri = load_tri(node.tri_base + b);
+                if COUNT_STATS {
+                    n_tris += 1u;
+                }
+                let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
+                if h.ok && beats(h.t, tri.prim, best.t, best.prim)
+                    && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
+                    best = Hit(h.t, tri.prim, h.u, h.v);
+                    prune = hit_prune(h);
+                    if any_hit {
+                        stop = true;
+                        break;
+                    }
+                }
+            }
+            if stop {
+                traversal_done = true;
+                break;
+            }
+            if (group.y & node_bits) == 0u {
+                if sp == 0u {
+                    traversal_done = true;
+                    break;
+                }
+                sp -= 1u;
+                group = stack[sp];
+            }
+        }
+    }
+    return best;
+}

@@ -1,0 +1,427 @@
+//! `cwbvh`: the compressed 8-wide BVH of Ylitie, Karras & Laine 2017 ("Efficient incoherent
+//! ray traversal on GPUs through compressed wide BVHs"). An 80-byte node holds a frame
+//! (origin, three power-of-two steps) and up to 8 children: each child's box in 8 bits per
+//! plane against that frame ([`quantise`]), and a meta byte saying whether it is an
+//! internal node (stored contiguously from `child_base`, in slot order) or a leaf of 1–3
+//! triangles (a unary count and an offset from `tri_base`). Children sit in slots by ray
+//! octant ([`slots`]), so a ray visits them roughly near to far by taking the highest bit
+//! of a hit mask; traversal keeps a stack of node groups (a base index and a hit mask), at
+//! most one per level.
+//!
+//! The tree is collapsed from lancer's binary SAH tree by the paper's SAH-cost dynamic
+//! programme ([`collapse`]); binary leaves of more than 3 triangles are first split into
+//! one-triangle leaves (the DP then regroups them into wide leaves of ≤ 3). Triangles are
+//! stored in the layout's own order, each once, `prim` keeping the original index.
+
+mod collapse;
+mod quantise;
+mod slots;
+mod twin;
+
+use glam::Vec3A;
+
+use crate::accel::bvh::{Bvh, MAX_DEPTH};
+use crate::geometry::Aabb;
+use crate::mesh::Mesh;
+
+use super::{LayoutArrays, LayoutKind, LeafTri};
+
+use collapse::{Binary, Plan};
+use quantise::{dequantise, step, Frame};
+
+/// Children per node.
+pub(crate) const WIDTH: usize = 8;
+/// Most triangles in one leaf child (three unary count bits in the meta byte).
+pub(crate) const MAX_LEAF_TRIS: u32 = 3;
+/// Hit-mask bits below this are triangles (at most 24 per node, offsets from `tri_base`),
+/// the 8 above are internal children in traversal order (WGSL `CWBVH_TRI_BITS`).
+pub(crate) const TRI_BITS: u32 = 24;
+/// A meta byte: the unary triangle count (1 for an internal child) above this shift, the
+/// hit-mask bit index below (WGSL `CWBVH_COUNT_SHIFT`).
+pub(crate) const COUNT_SHIFT: u32 = 5;
+/// Node groups the traversal stack holds: one per level, so every node must be at depth
+/// ≤ this (checked by `validate`; WGSL `CWBVH_STACK_SIZE`). The wide tree is never deeper
+/// than the binary one, whose depth the builders cap at MAX_DEPTH.
+pub(crate) const STACK_SIZE: usize = MAX_DEPTH;
+/// Bytes of one node record.
+pub(crate) const NODE_BYTES: usize = std::mem::size_of::<CwNode>();
+
+/// One node, 80 bytes (WGSL `CwbvhNode`; `e` and `imask` are its `e_imask` word, the byte
+/// arrays its `child_meta`, `q_lo`, `q_hi` words, little-endian).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct CwNode {
+    /// Frame origin: the low corner of the node's box.
+    pub p: [f32; 3],
+    /// Biased f32 exponents of the per-axis steps (step = bits `e << 23`).
+    pub e: [u8; 3],
+    /// Bit s set: slot s is an internal child.
+    pub imask: u8,
+    /// Index of the first internal child (the others follow, in slot order).
+    pub child_base: u32,
+    /// Index of the first triangle of the leaf children.
+    pub tri_base: u32,
+    /// Per slot: 0 empty; internal `1 << 5 | (24 + slot)`; leaf `(2^count − 1) << 5 | offset`.
+    pub child_meta: [u8; WIDTH],
+    /// Per axis, per slot: the child's low planes as bytes.
+    pub q_lo: [[u8; WIDTH]; 3],
+    /// Per axis, per slot: the child's high planes as bytes.
+    pub q_hi: [[u8; WIDTH]; 3],
+}
+
+impl CwNode {
+    /// The meta byte of an internal child in `slot`.
+    fn inner_meta(slot: usize) -> u8 {
+        (1 << COUNT_SHIFT | (TRI_BITS + slot as u32)) as u8
+    }
+
+    /// The dequantised box of slot `s`, as the traversal computes it.
+    #[inline(always)]
+    fn child_box(&self, s: usize) -> (Vec3A, Vec3A) {
+        let p = Vec3A::from_array(self.p);
+        let step = step(self.e);
+        let q = |b: &[[u8; WIDTH]; 3]| Vec3A::new(b[0][s] as f32, b[1][s] as f32, b[2][s] as f32);
+        (
+            dequantise(p, step, q(&self.q_lo)),
+            dequantise(p, step, q(&self.q_hi)),
+        )
+    }
+}
+
+/// What a node's slot holds (for inspection: [`Cwbvh::children`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CwChild {
+    /// An internal node, by index.
+    Node(u32),
+    /// A leaf: triangles `first..first + count` of the layout's triangle array.
+    Tris {
+        /// First triangle.
+        first: u32,
+        /// Number of triangles (1..=3).
+        count: u32,
+    },
+}
+
+/// A BVH flattened in the `cwbvh` layout; its [`Accel`](crate::accel::Accel) is the CPU
+/// twin of `cwbvh.wgsl`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cwbvh {
+    nodes: Vec<CwNode>,
+    tris: Vec<LeafTri>,
+    bounds: Aabb,
+}
+
+impl Cwbvh {
+    /// Collapses a built tree into 8-wide compressed nodes.
+    pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Cwbvh {
+        let gathered = LeafTri::gather(bvh, mesh);
+        if gathered.is_empty() {
+            // One node without children: every ray loads it and ends.
+            let empty = CwNode {
+                e: [127; 3],
+                ..bytemuck::Zeroable::zeroed()
+            };
+            return Cwbvh {
+                nodes: vec![empty],
+                tris: Vec::new(),
+                bounds: Aabb::EMPTY,
+            };
+        }
+        let tree = Binary::new(&bvh.root, &gathered);
+        let plan = Plan::new(&tree);
+        let mut w = Writer {
+            tree: &tree,
+            plan: &plan,
+            gathered: &gathered,
+            nodes: vec![bytemuck::Zeroable::zeroed()],
+            tris: Vec::with_capacity(gathered.len()),
+            scratch: Vec::new(),
+        };
+        w.write(0, tree.root());
+        Cwbvh {
+            nodes: w.nodes,
+            tris: w.tris,
+            bounds: *tree.bbox(tree.root()),
+        }
+    }
+
+    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::Layout::validate).
+    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Cwbvh, String> {
+        if !arrays.nodes.len().is_multiple_of(NODE_BYTES) {
+            return Err(format!(
+                "node array of {} bytes is not whole {NODE_BYTES}-byte nodes",
+                arrays.nodes.len()
+            ));
+        }
+        let nodes: Vec<CwNode> = bytemuck::pod_collect_to_vec(arrays.nodes);
+        if !(arrays.tris.len()).is_multiple_of(std::mem::size_of::<LeafTri>()) {
+            return Err(format!(
+                "triangle array of {} bytes is not whole triangles",
+                arrays.tris.len()
+            ));
+        }
+        let tris: Vec<LeafTri> = bytemuck::pod_collect_to_vec(arrays.tris);
+        let bounds = (tris.iter()).fold(Aabb::EMPTY, |b, t| b.union(t.triangle().bbox()));
+        let layout = Cwbvh {
+            nodes,
+            tris,
+            bounds,
+        };
+        super::Layout::validate(&layout)?;
+        Ok(layout)
+    }
+
+    /// Number of node records.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// The layout's triangles, in its own order.
+    pub fn leaf_tris(&self) -> &[LeafTri] {
+        &self.tris
+    }
+
+    /// Node `i`'s occupied slots: (slot, its box as the traversal dequantises it, what it
+    /// holds). Panics if `i` is not below [`node_count`](Self::node_count).
+    pub fn children(&self, i: usize) -> Vec<(usize, Aabb, CwChild)> {
+        let n = &self.nodes[i];
+        let mut next_inner = n.child_base;
+        let mut out = Vec::new();
+        for s in 0..WIDTH {
+            let m = n.child_meta[s] as u32;
+            let inner = n.imask >> s & 1 == 1;
+            let child = if inner {
+                next_inner += 1;
+                CwChild::Node(next_inner - 1)
+            } else if m != 0 {
+                CwChild::Tris {
+                    first: n.tri_base + (m & ((1 << COUNT_SHIFT) - 1)),
+                    count: (m >> COUNT_SHIFT).count_ones(),
+                }
+            } else {
+                continue;
+            };
+            let (lo, hi) = n.child_box(s);
+            out.push((
+                s,
+                Aabb {
+                    lo: lo.into(),
+                    hi: hi.into(),
+                },
+                child,
+            ));
+        }
+        out
+    }
+}
+
+/// Writes wide nodes depth first; each node's internal children are contiguous.
+struct Writer<'a> {
+    tree: &'a Binary,
+    plan: &'a Plan,
+    gathered: &'a [LeafTri],
+    nodes: Vec<CwNode>,
+    tris: Vec<LeafTri>,
+    scratch: Vec<u32>,
+}
+
+impl Writer<'_> {
+    /// Writes the wide node made from binary node `n` at `index` (already allocated), then
+    /// its internal children.
+    fn write(&mut self, index: usize, n: u32) {
+        let children = self.plan.children(self.tree, n);
+        let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| *self.tree.bbox(c)).collect();
+        let bbox = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
+        let frame = Frame::new(&bbox);
+        let mut node = CwNode {
+            p: frame.p.into(),
+            e: frame.e,
+            imask: 0,
+            child_base: self.nodes.len() as u32,
+            tri_base: self.tris.len() as u32,
+            child_meta: [0; WIDTH],
+            q_lo: [[0; WIDTH]; 3],
+            q_hi: [[0; WIDTH]; 3],
+        };
+        let mut inner = Vec::with_capacity(WIDTH);
+        let mut offset = 0u32;
+        for (s, c) in slots::assign(&bbox, &boxes).into_iter().enumerate() {
+            let Some(c) = c else { continue };
+            let (b, leaf) = children[c];
+            let (lo, hi) = frame.quantise(&boxes[c]);
+            for axis in 0..3 {
+                node.q_lo[axis][s] = lo[axis];
+                node.q_hi[axis][s] = hi[axis];
+            }
+            if leaf {
+                self.scratch.clear();
+                self.tree.positions(b, &mut self.scratch);
+                let count = self.scratch.len() as u32;
+                node.child_meta[s] = (((1 << count) - 1) << COUNT_SHIFT | offset) as u8;
+                offset += count;
+                let gathered = self.gathered;
+                (self.tris).extend(self.scratch.iter().map(|&p| gathered[p as usize]));
+            } else {
+                node.imask |= 1 << s;
+                node.child_meta[s] = CwNode::inner_meta(s);
+                inner.push(b);
+            }
+        }
+        let base = self.nodes.len();
+        (self.nodes).resize(base + inner.len(), bytemuck::Zeroable::zeroed());
+        self.nodes[index] = node;
+        for (j, b) in inner.into_iter().enumerate() {
+            self.write(base + j, b);
+        }
+    }
+}
+
+impl super::Layout for Cwbvh {
+    fn name(&self) -> &'static str {
+        LayoutKind::Cwbvh.name()
+    }
+
+    fn node_bytes(&self) -> usize {
+        NODE_BYTES
+    }
+
+    fn arrays(&self) -> LayoutArrays<'_> {
+        LayoutArrays {
+            nodes: bytemuck::cast_slice(&self.nodes),
+            tris: bytemuck::cast_slice(&self.tris),
+        }
+    }
+
+    fn wgsl(&self) -> String {
+        format!(
+            "const CWBVH_TRI_BITS: u32 = {TRI_BITS}u;\n\
+             const CWBVH_COUNT_SHIFT: u32 = {COUNT_SHIFT}u;\n\
+             const CWBVH_WIDTH: u32 = {WIDTH}u;\n\
+             const CWBVH_STACK_SIZE: u32 = {STACK_SIZE}u;\n{}",
+            include_str!("cwbvh.wgsl")
+        )
+    }
+
+    /// Every node reached once from the root, children after their parent, depth ≤ the
+    /// group stack; meta bytes well formed (internal slots match `imask`, leaves of 1–3
+    /// triangles within the node's 24 triangle bits); every triangle in exactly one leaf;
+    /// steps normal; no child box inverted.
+    fn validate(&self) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return Err("BVH has no nodes".into());
+        }
+        let mut reached = vec![false; self.nodes.len()];
+        let mut covered = vec![false; self.tris.len()];
+        reached[0] = true;
+        let mut stack = vec![(0usize, 0usize)];
+        while let Some((i, depth)) = stack.pop() {
+            if depth > STACK_SIZE {
+                return Err(format!(
+                    "node {i} is at depth {depth} > the {STACK_SIZE}-group stack"
+                ));
+            }
+            let n = &self.nodes[i];
+            if n.e.iter().any(|&e| e == 0 || e == 255) {
+                return Err(format!("node {i} has a step exponent outside 1..=254"));
+            }
+            for s in 0..WIDTH {
+                let m = n.child_meta[s] as u32;
+                if n.imask >> s & 1 == 1 {
+                    if m != CwNode::inner_meta(s) as u32 {
+                        return Err(format!("node {i} slot {s}: internal with meta {m:#04x}"));
+                    }
+                } else if m != 0 {
+                    let unary = m >> COUNT_SHIFT;
+                    let count = unary.count_ones();
+                    let first = m & ((1 << COUNT_SHIFT) - 1);
+                    if unary != (1 << count) - 1 || first + count > TRI_BITS {
+                        return Err(format!("node {i} slot {s}: bad leaf meta {m:#04x}"));
+                    }
+                    let start = n.tri_base as usize + first as usize;
+                    let end = start + count as usize;
+                    if end > self.tris.len() {
+                        return Err(format!(
+                            "node {i} slot {s} refers to triangles {start}..{end} of {}",
+                            self.tris.len()
+                        ));
+                    }
+                    for c in &mut covered[start..end] {
+                        if std::mem::replace(c, true) {
+                            return Err(format!("node {i} slot {s}: a triangle in two leaves"));
+                        }
+                    }
+                }
+                if m != 0 && (0..3).any(|a| n.q_lo[a][s] > n.q_hi[a][s]) {
+                    return Err(format!("node {i} slot {s}: inverted box"));
+                }
+            }
+            let inner = n.imask.count_ones() as usize;
+            let base = n.child_base as usize;
+            if inner > 0 && (base <= i || base + inner > self.nodes.len()) {
+                return Err(format!(
+                    "node {i} has children {base}..{} outside {}..{}",
+                    base + inner,
+                    i + 1,
+                    self.nodes.len()
+                ));
+            }
+            for (c, r) in reached.iter_mut().enumerate().skip(base).take(inner) {
+                if std::mem::replace(r, true) {
+                    return Err(format!("node {c} is reached twice"));
+                }
+                stack.push((c, depth + 1));
+            }
+        }
+        if let Some(i) = reached.iter().position(|r| !r) {
+            return Err(format!("node {i} is unreachable"));
+        }
+        if let Some(t) = covered.iter().position(|c| !c) {
+            return Err(format!("triangle {t} is in no leaf"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{offset_of, size_of};
+
+    use super::*;
+    use crate::gpu::shaders;
+    use crate::layout::Layout;
+
+    #[test]
+    fn the_wgsl_node_matches_the_rust_node() {
+        // A 10×10×5 lattice of small tilted triangles.
+        let tris = (0..500)
+            .map(|i| {
+                let c = glam::Vec3::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32);
+                crate::geometry::Triangle::new(
+                    c,
+                    c + glam::Vec3::new(0.7, 0.0, 0.2),
+                    c + glam::Vec3::new(0.0, 0.6, 0.3),
+                )
+            })
+            .collect();
+        let mesh = Mesh::from_triangles(tris);
+        let layout = Cwbvh::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
+        let src = shaders::trace_source(&layout);
+        let fields = [
+            ("p", offset_of!(CwNode, p)),
+            ("e_imask", offset_of!(CwNode, e)),
+            ("child_base", offset_of!(CwNode, child_base)),
+            ("tri_base", offset_of!(CwNode, tri_base)),
+            ("child_meta", offset_of!(CwNode, child_meta)),
+            ("q_lo", offset_of!(CwNode, q_lo)),
+            ("q_hi", offset_of!(CwNode, q_hi)),
+        ];
+        shaders::check_struct(&src, "CwbvhNode", size_of::<CwNode>(), &fields).unwrap();
+        // e and imask share the word e_imask: e in bytes 0..3, imask in byte 3.
+        assert_eq!(offset_of!(CwNode, imask), offset_of!(CwNode, e) + 3);
+        assert_eq!(NODE_BYTES, 80);
+        assert!(layout.node_count() > 10);
+        assert_eq!(layout.triangles(), 500);
+        layout.validate().unwrap();
+    }
+}

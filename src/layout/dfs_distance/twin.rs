@@ -1,0 +1,130 @@
+//! The CPU twin of `dfs_distance.wgsl`, step for step: both children's boxes tested at an
+//! inner node, the nearer entered first (the first child on equal entries), the farther
+//! pushed with its entry distance and culled on the pop against the prune bound.
+
+use glam::{Vec3, Vec3A};
+
+use super::{DfsDistance, DfsNode};
+use crate::accel::bvh::MAX_DEPTH;
+use crate::accel::{Accel, Query, RayStats};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
+
+impl Accel for DfsDistance {
+    fn bounds(&self) -> Aabb {
+        self.flat.bounds()
+    }
+
+    #[inline]
+    fn intersect(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        // One specialised loop per triangle test (the choice is not re-made per triangle).
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+    }
+}
+
+impl DfsDistance {
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
+    #[inline(always)]
+    fn walk<const TEST: u8>(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        let mut best = Hit::miss(ray.tmax);
+        if !ray.is_valid() {
+            return best;
+        }
+        let nodes = self.nodes();
+        let widen = robustness.far_widen();
+        let leaf = LeafRay::new(ray, robustness);
+        let inv = ray.inv_dir();
+        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
+        // Node i's box for the ray, one node load (WGSL dfs_distance_load + slab_interval).
+        let interval = |n: &DfsNode, prune: f32| {
+            if parallel {
+                n.bbox()
+                    .slab_interval(ray.origin, inv, ray.tmin, prune, widen)
+            } else {
+                Aabb::slab_interval_nonparallel(
+                    Vec3A::from_array(n.lo),
+                    Vec3A::from_array(n.hi),
+                    origin_a,
+                    inv_a,
+                    ray.tmin,
+                    prune,
+                    widen,
+                )
+            }
+        };
+        let mut prune = prune_bound(best.t);
+        let mut node = &nodes[0];
+        stats.nodes += 1;
+        let (enter, exit) = interval(node, prune);
+        // Written as the WGSL does: NaN bounds are a miss.
+        let enters = enter <= exit;
+        if !enters {
+            return best;
+        }
+        let mut stack = [(0u32, 0f32); MAX_DEPTH];
+        let mut sp = 0usize;
+        let mut index = 0usize;
+        loop {
+            if !node.is_leaf() {
+                // The first child follows its parent: its index travels with the node.
+                let (a, b) = (index + 1, node.a as usize);
+                let (na, nb) = (&nodes[a], &nodes[b]);
+                stats.nodes += 2;
+                let (ea, xa) = interval(na, prune);
+                let (eb, xb) = interval(nb, prune);
+                match (ea <= xa, eb <= xb) {
+                    (true, true) => {
+                        // Equal entries: the first child first.
+                        let (near, far, far_enter) = if eb < ea { (b, a, ea) } else { (a, b, eb) };
+                        stack[sp] = (far as u32, far_enter);
+                        sp += 1;
+                        (index, node) = (near, &nodes[near]);
+                        continue;
+                    }
+                    (true, false) => {
+                        (index, node) = (a, na);
+                        continue;
+                    }
+                    (false, true) => {
+                        (index, node) = (b, nb);
+                        continue;
+                    }
+                    (false, false) => {}
+                }
+            } else {
+                let first = node.a as usize;
+                let tris = &self.flat.tris[first..first + node.count() as usize];
+                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
+                    return best;
+                }
+            }
+            // Pop the next child whose box the ray enters before the best hit (with slack).
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let (i, enter) = stack[sp];
+                if enter <= prune {
+                    index = i as usize;
+                    node = &nodes[index];
+                    stats.nodes += 1;
+                    break;
+                }
+            }
+        }
+    }
+}

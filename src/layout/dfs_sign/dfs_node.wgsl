@@ -1,0 +1,16 @@
+// The 32-byte dfs node (mod.rs DfsNode) and its loader, shared by the traversals of the
+// dfs-sign and dfs-distance layouts. DFS_LEAF_TAG comes from mod.rs's LEAF_TAG.
+
+// DfsNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | DFS_LEAF_TAG.
+struct DfsNode {
+    lo: vec3<f32>,
+    a: u32,
+    hi: vec3<f32>,
+    b: u32,
+}
+
+fn dfs_load_node(i: u32) -> DfsNode {
+    let a = node_word(2u * i);
+    let b = node_word(2u * i + 1u);
+    return DfsNode(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
+}

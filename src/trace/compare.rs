@@ -1,0 +1,111 @@
+//! Two tracers' answers for the same rays, side by side: the CPU twin against the GPU kernel
+//! (`lancer check`, `tests/gpu_vs_cpu.rs`). Where the answers differ, the f64 oracle says
+//! whether both are right (a genuine tie) or one is wrong.
+
+use rayon::prelude::*;
+
+use super::oracle::{judge, judge_any, Verdict};
+use crate::accel::Query;
+use crate::geometry::{Hit, Ray};
+use crate::mesh::Mesh;
+
+/// Largest difference in t, in units in the last place, still counted as agreement where
+/// both answers name the same triangle (the GPU may fuse a multiply-add the CPU rounds twice).
+pub const T_ULPS: u32 = 2;
+
+/// One ray on which the two answers differ and the oracle finds one of them wrong.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Disagreement {
+    /// Index of the ray.
+    pub ray: usize,
+    /// The reference answer (the CPU twin's).
+    pub reference: Hit,
+    /// The other answer (the GPU's).
+    pub other: Hit,
+    /// What the oracle found wrong.
+    pub why: String,
+}
+
+/// How two sets of answers compare.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Comparison {
+    /// Rays answered bit for bit the same (t, triangle, u, v).
+    pub identical: usize,
+    /// Rays answered with the same triangle and t within [`T_ULPS`] (`identical` included).
+    pub agree: usize,
+    /// Rays answered differently where the oracle names a genuine tie (both are right).
+    pub ties: usize,
+    /// Every other ray.
+    pub disagree: Vec<Disagreement>,
+}
+
+fn ulps(a: f32, b: f32) -> u32 {
+    (a.to_bits() as i64 - b.to_bits() as i64)
+        .unsigned_abs()
+        .min(u32::MAX as u64) as u32
+}
+
+fn bits(h: &Hit) -> [u32; 4] {
+    [h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()]
+}
+
+/// Compares `other` with `reference`, the answers to `query` for `rays` on `mesh`.
+/// Slices of different lengths compare up to the shorter.
+pub fn compare_hits(
+    mesh: &Mesh,
+    rays: &[Ray],
+    query: Query,
+    reference: &[Hit],
+    other: &[Hit],
+) -> Comparison {
+    enum One {
+        Identical,
+        Agree,
+        Tie,
+        Wrong(String),
+    }
+    let one = |r: &Ray, a: &Hit, b: &Hit| {
+        if bits(a) == bits(b) {
+            return One::Identical;
+        }
+        if a.prim == b.prim {
+            if !a.is_hit() || ulps(a.t, b.t) <= T_ULPS {
+                return One::Agree;
+            }
+            return One::Wrong(format!("t {} vs {} ({} ulp)", a.t, b.t, ulps(a.t, b.t)));
+        }
+        let judge_one = |h: &Hit| match query {
+            Query::Closest => judge(mesh, r, h),
+            Query::Any => judge_any(mesh, r, h),
+        };
+        match (judge_one(a), judge_one(b)) {
+            (Verdict::Wrong(w), _) => One::Wrong(format!("the reference is wrong: {w}")),
+            (_, Verdict::Wrong(w)) => One::Wrong(w),
+            _ => One::Tie,
+        }
+    };
+    let verdicts: Vec<One> = rays
+        .par_iter()
+        .zip(reference)
+        .zip(other)
+        .map(|((r, a), b)| one(r, a, b))
+        .collect();
+    let mut c = Comparison::default();
+    for (i, v) in verdicts.into_iter().enumerate() {
+        match v {
+            One::Identical => {
+                c.identical += 1;
+                c.agree += 1;
+            }
+            One::Agree => c.agree += 1,
+            One::Tie => c.ties += 1,
+            One::Wrong(why) => c.disagree.push(Disagreement {
+                ray: i,
+                reference: reference[i],
+                other: other[i],
+                why,
+            }),
+        }
+    }
+    c
+}

@@ -1,0 +1,776 @@
+//! The BIH (src/accel/bih) against the f64 oracle, the BVH and brute force: every answer
+//! agrees or is a genuine tie the oracle names; rays through shared edges and vertices never
+//! leak; axis-parallel rays on clip planes; coincident triangles keep the tie rule; the depth
+//! cap holds on inputs the global heuristic would split deeper; the memory cap refuses
+//! instead of aborting; the arrays are what the GPU will read (each triangle once, clip
+//! planes exactly the children's extents); the stats add up.
+
+#[path = "common/accel_check.rs"]
+mod accel_check;
+#[path = "../benches/common.rs"]
+mod bench_common;
+mod common;
+
+use accel_check::{brute_force, check, quad_plane, same_as_bvh};
+use common::{load_model, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bih::{Bih, BihNode, BihOptions, BIH_LEAF_TAG, MAX_BIH_DEPTH};
+use lancer::accel::bvh::BuildOptions;
+use lancer::accel::{build, Accel, AccelKind};
+use lancer::camera::Camera;
+use lancer::geometry::{Aabb, Hit, Ray, Triangle, TriangleTest};
+use lancer::mesh::Mesh;
+use lancer::trace::oracle::{self, judge, Verdict};
+use lancer::{Query, RayStats, Robustness};
+
+fn bih(mesh: &Mesh) -> Bih {
+    Bih::build(mesh, &BihOptions::default()).expect("BIH builds")
+}
+
+/// Checks the arrays' invariants: depth-first order (left child next, right child after
+/// the left subtree), leaves covering the triangle array in order with 1..=`max_leaf`
+/// triangles, each inner node's planes exactly the max / min of its children's triangles
+/// on its axis (one-sided nodes: their child's, and ∓f32::MAX), depth within the cap, each
+/// included triangle exactly once.
+fn validate(mesh: &Mesh, tree: &Bih, max_leaf: usize) {
+    let (nodes, tris) = (tree.nodes(), tree.triangles());
+    let s = tree.stats();
+    // Returns (index after the subtree, box of its triangles, next triangle position).
+    fn walk(
+        nodes: &[BihNode],
+        tris: &[lancer::layout::LeafTri],
+        i: usize,
+        depth: usize,
+        next_tri: usize,
+        out: &mut (usize, usize, usize),
+    ) -> (usize, Aabb, usize) {
+        let n = nodes[i];
+        out.0 = out.0.max(depth);
+        if n.link & 3 == BIH_LEAF_TAG {
+            let (first, count) = ((n.link >> 2) as usize, n.count as usize);
+            assert_eq!(first, next_tri, "leaves cover the triangles in order");
+            assert!(count >= 1);
+            out.1 = out.1.max(count);
+            let b = tris[first..first + count]
+                .iter()
+                .fold(Aabb::EMPTY, |b, t| b.union(t.triangle().bbox()));
+            return (i + 1, b, first + count);
+        }
+        let k = n.axis();
+        if n.index() == i + 1 {
+            // One-sided: the child's extent on the kept side, ∓f32::MAX on the other.
+            let (end, b, t) = walk(nodes, tris, i + 1, depth + 1, next_tri, out);
+            out.2 += 1;
+            match n.clip {
+                [l, r] if r == f32::MAX => assert_eq!(l, b.hi[k], "node {i}: cut at the maximum"),
+                [l, r] if l == -f32::MAX => assert_eq!(r, b.lo[k], "node {i}: cut at the minimum"),
+                c => panic!("node {i}: a one-sided node with planes {c:?}"),
+            }
+            assert_eq!(n.count, 0);
+            return (end, b, t);
+        }
+        let (end_left, lb, t) = walk(nodes, tris, i + 1, depth + 1, next_tri, out);
+        assert_eq!(
+            n.index(),
+            end_left,
+            "node {i}: right child after the left subtree"
+        );
+        let (end, rb, t) = walk(nodes, tris, end_left, depth + 1, t, out);
+        assert_eq!(
+            n.clip[0], lb.hi[k],
+            "node {i}: left plane = left child's maximum"
+        );
+        assert_eq!(
+            n.clip[1], rb.lo[k],
+            "node {i}: right plane = right child's minimum"
+        );
+        assert_eq!(n.count, 0);
+        (end, lb.union(rb), t)
+    }
+    if tris.is_empty() {
+        assert_eq!(
+            nodes,
+            &[BihNode {
+                clip: [0.0; 2],
+                link: BIH_LEAF_TAG,
+                count: 0
+            }]
+        );
+        return;
+    }
+    let mut shape = (0, 0, 0);
+    let (end, b, t) = walk(nodes, tris, 0, 0, 0, &mut shape);
+    assert_eq!((end, t), (nodes.len(), tris.len()));
+    assert_eq!(b, tree.bounds());
+    assert_eq!(shape, (s.max_depth, s.largest_leaf, s.cuts));
+    assert!(s.max_depth <= s.depth_cap && s.depth_cap <= MAX_BIH_DEPTH);
+    assert!(s.largest_leaf <= max_leaf.max(1), "{s:?}");
+    let mut prims: Vec<u32> = tris.iter().map(|t| t.prim).collect();
+    prims.sort_unstable();
+    assert_eq!(
+        prims,
+        mesh.included(),
+        "each included triangle exactly once"
+    );
+    for t in tris {
+        assert_eq!(t.triangle(), mesh.triangles[t.prim as usize]);
+    }
+    assert_eq!(
+        s.nodes,
+        2 * s.leaves - 1 + s.cuts,
+        "a full binary tree and the cuts"
+    );
+    assert_eq!(s.triangles, tris.len());
+    assert_eq!(s.bytes, nodes.len() * 16 + tris.len() * 48);
+}
+
+#[test]
+fn random_soups_against_the_oracle_and_the_bvh() {
+    for seed in 0..3 {
+        let mut rng = Rng::new(300 + seed);
+        let mesh = soup(&mut rng, 2000, 0.2);
+        let rays = random_rays(&mut rng, 3000, &mesh);
+        for max_leaf in [1, 4] {
+            let opts = BihOptions {
+                max_leaf,
+                ..BihOptions::default()
+            };
+            let tree = Bih::build(&mesh, &opts).unwrap();
+            validate(&mesh, &tree, max_leaf);
+            let name = format!("soup {seed}, leaves ≤ {max_leaf}");
+            let (agree, _) = check(&name, &mesh, &tree, &rays);
+            assert!(agree > 2500);
+            assert_eq!(same_as_bvh(&name, &mesh, &tree, &rays), 0);
+            let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
+            assert_eq!(hits, brute_force(&mesh, &rays), "{name}: BIH ≠ brute force");
+        }
+    }
+}
+
+#[test]
+fn models_primary_and_random_rays() {
+    // The oracle and the brute force test every triangle per ray: fewer rays on the bunny
+    // (69,451 triangles) than on the teapot; the BVH comparison takes many more.
+    for (name, judged, side) in [("teapot.obj", 1000, 32), ("stanford-bunny.obj", 200, 16)] {
+        let Some(mesh) = load_model(name) else { return };
+        let tree = bih(&mesh);
+        println!("{name}: {:?}", tree.stats());
+        validate(&mesh, &tree, 4);
+        assert!(tree.stats().cuts > 0, "empty space is cut off");
+        let mut rng = Rng::new(7);
+        let rays = random_rays(&mut rng, 3000, &mesh);
+        check(&format!("{name} random"), &mesh, &tree, &rays[..judged]);
+        assert_eq!(
+            same_as_bvh(&format!("{name} random"), &mesh, &tree, &rays),
+            0
+        );
+        let cam = Camera::default_view(&mesh.bounds(), side, side);
+        let (agree, _) = check(
+            &format!("{name} primary"),
+            &mesh,
+            &tree,
+            &cam.primary_rays(),
+        );
+        assert!(agree > (side * side / 2) as usize);
+        let primary = Camera::default_view(&mesh.bounds(), 96, 96).primary_rays();
+        assert_eq!(
+            same_as_bvh(&format!("{name} primary"), &mesh, &tree, &primary),
+            0
+        );
+        let some: Vec<Ray> = primary
+            .iter()
+            .step_by(9)
+            .copied()
+            .take(2 * judged)
+            .collect();
+        let (hits, _) = tree.trace_batch(&some, Query::Closest, &Robustness::default());
+        assert_eq!(hits, brute_force(&mesh, &some), "{name}: BIH ≠ brute force");
+    }
+}
+
+#[test]
+fn parallel_build_equals_serial_build() {
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let par = bih(&mesh);
+    let ser = Bih::build(
+        &mesh,
+        &BihOptions {
+            parallel: false,
+            ..BihOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(par.stats(), ser.stats());
+    assert_eq!(par.nodes(), ser.nodes());
+    assert_eq!(par.triangles(), ser.triangles());
+}
+
+#[test]
+fn rays_at_shared_edges_and_vertices_never_leak() {
+    let (mesh, targets) = quad_plane(24, 0.37);
+    for max_leaf in [1, 4] {
+        let tree = Bih::build(
+            &mesh,
+            &BihOptions {
+                max_leaf,
+                ..BihOptions::default()
+            },
+        )
+        .unwrap();
+        assert!(tree.stats().nodes > 100, "the plane is split");
+        let mut rng = Rng::new(11);
+        let c = mesh.bounds().center();
+        let mut rays = Vec::new();
+        for &t in &targets {
+            // From above and below at random angles, and straight down the z axis.
+            for _ in 0..2 {
+                let mut o = c + rng.dir() * 20.0;
+                o.z = if rng.f32() < 0.5 {
+                    -o.z.abs() - 1.0
+                } else {
+                    o.z.abs() + 1.0
+                };
+                rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
+            }
+            rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
+            rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
+        }
+        let rob = Robustness::default();
+        for query in [Query::Closest, Query::Any] {
+            let (hits, _) = tree.trace_batch(&rays, query, &rob);
+            let leaks = hits.iter().filter(|h| !h.is_hit()).count();
+            println!("plane {query:?}: {} rays, {leaks} leaks", rays.len());
+            assert_eq!(leaks, 0, "rays through shared edges and vertices leaked");
+        }
+        check("plane edges", &mesh, &tree, &rays);
+        // Where two triangles meet at the ray, equal t goes to the smaller index even when
+        // the two sit in different leaves.
+        let (hits, _) = tree.trace_batch(&rays, Query::Closest, &rob);
+        assert_eq!(hits, brute_force(&mesh, &rays), "plane: BIH ≠ brute force");
+    }
+}
+
+#[test]
+fn axis_parallel_rays_on_clip_planes() {
+    let mut rng = Rng::new(21);
+    let mut tris = soup(&mut rng, 1500, 0.25).triangles;
+    tris.extend(quad_plane(8, 0.25).0.triangles);
+    let mesh = Mesh::from_triangles(tris);
+    let tree = bih(&mesh);
+    // Both planes of every node: the left child's maximum and the right child's minimum.
+    let planes: Vec<(usize, f32)> = tree
+        .clip_planes()
+        .into_iter()
+        .flat_map(|(k, l, r)| [(k, l), (k, r)])
+        .collect();
+    assert!(planes.len() > 200);
+    let b = mesh.bounds();
+    let mut rays = Vec::new();
+    for i in 0..4000 {
+        let (axis, pos) = planes[rng.u64() as usize % planes.len()];
+        // An origin on the plane, inside or outside the bounds.
+        let mut o = b.lo + (b.hi - b.lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
+        o += rng.vec3(-0.3, 0.3) * (i % 2) as f32;
+        o[axis] = pos;
+        let mut d = Vec3::ZERO;
+        match i % 4 {
+            // Along an axis in the plane, or across it.
+            0 => d[(axis + 1 + (i / 4) % 2) % 3] = if rng.f32() < 0.5 { 1.0 } else { -1.0 },
+            1 => d[axis] = if rng.f32() < 0.5 { 2.0 } else { -0.5 },
+            // Within the plane, any direction; the axis component ±0.
+            2 => {
+                d = rng.dir();
+                d[axis] = if i % 8 == 2 { 0.0 } else { -0.0 };
+            }
+            // Another axis-parallel direction, an origin on a second plane too.
+            _ => {
+                let (a2, p2) = planes[rng.u64() as usize % planes.len()];
+                o[a2] = p2;
+                d[rng.u64() as usize % 3] = 1.0;
+            }
+        }
+        let tmin = if i % 5 == 0 { -1.0 } else { 0.0 };
+        rays.push(Ray::new(o, d, tmin, 3.4e38));
+    }
+    check("axis-parallel on clip planes", &mesh, &tree, &rays);
+    same_as_bvh("axis-parallel on clip planes", &mesh, &tree, &rays);
+    let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
+    assert_eq!(
+        hits,
+        brute_force(&mesh, &rays),
+        "axis-parallel: BIH ≠ brute force"
+    );
+}
+
+#[test]
+fn coincident_triangles_keep_the_tie_rule() {
+    // k copies of one triangle at several depths, indices interleaved between the stacks,
+    // among random triangles: the answer must be the smallest index at the nearest t.
+    let mut rng = Rng::new(31);
+    let mut tris = soup(&mut rng, 400, 0.1).triangles;
+    let shape = [
+        Vec3::new(-0.9, -0.9, 0.0),
+        Vec3::new(0.9, -0.7, 0.0),
+        Vec3::new(-0.6, 0.9, 0.0),
+    ];
+    let depths = [0.3f32, -0.2, 0.05, 0.7];
+    for copy in 0..6 {
+        for (s, &z) in depths.iter().enumerate() {
+            if copy < 3 + s {
+                let dz = Vec3::new(0.0, 0.0, z);
+                tris.insert(
+                    (rng.u64() as usize) % tris.len(),
+                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
+                );
+            }
+        }
+    }
+    let mesh = Mesh::from_triangles(tris);
+    // Leaves of one triangle put every copy in a leaf of its own (median splits).
+    for max_leaf in [1, 4] {
+        let tree = Bih::build(
+            &mesh,
+            &BihOptions {
+                max_leaf,
+                ..BihOptions::default()
+            },
+        )
+        .unwrap();
+        validate(&mesh, &tree, max_leaf);
+        let mut rays = Vec::new();
+        for i in 0..2000 {
+            let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
+            let o = if i % 3 == 0 {
+                Vec3::new(target.x, target.y, 2.0)
+            } else {
+                Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
+            };
+            rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
+        }
+        let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
+        let mut exact = 0;
+        for (r, h) in rays.iter().zip(&hits) {
+            let Some((_, prim)) = oracle::closest(&mesh, r) else {
+                continue;
+            };
+            if h.prim == prim {
+                exact += 1;
+                continue;
+            }
+            let v = judge(&mesh, r, h);
+            assert!(
+                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
+                "{r:?}: the BIH reports {} but the oracle's smallest index at the nearest t \
+                 is {prim} ({v:?})",
+                h.prim
+            );
+        }
+        println!(
+            "coincident, leaves ≤ {max_leaf}: {exact} of {} rays exactly the oracle's index",
+            rays.len()
+        );
+        assert!(exact > 1800);
+        check("coincident", &mesh, &tree, &rays);
+        assert_eq!(
+            hits,
+            brute_force(&mesh, &rays),
+            "coincident: BIH ≠ brute force"
+        );
+    }
+}
+
+#[test]
+fn invalid_and_extreme_rays_neither_hang_nor_panic() {
+    let mut rng = Rng::new(41);
+    let mesh = soup(&mut rng, 500, 0.3);
+    let tree = bih(&mesh);
+    let rob = Robustness::default();
+    let invalid = [
+        Ray::new(Vec3::NAN, Vec3::X, 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0), 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 2.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::NAN),
+        Ray::new(Vec3::splat(1e13), -Vec3::ONE, 0.0, 1e30),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 1.0),
+    ];
+    for r in &invalid {
+        let mut s = RayStats::default();
+        let h = tree.intersect(r, Query::Closest, &rob, &mut s);
+        assert!(!h.is_hit());
+        assert_eq!(s, RayStats::default(), "{r:?}");
+    }
+    let mut rays = Vec::new();
+    for i in 0..3000 {
+        let o = match i % 3 {
+            0 => rng.vec3(-1e12, 1e12),
+            1 => rng.vec3(-2.0, 2.0),
+            _ => rng.vec3(-1.0, 1.0) * 1e-30,
+        };
+        let mut d = match i % 4 {
+            0 => rng.dir() * 1e-30,
+            1 => rng.dir() * 1e30,
+            _ => rng.dir(),
+        };
+        if i % 7 == 0 {
+            d.x = 0.0;
+        }
+        if i % 11 == 0 {
+            d.y = -1e-35;
+        }
+        let (tmin, tmax) = match i % 5 {
+            0 => (-3.4e38, 3.4e38),
+            1 => (0.0, f32::INFINITY),
+            _ => (0.0, 3.4e38),
+        };
+        rays.push(Ray::new(o, d, tmin, tmax));
+    }
+    check("extreme rays", &mesh, &tree, &rays);
+    let (hits, _) = tree.trace_batch(&rays, Query::Closest, &rob);
+    assert_eq!(
+        hits,
+        brute_force(&mesh, &rays),
+        "extreme: BIH ≠ brute force"
+    );
+    let mut mt = rob;
+    mt.triangle_test = TriangleTest::MollerTrumbore;
+    let _ = tree.trace_batch(&rays, Query::Closest, &mt);
+}
+
+#[test]
+fn empty_mesh_and_single_triangle() {
+    let tree = bih(&Mesh::default());
+    validate(&Mesh::default(), &tree, 4);
+    assert!(tree.bounds().is_empty());
+    let r = Ray::new(Vec3::ZERO, Vec3::X, 0.0, 1.0);
+    let mut s = RayStats::default();
+    assert!(!tree
+        .intersect(&r, Query::Closest, &Robustness::default(), &mut s)
+        .is_hit());
+    let one = Mesh::from_triangles(vec![Triangle::new(
+        Vec3::new(1.0, -1.0, -1.0),
+        Vec3::new(1.0, 1.0, -1.0),
+        Vec3::new(1.0, 0.0, 1.0),
+    )]);
+    let tree = bih(&one);
+    validate(&one, &tree, 4);
+    let h = tree.intersect(&r, Query::Closest, &Robustness::default(), &mut s);
+    assert_eq!((h.prim, h.t), (0, 1.0));
+}
+
+/// A triangle of size `0.1·a` centred near `c`.
+fn small_at(c: Vec3, a: f32) -> Triangle {
+    let s = 0.1 * a;
+    Triangle::new(
+        c - Vec3::new(s, s, 0.0),
+        c + Vec3::new(s, 0.0, 0.3 * s),
+        c + Vec3::new(0.0, s, -0.3 * s),
+    )
+}
+
+/// The chain: per scale a = 2⁰ … 2⁻³³, three small triangles in [0, a]³, one beyond a/2 on
+/// x, one on y, one on z, and nothing else there: the global heuristic halves its candidate
+/// box on x, y, then z and splits off one triangle per halving, about 100 levels deep.
+/// Their centres (for rays to aim at).
+fn chain_centres() -> Vec<(Vec3, f32)> {
+    let mut v = Vec::new();
+    for m in 0..34 {
+        let a = 0.5f32.powi(m);
+        for k in 0..3 {
+            let mut c = Vec3::splat(0.2 * a);
+            c[k] = 0.75 * a;
+            v.push((c, a));
+        }
+    }
+    v
+}
+
+/// Clutter in [0, 1]³ (as many triangles again shrinking geometrically towards the origin,
+/// to about 1e-7, as in tests/kdtree.rs) and the chain. The scene box starts at the origin,
+/// so the global grid's lines close in on the chain.
+fn corner_cascade(rng: &mut Rng) -> Mesh {
+    let mut tris: Vec<Triangle> = soup(rng, 300, 0.05)
+        .triangles
+        .into_iter()
+        .map(|t| Triangle {
+            v: t.v.map(|p| p.abs()),
+        })
+        .collect();
+    for i in 0..300 {
+        let s = 0.85f32.powi(i / 3);
+        tris.push(small_at(
+            Vec3::splat(s) * (Vec3::ONE + rng.vec3(0.0, 0.2)),
+            3.0 * s,
+        ));
+    }
+    tris.extend(chain_centres().into_iter().map(|(c, a)| small_at(c, a)));
+    Mesh::from_triangles(tris)
+}
+
+#[test]
+fn the_depth_cap_holds_and_keeps_leaves_small() {
+    let mut rng = Rng::new(71);
+    let mesh = corner_cascade(&mut rng);
+    let mut rays = random_rays(&mut rng, 1000, &mesh);
+    // Rays at the small triangles from every side, from nearby (at a distance like their
+    // size: from afar, f32 cannot aim at a triangle 1e-11 across).
+    let chain = chain_centres();
+    for i in 0..600 {
+        let (c, a) = if i % 2 == 0 {
+            let s = 0.85f32.powi((i % 300) as i32 / 3);
+            (Vec3::splat(1.1 * s), s)
+        } else {
+            chain[i % chain.len()]
+        };
+        let o = c + rng.dir() * 4.0 * a;
+        rays.push(Ray::new(o, (c - o).normalize(), 0.0, 3.4e38));
+    }
+    for (max_depth, max_leaf) in [(None, 1), (Some(200), 4), (Some(12), 2), (Some(5), 4)] {
+        let opts = BihOptions {
+            max_depth,
+            max_leaf,
+            ..BihOptions::default()
+        };
+        let tree = Bih::build(&mesh, &opts).unwrap();
+        let s = tree.stats();
+        println!("cascade, cap {max_depth:?}, leaves ≤ {max_leaf}: {s:?}");
+        assert_eq!(s.depth_cap, max_depth.unwrap_or(64).min(MAX_BIH_DEPTH));
+        assert!(s.max_depth <= s.depth_cap, "{s:?}");
+        if max_depth == Some(5) {
+            // A cap too low for leaves of max_leaf: the leaves at the cap hold more.
+            assert_eq!(s.max_depth, 5);
+            assert!(s.largest_leaf > max_leaf);
+        } else {
+            validate(&mesh, &tree, max_leaf);
+            assert!(s.median_splits > 0, "the cap forced median splits: {s:?}");
+            assert!(s.max_depth > s.depth_cap - 8, "{s:?}");
+        }
+        let name = format!("cascade, cap {max_depth:?}");
+        let (agree, _) = check(&name, &mesh, &tree, &rays);
+        assert!(agree > 1000);
+        let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
+        assert_eq!(hits, brute_force(&mesh, &rays), "{name}: BIH ≠ brute force");
+    }
+}
+
+#[test]
+fn a_million_identical_triangles() {
+    // Centres that halving cannot separate: every split is a median split, the tree stays
+    // within the cap with leaves of max_leaf, and the answer is still the smallest index.
+    let t = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+    let mesh = Mesh::from_triangles(vec![t; 1_000_000]);
+    let start = std::time::Instant::now();
+    let tree = bih(&mesh);
+    let s = tree.stats();
+    println!("1M identical: {s:?}, built in {:?}", start.elapsed());
+    assert_eq!(s.triangles, 1_000_000);
+    assert_eq!(s.median_splits, s.nodes - s.leaves);
+    assert!(s.largest_leaf <= 4 && s.max_depth <= 20, "{s:?}");
+    assert_eq!((s.nodes, s.cuts), (2 * s.leaves - 1, 0));
+    let r = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 0.0, 10.0);
+    let mut st = RayStats::default();
+    let h = tree.intersect(&r, Query::Closest, &Robustness::default(), &mut st);
+    assert_eq!((h.prim, h.t), (0, 1.0));
+    // Every copy is at the same t: none may be cut, each is tested once.
+    assert_eq!(st.tris, 1_000_000);
+    assert_eq!(st.nodes as usize, s.nodes);
+    let mut st = RayStats::default();
+    let h = tree.intersect(&r, Query::Any, &Robustness::default(), &mut st);
+    assert!(h.is_hit() && st.tris <= 4);
+}
+
+#[test]
+fn the_memory_cap_refuses_with_an_error() {
+    let mut rng = Rng::new(51);
+    let mesh = soup(&mut rng, 2000, 0.3);
+    let tiny = BihOptions {
+        max_memory: Some(1024),
+        ..BihOptions::default()
+    };
+    let e = Bih::build(&mesh, &tiny).unwrap_err().to_string();
+    println!("{e}");
+    assert!(
+        e.contains("2000 triangles") && e.contains("1.0 KiB") && e.contains("max_memory"),
+        "{e}"
+    );
+    // The estimate is the limit: exactly it builds, a byte less is refused.
+    let peak = BihOptions::peak_bytes(2000) as u64;
+    let at = |m: u64| {
+        Bih::build(
+            &mesh,
+            &BihOptions {
+                max_memory: Some(m),
+                ..BihOptions::default()
+            },
+        )
+    };
+    assert!(at(peak).is_ok());
+    assert!(at(peak - 1).is_err());
+    // The estimate covers the tree built.
+    let s = at(peak).unwrap().stats();
+    assert!(s.bytes as u64 <= peak, "{s:?} vs {peak}");
+}
+
+#[test]
+fn stats_add_up() {
+    let Some(mesh) = load_model("teapot.obj") else {
+        return;
+    };
+    let tree = bih(&mesh);
+    let s = tree.stats();
+    let mut rng = Rng::new(61);
+    let mut rays = Camera::default_view(&mesh.bounds(), 32, 32).primary_rays();
+    rays.extend(random_rays(&mut rng, 1000, &mesh));
+    for query in [Query::Closest, Query::Any] {
+        let (hits, stats) = tree.trace_batch(&rays, query, &Robustness::default());
+        for ((r, h), st) in rays.iter().zip(&hits).zip(&stats) {
+            assert!(st.nodes >= 1, "the root's box test counts: {r:?}");
+            // A tree: each node visited at most once, each triangle tested at most once.
+            assert!(st.nodes as usize <= s.nodes && st.tris as usize <= s.triangles);
+            if h.is_hit() {
+                assert!(st.tris >= 1);
+            }
+            let mut one = RayStats::default();
+            let h1: Hit = tree.intersect(r, query, &Robustness::default(), &mut one);
+            assert_eq!(
+                (h1, one),
+                (*h, *st),
+                "a single ray's stats match the batch's"
+            );
+        }
+        let (n, t) = RayStats::means(&stats);
+        println!("teapot {query:?}: {n:.1} nodes, {t:.1} triangle tests per ray");
+    }
+    // One leaf: every ray that meets the box visits one node and tests every triangle.
+    let opts = BihOptions {
+        max_leaf: usize::MAX,
+        ..BihOptions::default()
+    };
+    let flat = Bih::build(&mesh, &opts).unwrap();
+    assert_eq!(flat.stats().nodes, 1);
+    let (_, stats) = flat.trace_batch(&rays, Query::Closest, &Robustness::default());
+    for st in stats {
+        assert!(st.nodes == 1 && (st.tris == 0 || st.tris as usize == s.triangles));
+    }
+    // Excluded triangles are left out; indices stay the original ones.
+    let mut tris = soup(&mut rng, 300, 0.2).triangles;
+    tris[5] = Triangle::new(Vec3::ZERO, Vec3::ZERO, Vec3::X);
+    tris[17].v[1] = Vec3::NAN;
+    let mesh = Mesh::from_triangles(tris);
+    let tree = bih(&mesh);
+    validate(&mesh, &tree, 4);
+    assert_eq!(tree.stats().triangles, 298);
+    assert_eq!(tree.bounds(), mesh.bounds());
+    let rays = random_rays(&mut rng, 1000, &mesh);
+    check("with excluded triangles", &mesh, &tree, &rays);
+}
+
+#[test]
+fn registered_as_an_accel_kind() {
+    assert!(AccelKind::ALL.contains(&AccelKind::Bih));
+    assert_eq!(AccelKind::Bih.name(), "bih");
+    let mut rng = Rng::new(81);
+    let mesh = soup(&mut rng, 300, 0.2);
+    let a = build(AccelKind::Bih, &mesh, &BuildOptions::default()).unwrap();
+    let rays = random_rays(&mut rng, 300, &mesh);
+    let rob = Robustness::default();
+    assert_eq!(
+        a.trace_batch(&rays, Query::Closest, &rob),
+        bih(&mesh).trace_batch(&rays, Query::Closest, &rob)
+    );
+}
+
+/// Mrays/s of the BIH beside the BVH and the kd-tree on the bunny's 1024² default view and
+/// 2²⁰ random rays, 2 threads, best of 5 alternating rounds, for several leaf sizes (`BIH_LEAVES=1,2,4,8`);
+/// then build time on 10⁶-triangle meshes:
+/// `cargo test --release --test bih -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn bunny_speed_and_million_builds() {
+    use lancer::accel::kdtree::KdTree;
+    use std::time::Instant;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        if let Some(mesh) = load_model("stanford-bunny.obj") {
+            let rays = Camera::default_view(&mesh.bounds(), 1024, 1024).primary_rays();
+            let rob = Robustness::default();
+            let mut all: Vec<(String, Box<dyn Accel>, f64)> = Vec::new();
+            let t = Instant::now();
+            let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+            all.push(("bvh".into(), bvh, t.elapsed().as_secs_f64()));
+            let t = Instant::now();
+            let kd = KdTree::build(&mesh, &Default::default()).unwrap();
+            all.push(("kdtree".into(), Box::new(kd), t.elapsed().as_secs_f64()));
+            let leaves = std::env::var("BIH_LEAVES").unwrap_or_else(|_| "1,2,4,8".into());
+            for l in leaves.split(',') {
+                let opts = BihOptions {
+                    max_leaf: l.parse().unwrap(),
+                    ..BihOptions::default()
+                };
+                let t = Instant::now();
+                let tree = Bih::build(&mesh, &opts).unwrap();
+                let b = t.elapsed().as_secs_f64();
+                println!("bih, leaves ≤ {l}: {:?}", tree.stats());
+                all.push((format!("bih, leaves ≤ {l}"), Box::new(tree), b));
+            }
+            let mut rng = Rng::new(17);
+            let incoherent = random_rays(&mut rng, 1 << 20, &mesh);
+            for (what, rays) in [("primary 1024²", &rays), ("random 2²⁰", &incoherent)] {
+                let mut best = vec![0.0f64; all.len()];
+                let mut work = vec![(0.0, 0.0); all.len()];
+                for _ in 0..5 {
+                    for (i, (_, a, _)) in all.iter().enumerate() {
+                        let t = Instant::now();
+                        let (_, stats) = a.trace_batch(rays, Query::Closest, &rob);
+                        let m = rays.len() as f64 / t.elapsed().as_secs_f64() / 1e6;
+                        best[i] = best[i].max(m);
+                        work[i] = RayStats::means(&stats);
+                    }
+                }
+                for (i, (name, _, b)) in all.iter().enumerate() {
+                    println!(
+                        "{what}, {name}: {:.2} Mrays/s ({:.2}× the BVH), {:.1} nodes, {:.2} \
+                         triangle tests per ray; build {:.1} ms",
+                        best[i],
+                        best[i] / best[0],
+                        work[i].0,
+                        work[i].1,
+                        b * 1e3
+                    );
+                }
+            }
+        }
+        let mut rng = Rng::new(5);
+        for (name, mesh) in [
+            ("soup 10⁶", soup(&mut rng, 1_000_000, 0.01)),
+            ("terrain 10⁶", bench_common::terrain(1_000_000)),
+        ] {
+            for parallel in [false, true] {
+                let opts = BihOptions {
+                    parallel,
+                    ..BihOptions::default()
+                };
+                let t = Instant::now();
+                let tree = Bih::build(&mesh, &opts).unwrap();
+                println!(
+                    "{name}, parallel {parallel}: build {:.1} ms, estimate {:.1} MiB, {:?}",
+                    t.elapsed().as_secs_f64() * 1e3,
+                    BihOptions::peak_bytes(mesh.len()) as f64 / (1 << 20) as f64,
+                    tree.stats()
+                );
+            }
+            let t = Instant::now();
+            let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+            println!(
+                "{name}: the default BVH builds (and flattens) in {:.1} ms",
+                t.elapsed().as_secs_f64() * 1e3,
+            );
+            drop(bvh);
+        }
+    });
+}

@@ -1,0 +1,254 @@
+//! The hard cases of `lancer::accuracy::cases` — axis-parallel and ±0 directions, origins on
+//! slab planes, flat boxes, grazing rays, rays through a box corner, boxes behind the origin,
+//! rays in a triangle's plane — and degenerate input (one triangle, 10⁵ triangles with one
+//! centroid, zero-area, collinear and needle triangles), on the CPU and the GPU: with the
+//! robust defaults no hit is lost (0 false misses against the f64 oracle), no answer is
+//! wrong, and CPU ≡ GPU bit for bit. The plain slab test, the fast setting, loses hits on a
+//! constructed case (asserted, so the test can fail). The f64 precision knob traces the
+//! oracle's own answers on the CPU and is refused on the GPU.
+
+mod common;
+
+use common::{gpu_device, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::AccelKind;
+use lancer::accuracy::cases::{self, HardCase};
+use lancer::accuracy::{false_misses, secondary, wrong_answers};
+use lancer::geometry::{Hit, Precision, Ray, RayOffset, Robustness, SlabTest, Triangle};
+use lancer::mesh::{load_obj, Mesh};
+use lancer::trace::oracle;
+use lancer::{Device, Query, Tracer, TracerOptions};
+
+fn trace(device: &Device, mesh: &Mesh, rays: &[Ray], robustness: Robustness) -> Vec<Hit> {
+    let options = TracerOptions {
+        robustness,
+        ..TracerOptions::default()
+    };
+    let mut tracer = Tracer::new(device, mesh, &options).unwrap();
+    tracer.trace(rays, Query::Closest).unwrap().hits
+}
+
+/// Rays whose hits differ between two devices (prim, or t's bits).
+fn differing(a: &[Hit], b: &[Hit]) -> usize {
+    a.iter()
+        .zip(b)
+        .filter(|(x, y)| x.prim != y.prim || x.t.to_bits() != y.t.to_bits())
+        .count()
+}
+
+/// With the robust defaults, on CPU and GPU: no false miss, no wrong answer, a hit exactly
+/// where the oracle hits when the case is exact in f32, and CPU ≡ GPU.
+fn check_robust(case: &HardCase) {
+    let rob = Robustness::default();
+    let oracle_hits: Vec<bool> = (case.rays.iter())
+        .map(|r| oracle::closest(&case.mesh, r).is_some())
+        .collect();
+    let cpu = trace(&Device::cpu(), &case.mesh, &case.rays, rob);
+    let gpu = trace(gpu_device(), &case.mesh, &case.rays, rob);
+    for (device, hits) in [("cpu", &cpu), ("gpu", &gpu)] {
+        let lost = false_misses(&case.mesh, &case.rays, hits, &rob);
+        let wrong = wrong_answers(&case.mesh, &case.rays, hits);
+        let hit_count = hits.iter().filter(|h| h.is_hit()).count();
+        let unlike_oracle = (hits.iter().zip(&oracle_hits))
+            .filter(|(h, o)| h.is_hit() != **o)
+            .count();
+        println!(
+            "{} on {device}: {} rays, {hit_count} hits, {lost} false misses, {wrong} wrong, \
+             {unlike_oracle} hit/miss unlike the oracle{}",
+            case.name,
+            case.rays.len(),
+            if case.exact { "" } else { " (ties allowed)" }
+        );
+        assert_eq!(lost, 0, "{} on {device}: {lost} false misses", case.name);
+        assert_eq!(wrong, 0, "{} on {device}: {wrong} wrong answers", case.name);
+        if case.exact {
+            assert_eq!(unlike_oracle, 0, "{} on {device}", case.name);
+        }
+    }
+    let diff = differing(&cpu, &gpu);
+    assert_eq!(
+        diff, 0,
+        "{}: {diff} rays differ between CPU and GPU",
+        case.name
+    );
+}
+
+#[test]
+fn robust_defaults_lose_no_hit_on_any_hard_case_on_cpu_and_gpu() {
+    for case in cases::all(3000, 12) {
+        check_robust(&case);
+    }
+}
+
+#[test]
+fn the_plain_slab_test_loses_hits_through_box_corners_on_cpu_and_gpu() {
+    let case = cases::box_corners(4000, 5);
+    let plain = Robustness {
+        slab_test: SlabTest::Plain,
+        ..Robustness::default()
+    };
+    for device in [&Device::cpu(), gpu_device()] {
+        let hits = trace(device, &case.mesh, &case.rays, plain);
+        let lost = false_misses(&case.mesh, &case.rays, &hits, &plain);
+        println!(
+            "plain slab test on {device}: {lost} of {} rays lost",
+            case.rays.len()
+        );
+        assert!(
+            lost > 0,
+            "{device}: the plain slab test lost no hit: the case does not test the box test"
+        );
+    }
+}
+
+/// Rays at a mesh's triangles (aimed at random points of them, vertices and edges
+/// included) and at random points around it.
+fn rays_at(mesh: &Mesh, n: usize, rng: &mut Rng) -> Vec<Ray> {
+    let usable = mesh.included();
+    let mut rays = random_rays(rng, n / 2, mesh);
+    let r = mesh.bounds().extent().length().max(1e-3);
+    for i in 0..n - n / 2 {
+        let t = &mesh.triangles[usable[i % usable.len()] as usize];
+        let (u, v) = match i % 4 {
+            0 => (0.0, 0.0),
+            1 => (0.5, 0.0),
+            _ => {
+                let (u, v) = (rng.f32(), rng.f32());
+                if u + v > 1.0 {
+                    (1.0 - u, 1.0 - v)
+                } else {
+                    (u, v)
+                }
+            }
+        };
+        let target = t.v[0] + (t.v[1] - t.v[0]) * u + (t.v[2] - t.v[0]) * v;
+        let o = target + rng.dir() * 2.0 * r;
+        rays.push(Ray::new(o, target - o, 0.0, 3.4e38));
+    }
+    rays
+}
+
+/// `n` triangles whose boxes all have their centre exactly at the origin (v₁ = −v₀, and
+/// |v₂| ≤ |v₀| on every axis): no centroid split separates them.
+fn one_centroid(n: usize, rng: &mut Rng) -> Mesh {
+    let tris = (0..n)
+        .map(|_| {
+            let a = rng.vec3(-1.0, 1.0);
+            Triangle::new(a, -a, a * rng.vec3(-1.0, 1.0))
+        })
+        .collect();
+    Mesh::from_triangles(tris)
+}
+
+/// A soup with zero-area (a repeated vertex), collinear and needle (1e-6 wide) triangles.
+fn slivers(rng: &mut Rng) -> Mesh {
+    let mut tris = soup(rng, 200, 0.3).triangles;
+    for _ in 0..100 {
+        let (a, b) = (rng.vec3(-1.0, 1.0), rng.vec3(-1.0, 1.0));
+        tris.push(Triangle::new(a, a, b));
+        tris.push(Triangle::new(a, b, a + (b - a) * 0.25));
+        let side = (b - a).cross(Vec3::Z).normalize_or(Vec3::X) * 1e-6;
+        tris.push(Triangle::new(a, b, (a + b) * 0.5 + side));
+    }
+    Mesh::from_triangles(tris)
+}
+
+#[test]
+fn degenerate_input_gives_the_same_answers_on_cpu_gpu_and_the_oracle() {
+    let mut rng = Rng::new(31);
+    let one = Mesh::from_triangles(vec![Triangle::new(
+        Vec3::new(-1.0, -0.5, 0.2),
+        Vec3::new(1.0, -0.25, 0.0),
+        Vec3::new(0.1, 0.9, -0.3),
+    )]);
+    let meshes = [
+        ("one triangle", one, 2000),
+        (
+            "10^5 triangles, one centroid",
+            one_centroid(100_000, &mut rng),
+            300,
+        ),
+        (
+            "zero-area, collinear and needle triangles",
+            slivers(&mut rng),
+            3000,
+        ),
+    ];
+    for (name, mesh, n) in meshes {
+        let rays = rays_at(&mesh, n, &mut rng);
+        check_robust(&HardCase {
+            name,
+            mesh,
+            rays,
+            exact: false,
+        });
+    }
+}
+
+#[test]
+fn f64_precision_traces_the_oracles_answers_on_the_cpu_and_the_gpu_refuses_it() {
+    let mut rng = Rng::new(77);
+    let mesh = soup(&mut rng, 2000, 0.2);
+    let rays = random_rays(&mut rng, 4000, &mesh);
+    let f64 = Robustness {
+        precision: Precision::F64,
+        ..Robustness::default()
+    };
+    let hits = trace(&Device::cpu(), &mesh, &rays, f64);
+    let unlike = (rays.iter().zip(&hits))
+        .filter(|(r, h)| match oracle::closest(&mesh, r) {
+            None => h.is_hit(),
+            Some((t, p)) => h.prim != p || h.t != t as f32,
+        })
+        .count();
+    let n_hits = hits.iter().filter(|h| h.is_hit()).count();
+    println!(
+        "f64 tracer: {n_hits} hits of {} rays, {unlike} unlike the oracle",
+        rays.len()
+    );
+    assert!(n_hits > rays.len() / 4, "too few hits to compare");
+    assert_eq!(unlike, 0, "the f64 tracer is not the oracle's arithmetic");
+    for case in cases::all(1000, 3) {
+        let hits = trace(&Device::cpu(), &case.mesh, &case.rays, f64);
+        assert_eq!(
+            false_misses(&case.mesh, &case.rays, &hits, &f64),
+            0,
+            "{}",
+            case.name
+        );
+    }
+    // Secondary rays from exactly computed hit points (on the Cornell box's walls at 0,
+    // where the error bound and so the offset are 0) start on their own surface: there the
+    // f64 test computes t = ±1e-17, which its own error bound must reject.
+    let cornell = load_obj(
+        &std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.obj"),
+    )
+    .unwrap();
+    let (rays2, own) = secondary::secondary_rays(&cornell, 2000, RayOffset::ErrorBound, 3);
+    let hits2 = trace(&Device::cpu(), &cornell, &rays2, f64);
+    let selfs = secondary::self_hits(&hits2, &own);
+    println!(
+        "f64 tracer: {selfs} of {} secondary rays re-hit their triangle",
+        rays2.len()
+    );
+    assert_eq!(selfs, 0);
+    // No f64 on the GPU, and no f64 in the structures other than the BVH: refused by name.
+    let options = TracerOptions {
+        robustness: f64,
+        ..TracerOptions::default()
+    };
+    let e = Tracer::new(gpu_device(), &mesh, &options)
+        .unwrap()
+        .trace(&rays, Query::Closest)
+        .unwrap_err();
+    assert!(
+        e.to_string().contains("f64 precision runs on the CPU only"),
+        "{e}"
+    );
+    let cpu = Device::cpu();
+    let e = Tracer::with_structure(&cpu, &mesh, AccelKind::KdTree, &options)
+        .unwrap()
+        .trace(&rays, Query::Closest)
+        .unwrap_err();
+    assert!(e.to_string().contains("f64 precision is the BVH's"), "{e}");
+}

@@ -1,0 +1,638 @@
+//! The `cwbvh` layout (src/layout/cwbvh): its CPU twin against the f64 oracle and against
+//! `dfs-sign` (closest and any hit) on the bunny, soups, shared edges and vertices,
+//! coincident triangles, binary leaves bigger than a wide node and a deep tree; every
+//! dequantised child box contains its exact box (and is not loose); `validate` refuses
+//! corrupted arrays. GPU ≡ twin is tests/gpu_vs_cpu.rs (every layout).
+
+mod common;
+
+use common::{load_model, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
+use lancer::accel::Accel;
+use lancer::camera::Camera;
+use lancer::geometry::{Aabb, Hit, Ray, Triangle};
+use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays};
+use lancer::mesh::Mesh;
+use lancer::trace::oracle::{judge, judge_any, Verdict};
+use lancer::{Query, RayStats, Robustness};
+
+fn cwbvh(mesh: &Mesh, opts: &BuildOptions) -> Cwbvh {
+    let layout = Cwbvh::flatten(&build(mesh, opts), mesh);
+    layout
+        .validate()
+        .unwrap_or_else(|e| panic!("invalid layout: {e}"));
+    layout
+}
+
+/// Judges closest and any-hit answers of the twin for every ray; fails on any wrong one.
+/// Returns (agree, ties) of the closest-hit answers.
+fn check(name: &str, mesh: &Mesh, layout: &Cwbvh, rays: &[Ray]) -> (usize, usize) {
+    let rob = Robustness::default();
+    let mut counts = (0, 0);
+    for query in [Query::Closest, Query::Any] {
+        let (hits, _) = layout.trace_batch(rays, query, &rob);
+        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
+        for (r, h) in rays.iter().zip(&hits) {
+            let v = match query {
+                Query::Closest => judge(mesh, r, h),
+                Query::Any => judge_any(mesh, r, h),
+            };
+            match v {
+                Verdict::Agree => agree += 1,
+                Verdict::Tie(_) => tie += 1,
+                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
+            }
+        }
+        println!(
+            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
+            wrong.len()
+        );
+        assert!(
+            wrong.is_empty(),
+            "{name} {query:?}: {} wrong, first: {}",
+            wrong.len(),
+            wrong[0]
+        );
+        if query == Query::Closest {
+            counts = (agree, tie);
+        }
+    }
+    counts
+}
+
+/// The closest hits equal dfs-sign's bit for bit (the same triangle test on the same ray),
+/// except where the oracle names a tie for one of the two answers. Returns the differences.
+fn same_as_dfs_sign(name: &str, mesh: &Mesh, layout: &Cwbvh, rays: &[Ray]) -> usize {
+    let rob = Robustness::default();
+    let dfs = DfsSign::flatten(&build(mesh, &BuildOptions::default()), mesh);
+    let (a, sa) = layout.trace_batch(rays, Query::Closest, &rob);
+    let (b, sb) = dfs.trace_batch(rays, Query::Closest, &rob);
+    let mut differ = 0;
+    for ((r, x), y) in rays.iter().zip(&a).zip(&b) {
+        if bytemuck::bytes_of(x) == bytemuck::bytes_of(y) {
+            continue;
+        }
+        differ += 1;
+        let (vx, vy) = (judge(mesh, r, x), judge(mesh, r, y));
+        assert!(
+            x.prim != y.prim && (matches!(vx, Verdict::Tie(_)) || matches!(vy, Verdict::Tie(_))),
+            "{name}: {r:?}: cwbvh {x:?} ({vx:?}) ≠ dfs-sign {y:?} ({vy:?})"
+        );
+    }
+    let (na, ta) = RayStats::means(&sa);
+    let (nb, tb) = RayStats::means(&sb);
+    println!(
+        "{name}: {differ} of {} differ from dfs-sign (ties); nodes/ray {na:.1} vs {nb:.1}, \
+         triangles/ray {ta:.1} vs {tb:.1}",
+        rays.len()
+    );
+    differ
+}
+
+#[test]
+fn bunny_against_the_oracle_and_dfs_sign() {
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let layout = cwbvh(&mesh, &BuildOptions::default());
+    let bytes = layout.bytes() as f64 / mesh.len() as f64;
+    println!(
+        "bunny: {} nodes, {} triangles, {bytes:.1} bytes/triangle",
+        layout.node_count(),
+        layout.triangles()
+    );
+    let mut rng = Rng::new(7);
+    let rays = random_rays(&mut rng, 3000, &mesh);
+    check("bunny random", &mesh, &layout, &rays[..200]);
+    same_as_dfs_sign("bunny random", &mesh, &layout, &rays);
+    let primary = Camera::default_view(&mesh.bounds(), 96, 96).primary_rays();
+    let (agree, _) = check(
+        "bunny primary",
+        &mesh,
+        &layout,
+        &primary.iter().step_by(37).copied().collect::<Vec<_>>(),
+    );
+    assert!(agree > 100);
+    same_as_dfs_sign("bunny primary", &mesh, &layout, &primary);
+}
+
+#[test]
+fn random_soups_against_the_oracle_and_dfs_sign() {
+    for seed in 0..3 {
+        let mut rng = Rng::new(300 + seed);
+        let mesh = soup(&mut rng, 2000, 0.2);
+        let rays = random_rays(&mut rng, 3000, &mesh);
+        let layout = cwbvh(&mesh, &BuildOptions::default());
+        let (agree, _) = check(&format!("soup {seed}"), &mesh, &layout, &rays);
+        assert!(agree > 2500);
+        same_as_dfs_sign(&format!("soup {seed}"), &mesh, &layout, &rays);
+    }
+}
+
+/// A height field of quads (two triangles each): many shared edges and vertices.
+fn grid(n: usize) -> Mesh {
+    let p = |i: usize, j: usize| {
+        let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+        Vec3::new(x, y, 0.3 * (i as f32 * 0.37).sin())
+    };
+    let mut tris = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
+            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
+        }
+    }
+    Mesh::from_triangles(tris)
+}
+
+#[test]
+fn no_ray_leaks_through_shared_edges_or_vertices() {
+    let n = 16;
+    let mesh = grid(n);
+    let layout = cwbvh(&mesh, &BuildOptions::default());
+    let mut rays = Vec::new();
+    // Through every vertex and along every edge line at quarter steps, from oblique and
+    // axis-parallel directions: each ray crosses the height field inside its footprint.
+    for i in 1..4 * n {
+        for j in 1..4 * n {
+            let (x, y) = (i as f32 / (4 * n) as f32, j as f32 / (4 * n) as f32);
+            for d in [
+                Vec3::new(0.1, 0.2, -1.0),
+                Vec3::new(-0.3, 0.05, -1.0),
+                Vec3::NEG_Z,
+            ] {
+                let target = Vec3::new(x, y, 0.3 * (x * n as f32 * 0.37).sin());
+                rays.push(Ray::new(target - d * 5.0, d.normalize(), 0.0, 100.0));
+            }
+        }
+    }
+    let (hits, _) = layout.trace_batch(&rays, Query::Closest, &Robustness::default());
+    let leaks = hits.iter().filter(|h| !h.is_hit()).count();
+    assert_eq!(
+        leaks,
+        0,
+        "{leaks} of {} rays leaked through the grid",
+        rays.len()
+    );
+    check("grid", &mesh, &layout, &rays[..2000]);
+}
+
+/// `copies` copies of one triangle spanning [0, 1]² at z = 0.
+fn copies(copies: usize) -> Mesh {
+    let t = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+    Mesh::from_triangles(vec![t; copies])
+}
+
+#[test]
+fn coincident_triangles_keep_the_tie_rule() {
+    // 60 copies fit one binary leaf with max_leaf 64: split into 20 wide leaves over three
+    // nodes. 300 copies make a tree. Every hit must name copy 0, in any traversal order.
+    for (n, max_leaf) in [(60, 64), (300, 16)] {
+        let mesh = copies(n);
+        let opts = BuildOptions {
+            max_leaf,
+            ..BuildOptions::default()
+        };
+        let layout = cwbvh(&mesh, &opts);
+        let rays = Camera::default_view(&mesh.bounds(), 32, 24).primary_rays();
+        let (hits, _) = layout.trace_batch(&rays, Query::Closest, &Robustness::default());
+        let hit = hits.iter().filter(|h| h.is_hit()).count();
+        assert!(hit > 100, "{n} copies: only {hit} hits");
+        let wrong: Vec<u32> = (hits.iter())
+            .filter(|h| h.is_hit() && h.prim != 0)
+            .map(|h| h.prim)
+            .collect();
+        assert!(wrong.is_empty(), "{n} copies: hits on {wrong:?}");
+        check(&format!("{n} copies"), &mesh, &layout, &rays);
+    }
+}
+
+/// Deepest leaf of a binary tree, and its largest leaf.
+fn depth_and_biggest_leaf(node: &Node, depth: usize) -> (usize, u32) {
+    match node {
+        Node::Leaf { count, .. } => (depth, *count),
+        Node::Inner { children, .. } => {
+            let (a, b) = depth_and_biggest_leaf(&children[0], depth + 1);
+            let (c, d) = depth_and_biggest_leaf(&children[1], depth + 1);
+            (a.max(c), b.max(d))
+        }
+    }
+}
+
+/// Wide depth (root = 0) of every node, from the layout's own child lists.
+fn wide_depth(layout: &Cwbvh) -> usize {
+    let mut stack = vec![(0usize, 0usize)];
+    let mut deepest = 0;
+    while let Some((i, d)) = stack.pop() {
+        deepest = deepest.max(d);
+        for (_, _, c) in layout.children(i) {
+            if let CwChild::Node(c) = c {
+                stack.push((c as usize, d + 1));
+            }
+        }
+    }
+    deepest
+}
+
+#[test]
+fn binary_leaves_bigger_than_a_node_are_split() {
+    // A high node cost makes the SAH keep up to 200 triangles in a leaf.
+    let mut rng = Rng::new(91);
+    let mesh = soup(&mut rng, 3000, 0.1);
+    let opts = BuildOptions {
+        max_leaf: 200,
+        t_cube: 40.0,
+        ..BuildOptions::default()
+    };
+    let bvh: Bvh = build(&mesh, &opts);
+    let (_, biggest) = depth_and_biggest_leaf(&bvh.root, 0);
+    assert!(
+        biggest > 24,
+        "the biggest binary leaf holds {biggest} triangles"
+    );
+    let layout = Cwbvh::flatten(&bvh, &mesh);
+    layout.validate().unwrap();
+    for i in 0..layout.node_count() {
+        let mut in_node = 0;
+        for (_, _, c) in layout.children(i) {
+            if let CwChild::Tris { count, .. } = c {
+                assert!((1..=3).contains(&count), "node {i}: a leaf of {count}");
+                in_node += count;
+            }
+        }
+        assert!(in_node <= 24, "node {i} holds {in_node} triangles");
+    }
+    let rays = random_rays(&mut rng, 2000, &mesh);
+    check("big leaves", &mesh, &layout, &rays);
+}
+
+/// Triangles shrinking towards the origin by 0.78 each (the last ~1e-7 of the first: the
+/// f64 oracle cannot judge much smaller ones from afar).
+fn shrinking(n: i32) -> Vec<Triangle> {
+    (0..n)
+        .map(|i| {
+            let s = 0.78f32.powi(i);
+            let c = Vec3::splat(s);
+            Triangle::new(
+                c,
+                c + Vec3::new(0.3 * s, 0.0, 0.0),
+                c + Vec3::new(0.0, 0.3 * s, 0.1 * s),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_binary_chain_at_the_depth_cap_collapses_and_traces() {
+    // Built by hand: leaf i (triangle i) beside the chain of the rest, leaves 63 and 64 at
+    // depth MAX_DEPTH = 64, the deepest tree a builder may hand over.
+    let tris = shrinking(65);
+    let mesh = Mesh::from_triangles(tris.clone());
+    let leaf = |i: usize| Node::Leaf {
+        bbox: tris[i].bbox(),
+        start: i as u32,
+        count: 1,
+    };
+    let mut root = leaf(64);
+    for i in (0..64).rev() {
+        let (a, b) = (leaf(i), root);
+        root = Node::Inner {
+            bbox: a.bbox().union(*b.bbox()),
+            axis: 0,
+            nodes: 1 + a.nodes() + b.nodes(),
+            children: Box::new([a, b]),
+        };
+    }
+    let bvh = Bvh {
+        root,
+        order: (0..65).collect(),
+    };
+    assert_eq!(depth_and_biggest_leaf(&bvh.root, 0).0, MAX_DEPTH);
+    let layout = Cwbvh::flatten(&bvh, &mesh);
+    layout.validate().unwrap();
+    let wide = wide_depth(&layout);
+    println!("chain: binary depth {MAX_DEPTH}, wide depth {wide}");
+    assert!(wide < MAX_DEPTH / 2, "wide depth {wide}");
+    let mut rng = Rng::new(71);
+    let mut rays = random_rays(&mut rng, 500, &mesh);
+    // Rays at the small triangles from every side, from nearby.
+    for i in 0..1000 {
+        let s = 0.78f32.powi(i % 65);
+        let target = Vec3::splat(s * 1.05);
+        let o = target + rng.dir() * 4.0 * s;
+        rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
+    }
+    let (agree, _) = check("chain", &mesh, &layout, &rays);
+    assert!(agree > 500);
+}
+
+/// One raw node record (mod.rs CwNode): frame origin 0, step 1 on every axis, every
+/// occupied slot's box [0, 255]³.
+fn raw_node(imask: u8, child_base: u32, tri_base: u32, meta: [u8; 8]) -> Vec<u8> {
+    let mut n = vec![0u8; NODE];
+    n[12..15].copy_from_slice(&[127; 3]);
+    n[IMASK] = imask;
+    n[CHILD_BASE..CHILD_BASE + 4].copy_from_slice(&child_base.to_le_bytes());
+    n[TRI_BASE..TRI_BASE + 4].copy_from_slice(&tri_base.to_le_bytes());
+    n[META..META + 8].copy_from_slice(&meta);
+    for (s, &m) in meta.iter().enumerate() {
+        if m != 0 {
+            for axis in 0..3 {
+                n[Q_HI + 8 * axis + s] = 255;
+            }
+        }
+    }
+    n
+}
+
+/// A chain of `levels` nodes, each with two internal children in slots 0 and 1: the next
+/// chain node and a side node holding one triangle (the last chain node holds one too).
+/// Every box contains every triangle, so a ray visits all nodes; one whose direction has
+/// x ≥ 0 descends the chain first and stacks one group per level.
+fn raw_chain(levels: usize) -> (Mesh, Vec<u8>, Vec<u8>) {
+    const INNER: u8 = 1 << 5 | 24;
+    const ONE_TRI: u8 = 1 << 5;
+    let mut nodes = Vec::new();
+    let mut tris = Vec::new();
+    let mut mesh = Vec::new();
+    let mut tri = |z: f32| {
+        let t = Triangle::new(
+            Vec3::new(0.0, 0.0, z),
+            Vec3::new(200.0, 0.0, z),
+            Vec3::new(0.0, 200.0, z),
+        );
+        let prim = mesh.len() as u32;
+        mesh.push(t);
+        tris.extend_from_slice(bytemuck::bytes_of(&lancer::layout::LeafTri {
+            v0: t.v[0].into(),
+            prim,
+            v1: t.v[1].into(),
+            pad1: 0,
+            v2: t.v[2].into(),
+            pad2: 0,
+        }));
+        prim
+    };
+    // Chain node k at 2k − 1 (k ≥ 1), its children (chain k + 1, side k) at 2k + 1, 2k + 2.
+    let mut side_tris = Vec::new();
+    for k in 0..levels - 1 {
+        side_tris.push(tri(1.0 + k as f32));
+    }
+    let last = tri(100.0);
+    for k in 0..levels {
+        if k + 1 < levels {
+            let base = 2 * k as u32 + 1;
+            nodes.extend(raw_node(
+                0b11,
+                base,
+                0,
+                [INNER, INNER + 1, 0, 0, 0, 0, 0, 0],
+            ));
+        } else {
+            nodes.extend(raw_node(0, 0, last, [ONE_TRI, 0, 0, 0, 0, 0, 0, 0]));
+        }
+        if k >= 1 {
+            let t = side_tris[k - 1];
+            nodes.extend(raw_node(0, 0, t, [ONE_TRI, 0, 0, 0, 0, 0, 0, 0]));
+        }
+    }
+    (Mesh::from_triangles(mesh), nodes, tris)
+}
+
+#[test]
+fn the_group_stack_holds_one_group_per_level_and_no_more() {
+    // Deepest nodes at depth 64: accepted, and traced with a full stack.
+    let (mesh, nodes, tris) = raw_chain(MAX_DEPTH + 1);
+    let layout = Cwbvh::from_arrays(LayoutArrays {
+        nodes: &nodes,
+        tris: &tris,
+    })
+    .unwrap();
+    assert_eq!(layout.node_count(), 2 * MAX_DEPTH + 1);
+    let rob = Robustness::default();
+    for dir in [Vec3::new(0.01, 0.02, -1.0), Vec3::new(-0.01, 0.02, -1.0)] {
+        let r = Ray::new(Vec3::new(10.0, 10.0, 250.0), dir.normalize(), 0.0, 1e30);
+        for query in [Query::Closest, Query::Any] {
+            let mut s = RayStats::default();
+            let h = layout.intersect(&r, query, &rob, &mut s);
+            let v = match query {
+                Query::Closest => judge(&mesh, &r, &h),
+                Query::Any => judge_any(&mesh, &r, &h),
+            };
+            assert_eq!(v, Verdict::Agree, "{dir} {query:?}: {h:?}");
+            if query == Query::Closest {
+                assert_eq!(h.prim, mesh.len() as u32 - 1);
+                assert_eq!(s.nodes as usize, layout.node_count());
+            }
+        }
+    }
+    // One level more: refused.
+    let (_, nodes, tris) = raw_chain(MAX_DEPTH + 2);
+    let e = Cwbvh::from_arrays(LayoutArrays {
+        nodes: &nodes,
+        tris: &tris,
+    })
+    .unwrap_err();
+    assert!(e.contains("depth 65"), "{e}");
+}
+
+/// Exact box of every node's subtree (union of its triangles' boxes), by node index.
+fn exact_boxes(layout: &Cwbvh) -> Vec<Aabb> {
+    fn walk(layout: &Cwbvh, i: usize, out: &mut Vec<Aabb>) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for (_, _, c) in layout.children(i) {
+            b = b.union(exact_child(layout, c, out));
+        }
+        out[i] = b;
+        b
+    }
+    fn exact_child(layout: &Cwbvh, c: CwChild, out: &mut Vec<Aabb>) -> Aabb {
+        match c {
+            CwChild::Node(n) => walk(layout, n as usize, out),
+            CwChild::Tris { first, count } => (layout.leaf_tris()
+                [first as usize..(first + count) as usize])
+                .iter()
+                .fold(Aabb::EMPTY, |b, t| b.union(t.triangle().bbox())),
+        }
+    }
+    let mut out = vec![Aabb::EMPTY; layout.node_count()];
+    walk(layout, 0, &mut out);
+    out
+}
+
+/// Every dequantised child box contains the exact box of the child's triangles, and on
+/// each side lies within two steps of it (a step is at most 2/255 of the parent's extent).
+fn check_quantised_boxes(name: &str, layout: &Cwbvh) -> usize {
+    let exact = exact_boxes(layout);
+    let mut children = 0;
+    for (i, parent) in exact.iter().enumerate() {
+        let slack = parent.extent() * (4.0 / 255.0) + parent.lo.abs().max(parent.hi.abs()) * 1e-6;
+        for (s, q, c) in layout.children(i) {
+            let e = match c {
+                CwChild::Node(n) => exact[n as usize],
+                CwChild::Tris { first, count } => (layout.leaf_tris()
+                    [first as usize..(first + count) as usize])
+                    .iter()
+                    .fold(Aabb::EMPTY, |b, t| b.union(t.triangle().bbox())),
+            };
+            assert!(
+                q.contains(&e),
+                "{name}: node {i} slot {s}: quantised {q:?} does not contain {e:?}"
+            );
+            assert!(
+                (e.lo - q.lo).cmple(slack).all() && (q.hi - e.hi).cmple(slack).all(),
+                "{name}: node {i} slot {s}: quantised {q:?} is loose around {e:?}"
+            );
+            children += 1;
+        }
+    }
+    children
+}
+
+#[test]
+fn every_quantised_child_box_contains_its_exact_box() {
+    let mut meshes = Vec::new();
+    if let Some(bunny) = load_model("stanford-bunny.obj") {
+        meshes.push(("bunny", bunny));
+    }
+    let mut rng = Rng::new(5);
+    meshes.push(("soup", soup(&mut rng, 3000, 0.2)));
+    // Far from the origin, small triangles: deep nodes' steps near the f32 spacing there.
+    let far = soup(&mut rng, 2000, 0.05).triangles.into_iter();
+    let far = far.map(|t| Triangle::new(t.v[0] + 3e3, t.v[1] + 3e3, t.v[2] + 3e3));
+    meshes.push(("far", Mesh::from_triangles(far.collect())));
+    // Flat in z and spanning negative and positive coordinates, some zero-extent axes.
+    meshes.push(("grid", grid(24)));
+    let axis = (0..500).map(|i| {
+        let x = i as f32 * 0.01 - 2.5;
+        Triangle::new(
+            Vec3::new(x, 0.0, 0.0),
+            Vec3::new(x + 0.005, 0.0, 0.0),
+            Vec3::new(x, 0.0, 1.0),
+        )
+    });
+    meshes.push(("axis-aligned", Mesh::from_triangles(axis.collect())));
+    for (name, mesh) in &meshes {
+        let layout = cwbvh(mesh, &BuildOptions::default());
+        let n = check_quantised_boxes(name, &layout);
+        println!("{name}: {n} child boxes checked");
+        assert!(n >= mesh.included().len() / 3);
+    }
+    let mut rng = Rng::new(6);
+    let far = &meshes.iter().find(|(n, _)| *n == "far").unwrap().1;
+    let rays = random_rays(&mut rng, 1000, far);
+    check("far", far, &cwbvh(far, &BuildOptions::default()), &rays);
+}
+
+#[test]
+fn the_triangles_are_a_permutation_keeping_original_indices() {
+    let mut rng = Rng::new(12);
+    let mut tris = soup(&mut rng, 1000, 0.2).triangles;
+    tris[7] = Triangle::new(Vec3::ZERO, Vec3::ZERO, Vec3::X); // degenerate: left out
+    let mesh = Mesh::from_triangles(tris);
+    let layout = cwbvh(&mesh, &BuildOptions::default());
+    let mut prims: Vec<u32> = layout.leaf_tris().iter().map(|t| t.prim).collect();
+    prims.sort_unstable();
+    let want: Vec<u32> = (0..1000).filter(|&i| i != 7).collect();
+    assert_eq!(prims, want);
+    for t in layout.leaf_tris() {
+        assert_eq!(t.triangle(), mesh.triangles[t.prim as usize]);
+    }
+    assert_eq!(layout.bounds(), mesh.bounds());
+}
+
+#[test]
+fn empty_mesh_single_triangle_and_invalid_rays() {
+    let empty = cwbvh(&Mesh::default(), &BuildOptions::default());
+    assert!(empty.bounds().is_empty());
+    let rob = Robustness::default();
+    let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::NEG_Z, 0.0, 10.0);
+    let mut s = RayStats::default();
+    assert!(!empty.intersect(&r, Query::Closest, &rob, &mut s).is_hit());
+    assert_eq!(s, RayStats { nodes: 1, tris: 0 });
+    let one = cwbvh(&copies(1), &BuildOptions::default());
+    let h = one.intersect(&r, Query::Closest, &rob, &mut s);
+    assert_eq!((h.prim, h.t, h.u, h.v), (0, 1.0, 0.25, 0.25));
+    let mut rng = Rng::new(2);
+    let mesh = soup(&mut rng, 500, 0.2);
+    let layout = cwbvh(&mesh, &BuildOptions::default());
+    for r in [
+        Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 10.0),
+        Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 10.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 5.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
+    ] {
+        let mut s = RayStats::default();
+        let h: Hit = layout.intersect(&r, Query::Closest, &rob, &mut s);
+        assert!(!h.is_hit() && s == RayStats::default(), "{r:?}");
+    }
+}
+
+/// Byte offsets in a node record (mod.rs CwNode).
+const NODE: usize = 80;
+const CHILD_BASE: usize = 16;
+const TRI_BASE: usize = 20;
+const META: usize = 24;
+const IMASK: usize = 15;
+const Q_HI: usize = 56;
+
+#[test]
+fn validate_refuses_corrupted_arrays() {
+    let mut rng = Rng::new(33);
+    let mesh = soup(&mut rng, 2000, 0.2);
+    let layout = cwbvh(&mesh, &BuildOptions::default());
+    let a = layout.arrays();
+    let (nodes, tris) = (a.nodes.to_vec(), a.tris.to_vec());
+    let back = Cwbvh::from_arrays(LayoutArrays {
+        nodes: &nodes,
+        tris: &tris,
+    })
+    .unwrap();
+    assert_eq!(back.arrays().nodes, a.nodes);
+    // A node with a leaf slot and one with an internal slot.
+    let (leaf_node, leaf_slot) = (0..layout.node_count())
+        .find_map(|i| {
+            let c = layout.children(i);
+            let s = c.iter().find(|(_, _, c)| matches!(c, CwChild::Tris { .. }));
+            s.map(|&(s, _, _)| (i, s))
+        })
+        .unwrap();
+    let refuse = |what: &str, nodes: &[u8], tris: &[u8]| {
+        let e = Cwbvh::from_arrays(LayoutArrays { nodes, tris })
+            .err()
+            .unwrap_or_else(|| panic!("{what}: accepted"));
+        println!("{what}: {e}");
+    };
+    let with = |at: usize, bytes: &[u8]| {
+        let mut n = nodes.clone();
+        n[at..at + bytes.len()].copy_from_slice(bytes);
+        n
+    };
+    refuse(
+        "root's children at 0",
+        &with(CHILD_BASE, &0u32.to_le_bytes()),
+        &tris,
+    );
+    refuse(
+        "children past the end",
+        &with(CHILD_BASE, &(layout.node_count() as u32).to_le_bytes()),
+        &tris,
+    );
+    let at = leaf_node * NODE;
+    refuse(
+        "triangles past the end",
+        &with(at + TRI_BASE, &(tris.len() as u32 / 48).to_le_bytes()),
+        &tris,
+    );
+    refuse(
+        "a non-unary count",
+        &with(at + META + leaf_slot, &[0b010_00000]),
+        &tris,
+    );
+    let imask = nodes[at + IMASK] | 1 << leaf_slot;
+    refuse("a leaf marked internal", &with(at + IMASK, &[imask]), &tris);
+    refuse("a torn node", &nodes[..nodes.len() - 1], &tris);
+    refuse("a missing triangle", &nodes, &tris[..tris.len() - 48]);
+    refuse("no nodes", &[], &tris);
+}

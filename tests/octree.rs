@@ -1,0 +1,780 @@
+//! The octree (src/accel/octree) against the f64 oracle, the BVH and a brute force: every
+//! answer agrees or is a genuine tie the oracle names; rays through shared edges and vertices
+//! never leak; axis-parallel rays on cell planes; coincident triangles keep the tie rule; the
+//! memory cap refuses instead of aborting; the stats add up and count duplicated references.
+
+#[path = "common/accel_check.rs"]
+mod accel_check;
+mod common;
+
+use accel_check::{brute_force, check, quad_plane, same_as_bvh};
+use common::{load_model, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bvh::BuildOptions;
+use lancer::accel::octree::{Octree, OctreeOptions, MAX_OCTREE_DEPTH};
+use lancer::accel::{build, Accel, AccelKind};
+use lancer::camera::Camera;
+use lancer::geometry::{Ray, Triangle, TriangleTest};
+use lancer::mesh::Mesh;
+use lancer::trace::oracle::{self, judge, Verdict};
+use lancer::{Query, RayStats, Robustness};
+
+fn oct(mesh: &Mesh) -> Octree {
+    Octree::build(mesh, &OctreeOptions::default()).expect("octree builds")
+}
+
+fn assert_brute_force(name: &str, mesh: &Mesh, tree: &Octree, rays: &[Ray]) {
+    let (hits, _) = tree.trace_batch(rays, Query::Closest, &Robustness::default());
+    let truth = brute_force(mesh, rays);
+    for ((r, h), b) in rays.iter().zip(&hits).zip(&truth) {
+        assert_eq!(h, b, "{name}: octree ≠ brute force on {r:?}");
+    }
+}
+
+#[test]
+fn random_soups_against_the_oracle_and_the_bvh() {
+    for seed in 0..3 {
+        let mut rng = Rng::new(500 + seed);
+        let mesh = soup(&mut rng, 2000, 0.2);
+        let rays = random_rays(&mut rng, 3000, &mesh);
+        // The defaults, and (once) a deep tree of small leaves: many cells per ray.
+        let deep = OctreeOptions {
+            max_depth: MAX_OCTREE_DEPTH,
+            leaf_size: 1,
+            traversal_cost: 1.0,
+            ..OctreeOptions::default()
+        };
+        let all = [OctreeOptions::default(), deep];
+        for opts in &all[..if seed == 0 { 2 } else { 1 }] {
+            let tree = Octree::build(&mesh, opts).unwrap();
+            let name = format!("soup {seed}, {opts:?}");
+            println!("{name}: {:?}", tree.stats());
+            let (agree, _) = check(&name, &mesh, &tree, &rays);
+            assert!(agree > 2500);
+            assert_eq!(same_as_bvh(&name, &mesh, &tree, &rays), 0);
+            assert_brute_force(&name, &mesh, &tree, &rays);
+        }
+    }
+}
+
+#[test]
+fn models_primary_and_random_rays() {
+    // The oracle and the brute force test every triangle per ray: few rays on the bunny
+    // (69,451 triangles); the BVH comparison takes many more.
+    for (name, judged, side) in [("teapot.obj", 1000, 32), ("stanford-bunny.obj", 200, 16)] {
+        let Some(mesh) = load_model(name) else { return };
+        let tree = oct(&mesh);
+        println!("{name}: {:?}", tree.stats());
+        let mut rng = Rng::new(9);
+        let rays = random_rays(&mut rng, 3000, &mesh);
+        check(&format!("{name} random"), &mesh, &tree, &rays[..judged]);
+        same_as_bvh(&format!("{name} random"), &mesh, &tree, &rays);
+        let cam = Camera::default_view(&mesh.bounds(), side, side);
+        let (agree, _) = check(
+            &format!("{name} primary"),
+            &mesh,
+            &tree,
+            &cam.primary_rays(),
+        );
+        assert!(agree > (side * side / 2) as usize);
+        let primary = Camera::default_view(&mesh.bounds(), 96, 96).primary_rays();
+        assert_eq!(
+            same_as_bvh(&format!("{name} primary"), &mesh, &tree, &primary),
+            0
+        );
+        let some: Vec<Ray> = primary
+            .iter()
+            .step_by(9)
+            .copied()
+            .take(2 * judged)
+            .collect();
+        assert_brute_force(name, &mesh, &tree, &some);
+    }
+}
+
+#[test]
+fn one_thread_builds_the_same_tree() {
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let par = oct(&mesh);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| oct(&mesh));
+    assert_eq!(par.stats(), one.stats());
+    assert_eq!(par.split_planes(), one.split_planes());
+    let mut rng = Rng::new(3);
+    let rays = random_rays(&mut rng, 500, &mesh);
+    let rob = Robustness::default();
+    let (a, sa) = par.trace_batch(&rays, Query::Closest, &rob);
+    let (b, sb) = one.trace_batch(&rays, Query::Closest, &rob);
+    assert_eq!(a, b);
+    assert_eq!(sa, sb);
+}
+
+#[test]
+fn rays_at_shared_edges_and_vertices_never_leak() {
+    let (mesh, targets) = quad_plane(24, 0.37);
+    let tree = oct(&mesh);
+    assert!(tree.stats().max_depth >= 3, "{:?}", tree.stats());
+    let mut rng = Rng::new(11);
+    let c = mesh.bounds().center();
+    let mut rays = Vec::new();
+    for &t in &targets {
+        // From above and below at random angles, and straight down and up the z axis.
+        for _ in 0..2 {
+            let mut o = c + rng.dir() * 20.0;
+            o.z = if rng.f32() < 0.5 {
+                -o.z.abs() - 1.0
+            } else {
+                o.z.abs() + 1.0
+            };
+            rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
+        }
+        rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
+        rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
+    }
+    let rob = Robustness::default();
+    for query in [Query::Closest, Query::Any] {
+        let (hits, _) = tree.trace_batch(&rays, query, &rob);
+        let leaks = hits.iter().filter(|h| !h.is_hit()).count();
+        println!("grid {query:?}: {} rays, {leaks} leaks", rays.len());
+        assert_eq!(leaks, 0, "rays through shared edges and vertices leaked");
+    }
+    check("grid edges", &mesh, &tree, &rays);
+    // Where two triangles meet at the ray, equal t goes to the smaller index even when the
+    // two sit in different cells.
+    assert_brute_force("grid edges", &mesh, &tree, &rays);
+}
+
+#[test]
+fn axis_parallel_rays_on_cell_planes() {
+    let mut rng = Rng::new(21);
+    let mut tris = soup(&mut rng, 1500, 0.25).triangles;
+    let (g, _) = quad_plane(8, 0.25);
+    tris.extend(g.triangles);
+    let mesh = Mesh::from_triangles(tris);
+    let tree = oct(&mesh);
+    let planes = tree.split_planes();
+    assert!(planes.len() > 100);
+    let b = mesh.bounds();
+    let mut rays = Vec::new();
+    for i in 0..4000 {
+        let (axis, pos) = planes[rng.u64() as usize % planes.len()];
+        // An origin on the plane, inside or outside the bounds.
+        let mut o = b.lo + (b.hi - b.lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
+        o += rng.vec3(-0.3, 0.3) * (i % 2) as f32;
+        o[axis] = pos;
+        let mut d = Vec3::ZERO;
+        match i % 4 {
+            // Along an axis in the plane, or across it.
+            0 => d[(axis + 1 + (i / 4) % 2) % 3] = if rng.f32() < 0.5 { 1.0 } else { -1.0 },
+            1 => d[axis] = if rng.f32() < 0.5 { 2.0 } else { -0.5 },
+            // Within the plane, any direction; the axis component ±0.
+            2 => {
+                d = rng.dir();
+                d[axis] = if i % 8 == 2 { 0.0 } else { -0.0 };
+            }
+            // Another axis-parallel direction, an origin on a second plane too (often
+            // through a line where two of a cell's mid-planes meet).
+            _ => {
+                let (a2, p2) = planes[rng.u64() as usize % planes.len()];
+                o[a2] = p2;
+                d[rng.u64() as usize % 3] = 1.0;
+            }
+        }
+        let tmin = if i % 5 == 0 { -1.0 } else { 0.0 };
+        rays.push(Ray::new(o, d, tmin, 3.4e38));
+    }
+    check("axis-parallel on cell planes", &mesh, &tree, &rays);
+    same_as_bvh("axis-parallel on cell planes", &mesh, &tree, &rays);
+    assert_brute_force("axis-parallel on cell planes", &mesh, &tree, &rays);
+}
+
+#[test]
+fn coincident_triangles_keep_the_tie_rule() {
+    // k copies of one triangle at several depths, indices interleaved between the stacks,
+    // among random triangles: the answer must be the smallest index at the nearest t. Small
+    // leaves split the copies' cells as far as they can be split.
+    let mut rng = Rng::new(31);
+    let mut tris = soup(&mut rng, 400, 0.1).triangles;
+    let shape = [
+        Vec3::new(-0.9, -0.9, 0.0),
+        Vec3::new(0.9, -0.7, 0.0),
+        Vec3::new(-0.6, 0.9, 0.0),
+    ];
+    let depths = [0.3f32, -0.2, 0.05, 0.7];
+    for copy in 0..6 {
+        for (s, &z) in depths.iter().enumerate() {
+            if copy < 3 + s {
+                let dz = Vec3::new(0.0, 0.0, z);
+                tris.insert(
+                    (rng.u64() as usize) % tris.len(),
+                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
+                );
+            }
+        }
+    }
+    let mesh = Mesh::from_triangles(tris);
+    for opts in [
+        OctreeOptions::default(),
+        OctreeOptions {
+            leaf_size: 1,
+            max_depth: MAX_OCTREE_DEPTH,
+            traversal_cost: 0.0,
+            ..OctreeOptions::default()
+        },
+    ] {
+        let tree = Octree::build(&mesh, &opts).unwrap();
+        println!("coincident, {opts:?}: {:?}", tree.stats());
+        let mut rays = Vec::new();
+        for i in 0..2000 {
+            let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
+            let o = if i % 3 == 0 {
+                Vec3::new(target.x, target.y, 2.0)
+            } else {
+                Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
+            };
+            rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
+        }
+        let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
+        let mut exact = 0;
+        for (r, h) in rays.iter().zip(&hits) {
+            let Some((_, prim)) = oracle::closest(&mesh, r) else {
+                continue;
+            };
+            if h.prim == prim {
+                exact += 1;
+                continue;
+            }
+            let v = judge(&mesh, r, h);
+            assert!(
+                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
+                "{r:?}: the octree reports {} but the oracle's smallest index at the nearest \
+                 t is {prim} ({v:?})",
+                h.prim
+            );
+        }
+        println!(
+            "coincident: {exact} of {} rays give the oracle's index",
+            rays.len()
+        );
+        assert!(exact > 1800);
+        check("coincident", &mesh, &tree, &rays);
+        assert_brute_force("coincident", &mesh, &tree, &rays);
+    }
+}
+
+#[test]
+fn coplanar_triangles_on_a_mid_plane_at_exactly_equal_t() {
+    // Overlapping coplanar triangles in the plane z = 4, the root cube's middle (the cube
+    // spans the bounds [0, 8]³ grown by a small margin), integer vertices; small triangles
+    // elsewhere make the root split. Rays along ±z from dyadic points compute the same t
+    // exactly for all of them, so the smallest index must win, whichever cell meets it.
+    // Rays along the plane, from inside it, meet them edge-on.
+    let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    let mut tris = vec![
+        Triangle::new(p(0.0, 0.0, 0.0), p(8.0, 0.0, 0.0), p(0.0, 8.0, 0.0)),
+        Triangle::new(p(0.0, 0.0, 8.0), p(8.0, 0.0, 8.0), p(0.0, 8.0, 8.0)),
+        Triangle::new(p(0.0, 0.0, 4.0), p(8.0, 0.0, 4.0), p(0.0, 8.0, 4.0)), // 2: big
+        Triangle::new(p(1.0, 1.0, 4.0), p(5.0, 1.0, 4.0), p(1.0, 5.0, 4.0)), // 3: small
+        Triangle::new(p(0.0, 0.0, 4.0), p(6.0, 0.0, 4.0), p(0.0, 6.0, 4.0)), // 4: middle
+        Triangle::new(p(1.0, 1.0, 4.0), p(1.0, 5.0, 4.0), p(5.0, 1.0, 4.0)), // 5: flipped
+        Triangle::new(p(0.5, 0.5, 4.0), p(7.0, 0.5, 4.0), p(0.5, 7.0, 4.0)), // 6
+    ];
+    let mut rng = Rng::new(51);
+    for i in 0..200 {
+        // Clutter above and below, never between z = 3 and z = 5 where the rays run.
+        let mut c = rng.vec3(0.5, 7.5);
+        c.z = rng.range(0.5, 1.5) + if i % 2 == 0 { 6.0 } else { 0.0 };
+        tris.push(Triangle::new(
+            c,
+            c + rng.vec3(-0.1, 0.1),
+            c + rng.vec3(-0.1, 0.1),
+        ));
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let tree = Octree::build(
+        &mesh,
+        &OctreeOptions {
+            leaf_size: 2,
+            ..OctreeOptions::default()
+        },
+    )
+    .unwrap();
+    let mid = tree.cube().center();
+    assert!((mid.z - 4.0).abs() < 1e-3, "{:?}", tree.cube());
+    let mut rays = Vec::new();
+    for _ in 0..1500 {
+        let x = (rng.u64() % 64) as f32 / 8.0 + 1.0 / 16.0;
+        let y = (rng.u64() % 64) as f32 / 8.0 + 1.0 / 16.0;
+        let up = rng.u64().is_multiple_of(2);
+        let (z, dz) = if up { (3.0, 1.0) } else { (5.0, -1.0) };
+        let dz = dz * [1.0, 2.0, 0.5][(rng.u64() % 3) as usize];
+        rays.push(Ray::new(p(x, y, z), p(0.0, 0.0, dz), 0.0, 3.4e38));
+        rays.push(Ray::new(p(x, y, 8.0 - z), p(0.0, -0.0, -dz), 0.0, 3.4e38));
+        // Along the mid-plane, from inside it.
+        rays.push(Ray::new(p(x, y, 4.0), p(1.0, 0.5, 0.0), -0.25, 3.4e38));
+    }
+    check("coplanar at equal t", &mesh, &tree, &rays);
+    let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
+    let mut coplanar = 0;
+    for (r, h) in rays.iter().zip(&hits) {
+        // Rays in the plane (d.z = 0) meet the coplanar triangles edge-on: not judged here.
+        if r.dir.z == 0.0 {
+            continue;
+        }
+        // Where the oracle's answer is one of the coplanar triangles (2 to 6), its t is
+        // exact in f32 too.
+        let truth = oracle::closest(&mesh, r);
+        assert_eq!(h.is_hit(), truth.is_some(), "{r:?}");
+        if let Some((t, prim @ 2..=6)) = truth {
+            assert_eq!((h.t as f64, h.prim), (t, prim), "{r:?}");
+            coplanar += 1;
+        }
+    }
+    println!("{coplanar} rays meet the coplanar triangles first");
+    assert!(coplanar > 1000);
+    assert_brute_force("coplanar at equal t", &mesh, &tree, &rays);
+}
+
+#[test]
+fn invalid_and_extreme_rays_neither_hang_nor_panic() {
+    let mut rng = Rng::new(41);
+    let mesh = soup(&mut rng, 500, 0.3);
+    let tree = oct(&mesh);
+    let rob = Robustness::default();
+    let invalid = [
+        Ray::new(Vec3::NAN, Vec3::X, 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0), 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::new(-0.0, 0.0, -0.0), 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 2.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::NAN),
+        Ray::new(Vec3::splat(1e13), -Vec3::ONE, 0.0, 1e30),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 1.0),
+    ];
+    for r in &invalid {
+        for q in [Query::Closest, Query::Any] {
+            let mut s = RayStats::default();
+            let h = tree.intersect(r, q, &rob, &mut s);
+            assert!(!h.is_hit());
+            assert_eq!(s, RayStats::default(), "{r:?}");
+        }
+    }
+    let mut rays = Vec::new();
+    for i in 0..3000 {
+        let o = match i % 3 {
+            0 => rng.vec3(-1e12, 1e12),
+            1 => rng.vec3(-2.0, 2.0),
+            _ => rng.vec3(-1.0, 1.0) * 1e-30,
+        };
+        let mut d = match i % 4 {
+            0 => rng.dir() * 1e-30,
+            1 => rng.dir() * 1e30,
+            _ => rng.dir(),
+        };
+        if i % 7 == 0 {
+            d.x = 0.0;
+        }
+        if i % 11 == 0 {
+            d.y = -1e-35;
+        }
+        if i % 13 == 0 {
+            d = Vec3::new(1e-38, 0.0, -1e-40);
+        }
+        let (tmin, tmax) = match i % 5 {
+            0 => (-3.4e38, 3.4e38),
+            1 => (0.0, f32::INFINITY),
+            _ => (0.0, 3.4e38),
+        };
+        rays.push(Ray::new(o, d, tmin, tmax));
+    }
+    check("extreme rays", &mesh, &tree, &rays);
+    // Work stays bounded by the tree's size.
+    let (_, stats) = tree.trace_batch(&rays, Query::Closest, &rob);
+    let nodes = tree.stats().nodes as u32;
+    assert!(stats.iter().all(|s| s.nodes <= nodes));
+    let mut mt = rob;
+    mt.triangle_test = TriangleTest::MollerTrumbore;
+    let _ = tree.trace_batch(&rays, Query::Closest, &mt);
+}
+
+#[test]
+fn empty_mesh_and_single_triangle() {
+    for mesh in [
+        Mesh::default(),
+        Mesh::from_triangles(vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::X)]),
+    ] {
+        let tree = oct(&mesh);
+        assert_eq!(tree.stats().references, 0);
+        assert!(tree.bounds().is_empty() && tree.cube().is_empty());
+        let r = Ray::new(Vec3::new(0.5, 0.0, -1.0), Vec3::Z, 0.0, 3.4e38);
+        let mut s = RayStats::default();
+        let h = tree.intersect(&r, Query::Closest, &Robustness::default(), &mut s);
+        assert!(!h.is_hit() && s == RayStats::default());
+    }
+    let one = Mesh::from_triangles(vec![Triangle::new(
+        Vec3::new(1.0, -1.0, -1.0),
+        Vec3::new(1.0, 1.0, -1.0),
+        Vec3::new(1.0, 0.0, 1.0),
+    )]);
+    let tree = oct(&one);
+    let r = Ray::new(Vec3::ZERO, Vec3::X, 0.0, 1.0);
+    let mut s = RayStats::default();
+    let h = tree.intersect(&r, Query::Closest, &Robustness::default(), &mut s);
+    assert_eq!((h.prim, h.t), (0, 1.0));
+    assert_eq!(s, RayStats { nodes: 1, tris: 1 });
+    // A ray that misses the cube visits nothing.
+    let r = Ray::new(Vec3::splat(5.0), Vec3::X, 0.0, 3.4e38);
+    let mut s = RayStats::default();
+    tree.intersect(&r, Query::Closest, &Robustness::default(), &mut s);
+    assert_eq!(s, RayStats::default());
+}
+
+#[test]
+fn a_tree_at_the_depth_cap_traces_within_its_stack() {
+    // Triangles shrinking geometrically towards a corner, with clutter, leaves of one
+    // triangle and a cap above the largest: the tree reaches MAX_OCTREE_DEPTH.
+    let mut rng = Rng::new(71);
+    let mut tris = soup(&mut rng, 300, 0.05).triangles;
+    for i in 0..300 {
+        let s = 0.9f32.powi(i / 3);
+        let c = Vec3::splat(s) + rng.vec3(-0.1, 0.1) * s;
+        tris.push(Triangle::new(
+            c,
+            c + Vec3::new(0.3 * s, 0.0, 0.0),
+            c + Vec3::new(0.0, 0.3 * s, 0.1 * s),
+        ));
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let opts = OctreeOptions {
+        max_depth: 100,
+        leaf_size: 1,
+        traversal_cost: 1.0,
+        ..OctreeOptions::default()
+    };
+    let tree = Octree::build(&mesh, &opts).unwrap();
+    let s = tree.stats();
+    println!("deep: {s:?}");
+    assert_eq!(s.depth_cap, MAX_OCTREE_DEPTH);
+    assert_eq!(s.max_depth, MAX_OCTREE_DEPTH, "{s:?}");
+    let mut rays = random_rays(&mut rng, 1000, &mesh);
+    for i in 0..1000 {
+        let s = 0.9f32.powi((i % 300) / 3);
+        let target = Vec3::splat(s * 1.05);
+        let o = target + rng.dir() * 4.0 * s;
+        rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
+    }
+    check("deep", &mesh, &tree, &rays);
+    assert_brute_force("deep", &mesh, &tree, &rays);
+}
+
+/// Options that split every cell above the leaf size and the depth cap (no split test).
+fn split_always(max_depth: usize, leaf_size: usize) -> OctreeOptions {
+    OctreeOptions {
+        max_depth,
+        leaf_size,
+        traversal_cost: f32::NEG_INFINITY,
+        ..OctreeOptions::default()
+    }
+}
+
+/// `n` needles: thin triangles across the whole scene in random directions, which every
+/// split duplicates.
+fn needles(rng: &mut Rng, n: usize) -> Mesh {
+    let tris = (0..n)
+        .map(|_| {
+            let a = rng.vec3(-1.0, 1.0);
+            let b = -a + rng.vec3(-0.1, 0.1);
+            Triangle::new(a, b, b + rng.vec3(-0.06, 0.06))
+        })
+        .collect();
+    Mesh::from_triangles(tris)
+}
+
+#[test]
+fn the_memory_cap_refuses_with_an_error() {
+    let mut rng = Rng::new(51);
+    let mesh = needles(&mut rng, 2000);
+    // Up front: not even the triangles fit.
+    let tiny = OctreeOptions {
+        max_bytes: Some(1024),
+        ..OctreeOptions::default()
+    };
+    let e = Octree::build(&mesh, &tiny).unwrap_err().to_string();
+    println!("{e}");
+    assert!(
+        e.contains("2000 triangles") && e.contains("1.0 KiB") && e.contains("max_bytes"),
+        "{e}"
+    );
+    // While building: the triangles fit, the duplicated references do not (every cell
+    // split down to depth 6, whatever it costs).
+    let always = split_always(6, 4);
+    let fits = Octree::build(&mesh, &always).unwrap();
+    let s = fits.stats();
+    assert!(s.duplicated_references > 10_000, "needles: {s:?}");
+    let base = 2000 * (40 + 72 + 4 + 12) + 8;
+    let tight = OctreeOptions {
+        max_bytes: Some(base + s.duplicated_references as u64 * 12 / 2),
+        ..always
+    };
+    let e = Octree::build(&mesh, &tight).unwrap_err().to_string();
+    println!("{e}");
+    assert!(
+        e.contains("needs at least") && e.contains("OctreeOptions::max_bytes"),
+        "{e}"
+    );
+    // With twice the room the finished tree's references and nodes take, it builds.
+    let room = OctreeOptions {
+        max_bytes: Some(base + 2 * (s.duplicated_references as u64 * 12 + s.nodes as u64 * 16)),
+        ..always
+    };
+    assert_eq!(Octree::build(&mesh, &room).unwrap().stats(), s);
+}
+
+#[test]
+fn stats_add_up() {
+    let mut rng = Rng::new(61);
+    let mesh = needles(&mut rng, 1000);
+    for (cap, leaf) in [(2, 8), (6, 4), (7, 1), (40, 16)] {
+        let tree = Octree::build(&mesh, &split_always(cap, leaf)).unwrap();
+        let s = tree.stats();
+        println!("cap {cap}, leaf {leaf}: {s:?}");
+        assert_eq!(s.triangles, 1000);
+        assert_eq!(s.depth_cap, cap.min(MAX_OCTREE_DEPTH));
+        assert!(s.max_depth <= s.depth_cap && s.max_depth > 0);
+        // Each inner node has 1 to 8 stored children and three planes.
+        let inner = s.nodes - s.leaves;
+        assert_eq!(tree.split_planes().len(), 3 * inner);
+        assert!(s.nodes > inner && s.nodes - 1 <= 8 * inner);
+        assert!(s.references >= s.triangles);
+        assert_eq!(s.duplicated_references, s.references - s.triangles);
+        assert!(s.largest_leaf >= s.references / s.leaves);
+        // Leaves above the cap hold at most `leaf` triangles: only the cap stops a split.
+        assert!(
+            s.largest_leaf <= leaf || s.max_depth == s.depth_cap,
+            "{s:?}"
+        );
+        assert_eq!(s.bytes, s.nodes * 8 + s.references * 4 + s.triangles * 40);
+        // Every triangle is referenced where it is met: all rays still judged right.
+        let rays = random_rays(&mut rng, 300, &mesh);
+        check(
+            &format!("needles, cap {cap}, leaf {leaf}"),
+            &mesh,
+            &tree,
+            &rays,
+        );
+    }
+    // The split test: needles, which every split copies into most children, are not split
+    // at the default traversal cost; a soup of small triangles is.
+    let s = oct(&mesh).stats();
+    assert!(s.references < 2 * s.triangles, "{s:?}");
+    let s = oct(&soup(&mut rng, 1000, 0.05)).stats();
+    assert!(s.max_depth >= 3 && s.leaves > 50, "{s:?}");
+    // Excluded triangles are left out; indices stay the original ones.
+    let mut tris = soup(&mut rng, 300, 0.2).triangles;
+    tris[5] = Triangle::new(Vec3::ZERO, Vec3::ZERO, Vec3::X);
+    tris[17].v[1] = Vec3::NAN;
+    let mesh = Mesh::from_triangles(tris);
+    let tree = oct(&mesh);
+    assert_eq!(tree.stats().triangles, 298);
+    assert_eq!(tree.bounds(), mesh.bounds());
+    let rays = random_rays(&mut rng, 1000, &mesh);
+    check("with excluded triangles", &mesh, &tree, &rays);
+}
+
+#[test]
+fn duplicated_references_are_counted() {
+    // Two corner triangles make the bounds [-1, 1]³, so the root cube's centre is the origin
+    // (up to the margin's rounding). Eight small triangles, one inside each octant, and one
+    // big triangle in the plane x = 0.5 across the whole upper-x half: with one level of
+    // cells the small and corner ones are referenced once each, the big one by the four
+    // upper-x octants.
+    let mut tris = vec![
+        Triangle::new(
+            Vec3::splat(-1.0),
+            Vec3::new(-0.95, -1.0, -1.0),
+            Vec3::new(-1.0, -0.95, -1.0),
+        ),
+        Triangle::new(
+            Vec3::splat(1.0),
+            Vec3::new(0.95, 1.0, 1.0),
+            Vec3::new(1.0, 0.95, 1.0),
+        ),
+        Triangle::new(
+            Vec3::new(0.5, -0.9, -0.9),
+            Vec3::new(0.5, 0.9, -0.9),
+            Vec3::new(0.5, 0.0, 0.95),
+        ),
+    ];
+    for c in 0..8 {
+        let s = |a: u32| if c >> a & 1 == 1 { 0.5 } else { -0.5 };
+        let o = Vec3::new(s(0) - 0.2, s(1), s(2));
+        tris.push(Triangle::new(
+            o,
+            o + Vec3::new(0.1, 0.0, 0.0),
+            o + Vec3::new(0.0, 0.1, 0.1),
+        ));
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let one_level = OctreeOptions {
+        max_depth: 1,
+        leaf_size: 1,
+        ..OctreeOptions::default()
+    };
+    let tree = Octree::build(&mesh, &one_level).unwrap();
+    let s = tree.stats();
+    println!("{s:?}");
+    assert!(tree.cube().center().abs().max_element() < 1e-4);
+    assert_eq!((s.nodes, s.leaves, s.max_depth), (9, 8, 1));
+    assert_eq!((s.references, s.duplicated_references), (14, 3));
+    assert_eq!(
+        s.largest_leaf, 3,
+        "the (+, +, +) octant: small, corner and big"
+    );
+    let rays = random_rays(&mut Rng::new(5), 500, &mesh);
+    check("one level", &mesh, &tree, &rays);
+}
+
+#[test]
+fn the_mailbox_tests_a_triangle_once_per_ray() {
+    // One big triangle in z = 0 under a lattice of small ones at z = 0.5: leaves of one
+    // triangle split the cells down until the bottom layer holds the big triangle alone. A
+    // ray along its plane, just above it, crosses many of those cells and tests it once.
+    let mut tris = vec![Triangle::new(
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(10.0, 0.0, 0.0),
+        Vec3::new(0.0, 10.0, 0.0),
+    )];
+    for i in 0..40 {
+        for j in 0..40 {
+            let c = Vec3::new(i as f32 * 0.25 + 0.1, j as f32 * 0.25 + 0.1, 0.5);
+            tris.push(Triangle::new(
+                c,
+                c + Vec3::new(0.02, 0.0, 0.0),
+                c + Vec3::new(0.0, 0.02, 0.01),
+            ));
+        }
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let tree = Octree::build(&mesh, &split_always(MAX_OCTREE_DEPTH, 1)).unwrap();
+    let r = Ray::new(
+        Vec3::new(0.2, 0.2, 0.01),
+        Vec3::new(1.0, 1.0, 0.0),
+        0.0,
+        3.4e38,
+    );
+    let mut s = RayStats::default();
+    let h = tree.intersect(&r, Query::Closest, &Robustness::default(), &mut s);
+    println!("{h:?} {s:?} {:?}", tree.stats());
+    assert!(!h.is_hit());
+    assert!(s.nodes > 20, "{s:?}");
+    assert_eq!(s.tris, 1, "{s:?}");
+    // Stats of one ray match trace_batch's.
+    let (hits, stats) = tree.trace_batch(&[r], Query::Closest, &Robustness::default());
+    assert_eq!((hits[0], stats[0]), (h, s));
+}
+
+#[test]
+fn a_million_triangles_build_in_bounded_memory() {
+    // A soup of 2²⁰ small triangles: the build's time and the tree's size, printed.
+    let mut rng = Rng::new(91);
+    let mesh = soup(&mut rng, 1 << 20, 0.004);
+    let t = std::time::Instant::now();
+    let tree = oct(&mesh);
+    let s = tree.stats();
+    println!(
+        "2²⁰ triangles: built in {:.2} s, {:.1} MiB, {s:?}",
+        t.elapsed().as_secs_f64(),
+        s.bytes as f64 / 1048576.0
+    );
+    assert_eq!(s.triangles, 1 << 20);
+    // Memory linear in the triangles: a few references each.
+    assert!(s.references < 4 * s.triangles, "{s:?}");
+    let rays = random_rays(&mut rng, 32, &mesh);
+    assert_brute_force("2²⁰ triangles", &mesh, &tree, &rays);
+}
+
+/// CPU time of this thread in ns (Linux: /proc/thread-self/schedstat), 0 elsewhere: what
+/// other processes on a shared machine change least.
+fn thread_cpu_ns() -> u64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
+/// The octree's options against build time, size and speed on the bunny, beside the BVH
+/// and the kd-tree: one thread, timed by its own CPU time, best of 3, on the 512² default
+/// view and 2¹⁸ random rays. Variants as `depth:leaf:cost`, comma-separated, in
+/// `OCTREE_VARIANTS`: `cargo test --release --test octree -- --ignored --nocapture
+/// bunny_depth_leaf_and_cost`.
+#[test]
+#[ignore]
+fn bunny_depth_leaf_and_cost() {
+    use std::time::Instant;
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let primary = Camera::default_view(&mesh.bounds(), 512, 512).primary_rays();
+    let random = random_rays(&mut Rng::new(17), 1 << 18, &mesh);
+    let rob = Robustness::default();
+    let mut all: Vec<(String, Box<dyn Accel>, String)> = Vec::new();
+    for kind in [AccelKind::default(), AccelKind::KdTree] {
+        let t = Instant::now();
+        let a = build(kind, &mesh, &BuildOptions::default()).unwrap();
+        let info = format!("build {:.0} ms", t.elapsed().as_secs_f64() * 1e3);
+        all.push((kind.to_string(), a, info));
+    }
+    let variants = std::env::var("OCTREE_VARIANTS").unwrap_or_else(|_| {
+        "14:4:1,14:4:2,14:4:4,14:4:8,14:1:4,14:8:4,14:16:4,8:4:4,10:4:4,12:4:4".into()
+    });
+    for v in variants.split(',') {
+        let f: Vec<f32> = v.split(':').map(|x| x.parse().unwrap()).collect();
+        let opts = OctreeOptions {
+            max_depth: f[0] as usize,
+            leaf_size: f[1] as usize,
+            traversal_cost: f[2],
+            ..OctreeOptions::default()
+        };
+        let t = Instant::now();
+        let tree = Octree::build(&mesh, &opts).unwrap();
+        let s = tree.stats();
+        let info = format!(
+            "build {:.0} ms, {:.2} M refs, {:.1} MiB, depth {}, largest leaf {}",
+            t.elapsed().as_secs_f64() * 1e3,
+            s.references as f64 / 1e6,
+            s.bytes as f64 / 1048576.0,
+            s.max_depth,
+            s.largest_leaf
+        );
+        all.push((format!("octree {v}"), Box::new(tree), info));
+    }
+    for (what, rays) in [("primary 512²", &primary), ("random 2¹⁸", &random)] {
+        for (name, a, info) in &all {
+            let mut best = f64::INFINITY;
+            let (mut nodes, mut tris) = (0u64, 0u64);
+            for _ in 0..3 {
+                (nodes, tris) = (0, 0);
+                let cpu0 = thread_cpu_ns();
+                for r in rays.iter() {
+                    let mut s = RayStats::default();
+                    std::hint::black_box(a.intersect(r, Query::Closest, &rob, &mut s));
+                    nodes += s.nodes as u64;
+                    tris += s.tris as u64;
+                }
+                best = best.min((thread_cpu_ns() - cpu0) as f64 * 1e-9);
+            }
+            let n = rays.len() as f64;
+            println!(
+                "{what} | {name} | {:.2} Mrays/s | {:.1} cells | {:.1} tris | {info}",
+                n / best / 1e6,
+                nodes as f64 / n,
+                tris as f64 / n
+            );
+        }
+    }
+}
