@@ -14,6 +14,13 @@ pub const MAX_COORD: f32 = 1e11;
 /// The largest ray-origin coordinate magnitude: rays from further out are invalid (misses).
 pub const MAX_ORIGIN: f32 = 1e12;
 
+/// The smallest largest-component of a ray direction: rays whose every component is smaller
+/// are invalid (misses). Slab tests treat a component below 2e-30 as parallel (its reciprocal
+/// is floored to stay finite); with one component at least this large, such an axis drifts by
+/// under 2e-10 of the ray's travel along its main axis, where with all of them tiny the ray
+/// would be treated as parallel to every axis and miss what it hits.
+pub const MIN_DIR: f32 = 1e-20;
+
 /// The smallest mesh (bounding-box diagonal) lancer traces correctly from its default view:
 /// below it those products fall below f32's normal range and hits are lost.
 pub const MIN_EXTENT: f32 = 1e-12;

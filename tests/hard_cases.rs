@@ -11,10 +11,11 @@ mod common;
 
 use common::{gpu_device, random_rays, soup, Rng};
 use glam::Vec3;
-use lancer::accel::AccelKind;
+use lancer::accel::{self, AccelKind};
 use lancer::accuracy::cases::{self, HardCase};
 use lancer::accuracy::{false_misses, secondary, wrong_answers};
 use lancer::geometry::{Hit, Precision, Ray, RayOffset, Robustness, SlabTest, Triangle};
+use lancer::layout::LayoutKind;
 use lancer::mesh::{load_obj, Mesh};
 use lancer::trace::oracle;
 use lancer::{Device, Query, Tracer, TracerOptions};
@@ -251,4 +252,97 @@ fn f64_precision_traces_the_oracles_answers_on_the_cpu_and_the_gpu_refuses_it() 
         .trace(&rays, Query::Closest)
         .unwrap_err();
     assert!(e.to_string().contains("f64 precision is the BVH's"), "{e}");
+}
+
+/// Every structure (each BVH layout included) on the CPU, and every GPU form on the GPU.
+fn every_tracer(mesh: &Mesh) -> Vec<(String, Tracer<'static>)> {
+    let options = TracerOptions::default();
+    let kinds = (LayoutKind::ALL.iter().map(|&l| AccelKind::Bvh(l))).chain(
+        AccelKind::ALL
+            .iter()
+            .copied()
+            .filter(|k| !matches!(k, AccelKind::Bvh(_))),
+    );
+    let mut tracers = Vec::new();
+    for kind in kinds {
+        let name = match kind {
+            AccelKind::Bvh(layout) => format!("bvh {}", layout.name()),
+            other => other.to_string(),
+        };
+        let cpu = Tracer::with_structure(cpu_device(), mesh, kind, &options).unwrap();
+        tracers.push((format!("{name} on the cpu"), cpu));
+        if accel::build_gpu(kind, mesh, &options.build)
+            .unwrap()
+            .is_some()
+        {
+            let gpu = Tracer::with_structure(gpu_device(), mesh, kind, &options).unwrap();
+            tracers.push((format!("{name} on the gpu"), gpu));
+        }
+    }
+    tracers
+}
+
+fn cpu_device() -> &'static Device {
+    static CPU: std::sync::OnceLock<Device> = std::sync::OnceLock::new();
+    CPU.get_or_init(Device::cpu)
+}
+
+/// A ray's tmax of +∞ (a valid interval: "no end") finds what tmax = f32::MAX finds, in every
+/// structure on both devices; the box cut must not become ∞ − ∞ = NaN.
+#[test]
+fn an_infinite_tmax_hits_like_the_largest_finite_one_everywhere() {
+    let mut rng = Rng::new(2024);
+    let mesh = soup(&mut rng, 800, 0.3);
+    let finite: Vec<Ray> = (random_rays(&mut rng, 600, &mesh).into_iter())
+        .map(|r| Ray::new(r.origin, r.dir, r.tmin, f32::MAX))
+        .collect();
+    let infinite: Vec<Ray> = (finite.iter())
+        .map(|r| Ray::new(r.origin, r.dir, r.tmin, f32::INFINITY))
+        .collect();
+    for (name, mut tracer) in every_tracer(&mesh) {
+        let a = tracer.trace(&finite, Query::Closest).unwrap().hits;
+        let b = tracer.trace(&infinite, Query::Closest).unwrap().hits;
+        let hits = a.iter().filter(|h| h.is_hit()).count();
+        let unlike = (a.iter().zip(&b)).filter(|(x, y)| x.prim != y.prim).count();
+        let lost = false_misses(&mesh, &infinite, &b, &Robustness::default());
+        println!("{name}: {hits} hits with tmax = MAX, {unlike} differ with tmax = ∞, {lost} lost");
+        assert!(hits > 100, "{name}: the rays should hit the soup");
+        assert_eq!(unlike, 0, "{name}: tmax = ∞ changes {unlike} hits");
+        assert_eq!(lost, 0, "{name}: tmax = ∞ loses {lost} hits");
+    }
+}
+
+/// Short directions: scaled down to just above `limits::MIN_DIR` a ray hits the same triangle
+/// as the unit ray, at t scaled up exactly by the inverse power of two; below it the ray is
+/// invalid (a miss, not an answer computed with every axis taken as parallel).
+#[test]
+fn directions_down_to_min_dir_hit_like_unit_ones_and_shorter_ones_are_refused() {
+    let mut rng = Rng::new(77);
+    let mesh = soup(&mut rng, 800, 0.3);
+    let unit = random_rays(&mut rng, 600, &mesh);
+    let scale = |s: f32| -> Vec<Ray> {
+        (unit.iter())
+            .map(|r| Ray::new(r.origin, r.dir * s, r.tmin, r.tmax))
+            .collect()
+    };
+    // 2⁻⁶⁴ ≈ 5.4e-20 keeps every unit component's scaled copy exact and above MIN_DIR
+    // for the largest; 2⁻⁷⁰ ≈ 8.5e-22 puts every component below it.
+    let (short, too_short) = (scale(2f32.powi(-64)), scale(2f32.powi(-70)));
+    assert!(too_short.iter().all(|r| !r.is_valid()) && short.iter().all(|r| r.is_valid()));
+    for (name, mut tracer) in every_tracer(&mesh) {
+        let a = tracer.trace(&unit, Query::Closest).unwrap().hits;
+        let b = tracer.trace(&short, Query::Closest).unwrap().hits;
+        let c = tracer.trace(&too_short, Query::Closest).unwrap().hits;
+        let hits = a.iter().filter(|h| h.is_hit()).count();
+        let unlike = (a.iter().zip(&b)).filter(|(x, y)| x.prim != y.prim).count();
+        let lost = false_misses(&mesh, &short, &b, &Robustness::default());
+        let wrong = wrong_answers(&mesh, &short, &b);
+        println!("{name}: {hits} unit hits; 2^-64 directions: {unlike} differ, {lost} lost, {wrong} wrong");
+        assert!(hits > 100, "{name}: the rays should hit the soup");
+        assert_eq!((unlike, lost, wrong), (0, 0, 0), "{name}");
+        assert!(
+            c.iter().all(|h| !h.is_hit()),
+            "{name}: invalid rays must miss"
+        );
+    }
 }

@@ -40,8 +40,9 @@ fn ray_is_valid(r: Ray) -> bool {
         && is_finite_bits(r.dir.x) && is_finite_bits(r.dir.y) && is_finite_bits(r.dir.z)
         && is_finite_bits(r.tmin);
     let tmax_ok = (bitcast<u32>(r.tmax) & 0x7fffffffu) <= 0x7f800000u;
-    let nonzero = r.dir.x != 0.0 || r.dir.y != 0.0 || r.dir.z != 0.0;
-    return fin && tmax_ok && nonzero && r.tmin <= r.tmax;
+    let d = bitcast<vec3<u32>>(r.dir) & vec3<u32>(0x7fffffffu);
+    let long_enough = max(d.x, max(d.y, d.z)) >= bitcast<u32>(MIN_DIR);
+    return fin && tmax_ok && long_enough && r.tmin <= r.tmax;
 }
 
 // safe_recip: ±1/max(|d|, RECIP_FLOOR), sign of d kept (−0.0 included, by its sign bit).
@@ -258,10 +259,12 @@ fn t_error_numerator(mx: f32, my: f32, mz: f32, mzu: f32, me: f32) -> f32 {
     return 3.0 * (gamma_f(3.0) * me * mz + de * mz + dz * me);
 }
 
-// geometry::prune_bound: the best t grown by TIE_SLACK of its magnitude, never past BIG.
+// geometry::prune_bound: the best t grown by TIE_SLACK of its magnitude, never past BIG
+// (a tmax of +inf gives BIG).
 fn prune_bound(best_t: f32) -> f32 {
-    let a = abs(best_t);
-    return best_t + min(a * TIE_SLACK, BIG - a);
+    let b = min(best_t, BIG);
+    let a = abs(b);
+    return b + min(a * TIE_SLACK, BIG - a);
 }
 
 // Hit::beats — the tie rule: smaller t, then smaller original index.

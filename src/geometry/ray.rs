@@ -51,8 +51,9 @@ impl Ray {
     }
 
     /// A ray the tracers refuse and report as a miss: any non-finite component, an origin
-    /// beyond ±[`MAX_ORIGIN`](crate::limits::MAX_ORIGIN) (the supported range), a zero
-    /// direction, or an empty/NaN interval. Tested on bit patterns so that the WGSL twin
+    /// beyond ±[`MAX_ORIGIN`](crate::limits::MAX_ORIGIN) (the supported range), a direction
+    /// whose largest component is below [`MIN_DIR`](crate::limits::MIN_DIR) (zero
+    /// included), or an empty/NaN interval. Tested on bit patterns so that the WGSL twin
     /// (`ray_is_valid`) behaves the same where NaN comparisons are unreliable.
     pub fn is_valid(&self) -> bool {
         let finite = |x: f32| (x.to_bits() & 0x7fff_ffff) < 0x7f80_0000;
@@ -65,7 +66,9 @@ impl Ray {
                 .iter()
                 .all(|&x| in_range(x))
             && tmax_ok
-            && (self.dir.x != 0.0 || self.dir.y != 0.0 || self.dir.z != 0.0)
+            && [self.dir.x, self.dir.y, self.dir.z]
+                .iter()
+                .any(|&x| (x.to_bits() & 0x7fff_ffff) >= crate::limits::MIN_DIR.to_bits())
             && self.tmin <= self.tmax
     }
 }

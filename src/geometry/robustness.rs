@@ -13,12 +13,14 @@ use super::TriangleTest;
 pub const TIE_SLACK: f32 = 1.0 / 1_048_576.0;
 
 /// The bound boxes are tested against while the best hit is at `best_t`: `best_t` grown by
-/// [`TIE_SLACK`] of its magnitude, never past `f32::MAX` (no infinity reaches the GPU).
-/// WGSL `prune_bound` in shaders/lib/common.wgsl is the same.
+/// [`TIE_SLACK`] of its magnitude, never past `f32::MAX`: a ray's tmax of +∞ (a miss so far)
+/// gives `f32::MAX`, not ∞ − ∞ = NaN, which would cull every box. WGSL `prune_bound` in
+/// shaders/lib/common.wgsl is the same.
 #[inline(always)]
 pub fn prune_bound(best_t: f32) -> f32 {
-    let a = best_t.abs();
-    best_t + (a * TIE_SLACK).min(f32::MAX - a)
+    let b = best_t.min(f32::MAX);
+    let a = b.abs();
+    b + (a * TIE_SLACK).min(f32::MAX - a)
 }
 
 /// The ray–box slab test.

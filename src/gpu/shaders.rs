@@ -44,6 +44,7 @@ pub fn shared_constants() -> Vec<(&'static str, Shared)> {
         ("HALF_EPSILON", F32(f32::EPSILON * 0.5)),      // 2⁻²⁴, in geometry::triangle's gamma
         ("PARALLEL_INV", F32(PARALLEL_INV)),            // geometry::PARALLEL_INV
         ("MAX_ORIGIN", F32(crate::limits::MAX_ORIGIN)), // limits::MAX_ORIGIN
+        ("MIN_DIR", F32(crate::limits::MIN_DIR)),       // limits::MIN_DIR
         ("BIG", F32(f32::MAX)),                         // the slab test's ±infinity stand-in
         ("TEXEL_ROW", U32(TEXEL_ROW)),                  // gpu::TEXEL_ROW
         ("PRIMARY_TMAX", F32(PRIMARY_TMAX)),            // camera::PRIMARY_TMAX

@@ -85,11 +85,13 @@ pub fn invalid_rays() -> Vec<Ray> {
         Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::NAN),
         Ray::new(Vec3::splat(1e13), -Vec3::ONE, 0.0, 1e30),
         Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 1.0),
+        // Every component below limits::MIN_DIR.
+        Ray::new(Vec3::ZERO, Vec3::new(1e-21, -1e-25, 1e-30), 0.0, f32::MAX),
     ]
 }
 
 /// `n` valid but extreme rays: origins up to 1e12 or down to 1e-30, directions of length
-/// 1e-30 or 1e30, zero and tiny components, intervals from −3.4e38 or up to +∞.
+/// 1e-19 (just above `limits::MIN_DIR`) or 1e30, zero and tiny components, intervals from −3.4e38 or up to +∞.
 pub fn extreme_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
     let mut rays = Vec::new();
     for i in 0..n {
@@ -99,7 +101,7 @@ pub fn extreme_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
             _ => rng.vec3(-1.0, 1.0) * 1e-30,
         };
         let mut d = match i % 4 {
-            0 => rng.dir() * 1e-30,
+            0 => rng.dir() * 1e-19,
             1 => rng.dir() * 1e30,
             _ => rng.dir(),
         };
