@@ -42,9 +42,11 @@ struct Tri {
 }
 
 fn load_tri(i: u32) -> Tri {
-    let a = tri_word(3u * i);
-    let b = tri_word(3u * i + 1u);
-    let c = tri_word(3u * i + 2u);
+    return tri_from_words(tri_word(3u * i), tri_word(3u * i + 1u), tri_word(3u * i + 2u));
+}
+
+// A Tri from its three words (for traversals that load the words some other way).
+fn tri_from_words(a: vec4<u32>, b: vec4<u32>, c: vec4<u32>) -> Tri {
     return Tri(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
                bitcast<vec3<f32>>(c.xyz), c.w);
 }
