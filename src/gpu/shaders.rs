@@ -93,16 +93,12 @@ pub fn trace_source(layout: &dyn Layout) -> String {
 }
 
 /// The trace kernel's source for a layout's subgroup traversal
-/// ([`Layout::subgroup_wgsl`]), or None when the layout has none. `min_lanes` is the
-/// adapter's smallest subgroup (wgpu's `AdapterInfo::subgroup_min_size`, at least
-/// wgpu's `MINIMUM_SUBGROUP_MIN_SIZE`), generated as `SUBGROUP_MIN_LANES`: traversals size
-/// their lane-spread stacks and cooperative loads by it. The module needs the device's
-/// `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
-pub fn trace_subgroup_source(layout: &dyn Layout, min_lanes: u32) -> Option<String> {
+/// ([`Layout::subgroup_wgsl`]), or None when the layout has none. The module needs the
+/// device's `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
+pub fn trace_subgroup_source(layout: &dyn Layout) -> Option<String> {
     let traversal = layout.subgroup_wgsl()?;
-    let lanes = min_lanes.max(wgpu::MINIMUM_SUBGROUP_MIN_SIZE);
     Some(format!(
-        "{}const SUBGROUP_MIN_LANES: u32 = {lanes}u;\n{COMMON}\n{TRAVERSAL}\n{traversal}\n{TRACE}",
+        "{}\n{COMMON}\n{TRAVERSAL}\n{traversal}\n{TRACE}",
         prelude()
     ))
 }

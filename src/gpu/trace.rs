@@ -112,8 +112,7 @@ impl<'a> GpuTracer<'a> {
             &entries,
             true,
         )?;
-        let subgroup_source = (ctx.subgroups)
-            .and_then(|sizes| shaders::trace_subgroup_source(layout, sizes.min));
+        let subgroup_source = (ctx.subgroups).and_then(|_| shaders::trace_subgroup_source(layout));
         Ok(GpuTracer {
             ctx,
             bvh,
@@ -135,10 +134,13 @@ impl<'a> GpuTracer<'a> {
             return Some(format!("{adapter} has no subgroup operations"));
         };
         if self.subgroup_source.is_none() {
-            return Some(format!("the {} layout has no subgroup traversal", self.layout));
+            return Some(format!(
+                "the {} layout has no subgroup traversal",
+                self.layout
+            ));
         }
         // Full subgroups: the traversal spreads its stack over every lane.
-        if workgroup_size % sizes.max != 0 {
+        if !workgroup_size.is_multiple_of(sizes.max) {
             return Some(format!(
                 "workgroup size {workgroup_size} is not a multiple of {adapter}'s largest \
                  subgroup ({} lanes)",

@@ -63,9 +63,10 @@ pub trait Layout: Accel {
     /// Its subgroup-coherent WGSL traversal ([`TraversalMode::Subgroup`]), if it has one:
     /// like [`Layout::wgsl`], `traverse(r: Ray, any_hit: bool) -> Hit`, but called by every
     /// invocation of a subgroup together (those past the end of the rays with an invalid
-    /// ray), so it may use subgroup operations; `SUBGROUP_MIN_LANES` (the adapter's smallest
-    /// subgroup) is generated in front. Same hits as the per-ray traversal: closest hits
-    /// bit for bit, any hits judged by the oracle.
+    /// ray), so it may use subgroup operations. Subgroups are whole (the workgroup is a
+    /// multiple of the adapter's largest subgroup); a traversal that meets lanes it cannot
+    /// use leaves `traversal_done` false and the host traces those rays again. Same hits as
+    /// the per-ray traversal: closest hits bit for bit, any hits judged by the oracle.
     ///
     /// [`TraversalMode::Subgroup`]: crate::trace::TraversalMode::Subgroup
     fn subgroup_wgsl(&self) -> Option<String> {

@@ -144,9 +144,7 @@ impl<'d> Tracer<'d> {
         let want = self.options.mode;
         let why = match (want, &self.gpu) {
             (TraversalMode::PerRay, _) => None,
-            (TraversalMode::Subgroup, None) => {
-                Some("the CPU traces one ray at a time".to_string())
-            }
+            (TraversalMode::Subgroup, None) => Some("the CPU traces one ray at a time".to_string()),
             (TraversalMode::Subgroup, Some(gpu)) => {
                 gpu.subgroup_unavailable(self.options.workgroup_size)
             }
