@@ -69,7 +69,14 @@ impl TraceCmd {
             println!("device    {device}");
             println!("structure {}", self.accel.kind(self.build.layout));
             println!("layout    {}", self.build.layout);
-            println!("mode      {}", result.mode);
+            if result.mode == self.mode {
+                println!("mode      {}", result.mode);
+            } else {
+                println!(
+                    "mode      {} ({} asked for, see the warning)",
+                    result.mode, self.mode
+                );
+            }
             if !device.is_cpu() {
                 println!("bvh       in {}", spelled(self.device.bvh_memory));
                 let gpu = (result.timings.gpu_ms)

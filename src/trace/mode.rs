@@ -13,8 +13,12 @@ pub enum TraversalMode {
     PerRay,
     /// The lanes of a subgroup walk together: the subgroup visits a node when any lane's
     /// ray hits its box, loads nodes and triangles cooperatively and shares one stack;
-    /// each lane keeps its own closest hit. Needs the adapter's subgroup operations and a
-    /// layout that offers it ([`Layout::subgroup_wgsl`](crate::layout::Layout)).
+    /// each lane keeps its own closest hit (the same closest hits as per ray, bit for bit;
+    /// any hits may differ, each a real hit). Needs the adapter's subgroup operations, a
+    /// layout that offers it ([`Layout::subgroup_wgsl`](crate::layout::Layout)) and a
+    /// workgroup of whole subgroups. Statistics count, per ray, the nodes and triangles its
+    /// subgroup loaded while the ray was live (valid, and for any hit not yet answered): the
+    /// union of the lanes' traversals, each load shared by the lanes.
     Subgroup,
 }
 
