@@ -74,6 +74,19 @@ pub trait Layout: Accel {
     /// `traverse(r: Ray, any_hit: bool) -> Hit`.
     fn wgsl(&self) -> String;
 
+    /// Its subgroup-coherent WGSL traversal ([`TraversalMode::Subgroup`]), if it has one:
+    /// like [`Layout::wgsl`], `traverse(r: Ray, any_hit: bool) -> Hit`, but called by every
+    /// invocation of a subgroup together (those past the end of the rays with an invalid
+    /// ray), so it may use subgroup operations. Subgroups are whole (the workgroup is a
+    /// multiple of the adapter's largest subgroup); a traversal that meets lanes it cannot
+    /// use leaves `traversal_done` false and the host traces those rays again. Same hits as
+    /// the per-ray traversal: closest hits bit for bit, any hits judged by the oracle.
+    ///
+    /// [`TraversalMode::Subgroup`]: crate::trace::TraversalMode::Subgroup
+    fn subgroup_wgsl(&self) -> Option<String> {
+        None
+    }
+
     /// Override constants its WGSL declares, with their values for this instance.
     fn overrides(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
