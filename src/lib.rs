@@ -67,4 +67,4 @@ pub use glam::{Vec2, Vec3};
 pub use layout::{Layout, LayoutKind};
 pub use mesh::Mesh;
 pub use render::{Image, RenderOptions, RenderScene, Rendered, Renderer};
-pub use trace::{TraceResult, Tracer, TracerOptions};
+pub use trace::{TraceResult, Tracer, TracerOptions, TraversalMode};

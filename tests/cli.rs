@@ -240,6 +240,26 @@ fn bench_render_prints_both_kernels() {
     assert!(text.contains("effects: shadows textures"), "{text}");
 }
 
+/// The traversal modes a layout runs in on this adapter: per-ray, and subgroup where both
+/// the layout and the adapter have it.
+fn subgroup_modes(layout: lancer::LayoutKind) -> Vec<lancer::TraversalMode> {
+    let mesh = lancer::Mesh::from_triangles(vec![lancer::geometry::Triangle::new(
+        lancer::Vec3::ZERO,
+        lancer::Vec3::X,
+        lancer::Vec3::Y,
+    )]);
+    let tree = lancer::accel::bvh::build(&mesh, &Default::default());
+    let has = lancer::layout::flatten(layout, &tree, &mesh)
+        .subgroup_wgsl()
+        .is_some();
+    let mut modes = vec![lancer::TraversalMode::PerRay];
+    let adapter_has = lancer::gpu::GpuContext::new().is_ok_and(|c| c.subgroups.is_some());
+    if has && adapter_has {
+        modes.push(lancer::TraversalMode::Subgroup);
+    }
+    modes
+}
+
 #[test]
 fn check_compares_every_layout_on_the_gpu_with_its_twin() {
     let Some(teapot) = common::model("teapot.obj") else {
@@ -257,9 +277,11 @@ fn check_compares_every_layout_on_the_gpu_with_its_twin() {
     ]);
     let text = String::from_utf8_lossy(&out.stdout);
     for layout in lancer::LayoutKind::ALL {
-        for set in ["primary", "shadow", "bounce"] {
-            let row = format!("| {layout} | {set} |");
-            assert!(text.contains(&row), "no row {row} in:\n{text}");
+        for mode in subgroup_modes(*layout) {
+            for set in ["primary", "shadow", "bounce"] {
+                let row = format!("| {layout} | {mode} | {set} |");
+                assert!(text.contains(&row), "no row {row} in:\n{text}");
+            }
         }
     }
     assert!(text.contains("every answer agrees"), "{text}");
@@ -293,19 +315,29 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let runs = v["runs"].as_array().unwrap();
     for layout in lancer::LayoutKind::ALL {
-        assert!(
-            text.contains(&format!("| {layout} | per-ray | primary |")),
-            "{text}"
-        );
-        let mine: Vec<_> = runs
-            .iter()
-            .filter(|r| r["layout"] == layout.name())
-            .collect();
-        assert_eq!(mine.len(), 3, "primary, shadow, bounce for {layout}");
-        for r in mine {
-            // Work was counted: every ray visits the root at least.
-            assert!(r["nodes_per_ray"].as_f64().unwrap() >= 1.0, "{r}");
-            assert!(r["cpu_mrays_per_s"].as_f64().unwrap() > 0.0, "{r}");
+        for mode in subgroup_modes(*layout) {
+            assert!(
+                text.contains(&format!("| {layout} | {mode} | primary |")),
+                "{text}"
+            );
+            let mine: Vec<_> = runs
+                .iter()
+                .filter(|r| r["layout"] == layout.name() && r["mode"] == mode.name())
+                .collect();
+            assert_eq!(mine.len(), 3, "primary, shadow, bounce for {layout} {mode}");
+            for r in mine {
+                // Work was counted: every ray visits the root at least.
+                assert!(r["nodes_per_ray"].as_f64().unwrap() >= 1.0, "{r}");
+                // The CPU twin traces per ray only; subgroup rows are the GPU's.
+                let cpu = r["cpu_mrays_per_s"].as_f64();
+                match mode {
+                    lancer::TraversalMode::PerRay => assert!(cpu.unwrap() > 0.0, "{r}"),
+                    lancer::TraversalMode::Subgroup => {
+                        assert!(cpu.is_none(), "{r}");
+                        assert!(r["gpu_mrays_per_s"].as_f64().unwrap() > 0.0, "{r}");
+                    }
+                }
+            }
         }
     }
 }

@@ -1,4 +1,5 @@
-// Closest-hit / any-hit trace kernel: one ray per invocation through the layout's traverse().
+// Closest-hit / any-hit trace kernel: one ray per invocation through the layout's traverse()
+// (its per-ray traversal, or its subgroup traversal: gpu::shaders::trace_subgroup_source).
 // Variants are override constants of this one source, never copies.
 
 override ANY_HIT: bool = false;          // Query::Any: stop at the first hit
@@ -17,11 +18,18 @@ struct Params {
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.count {
+    // Every invocation calls traverse(), those past the last ray with an invalid one (a
+    // miss at once), so a subgroup traversal (Layout::subgroup_wgsl) keeps all its lanes.
+    let live = gid.x < params.count;
+    let ri = params.offset + gid.x;
+    var r = Ray(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);  // zero direction: invalid
+    if live {
+        r = rays[ri];
+    }
+    var h = traverse(r, ANY_HIT);
+    if !live {
         return;
     }
-    let ri = params.offset + gid.x;
-    var h = traverse(rays[ri], ANY_HIT);
     if !traversal_done {
         h.prim = INCOMPLETE;  // cut short by the driver: the host traces it again
     }

@@ -42,16 +42,32 @@ struct Tri {
 }
 
 fn load_tri(i: u32) -> Tri {
-    let a = tri_word(3u * i);
-    let b = tri_word(3u * i + 1u);
-    let c = tri_word(3u * i + 2u);
+    return tri_from_words(tri_word(3u * i), tri_word(3u * i + 1u), tri_word(3u * i + 2u));
+}
+
+// A Tri from its three words (for traversals that load the words some other way).
+fn tri_from_words(a: vec4<u32>, b: vec4<u32>, c: vec4<u32>) -> Tri {
     return Tri(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
                bitcast<vec3<f32>>(c.xyz), c.w);
 }
 
+// One triangle of the leaf step: a hit that beats *best by the tie rule replaces it and
+// moves *prune; returns whether it did.
+fn test_tri(tri: Tri, r: Ray, w: Watertight, best: ptr<function, Hit>,
+            prune: ptr<function, f32>) -> bool {
+    let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, (*best).t);
+    if h.ok && beats(h.t, tri.prim, (*best).t, (*best).prim)
+        && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
+        *best = Hit(h.t, tri.prim, h.u, h.v);
+        *prune = hit_prune(h);
+        return true;
+    }
+    return false;
+}
+
 // The leaf step of every layout's traversal (layout::LeafRay::test_leaf, step for step):
-// tests triangles first..first+count in order; a hit that beats *best by the tie rule
-// replaces it and moves *prune. Returns true when an any-hit query is answered.
+// tests triangles first..first+count in order with test_tri. Returns true when an any-hit
+// query is answered.
 fn test_leaf(first: u32, count: u32, r: Ray, w: Watertight, any_hit: bool,
              best: ptr<function, Hit>, prune: ptr<function, f32>) -> bool {
     let end = first + count;
@@ -60,14 +76,8 @@ fn test_leaf(first: u32, count: u32, r: Ray, w: Watertight, any_hit: bool,
         if COUNT_STATS {
             n_tris += 1u;
         }
-        let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, (*best).t);
-        if h.ok && beats(h.t, tri.prim, (*best).t, (*best).prim)
-            && !(REJECT_NEAR_HITS && maybe_behind_origin(h)) {
-            *best = Hit(h.t, tri.prim, h.u, h.v);
-            *prune = hit_prune(h);
-            if any_hit {
-                return true;
-            }
+        if test_tri(tri, r, w, best, prune) && any_hit {
+            return true;
         }
     }
     return false;

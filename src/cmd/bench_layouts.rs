@@ -12,7 +12,10 @@ use lancer::accel::bvh::build;
 use lancer::gpu::BvhMemory;
 use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
 use lancer::mesh::load_mesh;
-use lancer::{Device, DeviceChoice, RayStats, Result, Robustness, Tracer, TracerOptions};
+use lancer::{
+    Device, DeviceChoice, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
+    TraversalMode,
+};
 
 use super::check::{layout_choice, LayoutChoice};
 use super::{open_device, spelled, view_ray_sets, BuilderArgs};
@@ -49,16 +52,17 @@ pub struct BenchLayouts {
     build: BuilderArgs,
 }
 
-/// One layout × ray set.
+/// One layout × mode × ray set.
 struct Row {
     layout: LayoutKind,
-    mode: &'static str,
+    mode: TraversalMode,
     rays: String,
     count: usize,
     nodes: f64,
     tris: f64,
     bytes_loaded: f64,
-    cpu_mrays: f64,
+    /// The CPU twin traces per ray: None on subgroup rows.
+    cpu_mrays: Option<f64>,
     gpu_mrays: Option<f64>,
 }
 
@@ -73,6 +77,28 @@ struct Size {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+/// GPU Mrays/s of `tracer` (statistics off): the median of `repeat` timed runs, after an
+/// untimed one that compiles the kernel.
+fn time_gpu(
+    tracer: &mut Tracer,
+    rays: &[Ray],
+    query: Query,
+    repeat: usize,
+    bar: &ProgressBar,
+) -> Result<f64> {
+    let o = *tracer.options();
+    tracer.set_kernel(o.robustness, o.workgroup_size, false);
+    tracer.trace(&rays[..rays.len().min(1024)], query)?;
+    let mut times = Vec::new();
+    for _ in 0..repeat {
+        let t = tracer.trace(rays, query)?.timings;
+        times.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
+        bar.inc(1);
+    }
+    tracer.set_kernel(o.robustness, o.workgroup_size, o.stats);
+    Ok(rays.len() as f64 / median(times) / 1e6)
 }
 
 impl BenchLayouts {
@@ -115,6 +141,22 @@ impl BenchLayouts {
                 true => None,
                 false => Some(Tracer::with_layout(&device, layout.clone(), &options)?),
             };
+            // The subgroup rows, where the layout has the mode and the adapter can run it
+            // (else the library's warning says why).
+            let mut subgroup = match (&gpu, layout.subgroup_wgsl()) {
+                (Some(_), Some(_)) => {
+                    let o = TracerOptions {
+                        mode: TraversalMode::Subgroup,
+                        ..options
+                    };
+                    let t = Tracer::with_layout(&device, layout.clone(), &o)?;
+                    (t.mode() == TraversalMode::Subgroup).then_some(t)
+                }
+                _ => None,
+            };
+            if subgroup.is_some() {
+                bar.inc_length((sets.len() * repeat) as u64);
+            }
             for (name, query, rays) in &sets {
                 let n = rays.len() as f64;
                 let stats = twin.trace(rays, *query)?.stats.unwrap_or_default();
@@ -128,30 +170,40 @@ impl BenchLayouts {
                 twin.set_kernel(rob, options.workgroup_size, true);
                 let gpu_mrays = match gpu.as_mut() {
                     None => None,
-                    Some(g) => {
-                        g.set_kernel(rob, options.workgroup_size, false);
-                        g.trace(&rays[..rays.len().min(1024)], *query)?; // compile outside the timing
-                        let mut times = Vec::new();
-                        for _ in 0..repeat {
-                            let t = g.trace(rays, *query)?.timings;
-                            times.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
-                            bar.inc(1);
-                        }
-                        Some(n / median(times) / 1e6)
-                    }
+                    Some(g) => Some(time_gpu(g, rays, *query, repeat, &bar)?),
+                };
+                let bytes_loaded = |nodes: f64, tris: f64| {
+                    nodes * layout.node_bytes() as f64
+                        + tris * std::mem::size_of::<LeafTri>() as f64
                 };
                 rows.push(Row {
                     layout: kind,
-                    mode: "per-ray",
+                    mode: TraversalMode::PerRay,
                     rays: name.clone(),
                     count: rays.len(),
                     nodes,
                     tris,
-                    bytes_loaded: nodes * layout.node_bytes() as f64
-                        + tris * std::mem::size_of::<LeafTri>() as f64,
-                    cpu_mrays: n / median(times) / 1e6,
+                    bytes_loaded: bytes_loaded(nodes, tris),
+                    cpu_mrays: Some(n / median(times) / 1e6),
                     gpu_mrays,
                 });
+                if let Some(g) = subgroup.as_mut() {
+                    // Work per ray as the subgroup kernel counts it (the union of its lanes').
+                    let stats = g.trace(rays, *query)?.stats.unwrap_or_default();
+                    let (nodes, tris) = RayStats::means(&stats);
+                    let mrays = time_gpu(g, rays, *query, repeat, &bar)?;
+                    rows.push(Row {
+                        layout: kind,
+                        mode: TraversalMode::Subgroup,
+                        rays: name.clone(),
+                        count: rays.len(),
+                        nodes,
+                        tris,
+                        bytes_loaded: bytes_loaded(nodes, tris),
+                        cpu_mrays: None,
+                        gpu_mrays: Some(mrays),
+                    });
+                }
             }
         }
         bar.finish_and_clear();
@@ -180,11 +232,27 @@ impl BenchLayouts {
         println!();
         println!("| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |");
         println!("|---|---|---|---|---|---|---|---|---|");
+        let or_dash = |x: Option<f64>| x.map_or("–".to_string(), |g| format!("{g:.2}"));
         for r in &rows {
-            let gpu = r.gpu_mrays.map_or("–".to_string(), |g| format!("{g:.2}"));
             println!(
-                "| {} | {} | {} | {} | {:.1} | {:.1} | {:.0} | {:.2} | {gpu} |",
-                r.layout, r.mode, r.rays, r.count, r.nodes, r.tris, r.bytes_loaded, r.cpu_mrays
+                "| {} | {} | {} | {} | {:.1} | {:.1} | {:.0} | {} | {} |",
+                r.layout,
+                r.mode,
+                r.rays,
+                r.count,
+                r.nodes,
+                r.tris,
+                r.bytes_loaded,
+                or_dash(r.cpu_mrays),
+                or_dash(r.gpu_mrays)
+            );
+        }
+        if rows.iter().any(|r| r.mode == TraversalMode::Subgroup) {
+            println!();
+            println!(
+                "subgroup rows: nodes and triangles its subgroup loaded while a ray was live \
+                 (the union of the lanes' traversals; the lanes share each load); the CPU twin \
+                 traces per ray."
             );
         }
         if let Some(path) = &self.chart {
@@ -195,16 +263,21 @@ impl BenchLayouts {
                     categories.push(format!("{name} GPU"));
                 }
             }
+            // One series per layout and mode (subgroup rows have no CPU bar).
             let mut series: Vec<(String, Vec<f64>)> = Vec::new();
             for &kind in &kinds {
-                let mut values = Vec::new();
-                for r in rows.iter().filter(|r| r.layout == kind) {
-                    values.push(r.cpu_mrays);
-                    if !device.is_cpu() {
-                        values.push(r.gpu_mrays.unwrap_or(f64::NAN));
+                for &mode in TraversalMode::ALL {
+                    let mut values = Vec::new();
+                    for r in rows.iter().filter(|r| r.layout == kind && r.mode == mode) {
+                        values.push(r.cpu_mrays.unwrap_or(f64::NAN));
+                        if !device.is_cpu() {
+                            values.push(r.gpu_mrays.unwrap_or(f64::NAN));
+                        }
+                    }
+                    if !values.is_empty() {
+                        series.push((format!("{kind} ({mode})"), values));
                     }
                 }
-                series.push((format!("{kind} ({})", rows[0].mode), values));
             }
             let gpu_name = device
                 .gpu_context()
@@ -233,7 +306,7 @@ impl BenchLayouts {
                     "bytes": s.bytes, "bytes_per_triangle": s.per_tri,
                 })).collect::<Vec<_>>(),
                 "runs": rows.iter().map(|r| serde_json::json!({
-                    "layout": r.layout.name(), "mode": r.mode, "rays": r.rays, "count": r.count,
+                    "layout": r.layout.name(), "mode": r.mode.name(), "rays": r.rays, "count": r.count,
                     "nodes_per_ray": r.nodes, "triangles_per_ray": r.tris,
                     "bytes_loaded_per_ray": r.bytes_loaded,
                     "cpu_mrays_per_s": r.cpu_mrays, "gpu_mrays_per_s": r.gpu_mrays,

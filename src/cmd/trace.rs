@@ -3,7 +3,7 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::mesh::load_mesh;
 use lancer::trace::files::{read_rays, write_hits};
-use lancer::{Query, RayStats, Result, Tracer, TracerOptions};
+use lancer::{Query, RayStats, Result, Tracer, TracerOptions, TraversalMode};
 
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
@@ -30,6 +30,10 @@ pub struct TraceCmd {
     /// GPU workgroup size.
     #[arg(long, default_value_t = 64)]
     workgroup_size: u32,
+    /// GPU traversal: one ray per invocation, or the lanes of a subgroup together (falls
+    /// back to per-ray, with a warning, where the adapter or layout has no subgroup mode).
+    #[arg(long, value_enum, default_value_t = TraversalMode::PerRay)]
+    mode: TraversalMode,
     #[command(flatten)]
     build: BuildArgs,
     /// Acceleration structure (all but the BVH and the kd-tree run on the CPU).
@@ -52,6 +56,7 @@ impl TraceCmd {
             robustness: self.robustness.robustness(),
             workgroup_size: self.workgroup_size,
             stats: self.stats,
+            mode: self.mode,
         };
         let query = if self.any_hit {
             Query::Any
@@ -64,6 +69,14 @@ impl TraceCmd {
             println!("device    {device}");
             println!("structure {}", self.accel.kind(self.build.layout));
             println!("layout    {}", self.build.layout);
+            if result.mode == self.mode {
+                println!("mode      {}", result.mode);
+            } else {
+                println!(
+                    "mode      {} ({} asked for, see the warning)",
+                    result.mode, self.mode
+                );
+            }
             if !device.is_cpu() {
                 println!("bvh       in {}", spelled(self.device.bvh_memory));
                 let gpu = (result.timings.gpu_ms)

@@ -37,6 +37,18 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     /// Timestamp queries are available (GPU times in benches and `--stats`).
     pub timestamps: bool,
+    /// Subgroup operations are enabled (the adapter has `Features::SUBGROUP`), with the
+    /// adapter's range of subgroup sizes; None without them.
+    pub subgroups: Option<SubgroupSizes>,
+}
+
+/// The smallest and largest subgroup (SIMD width) the adapter may run a kernel with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SubgroupSizes {
+    /// Fewest invocations a subgroup may have (wgpu's `AdapterInfo::subgroup_min_size`).
+    pub min: u32,
+    /// Most invocations a subgroup may have (wgpu's `AdapterInfo::subgroup_max_size`).
+    pub max: u32,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found; install a Vulkan driver (on Debian/Ubuntu: \
@@ -96,15 +108,26 @@ impl GpuContext {
             software: info.device_type == wgpu::DeviceType::Cpu,
         };
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        // Subgroups only where the adapter has them: kernels that use them are optional.
+        let subgroups = adapter
+            .features()
+            .contains(wgpu::Features::SUBGROUP)
+            .then_some(SubgroupSizes {
+                min: info.subgroup_min_size,
+                max: info.subgroup_max_size,
+            });
+        let mut features = wgpu::Features::empty();
+        if timestamps {
+            features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        if subgroups.is_some() {
+            features |= wgpu::Features::SUBGROUP;
+        }
         let limits = adapter.limits();
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("lancer"),
-                required_features: if timestamps {
-                    wgpu::Features::TIMESTAMP_QUERY
-                } else {
-                    wgpu::Features::empty()
-                },
+                required_features: features,
                 required_limits: limits.clone(),
                 ..Default::default()
             })
@@ -118,6 +141,7 @@ impl GpuContext {
             adapter: report,
             limits,
             timestamps,
+            subgroups,
         })
     }
 

@@ -9,5 +9,5 @@ pub mod shaders;
 mod trace;
 
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
-pub use context::{human_bytes, AdapterReport, GpuContext};
+pub use context::{human_bytes, AdapterReport, GpuContext, SubgroupSizes};
 pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};

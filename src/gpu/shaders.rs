@@ -93,6 +93,17 @@ pub fn trace_source(layout: &dyn Layout) -> String {
     kernel_source(layout, TRACE)
 }
 
+/// The trace kernel's source for a layout's subgroup traversal
+/// ([`Layout::subgroup_wgsl`]), or None when the layout has none. The module needs the
+/// device's `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
+pub fn trace_subgroup_source(layout: &dyn Layout) -> Option<String> {
+    let traversal = layout.subgroup_wgsl()?;
+    Some(format!(
+        "{}\n{COMMON}\n{TRAVERSAL}\n{traversal}\n{TRACE}",
+        prelude()
+    ))
+}
+
 /// The render kernel's full source for a layout.
 pub fn render_source(layout: &dyn Layout) -> String {
     kernel_source(layout, RENDER)

@@ -13,10 +13,12 @@ use crate::accel::{Query, RayStats};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, Robustness};
 use crate::layout::Layout;
+use crate::trace::TraversalMode;
 
-/// The prim the trace kernel reports for a ray whose traversal the driver cut short (see
-/// `traversal_done` in shaders/lib/traversal.wgsl); [`Tracer`](crate::Tracer) traces such
-/// rays again on the CPU twin. Never a triangle index: meshes hold fewer triangles.
+/// The prim the trace kernel reports for a ray whose traversal did not end by itself: the
+/// driver cut it short (see `traversal_done` in shaders/lib/traversal.wgsl), or a subgroup
+/// traversal found lanes it cannot spread its stack over. [`Tracer`](crate::Tracer) traces
+/// such rays again on the CPU twin. Never a triangle index: meshes hold fewer triangles.
 pub const INCOMPLETE: u32 = u32::MAX - 1;
 
 /// Rays per dispatch: ~10–20 ms on lavapipe, far less on a real GPU.
@@ -35,6 +37,9 @@ pub struct TraceKernel {
     pub stats: bool,
     /// Invocations per workgroup.
     pub workgroup_size: u32,
+    /// One ray per invocation, or the lanes of a subgroup together (see
+    /// [`GpuTracer::subgroup_unavailable`]).
+    pub mode: TraversalMode,
 }
 
 impl Default for TraceKernel {
@@ -44,6 +49,7 @@ impl Default for TraceKernel {
             robustness: Robustness::default(),
             stats: false,
             workgroup_size: 64,
+            mode: TraversalMode::PerRay,
         }
     }
 }
@@ -75,8 +81,13 @@ type BatchResult = (Vec<Hit>, Option<Vec<RayStats>>, Option<f64>);
 pub struct GpuTracer<'a> {
     ctx: &'a GpuContext,
     bvh: GpuBvh,
+    layout: &'static str,
     layout_constants: Vec<(&'static str, f64)>,
-    kernel: Kernel,
+    entries: Vec<wgpu::BindGroupLayoutEntry>,
+    /// Per-ray kernel, and the subgroup kernel once asked for.
+    kernels: HashMap<TraversalMode, Kernel>,
+    /// The subgroup kernel's source, where both the adapter and the layout have one.
+    subgroup_source: Option<String>,
     pipelines: HashMap<TraceKernel, wgpu::ComputePipeline>,
 }
 
@@ -101,13 +112,59 @@ impl<'a> GpuTracer<'a> {
             &entries,
             true,
         )?;
+        let subgroup_source = (ctx.subgroups).and_then(|_| shaders::trace_subgroup_source(layout));
         Ok(GpuTracer {
             ctx,
             bvh,
+            layout: layout.name(),
             layout_constants: layout.overrides(),
-            kernel,
+            entries,
+            kernels: HashMap::from([(TraversalMode::PerRay, kernel)]),
+            subgroup_source,
             pipelines: HashMap::new(),
         })
+    }
+
+    /// Why the subgroup mode cannot run here with this workgroup size (the adapter has no
+    /// subgroup operations, the layout no subgroup traversal, or the workgroup is not a
+    /// whole number of the adapter's largest subgroups), or None when it can.
+    pub fn subgroup_unavailable(&self, workgroup_size: u32) -> Option<String> {
+        let adapter = &self.ctx.adapter.name;
+        let Some(sizes) = self.ctx.subgroups else {
+            return Some(format!("{adapter} has no subgroup operations"));
+        };
+        if self.subgroup_source.is_none() {
+            return Some(format!(
+                "the {} layout has no subgroup traversal",
+                self.layout
+            ));
+        }
+        // Full subgroups: the traversal spreads its stack over every lane.
+        if !workgroup_size.is_multiple_of(sizes.max) {
+            return Some(format!(
+                "workgroup size {workgroup_size} is not a multiple of {adapter}'s largest \
+                 subgroup ({} lanes)",
+                sizes.max
+            ));
+        }
+        None
+    }
+
+    /// The compiled kernel of a mode (compiled on first use).
+    fn kernel(&mut self, mode: TraversalMode) -> Result<&Kernel> {
+        if !self.kernels.contains_key(&mode) {
+            let Some(source) = self.subgroup_source.as_deref() else {
+                return Err(Error::Usage(format!(
+                    "no {mode} trace kernel for the {} layout on {}",
+                    self.layout, self.ctx.adapter.name
+                )));
+            };
+            let kernel = Kernel::new(self.ctx, "trace", "trace", source, &self.entries, true)?;
+            self.kernels.insert(mode, kernel);
+        }
+        self.kernels
+            .get(&mode)
+            .ok_or_else(|| Error::Gpu(format!("the {mode} trace kernel is missing")))
     }
 
     /// Where this tracer's BVH lives on the device.
@@ -128,7 +185,8 @@ impl<'a> GpuTracer<'a> {
         ];
         constants.extend(k.robustness.overrides());
         constants.extend(self.layout_constants.iter().copied());
-        let p = (self.kernel).pipeline(self.ctx, &constants, !k.robustness.checked_module)?;
+        let ctx = self.ctx;
+        let p = (self.kernel(k.mode)?).pipeline(ctx, &constants, !k.robustness.checked_module)?;
         self.pipelines.insert(k, p.clone());
         Ok(p)
     }
@@ -149,6 +207,8 @@ impl<'a> GpuTracer<'a> {
     }
 
     /// Traces rays; returns hits, per-ray statistics when `kernel.stats`, and timings.
+    /// A mode that cannot run here is refused with the reason
+    /// ([`Tracer`](crate::Tracer) falls back to per-ray instead).
     pub fn trace(
         &mut self,
         rays: &[Ray],
@@ -156,6 +216,11 @@ impl<'a> GpuTracer<'a> {
     ) -> Result<(Vec<Hit>, Option<Vec<RayStats>>, Timings)> {
         self.check_workgroup(kernel.workgroup_size)?;
         kernel.robustness.check_gpu()?;
+        if kernel.mode == TraversalMode::Subgroup {
+            if let Some(why) = self.subgroup_unavailable(kernel.workgroup_size) {
+                return Err(Error::Usage(format!("no subgroup traversal: {why}")));
+            }
+        }
         let start = Instant::now();
         let limit = self
             .ctx
@@ -183,6 +248,8 @@ impl<'a> GpuTracer<'a> {
 
     fn trace_batch(&mut self, rays: &[Ray], kernel: TraceKernel) -> Result<BatchResult> {
         let ctx = self.ctx;
+        // Compiles the mode's kernel on first use.
+        let pipeline = self.pipeline(kernel)?;
         let chunks = Chunks::new(ctx, rays.len() as u32, CHUNK, 8);
         let params = chunks.uniforms(|offset, count| TraceParams { offset, count });
         // Upload straight from the caller's slice; an empty batch binds one zero ray.
@@ -209,9 +276,10 @@ impl<'a> GpuTracer<'a> {
             buffer_binding(bindings::TRACE_STATS, &stat_buf),
             uniform_binding(bindings::TRACE_PARAMS, &param_buf, 8),
         ]);
-        let bind = self.kernel.bind(ctx, &entries)?;
+        let bind = (self.kernels.get(&kernel.mode))
+            .ok_or_else(|| Error::Gpu(format!("the {} trace kernel is missing", kernel.mode)))?
+            .bind(ctx, &entries)?;
         let timer = Timer::new(ctx, chunks.count());
-        let pipeline = self.pipeline(kernel)?;
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         chunks.record(
             &mut enc,

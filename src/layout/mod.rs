@@ -32,6 +32,7 @@
 //! say so in `validate`.
 
 mod bvh2_wide_node;
+mod bvh4;
 mod cwbvh;
 mod dfs_distance;
 mod dfs_sign;
@@ -42,6 +43,7 @@ use crate::accel::Accel;
 use crate::mesh::Mesh;
 
 pub use bvh2_wide_node::Bvh2WideNode;
+pub use bvh4::Bvh4;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
@@ -71,6 +73,19 @@ pub trait Layout: Accel {
     /// Its WGSL traversal (with its own constants generated in front): defines
     /// `traverse(r: Ray, any_hit: bool) -> Hit`.
     fn wgsl(&self) -> String;
+
+    /// Its subgroup-coherent WGSL traversal ([`TraversalMode::Subgroup`]), if it has one:
+    /// like [`Layout::wgsl`], `traverse(r: Ray, any_hit: bool) -> Hit`, but called by every
+    /// invocation of a subgroup together (those past the end of the rays with an invalid
+    /// ray), so it may use subgroup operations. Subgroups are whole (the workgroup is a
+    /// multiple of the adapter's largest subgroup); a traversal that meets lanes it cannot
+    /// use leaves `traversal_done` false and the host traces those rays again. Same hits as
+    /// the per-ray traversal: closest hits bit for bit, any hits judged by the oracle.
+    ///
+    /// [`TraversalMode::Subgroup`]: crate::trace::TraversalMode::Subgroup
+    fn subgroup_wgsl(&self) -> Option<String> {
+        None
+    }
 
     /// Override constants its WGSL declares, with their values for this instance.
     fn overrides(&self) -> Vec<(&'static str, f64)> {
@@ -116,6 +131,9 @@ pub enum LayoutKind {
     /// 80-byte compressed 8-wide nodes (Ylitie et al. 2017): children's boxes in 8 bits per
     /// plane, slots ordered by ray octant, a stack of node groups.
     Cwbvh,
+    /// 128-byte 4-wide nodes collapsed from the binary tree by SAH: the four children's boxes
+    /// tested per visit, the hit ones visited nearest first.
+    Bvh4,
 }
 
 impl LayoutKind {
@@ -125,6 +143,7 @@ impl LayoutKind {
         LayoutKind::DfsDistance,
         LayoutKind::Bvh2WideNode,
         LayoutKind::Cwbvh,
+        LayoutKind::Bvh4,
     ];
 
     /// The name the command line and benches use.
@@ -134,6 +153,7 @@ impl LayoutKind {
             LayoutKind::DfsDistance => "dfs-distance",
             LayoutKind::Bvh2WideNode => "bvh2-wide-node",
             LayoutKind::Cwbvh => "cwbvh",
+            LayoutKind::Bvh4 => "bvh4",
         }
     }
 }
@@ -151,5 +171,6 @@ pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
         LayoutKind::DfsDistance => Box::new(DfsDistance::flatten(bvh, mesh)),
         LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::flatten(bvh, mesh)),
         LayoutKind::Cwbvh => Box::new(Cwbvh::flatten(bvh, mesh)),
+        LayoutKind::Bvh4 => Box::new(Bvh4::flatten(bvh, mesh)),
     }
 }

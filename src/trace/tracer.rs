@@ -12,6 +12,7 @@ use crate::geometry::{Hit, Precision, Ray, Robustness};
 use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel, INCOMPLETE};
 use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
+use crate::trace::TraversalMode;
 
 /// How a [`Tracer`] builds, lays out and traces.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,6 +29,9 @@ pub struct TracerOptions {
     pub workgroup_size: u32,
     /// Return per-ray statistics (nodes visited, triangles tested).
     pub stats: bool,
+    /// GPU: how the kernel walks the BVH (per ray, or a subgroup together); a mode that
+    /// cannot run falls back to per-ray with a warning ([`TraceResult::mode`]).
+    pub mode: TraversalMode,
 }
 
 impl Default for TracerOptions {
@@ -39,6 +43,7 @@ impl Default for TracerOptions {
             robustness: Robustness::default(),
             workgroup_size: 64,
             stats: false,
+            mode: TraversalMode::PerRay,
         }
     }
 }
@@ -56,6 +61,9 @@ pub struct TraceResult {
     /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), traced again on the CPU twin: their hits
     /// are the CPU's, bit for bit.
     pub cpu_retraced: usize,
+    /// The traversal mode that ran: [`TracerOptions::mode`], or per-ray where that mode
+    /// cannot run (on the CPU, or see [`GpuTracer::subgroup_unavailable`]).
+    pub mode: TraversalMode,
 }
 
 /// A mesh's acceleration structure on a device, ready to trace batches of rays: a BVH
@@ -68,6 +76,8 @@ pub struct Tracer<'d> {
     layout: Option<Arc<dyn Layout>>,
     gpu: Option<GpuTracer<'d>>,
     options: TracerOptions,
+    /// The mode that runs, [`Tracer::resolve_mode`] of the options.
+    mode: TraversalMode,
 }
 
 impl<'d> Tracer<'d> {
@@ -100,12 +110,15 @@ impl<'d> Tracer<'d> {
                 ))),
             };
         }
-        Ok(Tracer {
+        let mut tracer = Tracer {
             cpu: accel::build(kind, mesh, &options.build)?.into(),
             layout: None,
             gpu: None,
             options: *options,
-        })
+            mode: TraversalMode::PerRay,
+        };
+        tracer.resolve_mode();
+        Ok(tracer)
     }
 
     /// A tracer over an already flattened layout (`options.build` and `options.layout` are
@@ -119,12 +132,47 @@ impl<'d> Tracer<'d> {
             Some(ctx) => Some(GpuTracer::new(ctx, layout.as_ref(), options.memory)?),
             None => None,
         };
-        Ok(Tracer {
+        let mut tracer = Tracer {
             cpu: layout.clone(),
             layout: Some(layout),
             gpu,
             options: *options,
-        })
+            mode: TraversalMode::PerRay,
+        };
+        tracer.resolve_mode();
+        Ok(tracer)
+    }
+
+    /// Settles the mode that runs for the options in force: the one asked for, or per-ray
+    /// (with a warning naming why) where it cannot run.
+    fn resolve_mode(&mut self) {
+        let want = self.options.mode;
+        let why = match (want, &self.gpu) {
+            (TraversalMode::PerRay, _) => None,
+            (TraversalMode::Subgroup, None) => Some("the CPU traces one ray at a time".to_string()),
+            (TraversalMode::Subgroup, Some(gpu)) => {
+                gpu.subgroup_unavailable(self.options.workgroup_size)
+            }
+        };
+        self.mode = match why {
+            None => want,
+            Some(why) => {
+                log::warn!("no {want} traversal ({why}): tracing per ray");
+                TraversalMode::PerRay
+            }
+        };
+    }
+
+    /// The traversal mode that runs (see [`TraceResult::mode`]).
+    pub fn mode(&self) -> TraversalMode {
+        self.mode
+    }
+
+    /// Changes the traversal mode (no rebuild or upload); falls back to per-ray with a
+    /// warning where the mode cannot run.
+    pub fn set_mode(&mut self, mode: TraversalMode) {
+        self.options.mode = mode;
+        self.resolve_mode();
     }
 
     /// The layout traced (on the CPU, its twin): a BVH layout, or on a GPU device another
@@ -141,9 +189,13 @@ impl<'d> Tracer<'d> {
     /// Changes the options that need no rebuild or upload: robustness, workgroup size,
     /// statistics.
     pub fn set_kernel(&mut self, robustness: Robustness, workgroup_size: u32, stats: bool) {
+        let resolve = workgroup_size != self.options.workgroup_size;
         self.options.robustness = robustness;
         self.options.workgroup_size = workgroup_size;
         self.options.stats = stats;
+        if resolve {
+            self.resolve_mode();
+        }
     }
 
     /// Traces a batch of rays: the closest hit or any hit of each.
@@ -162,6 +214,7 @@ impl<'d> Tracer<'d> {
                     robustness: o.robustness,
                     stats: o.stats,
                     workgroup_size: o.workgroup_size,
+                    mode: self.mode,
                 };
                 let (mut hits, mut stats, timings) = gpu.trace(rays, kernel)?;
                 let cut: Vec<usize> = (0..hits.len())
@@ -169,8 +222,8 @@ impl<'d> Tracer<'d> {
                     .collect();
                 if !cut.is_empty() {
                     log::warn!(
-                        "{} of {} rays needed more loop iterations than the GPU driver runs; \
-                         traced them again on the CPU",
+                        "{} of {} rays the GPU kernel could not finish (more loop iterations \
+                         than the driver runs); traced them again on the CPU",
                         cut.len(),
                         rays.len()
                     );
@@ -187,6 +240,7 @@ impl<'d> Tracer<'d> {
                     stats,
                     timings,
                     cpu_retraced: cut.len(),
+                    mode: self.mode,
                 })
             }
             None => {
@@ -200,6 +254,7 @@ impl<'d> Tracer<'d> {
                         wall_ms: start.elapsed().as_secs_f64() * 1e3,
                     },
                     cpu_retraced: 0,
+                    mode: self.mode,
                 })
             }
         }

@@ -10,7 +10,10 @@ struct DfsNode {
 }
 
 fn dfs_load_node(i: u32) -> DfsNode {
-    let a = node_word(2u * i);
-    let b = node_word(2u * i + 1u);
+    return dfs_node_from_words(node_word(2u * i), node_word(2u * i + 1u));
+}
+
+// A DfsNode from its two words (for traversals that load the words some other way).
+fn dfs_node_from_words(a: vec4<u32>, b: vec4<u32>) -> DfsNode {
     return DfsNode(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w);
 }

@@ -93,6 +93,14 @@ impl super::Layout for DfsSign {
         format!("{}{}", node_wgsl(), include_str!("dfs_sign.wgsl"))
     }
 
+    fn subgroup_wgsl(&self) -> Option<String> {
+        Some(format!(
+            "{}{}",
+            node_wgsl(),
+            include_str!("dfs_sign_subgroup.wgsl")
+        ))
+    }
+
     /// Child indices in range and forward, leaf ranges in range, depth ≤ MAX_DEPTH, every
     /// node reachable.
     fn validate(&self) -> Result<(), String> {

@@ -1,0 +1,544 @@
+//! The `bvh4` layout (src/layout/bvh4): its CPU twin against the f64 oracle (closest and any
+//! hit) and against `dfs-sign` (closest hits are independent of traversal order under the
+//! tie rule, so they must be equal bit for bit) on the bunny, random soups, rays through
+//! shared edges and vertices, axis-parallel rays on box planes and coincident triangles;
+//! a tree built to fill the traversal stack exactly (twin and GPU); and `validate`
+//! refusing corrupted trees.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::{gpu_device, load_model, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
+use lancer::camera::Camera;
+use lancer::geometry::{Aabb, Hit, Precision, Ray, Triangle};
+use lancer::layout::{flatten, Layout, LayoutKind};
+use lancer::mesh::Mesh;
+use lancer::trace::oracle::{self, judge, judge_any, Verdict};
+use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
+
+fn layout(kind: LayoutKind, mesh: &Mesh) -> Box<dyn Layout> {
+    flatten(kind, &build(mesh, &BuildOptions::default()), mesh)
+}
+
+/// Judges the twin's closest and any-hit answers for every ray and fails on a wrong one;
+/// returns the closest hits and their work.
+fn check(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>, Vec<RayStats>) {
+    let rob = Robustness::default();
+    let mut closest = None;
+    for query in [Query::Closest, Query::Any] {
+        let (hits, stats) = bvh4.trace_batch(rays, query, &rob);
+        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
+        for (r, h) in rays.iter().zip(&hits) {
+            let v = match query {
+                Query::Closest => judge(mesh, r, h),
+                Query::Any => judge_any(mesh, r, h),
+            };
+            match v {
+                Verdict::Agree => agree += 1,
+                Verdict::Tie(_) => tie += 1,
+                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
+            }
+        }
+        println!(
+            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
+            wrong.len()
+        );
+        assert!(
+            wrong.is_empty(),
+            "{name} {query:?}: {} wrong, first: {}",
+            wrong.len(),
+            wrong[0]
+        );
+        if query == Query::Closest {
+            closest = Some((hits, stats));
+        }
+    }
+    closest.unwrap_or_default()
+}
+
+/// The twin's closest hits equal dfs-sign's twin's, bit for bit.
+fn same_as_dfs_sign(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) {
+    let rob = Robustness::default();
+    let dfs = layout(LayoutKind::DfsSign, mesh);
+    let (a, _) = bvh4.trace_batch(rays, Query::Closest, &rob);
+    let (b, _) = dfs.trace_batch(rays, Query::Closest, &rob);
+    let differ: Vec<_> = (rays.iter().zip(a.iter().zip(&b)))
+        .filter(|(_, (x, y))| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y))
+        .collect();
+    assert!(
+        differ.is_empty(),
+        "{name}: {} of {} rays differ from dfs-sign; first: {:?}",
+        differ.len(),
+        rays.len(),
+        differ[0]
+    );
+}
+
+#[test]
+fn random_soups() {
+    for seed in 0..3 {
+        let mut rng = Rng::new(300 + seed);
+        let mesh = soup(&mut rng, 2000, 0.2);
+        let rays = random_rays(&mut rng, 3000, &mesh);
+        let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+        bvh4.validate().unwrap();
+        let name = format!("soup {seed}");
+        let (hits, _) = check(&name, &mesh, bvh4.as_ref(), &rays);
+        assert!(hits.iter().filter(|h| h.is_hit()).count() > 1500);
+        same_as_dfs_sign(&name, &mesh, bvh4.as_ref(), &rays);
+    }
+}
+
+#[test]
+fn bunny_random_and_primary_rays() {
+    // The oracle tests every triangle per ray: few rays judged, many compared.
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let dfs = layout(LayoutKind::DfsSign, &mesh);
+    bvh4.validate().unwrap();
+    assert_eq!(bvh4.triangles(), mesh.len());
+    let tris = bvh4.triangles() as f64;
+    for l in [&bvh4, &dfs] {
+        let nodes = l.arrays().nodes.len();
+        println!(
+            "bunny {}: {} nodes, {:.1} node bytes + 48 triangle bytes per triangle",
+            l.name(),
+            nodes / l.node_bytes(),
+            nodes as f64 / tris
+        );
+    }
+    let mut rng = Rng::new(7);
+    let rays = random_rays(&mut rng, 3000, &mesh);
+    check("bunny random", &mesh, bvh4.as_ref(), &rays[..150]);
+    same_as_dfs_sign("bunny random", &mesh, bvh4.as_ref(), &rays);
+    let cam = Camera::default_view(&mesh.bounds(), 24, 24);
+    let (hits, _) = check("bunny primary", &mesh, bvh4.as_ref(), &cam.primary_rays());
+    assert!(hits.iter().filter(|h| h.is_hit()).count() > 100);
+    let primary = Camera::default_view(&mesh.bounds(), 96, 96).primary_rays();
+    same_as_dfs_sign("bunny primary", &mesh, bvh4.as_ref(), &primary);
+    let rob = Robustness::default();
+    for (what, rays) in [("primary 96²", &primary), ("random", &rays)] {
+        let (_, a) = bvh4.trace_batch(rays, Query::Closest, &rob);
+        let (_, b) = dfs.trace_batch(rays, Query::Closest, &rob);
+        let ((an, at), (bn, bt)) = (RayStats::means(&a), RayStats::means(&b));
+        println!(
+            "bunny {what}: bvh4 {an:.1} nodes, {at:.1} triangles per ray; dfs-sign {bn:.1} \
+             nodes, {bt:.1} triangles"
+        );
+    }
+}
+
+#[test]
+fn f64_precision_gives_the_oracles_answers() {
+    // The shared leaf step's f64 test behind bvh4's boxes: every closest hit is the
+    // oracle's own (t rounded to f32, and its triangle), the misses its misses.
+    let mut rng = Rng::new(51);
+    let mesh = soup(&mut rng, 1500, 0.2);
+    let rays = random_rays(&mut rng, 2000, &mesh);
+    let f64 = Robustness {
+        precision: Precision::F64,
+        ..Robustness::default()
+    };
+    let (hits, _) = layout(LayoutKind::Bvh4, &mesh).trace_batch(&rays, Query::Closest, &f64);
+    let unlike: Vec<_> = (rays.iter().zip(&hits))
+        .filter(|(r, h)| match oracle::closest(&mesh, r) {
+            None => h.is_hit(),
+            Some((t, p)) => h.prim != p || h.t != t as f32,
+        })
+        .collect();
+    let n_hits = hits.iter().filter(|h| h.is_hit()).count();
+    assert!(n_hits > rays.len() / 4, "{n_hits} hits: too few to compare");
+    assert!(
+        unlike.is_empty(),
+        "{} unlike the oracle, first {:?}",
+        unlike.len(),
+        unlike[0]
+    );
+}
+
+/// An n×n grid of quads (two triangles each) in the plane z = 0, with irregular f32
+/// coordinates; and points on its shared edges and vertices.
+fn grid(n: usize, step: f32) -> (Vec<Triangle>, Vec<Vec3>) {
+    let p = |i: usize, j: usize| Vec3::new(i as f32 * step, j as f32 * step * 1.1, 0.0);
+    let mut tris = Vec::new();
+    let mut targets = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            tris.push(Triangle::new(a, b, c));
+            tris.push(Triangle::new(a, c, d));
+            if i > 0 && j > 0 {
+                targets.extend([a, 0.5 * (a + c), 0.5 * (a + b), 0.5 * (a + d)]);
+            }
+        }
+    }
+    (tris, targets)
+}
+
+#[test]
+fn rays_at_shared_edges_and_vertices_never_leak() {
+    let (tris, targets) = grid(24, 0.37);
+    let mesh = Mesh::from_triangles(tris);
+    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let mut rng = Rng::new(11);
+    let c = mesh.bounds().center();
+    let mut rays = Vec::new();
+    for &t in &targets {
+        let mut o = c + rng.dir() * 20.0;
+        o.z = if rng.f32() < 0.5 { -1.0 } else { 1.0 } * (o.z.abs() + 1.0);
+        rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
+        rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
+    }
+    for query in [Query::Closest, Query::Any] {
+        let (hits, _) = bvh4.trace_batch(&rays, query, &Robustness::default());
+        let leaks = hits.iter().filter(|h| !h.is_hit()).count();
+        assert_eq!(
+            leaks, 0,
+            "{query:?}: rays through shared edges and vertices leaked"
+        );
+    }
+    check("grid edges", &mesh, bvh4.as_ref(), &rays);
+    same_as_dfs_sign("grid edges", &mesh, bvh4.as_ref(), &rays);
+}
+
+#[test]
+fn axis_parallel_rays_on_box_planes() {
+    // Node boxes are unions of triangle boxes: origins on vertex coordinates lie on box
+    // planes. Directions with zero (and −0.0, and tiny) components take the slab test's
+    // parallel-axis rule.
+    let mut rng = Rng::new(21);
+    let mut tris = soup(&mut rng, 1500, 0.25).triangles;
+    tris.extend(grid(8, 0.25).0);
+    let mesh = Mesh::from_triangles(tris);
+    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let b = mesh.bounds();
+    let mut rays = Vec::new();
+    for i in 0..4000 {
+        let v = mesh.triangles[rng.u64() as usize % mesh.len()].v[i % 3];
+        let axis = (i / 3) % 3;
+        let mut o = b.lo + (b.hi - b.lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
+        o += rng.vec3(-0.3, 0.3) * (i % 2) as f32;
+        o[axis] = v[axis];
+        let mut d = Vec3::ZERO;
+        match i % 4 {
+            0 => d[(axis + 1 + (i / 4) % 2) % 3] = if rng.f32() < 0.5 { 1.0 } else { -1.0 },
+            1 => d[axis] = if rng.f32() < 0.5 { 2.0 } else { -0.5 },
+            2 => {
+                d = rng.dir();
+                d[axis] = [0.0, -0.0, 1e-31, -3e-30][(i / 4) % 4];
+            }
+            _ => {
+                let w = mesh.triangles[rng.u64() as usize % mesh.len()].v[0];
+                let a2 = (axis + 1) % 3;
+                o[a2] = w[a2];
+                d[rng.u64() as usize % 3] = 1.0;
+            }
+        }
+        rays.push(Ray::new(o, d, 0.0, 3.4e38));
+    }
+    check("axis-parallel", &mesh, bvh4.as_ref(), &rays);
+    same_as_dfs_sign("axis-parallel", &mesh, bvh4.as_ref(), &rays);
+}
+
+#[test]
+fn coincident_triangles_keep_the_tie_rule() {
+    // Copies of one triangle at several depths, indices interleaved, among random
+    // triangles: the answer is the smallest index at the nearest t, whichever child the
+    // traversal visits first.
+    let mut rng = Rng::new(31);
+    let mut tris = soup(&mut rng, 400, 0.1).triangles;
+    let shape = [
+        Vec3::new(-0.9, -0.9, 0.0),
+        Vec3::new(0.9, -0.7, 0.0),
+        Vec3::new(-0.6, 0.9, 0.0),
+    ];
+    for copy in 0..6 {
+        for (s, z) in [0.3f32, -0.2, 0.05, 0.7].into_iter().enumerate() {
+            if copy < 3 + s {
+                let dz = Vec3::new(0.0, 0.0, z);
+                let at = rng.u64() as usize % tris.len();
+                tris.insert(
+                    at,
+                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
+                );
+            }
+        }
+    }
+    let mesh = Mesh::from_triangles(tris);
+    // Small leaves: the copies spread over many leaves and nodes.
+    let opts = BuildOptions {
+        max_leaf: 2,
+        ..BuildOptions::default()
+    };
+    let bvh4 = flatten(LayoutKind::Bvh4, &build(&mesh, &opts), &mesh);
+    let mut rays = Vec::new();
+    for i in 0..2000 {
+        let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
+        let o = if i % 3 == 0 {
+            Vec3::new(target.x, target.y, 2.0)
+        } else {
+            Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
+        };
+        rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
+    }
+    let (hits, _) = check("coincident", &mesh, bvh4.as_ref(), &rays);
+    let mut exact = 0;
+    for (r, h) in rays.iter().zip(&hits) {
+        let Some((_, prim)) = oracle::closest(&mesh, r) else {
+            continue;
+        };
+        if h.prim == prim {
+            exact += 1;
+            continue;
+        }
+        let v = judge(&mesh, r, h);
+        assert!(
+            matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
+            "{r:?}: bvh4 reports {} but the oracle's smallest index at the nearest t is \
+             {prim} ({v:?})",
+            h.prim
+        );
+    }
+    println!(
+        "coincident: {exact} of {} rays exactly the oracle's index",
+        rays.len()
+    );
+    assert!(exact > 1800);
+    same_as_dfs_sign("coincident", &mesh, bvh4.as_ref(), &rays);
+}
+
+#[test]
+fn invalid_and_extreme_rays_neither_hang_nor_panic() {
+    let mut rng = Rng::new(41);
+    let mesh = soup(&mut rng, 500, 0.3);
+    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let rob = Robustness::default();
+    let invalid = [
+        Ray::new(Vec3::NAN, Vec3::X, 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0), 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::splat(1e-21), 0.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 2.0, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::NAN),
+        Ray::new(Vec3::splat(1e13), -Vec3::ONE, 0.0, 1e30),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 1.0),
+    ];
+    for r in &invalid {
+        let mut s = RayStats::default();
+        let h = bvh4.intersect(r, Query::Closest, &rob, &mut s);
+        assert!(!h.is_hit(), "{r:?}");
+        assert_eq!(s, RayStats::default(), "{r:?}");
+    }
+    let mut rays = Vec::new();
+    for i in 0..3000 {
+        let o = match i % 3 {
+            0 => rng.vec3(-1e12, 1e12),
+            1 => rng.vec3(-2.0, 2.0),
+            _ => rng.vec3(-1.0, 1.0) * 1e-30,
+        };
+        // Short directions, the largest component just above limits::MIN_DIR (the shortest
+        // valid one: tests/hard_cases.rs checks that limit in every layout).
+        let mut d = match i % 4 {
+            0 => rng.dir() * 1e-19,
+            1 => rng.dir() * 1e30,
+            _ => rng.dir(),
+        };
+        if i % 7 == 0 {
+            d.x = 0.0;
+        }
+        if i % 11 == 0 {
+            d.y = -1e-35;
+        }
+        let (tmin, tmax) = match i % 5 {
+            0 => (-3.4e38, 3.4e38),
+            1 => (0.0, f32::MAX),
+            _ => (0.0, 3.4e38),
+        };
+        rays.push(Ray::new(o, d, tmin, tmax));
+    }
+    check("extreme rays", &mesh, bvh4.as_ref(), &rays);
+    same_as_dfs_sign("extreme rays", &mesh, bvh4.as_ref(), &rays);
+}
+
+#[test]
+fn empty_mesh_and_single_triangle() {
+    let empty = layout(LayoutKind::Bvh4, &Mesh::default());
+    empty.validate().unwrap();
+    assert!(empty.bounds().is_empty());
+    let r = Ray::new(Vec3::ZERO, Vec3::X, 0.0, 1.0);
+    let mut s = RayStats::default();
+    let rob = Robustness::default();
+    assert!(!empty.intersect(&r, Query::Closest, &rob, &mut s).is_hit());
+    let one = Mesh::from_triangles(vec![Triangle::new(
+        Vec3::new(1.0, -1.0, -1.0),
+        Vec3::new(1.0, 1.0, -1.0),
+        Vec3::new(1.0, 0.0, 1.0),
+    )]);
+    let one = layout(LayoutKind::Bvh4, &one);
+    one.validate().unwrap();
+    let h = one.intersect(&r, Query::Closest, &rob, &mut s);
+    assert_eq!((h.prim, h.t), (0, 1.0));
+}
+
+fn inner(a: Node, b: Node) -> Node {
+    Node::Inner {
+        bbox: a.bbox().union(*b.bbox()),
+        axis: 0,
+        nodes: 1 + a.nodes() + b.nodes(),
+        children: Box::new([a, b]),
+    }
+}
+
+fn leaf(tris: &mut Vec<Triangle>, t: Triangle) -> Node {
+    tris.push(t);
+    Node::Leaf {
+        bbox: t.bbox(),
+        start: tris.len() as u32 - 1,
+        count: 1,
+    }
+}
+
+/// A binary tree with leaves down to `depth`: a chain of inner nodes, each with the next
+/// chain node and a sibling subtree of two or three leaves, all of whose boxes hold the
+/// line y = z = 0.001, x ≥ 0; a ray along +x enters the chain's boxes first (at x = 0) and
+/// the siblings' later (they lie at growing x). Every 4-wide node on the chain then pushes
+/// three entries. The chain's boxes are thin in x, so each sibling subtree is larger than
+/// the chain node beside it: the greedy SAH collapse alone would keep one chain node per
+/// 4-wide node; the depth rule pulls up two chain levels per 4-wide node.
+fn stack_filler(depth: usize) -> (Mesh, Bvh) {
+    let mut tris = Vec::new();
+    let (mut x, mut y) = (1.0f32, 100.0f32);
+    let first = leaf(
+        &mut tris,
+        Triangle::new(Vec3::ZERO, Vec3::new(x, y, 0.0), Vec3::new(0.0, 0.0, y)),
+    );
+    // n leaves of one triangle each, whose boxes are the slab x ∈ [x, 1.1x], y, z ∈ [0, 1.1y].
+    let mut slab = |tris: &mut Vec<Triangle>, n: usize| {
+        let (x0, x1, y1) = (x, 1.1 * x, 1.1 * y);
+        (x, y) = (x1, y1);
+        let v = |x, y, z| Vec3::new(x, y, z);
+        let shapes = [
+            [v(x0, 0.0, 0.0), v(x1, y1, 0.0), v(x0, 0.0, y1)],
+            [v(x1, 0.0, 0.0), v(x0, y1, 0.0), v(x1, 0.0, y1)],
+            [v(x0, 0.0, 0.0), v(x1, 0.0, y1), v(x0, y1, 0.0)],
+        ];
+        (shapes[..n].iter())
+            .map(|&[a, b, c]| leaf(tris, Triangle::new(a, b, c)))
+            .collect::<Vec<_>>()
+    };
+    // The innermost chain node and its sibling have two leaves each, at `depth`.
+    let [a] = slab(&mut tris, 1).try_into().unwrap();
+    let mut node = inner(first, a);
+    let [a, b] = slab(&mut tris, 2).try_into().unwrap();
+    node = inner(node, inner(a, b));
+    for _ in 0..depth - 2 {
+        let [a, b, c] = slab(&mut tris, 3).try_into().unwrap();
+        node = inner(node, inner(inner(a, b), c));
+    }
+    let order = (0..tris.len() as u32).collect();
+    (Mesh::from_triangles(tris), Bvh { root: node, order })
+}
+
+#[test]
+fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu() {
+    // A binary chain as deep as the builders allow: 32 four-wide levels of three pushes,
+    // which fill the 96-entry stack exactly (validate accepts); one level more would
+    // overflow it (validate refuses).
+    let (mesh, bvh) = stack_filler(MAX_DEPTH);
+    let bvh4: Arc<dyn Layout> = flatten(LayoutKind::Bvh4, &bvh, &mesh).into();
+    bvh4.validate().unwrap();
+    let mut rays = Vec::new();
+    for i in 0..64 {
+        let o = Vec3::new(-0.5 - i as f32, 0.001, 0.001 + 0.01 * i as f32);
+        rays.push(Ray::new(o, Vec3::X, 0.0, 3.4e38));
+        rays.push(Ray::new(o, Vec3::new(1.0, 1e-6, -0.0), 0.0, 3.4e38));
+        rays.push(Ray::new(o, Vec3::new(1.0, 1e-7, 1e-6), 0.0, 3.4e38));
+    }
+    let (hits, stats) = check("stack filler", &mesh, bvh4.as_ref(), &rays);
+    for ((r, h), s) in rays.iter().zip(&hits).zip(&stats) {
+        // The chain is walked to its end before any triangle is tested, the innermost
+        // triangle hit first, and then every pushed entry is cut.
+        assert_eq!(h.prim, 0, "{r:?}");
+        assert_eq!((s.nodes, s.tris), (MAX_DEPTH as u32 / 2, 1), "{r:?}");
+    }
+    same_as_dfs_sign("stack filler", &mesh, bvh4.as_ref(), &rays);
+    // The same walk on the GPU, through a stack sized from the same constant.
+    for query in [Query::Closest, Query::Any] {
+        let options = TracerOptions {
+            stats: true,
+            ..TracerOptions::default()
+        };
+        let g = Tracer::with_layout(gpu_device(), bvh4.clone(), &options)
+            .unwrap()
+            .trace(&rays, query)
+            .unwrap();
+        let c = Tracer::with_layout(&Device::cpu(), bvh4.clone(), &options)
+            .unwrap()
+            .trace(&rays, query)
+            .unwrap();
+        assert_eq!(g.cpu_retraced, 0);
+        assert_eq!(g.hits, c.hits, "{query:?}");
+        assert_eq!(g.stats, c.stats, "{query:?}");
+    }
+    let (mesh, bvh) = stack_filler(MAX_DEPTH + 1);
+    let e = flatten(LayoutKind::Bvh4, &bvh, &mesh)
+        .validate()
+        .unwrap_err();
+    let (depth, entries) = (MAX_DEPTH / 2, 3 * MAX_DEPTH / 2);
+    assert!(
+        e.contains(&format!("depth {depth}")) && e.contains(&format!("{entries} stack entries")),
+        "{e}"
+    );
+}
+
+#[test]
+fn validate_refuses_corrupted_trees() {
+    let (mesh, bvh) = stack_filler(3);
+    let n = mesh.len() as u32;
+    let refuse = |root: Node, order: Vec<u32>, want: &str| {
+        let e = flatten(LayoutKind::Bvh4, &Bvh { root, order }, &mesh)
+            .validate()
+            .unwrap_err();
+        assert!(e.contains(want), "{e}");
+    };
+    let tri = mesh.triangles[0];
+    let at = |start: u32, count: u32, bbox: Aabb| Node::Leaf { bbox, start, count };
+    let good = bvh.root.clone();
+    // A leaf past the end of the triangles.
+    refuse(
+        inner(good.clone(), at(n, 2, tri.bbox())),
+        (0..n).collect(),
+        &format!("refers to triangles {n}..{}", n + 2),
+    );
+    // A triangle outside its leaf's box.
+    let far = Aabb {
+        lo: Vec3::splat(5.0),
+        hi: Vec3::splat(6.0),
+    };
+    refuse(at(0, n, far), (0..n).collect(), "lies outside the box");
+    // A non-finite box.
+    let nan = Aabb {
+        lo: Vec3::NAN,
+        hi: Vec3::ONE,
+    };
+    refuse(at(0, n, nan), (0..n).collect(), "non-finite box");
+    // Triangles in two leaves, and in none.
+    let all = mesh.bounds();
+    refuse(
+        inner(at(0, 2, all), at(1, 2, all)),
+        (0..n).collect(),
+        "in two leaves",
+    );
+    refuse(
+        inner(at(0, 1, all), at(2, n - 2, all)),
+        (0..n).collect(),
+        "triangles 1..2 are in no leaf",
+    );
+    // And the good tree passes.
+    flatten(LayoutKind::Bvh4, &bvh, &mesh).validate().unwrap();
+}
