@@ -275,7 +275,7 @@ impl BenchStructures {
         let repeat = self.repeat as usize;
         let gpu_kinds = match device.is_cpu() {
             true => 0,
-            false => kinds.len(), // an upper bound: the bar grows no further for the others
+            false => kinds.len(), // those without a GPU kernel step over their share
         };
         let runs_total = kinds.len() * (1 + sets.len() * repeat) + gpu_kinds * sets.len() * repeat;
         let bar = ProgressBar::new(runs_total as u64);
