@@ -12,6 +12,7 @@ mod bench_common;
 mod common;
 
 use accel_check::{brute_force, check, quad_plane, same_as_bvh};
+use common::hard::{chain_centres, corner_cascade};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bih::{Bih, BihNode, BihOptions, BIH_LEAF_TAG, MAX_BIH_DEPTH};
@@ -458,55 +459,6 @@ fn empty_mesh_and_single_triangle() {
     validate(&one, &tree, 4);
     let h = tree.intersect(&r, Query::Closest, &Robustness::default(), &mut s);
     assert_eq!((h.prim, h.t), (0, 1.0));
-}
-
-/// A triangle of size `0.1·a` centred near `c`.
-fn small_at(c: Vec3, a: f32) -> Triangle {
-    let s = 0.1 * a;
-    Triangle::new(
-        c - Vec3::new(s, s, 0.0),
-        c + Vec3::new(s, 0.0, 0.3 * s),
-        c + Vec3::new(0.0, s, -0.3 * s),
-    )
-}
-
-/// The chain: per scale a = 2⁰ … 2⁻³³, three small triangles in [0, a]³, one beyond a/2 on
-/// x, one on y, one on z, and nothing else there: the global heuristic halves its candidate
-/// box on x, y, then z and splits off one triangle per halving, about 100 levels deep.
-/// Their centres (for rays to aim at).
-fn chain_centres() -> Vec<(Vec3, f32)> {
-    let mut v = Vec::new();
-    for m in 0..34 {
-        let a = 0.5f32.powi(m);
-        for k in 0..3 {
-            let mut c = Vec3::splat(0.2 * a);
-            c[k] = 0.75 * a;
-            v.push((c, a));
-        }
-    }
-    v
-}
-
-/// Clutter in [0, 1]³ (as many triangles again shrinking geometrically towards the origin,
-/// to about 1e-7, as in tests/kdtree.rs) and the chain. The scene box starts at the origin,
-/// so the global grid's lines close in on the chain.
-fn corner_cascade(rng: &mut Rng) -> Mesh {
-    let mut tris: Vec<Triangle> = soup(rng, 300, 0.05)
-        .triangles
-        .into_iter()
-        .map(|t| Triangle {
-            v: t.v.map(|p| p.abs()),
-        })
-        .collect();
-    for i in 0..300 {
-        let s = 0.85f32.powi(i / 3);
-        tris.push(small_at(
-            Vec3::splat(s) * (Vec3::ONE + rng.vec3(0.0, 0.2)),
-            3.0 * s,
-        ));
-    }
-    tris.extend(chain_centres().into_iter().map(|(c, a)| small_at(c, a)));
-    Mesh::from_triangles(tris)
 }
 
 #[test]

@@ -427,3 +427,108 @@ fn compare_tells_equal_from_different_images_and_hit_files() {
     assert_eq!(judged.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&judged.stdout).contains("1 disagree"));
 }
+
+/// scenes/teapot-in-stadium.toml, when ../shared/models (its teapot) is present.
+fn teapot_in_stadium() -> Option<PathBuf> {
+    common::model("teapot.obj")?;
+    Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/teapot-in-stadium.toml"))
+}
+
+#[test]
+fn the_teapot_in_a_stadium_is_a_small_dense_mesh_in_a_large_sparse_one() {
+    let (Some(scene), Some(teapot)) = (teapot_in_stadium(), common::model("teapot.obj")) else {
+        return;
+    };
+    let mesh = lancer::RenderScene::from_file(&scene).unwrap().mesh;
+    let teapot = lancer::mesh::load_mesh(&teapot).unwrap();
+    // The teapot's triangles first (file order), then the stadium's.
+    let (dense, sparse) = mesh.triangles.split_at(teapot.len());
+    assert!(
+        sparse.len() >= 100 && sparse.len() * 20 < dense.len(),
+        "{}",
+        sparse.len()
+    );
+    let area =
+        |t: &lancer::geometry::Triangle| 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
+    let largest_dense = dense.iter().map(area).fold(0.0, f32::max);
+    let smallest_sparse = sparse.iter().map(area).fold(f32::MAX, f32::min);
+    assert!(
+        smallest_sparse > 100.0 * largest_dense,
+        "{smallest_sparse} vs {largest_dense}"
+    );
+    // The teapot stands inside the bowl, which is ~100 times its size.
+    let (b, t) = (mesh.bounds(), teapot.bounds());
+    assert!(b.lo.cmple(t.lo).all() && t.hi.cmple(b.hi).all());
+    assert!(b.extent().length() > 50.0 * t.extent().length());
+}
+
+#[test]
+fn bench_structures_runs_every_structure_on_the_teapot_in_a_stadium() {
+    let Some(scene) = teapot_in_stadium() else {
+        return;
+    };
+    let dir = Scratch::new();
+    let (json, chart) = (dir.path("structures.json"), dir.path("structures.png"));
+    let out = lancer_ok(&[
+        "bench",
+        "structures",
+        s(&scene),
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--random",
+        "100",
+        "--repeat",
+        "1",
+        "--device",
+        "gpu",
+        "--json",
+        s(&json),
+        "--chart",
+        s(&chart),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let mesh = lancer::RenderScene::from_file(&scene).unwrap().mesh;
+    assert_eq!(v["triangles"], mesh.included().len());
+    assert!(v["adapter"].as_str().unwrap() != "none (CPU only)", "{v}");
+    let (sizes, runs) = (
+        v["structures"].as_array().unwrap(),
+        v["runs"].as_array().unwrap(),
+    );
+    assert_eq!(sizes.len(), lancer::AccelKind::ALL.len());
+    for kind in lancer::AccelKind::ALL {
+        let name = kind.name();
+        let size = sizes.iter().find(|s| s["structure"] == name).unwrap();
+        assert!(size["bytes"].as_u64().unwrap() > 0, "{size}");
+        assert!(size["build_ms"].as_f64().unwrap() >= 0.0, "{size}");
+        let gpu = lancer::accel::build_gpu(*kind, &mesh, &Default::default())
+            .unwrap()
+            .is_some();
+        assert_eq!(size["gpu"], gpu, "{size}");
+        let mine: Vec<_> = runs.iter().filter(|r| r["structure"] == name).collect();
+        let sets: Vec<_> = mine.iter().map(|r| r["rays"].as_str().unwrap()).collect();
+        assert_eq!(sets, ["primary", "shadow", "random"], "{name}");
+        for r in mine {
+            assert!(
+                text.contains(&format!(
+                    "| {name} | {} | {} |",
+                    r["rays"].as_str().unwrap(),
+                    r["count"]
+                )),
+                "{text}"
+            );
+            assert!(r["cpu_mrays_per_s"].as_f64().unwrap() > 0.0, "{r}");
+            // A GPU rate exactly for the structures with a GPU kernel.
+            assert_eq!(r["gpu_mrays_per_s"].as_f64().is_some(), gpu, "{r}");
+            if r["rays"] == "random" {
+                // Origins inside the bounds: every ray enters the structure.
+                assert_eq!(r["count"], 100);
+                assert!(r["nodes_per_ray"].as_f64().unwrap() >= 1.0, "{r}");
+            }
+        }
+    }
+    let png = std::fs::read(&chart).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "the chart is a PNG");
+}

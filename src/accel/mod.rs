@@ -2,7 +2,8 @@
 //! form of every structure) and [`build_gpu`] (the GPU form of those that have one). The BVH
 //! is built by [`bvh`] and traversed through a flattened [`Layout`], whose CPU twin is the
 //! BVH's `Accel`: the CPU walks the same arrays, in the same order, as the GPU kernel. The
-//! kd-tree is its own [`Layout`] (its CPU traversal is the twin of its WGSL).
+//! kd-tree and the BIH are their own [`Layout`]s (their CPU traversals are the twins of their
+//! WGSL).
 
 pub mod bih;
 pub mod bvh;
@@ -150,10 +151,10 @@ pub fn build_gpu(
             Some(layout::flatten(layout, &tree, mesh).into())
         }
         AccelKind::KdTree => Some(Arc::new(kdtree::KdTree::build(mesh, &Default::default())?)),
+        AccelKind::Bih => Some(Arc::new(bih::Bih::build(mesh, &Default::default())?)),
         AccelKind::UniformGrid
         | AccelKind::TwoLevelGrid
         | AccelKind::HashedGrid
-        | AccelKind::Bih
         | AccelKind::Octree => None,
     })
 }

@@ -10,31 +10,35 @@
 
 use crate::geometry::{prune_bound, safe_recip, Aabb, Ray, PARALLEL_INV};
 
+/// The WGSL twin of this file (`plane_ray.wgsl`), placed in front of the kd-tree's and the
+/// BIH's traversals.
+pub(crate) const PLANE_RAY_WGSL: &str = include_str!("plane_ray.wgsl");
+
 /// The lower end of an interval that starts at the computed distance `t`, widened by
 /// [`TIE_SLACK`](crate::geometry::TIE_SLACK) (2⁻²⁰ ≈ 9.5e-7) of its magnitude. Every distance is one computed plane
 /// distance, within γ(3) ≈ 3.6e-7 of its exact value; comparing a widened end with another
 /// computed distance covers both errors (2γ(3)/(1 − γ(3)) < 2⁻²⁰), whatever the signs.
-/// Never past −f32::MAX (the mirror of [`prune_bound`], which WGSL has too). WGSL `kd_widen_lo`.
+/// Never past −f32::MAX (the mirror of [`prune_bound`], which WGSL has too). WGSL `widen_lo` (plane_ray.wgsl).
 #[inline(always)]
 pub(crate) fn widen_lo(t: f32) -> f32 {
     -prune_bound(-t)
 }
 
 /// The upper end of an interval that ends at the computed distance `t`, widened likewise:
-/// [`prune_bound`], never past f32::MAX. WGSL `kd_widen_hi`.
+/// [`prune_bound`], never past f32::MAX. WGSL `widen_hi`.
 #[inline(always)]
 pub(crate) fn widen_hi(t: f32) -> f32 {
     prune_bound(t)
 }
 
-/// A plane distance, kept finite. WGSL `kd_finite`.
+/// A plane distance, kept finite. WGSL `finite`.
 #[inline(always)]
 pub(crate) fn finite(t: f32) -> f32 {
     t.clamp(-f32::MAX, f32::MAX)
 }
 
 /// (2^k, 2^−k) for the k that brings `m` (> 0, finite) into [1, 2), k within ±126.
-/// WGSL `kd_pow2`.
+/// WGSL `pow2`.
 #[inline(always)]
 pub(crate) fn pow2_scales(m: f32) -> (f32, f32) {
     let e = ((m.to_bits() >> 23) & 0xff) as i32 - 127;

@@ -54,7 +54,7 @@ struct BenchTrace {
     repeat: u64,
     #[command(flatten)]
     build: BuildArgs,
-    /// Acceleration structure: one with a GPU kernel (the BVH in `--layout`, the kd-tree).
+    /// Acceleration structure: one with a GPU kernel (the BVH in `--layout`, the kd-tree, the BIH).
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
 }

@@ -25,7 +25,7 @@ pub struct HeatmapCmd {
     device: DeviceArgs,
     #[command(flatten)]
     build: BuildArgs,
-    /// Acceleration structure (all but the BVH and the kd-tree run on the CPU); the map
+    /// Acceleration structure (all but the BVH, the kd-tree and the BIH run on the CPU); the map
     /// counts its nodes or cells visited.
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,

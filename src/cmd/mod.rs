@@ -122,7 +122,7 @@ pub enum AccelArg {
     Grid2,
     /// Hashed grid (CPU).
     Hashgrid,
-    /// Bounding interval hierarchy (CPU).
+    /// Bounding interval hierarchy (CPU and GPU).
     Bih,
     /// Octree (CPU).
     Octree,
@@ -142,11 +142,11 @@ impl AccelArg {
         }
     }
 
-    /// Opens the device for this structure: only the BVH and the kd-tree have GPU kernels,
-    /// so `auto` runs the others on the CPU (`gpu` is left to the library, which refuses it
-    /// by name).
+    /// Opens the device for this structure: only the BVH, the kd-tree and the BIH have GPU
+    /// kernels, so `auto` runs the others on the CPU (`gpu` is left to the library, which
+    /// refuses it by name).
     pub fn open(self, device: &DeviceArgs) -> Result<Device> {
-        let gpu = matches!(self, AccelArg::Bvh | AccelArg::Kdtree);
+        let gpu = matches!(self, AccelArg::Bvh | AccelArg::Kdtree | AccelArg::Bih);
         if !gpu && device.device == DeviceChoice::Auto {
             return Ok(Device::cpu());
         }

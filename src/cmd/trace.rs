@@ -36,7 +36,7 @@ pub struct TraceCmd {
     mode: TraversalMode,
     #[command(flatten)]
     build: BuildArgs,
-    /// Acceleration structure (all but the BVH and the kd-tree run on the CPU).
+    /// Acceleration structure (all but the BVH, the kd-tree and the BIH run on the CPU).
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
 }

@@ -1,7 +1,7 @@
 //! Layouts: a structure's GPU arrays, the WGSL that walks them, and the CPU twin that walks
 //! the same arrays in the same order. The flattened BVH layouts live here, one folder each
 //! (registered in [`LayoutKind`]); other structures with a GPU form implement [`Layout`] in
-//! their own folder (the kd-tree: `src/accel/kdtree/gpu.rs`) and are built for the GPU by
+//! their own folder (the kd-tree and the BIH: `src/accel/{kdtree,bih}/gpu.rs`) and are built for the GPU by
 //! [`accel::build_gpu`](crate::accel::build_gpu).
 //!
 //! # Adding a BVH layout
@@ -62,7 +62,7 @@ pub struct LayoutArrays<'a> {
 /// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
 /// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays
 /// in the same order as the WGSL. A flattened BVH ([`LayoutKind`]) or another structure
-/// with a GPU kernel (the kd-tree).
+/// with a GPU kernel (the kd-tree, the BIH).
 pub trait Layout: Accel {
     /// Its name, for messages, tests and benches (a BVH layout's [`LayoutKind::name`]).
     fn name(&self) -> &'static str;

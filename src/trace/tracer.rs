@@ -90,7 +90,7 @@ impl<'d> Tracer<'d> {
     }
 
     /// Builds the structure `kind` over the mesh: on a GPU device its GPU form
-    /// ([`accel::build_gpu`]: a BVH in `kind`'s layout, or the kd-tree), on the CPU its CPU
+    /// ([`accel::build_gpu`]: a BVH in `kind`'s layout, the kd-tree or the BIH), on the CPU its CPU
     /// form. Structures with no GPU kernel are refused on a GPU device, naming the fix.
     pub fn with_structure(
         device: &'d Device,
@@ -105,8 +105,8 @@ impl<'d> Tracer<'d> {
             return match accel::build_gpu(kind, mesh, &options.build)? {
                 Some(layout) => Self::with_layout(device, layout, options),
                 None => Err(Error::Usage(format!(
-                    "the {kind} structure runs on the CPU only (only the BVH and the kd-tree \
-                     have GPU kernels): use --device cpu"
+                    "the {kind} structure runs on the CPU only (only the BVH, the kd-tree and \
+                     the BIH have GPU kernels): use --device cpu"
                 ))),
             };
         }

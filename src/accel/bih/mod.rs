@@ -8,17 +8,20 @@
 //! - `node.rs`: the 16-byte node, [`BihNode`], and its constants.
 //! - `build.rs`: the global-heuristic split, empty-space cuts, the depth cap and the
 //!   parallel build.
-//! - `traverse.rs`: the [`Accel`](crate::accel::Accel) implementation, written as the
-//!   reference a WGSL traversal of the same arrays follows step for step.
+//! - `traverse.rs`: the [`Accel`](crate::accel::Accel) implementation, the CPU twin of
+//!   `bih.wgsl`, which walks the same arrays step for step.
+//! - `gpu.rs`: the [`Layout`](crate::layout::Layout) (arrays, WGSL, validation) that runs
+//!   the tree on a GPU (`accel::build_gpu`).
 //!
 //! The arrays are GPU-ready: [`Bih::nodes`] (16-byte nodes in depth-first order) and
 //! [`Bih::triangles`] (the shared 48-byte [`LeafTri`]s in leaf order).
 
 mod build;
+mod gpu;
 mod node;
 mod traverse;
 
-pub use node::{BihNode, BIH_INDEX_MAX, BIH_LEAF_TAG, BIH_NODE_BYTES};
+pub use node::{BihNode, BIH_INDEX_MAX, BIH_LEAF_TAG, BIH_LINK_SHIFT, BIH_NODE_BYTES};
 
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;

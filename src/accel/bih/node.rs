@@ -4,8 +4,11 @@
 /// Low two bits of [`BihNode::link`] equal to this mark a leaf; otherwise they are the axis.
 pub const BIH_LEAF_TAG: u32 = 3;
 
+/// [`BihNode::link`] holds the right child or first triangle shifted left by this.
+pub const BIH_LINK_SHIFT: u32 = 2;
+
 /// Largest node index or first-triangle position a [`BihNode::link`] can hold (30 bits).
-pub const BIH_INDEX_MAX: u32 = (1 << 30) - 1;
+pub const BIH_INDEX_MAX: u32 = u32::MAX >> BIH_LINK_SHIFT;
 
 /// Bytes of one [`BihNode`].
 pub const BIH_NODE_BYTES: usize = 16;
@@ -37,7 +40,7 @@ impl BihNode {
     pub(crate) fn leaf(first: u32, count: u32) -> BihNode {
         BihNode {
             clip: [0.0; 2],
-            link: (first << 2) | BIH_LEAF_TAG,
+            link: (first << BIH_LINK_SHIFT) | BIH_LEAF_TAG,
             count,
         }
     }
@@ -47,7 +50,7 @@ impl BihNode {
     pub(crate) fn inner(axis: usize, left_max: f32, right_min: f32, right: u32) -> BihNode {
         BihNode {
             clip: [left_max, right_min],
-            link: (right << 2) | axis as u32,
+            link: (right << BIH_LINK_SHIFT) | axis as u32,
             count: 0,
         }
     }
@@ -64,7 +67,7 @@ impl BihNode {
         };
         BihNode {
             clip,
-            link: (child << 2) | axis as u32,
+            link: (child << BIH_LINK_SHIFT) | axis as u32,
             count: 0,
         }
     }
@@ -84,7 +87,7 @@ impl BihNode {
     /// The right child of an inner node, or the first triangle of a leaf.
     #[inline(always)]
     pub fn index(&self) -> usize {
-        (self.link >> 2) as usize
+        (self.link >> BIH_LINK_SHIFT) as usize
     }
 
     /// This node moved `by` places later in the array: its right child moves too.
@@ -93,7 +96,7 @@ impl BihNode {
             self
         } else {
             BihNode {
-                link: self.link + (by << 2),
+                link: self.link + (by << BIH_LINK_SHIFT),
                 ..self
             }
         }

@@ -3,10 +3,12 @@
 //! when the direction is positive on the axis) keeps t up to its own plane, the far child
 //! keeps t from its plane; either, both (near first, far pushed) or neither is visited.
 //!
-//! Written as the reference for a WGSL traversal of the same arrays, step for step: no ∞ or
-//! NaN is formed (an axis the ray is parallel to is a branch, not a 1/0), the stack holds
-//! (node, near, far) and never more than [`MAX_BIH_DEPTH`] entries (the builder's cap), and
-//! the interval ends are [`prune_bound`](crate::geometry::prune_bound) and its mirror.
+//! It is also the CPU twin of the GPU traversal, `bih.wgsl`, which walks the same node and
+//! triangle arrays (see `gpu.rs`) with the same operations in the same order, so hits and
+//! statistics agree bit for bit; the leaf step is every layout's (`LeafRay::test_leaf`,
+//! WGSL `test_leaf`). No ∞ or NaN is formed (an axis the ray is parallel to is a branch,
+//! not a 1/0), the stack holds (node, near, far) and never more than [`MAX_BIH_DEPTH`]
+//! entries (the builder's cap), and the interval ends are [`prune_bound`](crate::geometry::prune_bound) and its mirror.
 //!
 //! Robust as the kd-tree (`accel::plane_ray`): every interval end is one computed plane
 //! distance (or tmin/tmax), kept widened outward by `TIE_SLACK` of its magnitude, and a
@@ -23,9 +25,8 @@
 use super::{Bih, MAX_BIH_DEPTH};
 use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay};
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{
-    intersect_triangle_bounded, Aabb, Hit, Ray, Robustness, TriangleTest, WatertightRay,
-};
+use crate::geometry::{Aabb, Hit, Ray, Robustness};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for Bih {
     fn bounds(&self) -> Aabb {
@@ -41,17 +42,14 @@ impl Accel for Bih {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
-        }
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
     }
 }
 
 impl Bih {
-    /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
-    fn walk<const MT: bool>(
+    fn walk<const TEST: u8>(
         &self,
         ray: &Ray,
         query: Query,
@@ -62,11 +60,6 @@ impl Bih {
         if !ray.is_valid() || self.tris.is_empty() {
             return best;
         }
-        let test = if MT {
-            TriangleTest::MollerTrumbore
-        } else {
-            TriangleTest::Watertight
-        };
         // Plane distances in the units of the direction scaled to a largest component in
         // [1, 2) (exact); triangles see the ray unscaled.
         let pr = PlaneRay::new(ray);
@@ -75,10 +68,11 @@ impl Bih {
             stats.nodes += 1;
             return best;
         };
-        let wr = WatertightRay::new(ray.dir);
-        let reject_near = robustness.rejects_near_hits();
-        // Nodes entered beyond this are cut: the best hit's prune bound, in scaled units.
-        let mut prune = pr.tmax;
+        let leaf = LeafRay::new(ray, robustness);
+        // Nodes entered beyond this are cut: the best hit's prune bound, in scaled units
+        // (the leaf step keeps it unscaled in `hit_prune`).
+        let mut hit_prune = ray.tmax.min(f32::MAX);
+        let mut prune = pr.scaled(hit_prune);
         let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_BIH_DEPTH];
         let mut sp = 0usize;
         let mut idx = 0usize;
@@ -131,30 +125,17 @@ impl Bih {
                 // Neither child: on to the stack.
             } else {
                 let first = node.index();
-                for lt in &self.tris[first..first + node.count as usize] {
-                    stats.tris += 1;
-                    let tri = lt.triangle();
-                    let h = intersect_triangle_bounded(test, &tri, ray, &wr, ray.tmin, best.t);
-                    let Some(h) = h else { continue };
-                    if !Hit::beats(h.t, lt.prim, best.t, best.prim) {
-                        continue;
-                    }
-                    // As the BVH: a hit that may lie behind the origin (the surface a
-                    // secondary ray leaves) is no hit under the error-bound offset.
-                    if reject_near && h.maybe_behind_origin() {
-                        continue;
-                    }
-                    best = Hit {
-                        t: h.t,
-                        prim: lt.prim,
-                        u: h.u,
-                        v: h.v,
-                    };
-                    if query == Query::Any {
-                        return best;
-                    }
-                    prune = pr.scaled(h.prune());
+                let tris = &self.tris[first..first + node.count as usize];
+                if leaf.test_leaf::<TEST>(
+                    tris,
+                    query == Query::Any,
+                    &mut best,
+                    &mut hit_prune,
+                    stats,
+                ) {
+                    return best;
                 }
+                prune = pr.scaled(hit_prune);
             }
             // Next: the nearest pending node whose entry is not beyond the best hit.
             loop {

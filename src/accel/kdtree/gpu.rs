@@ -5,6 +5,7 @@
 
 use super::traverse::MAILBOX;
 use super::{KdTree, ABOVE_EMPTY, ABOVE_SHIFT, BELOW_EMPTY, COUNT_SHIFT, LEAF_TAG, MAX_KD_DEPTH};
+use crate::accel::plane_ray::PLANE_RAY_WGSL;
 use crate::accel::AccelKind;
 use crate::layout::{Layout, LayoutArrays};
 
@@ -38,7 +39,7 @@ impl Layout for KdTree {
         for (name, value) in u32s {
             s.push_str(&format!("const {name}: u32 = {value}u;\n"));
         }
-        s + include_str!("kdtree.wgsl")
+        s + PLANE_RAY_WGSL + include_str!("kdtree.wgsl")
     }
 
     /// The root cell, which the traversal clips the ray to first (`KD_LO_X` … `KD_HI_Z`).

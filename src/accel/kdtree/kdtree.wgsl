@@ -3,7 +3,8 @@
 // children and the ray's interval in each. The CPU twin is KdTree::walk in traverse.rs, step
 // for step: same operations in the same order, so hits and statistics agree bit for bit.
 // KD_LEAF_TAG, KD_BELOW_EMPTY, KD_ABOVE_EMPTY, KD_ABOVE_SHIFT, KD_COUNT_SHIFT, KD_STACK_SIZE
-// (MAX_KD_DEPTH) and KD_MAILBOX are generated in front from their Rust definitions (gpu.rs).
+// (MAX_KD_DEPTH) and KD_MAILBOX are generated in front from their Rust definitions (gpu.rs),
+// followed by plane_ray.wgsl (widen_lo, widen_hi, finite, pow2).
 
 // The mailbox is two vec4<u32> (no loop: lavapipe caps the loop iterations of a ray).
 const_assert KD_MAILBOX == 8u;
@@ -38,26 +39,6 @@ fn kd_load_node(i: u32) -> KdNode {
     return KdNode(h.x, h.y);
 }
 
-// widen_lo
-fn kd_widen_lo(t: f32) -> f32 {
-    return -prune_bound(-t);
-}
-
-// widen_hi
-fn kd_widen_hi(t: f32) -> f32 {
-    return prune_bound(t);
-}
-
-// finite
-fn kd_finite(t: f32) -> f32 {
-    return clamp(t, -BIG, BIG);
-}
-
-// pow2_scales: 2^k
-fn kd_pow2(k: i32) -> f32 {
-    return bitcast<f32>(u32(k + 127) << 23u);
-}
-
 // Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
 // An invalid ray (NaN, zero direction, empty interval) is a miss.
 fn traverse(r: Ray, any_hit: bool) -> Hit {
@@ -75,12 +56,12 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let a = abs(r.dir);
     let e = i32((bitcast<u32>(max(max(a.x, a.y), a.z)) >> 23u) & 0xffu) - 127;
     let k = clamp(-e, -126, 126);
-    let unscale = kd_pow2(-k);
-    let inv = safe_recip3(r.dir * kd_pow2(k));
+    let unscale = pow2(-k);
+    let inv = safe_recip3(r.dir * pow2(k));
     let parallel = abs(inv) >= vec3<f32>(PARALLEL_INV);
     let o = r.origin;
-    let tmax = kd_finite(min(r.tmax, BIG) * unscale);
-    let tmin = kd_finite(r.tmin * unscale);
+    let tmax = finite(min(r.tmax, BIG) * unscale);
+    let tmin = finite(r.tmin * unscale);
     // root_interval: [lo, hi], the ray's widened interval in the current cell.
     let cell_lo = vec3<f32>(KD_LO_X, KD_LO_Y, KD_LO_Z);
     let cell_hi = vec3<f32>(KD_HI_X, KD_HI_Y, KD_HI_Z);
@@ -95,11 +76,11 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
             continue;
         }
-        let t0 = kd_finite((cell_lo[ax] - o[ax]) * inv[ax]);
-        let t1 = kd_finite((cell_hi[ax] - o[ax]) * inv[ax]);
+        let t0 = finite((cell_lo[ax] - o[ax]) * inv[ax]);
+        let t1 = finite((cell_hi[ax] - o[ax]) * inv[ax]);
         let fwd = inv[ax] > 0.0;
-        let tn = kd_widen_lo(select(t1, t0, fwd));
-        let tf = kd_widen_hi(select(t0, t1, fwd));
+        let tn = widen_lo(select(t1, t0, fwd));
+        let tf = widen_hi(select(t0, t1, fwd));
         if tn > lo {
             lo = tn;
         }
@@ -150,11 +131,11 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 reach_near = select(on_above, on_below, fwd);
                 reach_far = select(on_below, on_above, fwd);
             } else {
-                let d = kd_finite((s - o[ax]) * inv[ax]);
+                let d = finite((s - o[ax]) * inv[ax]);
                 reach_near = d >= lo;
                 reach_far = d <= hi;
-                dl = kd_widen_lo(d);
-                dh = kd_widen_hi(d);
+                dl = widen_lo(d);
+                dh = widen_hi(d);
             }
             let visit_near = reach_near && !near_empty;
             let visit_far = reach_far && !far_empty;
@@ -202,7 +183,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                         any_found = true;
                         break;
                     }
-                    prune = kd_finite(hit_prune(h) * unscale);
+                    prune = finite(hit_prune(h) * unscale);
                 }
             }
             if any_found {

@@ -442,15 +442,21 @@ impl RenderScene {
                     let shape = match shape {
                         super::file::Shape::Quad => shapes::quad(),
                         super::file::Shape::Box => shapes::cube(),
-                        super::file::Shape::Sphere => {
+                        round @ (super::file::Shape::Sphere | super::file::Shape::Stadium) => {
+                            let sphere = round == super::file::Shape::Sphere;
+                            let what = if sphere { "sphere" } else { "stadium" };
                             if o.segments < 3 {
                                 return Err(bad(format!(
                                     "'segments' must be at least 3, got {}",
                                     o.segments
                                 )));
                             }
-                            // segments² triangles, ~256 bytes each through the BVH build.
-                            let tris = o.segments as u128 * o.segments as u128;
+                            // ~256 bytes a triangle through the BVH build.
+                            let n = o.segments as u128;
+                            let tris = match sphere {
+                                true => n * n,
+                                false => n * shapes::STADIUM_TRIS_PER_SEGMENT as u128,
+                            };
                             if tris >= u32::MAX as u128 / 2 {
                                 return Err(bad(format!(
                                     "'segments' {} makes {tris} triangles, more than lancer \
@@ -459,12 +465,15 @@ impl RenderScene {
                                 )));
                             }
                             crate::limits::check_memory(
-                                &format!("a sphere of {} segments ({tris} triangles)", o.segments),
+                                &format!("a {what} of {} segments ({tris} triangles)", o.segments),
                                 tris * 256,
                                 "use fewer segments",
                             )
                             .map_err(|e| bad(error_message(&e)))?;
-                            shapes::sphere(o.segments)
+                            match sphere {
+                                true => shapes::sphere(o.segments),
+                                false => shapes::stadium(o.segments),
+                            }
                         }
                     };
                     b.add_shape(shape, mat.unwrap_or(grey), xf);

@@ -132,6 +132,8 @@ pub enum Shape {
     Box,
     /// Unit-radius sphere, centred, tessellated.
     Sphere,
+    /// Open stadium bowl of radius 1 on y = 0, tessellated (`segments` slices).
+    Stadium,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize)]
@@ -162,7 +164,7 @@ pub struct ObjectDef {
     pub rotate: [f32; 3],
     #[serde(default)]
     pub translate: [f32; 3],
-    /// Sphere tessellation: segments around (rings are half as many).
+    /// Sphere and stadium tessellation: segments around (a sphere's rings are half as many).
     #[serde(default = "segments")]
     pub segments: u32,
 }

@@ -1,0 +1,286 @@
+//! The BIH's GPU kernel (src/accel/bih/bih.wgsl) against its CPU twin, the tree's own
+//! traversal (traverse.rs), on lavapipe (or any adapter): every ray's hit (t, prim, u, v) and
+//! work (nodes visited, triangles tested) agree bit for bit, closest and any hit, the tree in
+//! either BVH memory; the f64 oracle judges the GPU's answers.
+
+mod common;
+
+use std::sync::{Arc, OnceLock};
+
+use common::hard::{
+    chain_centres, coincident_stacks, corner_cascade, extreme_rays, grid, invalid_rays,
+    soup_on_a_grid, split_plane_rays, stack_rays,
+};
+use common::{gpu_device, load_model, random_rays, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bih::{Bih, BihOptions, MAX_BIH_DEPTH};
+use lancer::accel::{build_gpu, AccelKind};
+use lancer::camera::Camera;
+use lancer::geometry::{Hit, Ray, RayOffset, TriangleTest};
+use lancer::gpu::BvhMemory;
+use lancer::layout::Layout;
+use lancer::mesh::Mesh;
+use lancer::trace::oracle::{judge, judge_any, Verdict};
+use lancer::{Device, Query, Robustness, Tracer, TracerOptions};
+
+fn cpu_device() -> &'static Device {
+    static DEVICE: OnceLock<Device> = OnceLock::new();
+    DEVICE.get_or_init(Device::cpu)
+}
+
+fn bits(h: &Hit) -> [u32; 4] {
+    [h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()]
+}
+
+/// The BIH's GPU form, as `Tracer::with_structure` builds it.
+fn gpu_bih(mesh: &Mesh) -> Arc<dyn Layout> {
+    build_gpu(AccelKind::Bih, mesh, &Default::default())
+        .unwrap()
+        .expect("the BIH has a GPU form")
+}
+
+/// Traces `rays` through `tree` on the CPU twin and on the GPU in both memories, closest and
+/// any hit; asserts that hits and statistics agree bit for bit, and that no ray was cut
+/// short by the driver (it would be traced again on the CPU, and agree trivially). Returns
+/// the GPU's closest and any hits.
+fn same_on_gpu(name: &str, tree: &Arc<dyn Layout>, rays: &[Ray], rob: Robustness) -> [Vec<Hit>; 2] {
+    let options = |memory| TracerOptions {
+        memory,
+        robustness: rob,
+        stats: true,
+        ..TracerOptions::default()
+    };
+    let mut cpu =
+        Tracer::with_layout(cpu_device(), tree.clone(), &options(Default::default())).unwrap();
+    let queries = [Query::Closest, Query::Any];
+    let want = queries.map(|q| cpu.trace(rays, q).unwrap());
+    let mut got = [Vec::new(), Vec::new()];
+    for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
+        let mut gpu = Tracer::with_layout(gpu_device(), tree.clone(), &options(memory)).unwrap();
+        for (q, c) in queries.iter().zip(&want) {
+            let g = gpu.trace(rays, *q).unwrap();
+            let what = format!("{name} {memory:?} {q:?}");
+            assert_eq!(g.cpu_retraced, 0, "{what}: rays cut short by the driver");
+            let (cs, gs) = (c.stats.as_ref().unwrap(), g.stats.as_ref().unwrap());
+            let mut differ = 0;
+            for (i, r) in rays.iter().enumerate() {
+                let same = bits(&c.hits[i]) == bits(&g.hits[i]) && cs[i] == gs[i];
+                if !same {
+                    differ += 1;
+                    if differ <= 3 {
+                        println!(
+                            "{what}: ray {i} {r:?}: CPU {:?} {:?}, GPU {:?} {:?}",
+                            c.hits[i], cs[i], g.hits[i], gs[i]
+                        );
+                    }
+                }
+            }
+            let hits = g.hits.iter().filter(|h| h.is_hit()).count();
+            println!("{what}: {} rays, {hits} hits, {differ} differ", rays.len());
+            assert_eq!(differ, 0, "{what}: GPU ≠ CPU twin");
+            got[(*q == Query::Any) as usize] = g.hits;
+        }
+    }
+    got
+}
+
+/// Judges every `every`-th ray's GPU answers, closest and any hit, by the f64 oracle;
+/// fails on a wrong one. Returns how many closest hits the oracle agrees with exactly.
+fn judged(name: &str, mesh: &Mesh, rays: &[Ray], hits: &[Vec<Hit>; 2], every: usize) -> usize {
+    let mut agree = 0;
+    for (i, r) in rays.iter().enumerate().step_by(every) {
+        for (q, v) in [
+            (Query::Closest, judge(mesh, r, &hits[0][i])),
+            (Query::Any, judge_any(mesh, r, &hits[1][i])),
+        ] {
+            match v {
+                Verdict::Wrong(w) => panic!("{name} {q:?}: ray {i} {r:?}: {w}"),
+                Verdict::Agree if q == Query::Closest => agree += 1,
+                _ => {}
+            }
+        }
+    }
+    println!(
+        "{name}: {agree} of {} judged agree",
+        rays.len().div_ceil(every)
+    );
+    agree
+}
+
+#[test]
+fn random_soups() {
+    for seed in 0..2 {
+        let mut rng = Rng::new(310 + seed);
+        let mesh = soup(&mut rng, 2000, 0.2);
+        let rays = random_rays(&mut rng, 2500, &mesh);
+        let name = format!("soup {seed}");
+        let hits = same_on_gpu(&name, &gpu_bih(&mesh), &rays, Robustness::default());
+        assert!(judged(&name, &mesh, &rays, &hits, 2) > 1100);
+    }
+}
+
+#[test]
+fn bunny_primary_and_random_rays() {
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let tree = gpu_bih(&mesh);
+    let mut rays = Camera::default_view(&mesh.bounds(), 64, 48).primary_rays();
+    let mut rng = Rng::new(17);
+    rays.extend(random_rays(&mut rng, 1000, &mesh));
+    let hits = same_on_gpu("bunny", &tree, &rays, Robustness::default());
+    // The oracle tests all 69,451 triangles per ray: every 25th ray.
+    assert!(judged("bunny", &mesh, &rays, &hits, 25) > 120);
+}
+
+#[test]
+fn rays_at_shared_edges_and_vertices() {
+    let (mesh, targets) = grid(24, 0.37);
+    let mut rng = Rng::new(11);
+    let c = mesh.bounds().center();
+    let mut rays = Vec::new();
+    for &t in &targets {
+        let mut o = c + rng.dir() * 20.0;
+        o.z = o.z.abs() + 1.0;
+        rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
+        rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
+    }
+    let hits = same_on_gpu("grid", &gpu_bih(&mesh), &rays, Robustness::default());
+    let leaks = hits[0].iter().filter(|h| !h.is_hit()).count();
+    assert_eq!(leaks, 0, "rays through shared edges and vertices leaked");
+    judged("grid", &mesh, &rays, &hits, 1);
+}
+
+#[test]
+fn axis_parallel_rays_on_clip_planes() {
+    let mut rng = Rng::new(21);
+    let mesh = soup_on_a_grid(&mut rng);
+    let tree = Bih::build(&mesh, &BihOptions::default()).unwrap();
+    // Both planes of every node: the left child's maximum and the right child's minimum.
+    let planes: Vec<(usize, f32)> = (tree.clip_planes().into_iter())
+        .flat_map(|(k, l, r)| [(k, l), (k, r)])
+        .filter(|(_, p)| p.abs() < f32::MAX)
+        .collect();
+    assert!(planes.len() > 100);
+    let rays = split_plane_rays(&mut rng, &mesh, &planes, 3000);
+    let tree: Arc<dyn Layout> = Arc::new(tree);
+    let hits = same_on_gpu("clip planes", &tree, &rays, Robustness::default());
+    judged("clip planes", &mesh, &rays, &hits, 1);
+}
+
+#[test]
+fn coincident_triangles_keep_the_tie_rule() {
+    let mut rng = Rng::new(31);
+    let mesh = coincident_stacks(&mut rng);
+    let rays = stack_rays(&mut rng, 2000);
+    let hits = same_on_gpu("coincident", &gpu_bih(&mesh), &rays, Robustness::default());
+    // Equal t goes to the smaller index: exactly the oracle's answer nearly everywhere.
+    assert!(judged("coincident", &mesh, &rays, &hits, 1) > 1800);
+}
+
+#[test]
+fn invalid_and_extreme_rays() {
+    let mut rng = Rng::new(41);
+    let mesh = soup(&mut rng, 500, 0.3);
+    let tree = gpu_bih(&mesh);
+    let invalid = invalid_rays();
+    let hits = same_on_gpu("invalid", &tree, &invalid, Robustness::default());
+    assert!(hits.iter().flatten().all(|h| !h.is_hit()));
+    let options = TracerOptions {
+        stats: true,
+        ..TracerOptions::default()
+    };
+    let mut gpu = Tracer::with_layout(gpu_device(), tree.clone(), &options).unwrap();
+    let stats = gpu.trace(&invalid, Query::Closest).unwrap().stats.unwrap();
+    assert!(
+        stats.iter().all(|s| s.nodes == 0 && s.tris == 0),
+        "{stats:?}"
+    );
+    let rays = extreme_rays(&mut rng, 3000);
+    let hits = same_on_gpu("extreme", &tree, &rays, Robustness::default());
+    judged("extreme", &mesh, &rays, &hits, 1);
+}
+
+#[test]
+fn a_tree_at_the_depth_cap_stays_within_the_kernel_stack() {
+    let mut rng = Rng::new(71);
+    let mesh = corner_cascade(&mut rng);
+    let opts = BihOptions {
+        max_leaf: 1,
+        ..BihOptions::default()
+    };
+    let tree = Bih::build(&mesh, &opts).unwrap();
+    let s = tree.stats();
+    assert!(
+        s.max_depth > MAX_BIH_DEPTH - 8 && s.max_depth <= MAX_BIH_DEPTH,
+        "{s:?}"
+    );
+    // Rays at the chain's small triangles from nearby, and at random.
+    let mut rays = random_rays(&mut rng, 500, &mesh);
+    for (c, a) in chain_centres() {
+        for _ in 0..4 {
+            let o = c + rng.dir() * 4.0 * a;
+            rays.push(Ray::new(o, (c - o).normalize(), 0.0, 3.4e38));
+        }
+    }
+    let hits = same_on_gpu(
+        "deep",
+        &(Arc::new(tree) as Arc<dyn Layout>),
+        &rays,
+        Robustness::default(),
+    );
+    judged("deep", &mesh, &rays, &hits, 1);
+}
+
+#[test]
+fn every_kernel_variant_matches_the_cpu() {
+    // Möller–Trumbore, trusted modules, no near-hit rejection: one source, same answers.
+    let mut rng = Rng::new(44);
+    let mesh = soup(&mut rng, 1000, 0.2);
+    let rays = random_rays(&mut rng, 2000, &mesh);
+    let tree = gpu_bih(&mesh);
+    let (wt, mt) = (TriangleTest::Watertight, TriangleTest::MollerTrumbore);
+    for (test, trusted, offset) in [
+        (mt, false, RayOffset::ErrorBound),
+        (wt, true, RayOffset::ErrorBound),
+        (mt, true, RayOffset::None),
+    ] {
+        let rob = Robustness {
+            triangle_test: test,
+            checked_module: !trusted,
+            ray_offset: offset,
+            ..Robustness::default()
+        };
+        same_on_gpu(
+            &format!("{test:?} trusted={trusted} {offset:?}"),
+            &tree,
+            &rays,
+            rob,
+        );
+    }
+}
+
+#[test]
+fn the_tracer_runs_the_bih_on_a_gpu_and_refuses_the_grids() {
+    let mut rng = Rng::new(9);
+    let mesh = soup(&mut rng, 800, 0.2);
+    let rays = random_rays(&mut rng, 2000, &mesh);
+    let options = TracerOptions::default();
+    let trace = |device: &'static Device| {
+        let mut t = Tracer::with_structure(device, &mesh, AccelKind::Bih, &options).unwrap();
+        assert_eq!(t.layout().is_some(), !device.is_cpu());
+        t.trace(&rays, Query::Closest).unwrap().hits
+    };
+    let (cpu, gpu) = (trace(cpu_device()), trace(gpu_device()));
+    assert!(cpu.iter().zip(&gpu).all(|(a, b)| bits(a) == bits(b)));
+    assert!(gpu.iter().filter(|h| h.is_hit()).count() > 1000);
+    let e = Tracer::with_structure(gpu_device(), &mesh, AccelKind::UniformGrid, &options)
+        .err()
+        .expect("the grid has no GPU kernel")
+        .to_string();
+    assert!(e.contains("BIH") && e.contains("--device cpu"), "{e}");
+    // An empty mesh: one empty leaf, every ray a miss that visits nothing (on both).
+    let empty = gpu_bih(&Mesh::default());
+    let hits = same_on_gpu("empty", &empty, &rays[..100], Robustness::default());
+    assert!(hits.iter().flatten().all(|h| !h.is_hit()));
+}
