@@ -9,6 +9,7 @@ mod build;
 mod chart;
 mod check;
 mod heatmap;
+mod input;
 mod rays;
 mod render;
 mod trace;
