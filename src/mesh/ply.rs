@@ -102,6 +102,8 @@ fn parse_error(path: &Path, e: ParseError) -> Error {
             .to_string(),
         None => text,
     };
+    // ply-rs puts the cause on a second line: one line for people.
+    let msg = msg.split_whitespace().collect::<Vec<_>>().join(" ");
     Error::input(
         path,
         e.line(),
