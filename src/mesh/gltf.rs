@@ -141,7 +141,7 @@ fn read_buffers(
                 .take()
                 .ok_or_else(|| bad("refers to a GLB binary chunk the file does not have".into()))?,
             ::gltf::buffer::Source::Uri(uri) => {
-                read_uri(path, dir, uri, b.length(), sources).map_err(|e| bad(e))?
+                read_uri(path, dir, uri, b.length(), sources).map_err(&bad)?
             }
         };
         if data.len() < b.length() {
@@ -505,7 +505,7 @@ fn add_primitive(
     };
     let corners: Vec<[usize; 3]> = match mode {
         Mode::Triangles => {
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 out.mesh.short_faces += 1;
             }
             indices

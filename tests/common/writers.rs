@@ -152,7 +152,7 @@ pub fn data_uri(bytes: &[u8]) -> String {
 /// (zero-padded), each to 4 bytes.
 pub fn glb(doc: &Value, bin: Option<&[u8]>) -> Vec<u8> {
     let mut j = serde_json::to_vec(doc).unwrap();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let mut chunks = Vec::new();
@@ -161,7 +161,7 @@ pub fn glb(doc: &Value, bin: Option<&[u8]>) -> Vec<u8> {
     chunks.extend(j);
     if let Some(b) = bin {
         let mut b = b.to_vec();
-        while b.len() % 4 != 0 {
+        while !b.len().is_multiple_of(4) {
             b.push(0);
         }
         chunks.extend((b.len() as u32).to_le_bytes());
