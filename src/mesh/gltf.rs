@@ -4,6 +4,7 @@
 //! before the crate's reader touches it. The default scene's node tree is flattened into
 //! world-space triangles, in the order the tree is walked (depth first, children in order).
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use ::gltf::accessor::{DataType, Dimensions};
@@ -106,11 +107,22 @@ pub fn load_gltf(path: &Path) -> Result<GltfScene> {
         materials,
         ..GltfScene::default()
     };
+    // Each mesh is read once, however many nodes instance it.
+    let mut surfaces: HashMap<usize, Vec<Option<Surface>>> = HashMap::new();
     let mut skipped = 0usize;
     for (node, world) in &instances {
-        for p in node.mesh().iter().flat_map(|m| m.primitives()) {
-            if !add_primitive(path, &p, world, &buffers, &mut out)? {
-                skipped += 1;
+        let Some(mesh) = node.mesh() else { continue };
+        if !surfaces.contains_key(&mesh.index()) {
+            let read = mesh
+                .primitives()
+                .map(|p| read_surface(path, &p, &buffers))
+                .collect::<Result<Vec<_>>>()?;
+            surfaces.insert(mesh.index(), read);
+        }
+        for s in &surfaces[&mesh.index()] {
+            match s {
+                Some(s) => add_instance(s, world, &mut out),
+                None => skipped += 1,
             }
         }
     }
@@ -447,20 +459,26 @@ fn triangle_count(path: &Path, p: &Primitive) -> Result<usize> {
     })
 }
 
-/// Adds a primitive's triangles in world space; false for points and lines (no surface).
-fn add_primitive(
-    path: &Path,
-    p: &Primitive,
-    world: &Mat4,
-    buffers: &[Vec<u8>],
-    out: &mut GltfScene,
-) -> Result<bool> {
+/// A primitive's triangles in its mesh's space, read once for every node that draws it.
+struct Surface {
+    positions: Vec<Vec3>,
+    /// Each triangle's corners (indices into `positions`, possibly out of range).
+    corners: Vec<[usize; 3]>,
+    /// Texture coordinates by vertex, v pointing up.
+    uvs: Vec<Vec2>,
+    material: Option<usize>,
+    /// Indices left over after the last whole triangle (a short face).
+    short: bool,
+}
+
+/// Reads a primitive's triangles; None for points and lines (no surface).
+fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Option<Surface>> {
     let mode = p.mode();
     if !matches!(
         mode,
         Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
     ) {
-        return Ok(false);
+        return Ok(None);
     }
     let reader = p.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     // Accessors were checked by triangle_count; count 0 means no data to read.
@@ -480,7 +498,6 @@ fn add_primitive(
             .unwrap_or_default(),
         None => (0..positions.len() as u32).collect(),
     };
-    let material = p.material().index();
     let set =
         (p.material().pbr_metallic_roughness().base_color_texture()).map_or(0, |t| t.tex_coord());
     let uvs: Vec<Vec2> = match p.get(&Semantic::TexCoords(set)) {
@@ -504,15 +521,10 @@ fn add_primitive(
         None => Vec::new(),
     };
     let corners: Vec<[usize; 3]> = match mode {
-        Mode::Triangles => {
-            if !indices.len().is_multiple_of(3) {
-                out.mesh.short_faces += 1;
-            }
-            indices
-                .chunks_exact(3)
-                .map(|c| [c[0] as usize, c[1] as usize, c[2] as usize])
-                .collect()
-        }
+        Mode::Triangles => indices
+            .chunks_exact(3)
+            .map(|c| [c[0] as usize, c[1] as usize, c[2] as usize])
+            .collect(),
         Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
             .map(|i| {
                 let [a, b, c] = [i, i + 1, i + 2].map(|k| indices[k] as usize);
@@ -528,9 +540,28 @@ fn add_primitive(
             .map(|i| [indices[0], indices[i], indices[i + 1]].map(|k| k as usize))
             .collect(),
     };
+    Ok(Some(Surface {
+        positions,
+        corners,
+        uvs,
+        material: p.material().index(),
+        short: mode == Mode::Triangles && !indices.len().is_multiple_of(3),
+    }))
+}
+
+/// Adds a surface's triangles, moved into world space by `world`.
+fn add_instance(s: &Surface, world: &Mat4, out: &mut GltfScene) {
+    let Surface {
+        positions,
+        corners,
+        uvs,
+        material,
+        short,
+    } = s;
+    out.mesh.short_faces += usize::from(*short);
     // A mirroring transform turns faces inside out: swap two corners to keep the front.
     let flip = world.determinant() < 0.0;
-    for c in corners {
+    for &c in corners {
         let c = if flip { [c[0], c[2], c[1]] } else { c };
         let (t, s, uv) = match c.map(|k| positions.get(k)) {
             [Some(a), Some(b), Some(d)] => {
@@ -547,7 +578,6 @@ fn add_primitive(
         out.mesh.triangles.push(t);
         out.mesh.status.push(s);
         out.uvs.push(uv);
-        out.material_ids.push(material);
+        out.material_ids.push(*material);
     }
-    Ok(true)
 }
