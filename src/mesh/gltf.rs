@@ -4,7 +4,7 @@
 //! before the crate's reader touches it. The default scene's node tree is flattened into
 //! world-space triangles, in the order the tree is walked (depth first, children in order).
 
-use std::collections::HashMap;
+use std::collections::hash_map::{Entry, HashMap};
 use std::path::{Path, PathBuf};
 
 use ::gltf::accessor::{DataType, Dimensions};
@@ -112,14 +112,15 @@ pub fn load_gltf(path: &Path) -> Result<GltfScene> {
     let mut skipped = 0usize;
     for (node, world) in &instances {
         let Some(mesh) = node.mesh() else { continue };
-        if !surfaces.contains_key(&mesh.index()) {
-            let read = mesh
-                .primitives()
-                .map(|p| read_surface(path, &p, &buffers))
-                .collect::<Result<Vec<_>>>()?;
-            surfaces.insert(mesh.index(), read);
-        }
-        for s in &surfaces[&mesh.index()] {
+        let read = match surfaces.entry(mesh.index()) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => e.insert(
+                mesh.primitives()
+                    .map(|p| read_surface(path, &p, &buffers))
+                    .collect::<Result<Vec<_>>>()?,
+            ),
+        };
+        for s in read.iter() {
             match s {
                 Some(s) => add_instance(s, world, &mut out),
                 None => skipped += 1,
