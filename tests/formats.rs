@@ -703,3 +703,49 @@ fn malformed_gltf_is_refused_with_the_reason() {
     std::fs::write(&p, serde_json::to_vec(&doc).unwrap()).unwrap();
     refused(&p, "base64");
 }
+
+#[test]
+fn gltf_strips_and_fans_follow_the_specification_and_points_are_left_out() {
+    // Five vertices drawn as a strip, a fan and points, all from one index list.
+    let m = Indexed {
+        verts: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.25],
+            [0.0, 2.0, 0.5],
+        ],
+        faces: vec![vec![0, 1, 2, 3, 4]],
+    };
+    let mut bin: Vec<u8> = m
+        .verts
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    bin.extend((0u32..5).flat_map(|i| i.to_le_bytes()));
+    let mut doc = writers::gltf_json(&m, None);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    doc["bufferViews"][1]["byteLength"] = json!(20);
+    doc["accessors"][1]["count"] = json!(5);
+    let prim = |mode: u32| json!({ "attributes": { "POSITION": 0 }, "indices": 1, "mode": mode });
+    doc["meshes"] = json!([{ "primitives": [prim(5), prim(6), prim(0)] }]);
+    let dir = scratch();
+    let p = dir.path().join("strips.glb");
+    std::fs::write(&p, writers::glb(&doc, Some(&bin))).unwrap();
+    let got = load_gltf(&p).unwrap().mesh;
+    // glTF 2.0, 3.7.2.1: strip triangle i is (v_i, v_{i+1+i%2}, v_{i+2-i%2}); fan
+    // triangle i is (v_{i+1}, v_{i+2}, v_0). Written out by hand:
+    let want: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [1, 3, 2],
+        [2, 3, 4],
+        [1, 2, 0],
+        [2, 3, 0],
+        [3, 4, 0],
+    ];
+    assert_eq!(got.len(), want.len());
+    for (t, w) in got.triangles.iter().zip(want) {
+        assert_eq!(t.v, w.map(|k| Vec3::from(m.verts[k])));
+    }
+}

@@ -526,19 +526,13 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
             .chunks_exact(3)
             .map(|c| [c[0] as usize, c[1] as usize, c[2] as usize])
             .collect(),
+        // glTF 2.0 §3.7.2.1: strip triangle i is (v_i, v_{i+1+i%2}, v_{i+2-i%2}); fan
+        // triangle i is (v_{i+1}, v_{i+2}, v_0).
         Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
-            .map(|i| {
-                let [a, b, c] = [i, i + 1, i + 2].map(|k| indices[k] as usize);
-                // Every other triangle of a strip is wound the other way round.
-                if i % 2 == 0 {
-                    [a, b, c]
-                } else {
-                    [b, a, c]
-                }
-            })
+            .map(|i| [i, i + 1 + i % 2, i + 2 - i % 2].map(|k| indices[k] as usize))
             .collect(),
-        _ => (1..indices.len().saturating_sub(1))
-            .map(|i| [indices[0], indices[i], indices[i + 1]].map(|k| k as usize))
+        _ => (0..indices.len().saturating_sub(2))
+            .map(|i| [indices[i + 1], indices[i + 2], indices[0]].map(|k| k as usize))
             .collect(),
     };
     Ok(Some(Surface {
