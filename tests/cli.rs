@@ -532,3 +532,63 @@ fn bench_structures_runs_every_structure_on_the_teapot_in_a_stadium() {
     let png = std::fs::read(&chart).unwrap();
     assert!(png.starts_with(b"\x89PNG"), "the chart is a PNG");
 }
+
+#[test]
+fn mesh_and_scene_files_are_chosen_by_extension_and_unknown_ones_refused() {
+    let dir = Scratch::new();
+    let quad = dir.quad();
+    let text = std::fs::read_to_string(&quad).unwrap();
+    let stl = dir.path("quad.stl");
+    std::fs::write(&stl, &text).unwrap();
+    let png = dir.path("x.png");
+    for args in [
+        vec!["build", s(&stl)],
+        vec!["heatmap", s(&stl), "-o", s(&png)],
+        vec!["render", s(&stl), "-o", s(&png)],
+    ] {
+        let cmd = args[0];
+        let out = lancer(&args);
+        assert_eq!(out.status.code(), Some(2), "{cmd}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.trim().lines().count(), 1, "{cmd}: {err}");
+        assert!(err.contains("unknown file type '.stl'"), "{cmd}: {err}");
+    }
+
+    // The same quad as ASCII PLY builds to the same triangle count as the OBJ.
+    let ply = dir.path("quad.ply");
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+         property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         -1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n4 0 1 2 3\n",
+    )
+    .unwrap();
+    let count = |p: &Path| {
+        let out = lancer_ok(&["build", s(p), "--json"]);
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        j["triangles"].as_u64().unwrap()
+    };
+    assert_eq!(count(&ply), 2);
+    assert_eq!(count(&ply), count(&quad));
+
+    // A scene builds to its assembled mesh: the textured scene's quad and box.
+    assert_eq!(count(&scene("textured.toml")), 2 + 12);
+
+    // `render MESH.ply` draws the mesh on a ground plane.
+    let png = dir.path("ply.png");
+    lancer_ok(&[
+        "render",
+        s(&ply),
+        "-o",
+        s(&png),
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "1",
+        "--device",
+        "cpu",
+    ]);
+    assert_eq!(image::open(&png).unwrap().to_rgb8().dimensions(), (16, 12));
+}

@@ -1,6 +1,7 @@
 //! Hostile bytes for every reader: random bytes, grammar-shaped garbage and mutations of the
-//! real files (scenes/*.toml, .obj, .mtl and the heads of ../shared/models/*.obj) fed to the
-//! OBJ, MTL, TOML scene, ray and hit file readers through the library API. Each call must
+//! real files (scenes/*.toml, .obj, .mtl and the heads of ../shared/models/*.obj; small PLY
+//! and glTF files written by tests/common/writers.rs) fed to the OBJ, MTL, PLY, glTF, TOML
+//! scene, ray and hit file readers through the library API. Each call must
 //! return Ok or Err: a panic or a hang fails the test, naming the reader and the input, which
 //! is also saved under target/tmp/fuzz_readers/.
 //!
@@ -868,6 +869,12 @@ fn obj_readers(reader: &str, path: &Path, files: &Files) -> Result<(), TestCaseE
     guarded(&format!("{reader}: load_obj_scene"), files, move || {
         outcome(load_obj_scene(&p))
     })?;
+    mesh_readers(reader, path, files)
+}
+
+/// Loads `path` with `load_mesh` (the reader its extension picks); a usable mesh also goes
+/// through a BVH build, the default layout and a few CPU rays of its default view.
+fn mesh_readers(reader: &str, path: &Path, files: &Files) -> Result<(), TestCaseError> {
     let p = path.to_path_buf();
     let mesh = guarded(&format!("{reader}: load_mesh"), files, move || {
         load_mesh(&p).ok()
@@ -888,6 +895,64 @@ fn obj_readers(reader: &str, path: &Path, files: &Files) -> Result<(), TestCaseE
         )?;
     }
     Ok(())
+}
+
+/// The sample mesh of tests/formats.rs as ASCII PLY, binary PLY (both byte orders), glTF
+/// with an embedded buffer and GLB: (file name, bytes).
+fn ply_gltf_corpus() -> Vec<(String, Vec<u8>)> {
+    use common::writers::{self, Indexed};
+    let m = Indexed {
+        verts: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.5],
+            [0.0, 1.0, 0.5],
+            [0.5, 0.5, 2.0],
+        ],
+        faces: vec![vec![0, 1, 2, 3], vec![0, 1, 4], vec![2, 3, 4]],
+    };
+    let bin = writers::gltf_buffer(&m);
+    let embedded = writers::gltf_json(&m, Some(writers::data_uri(&bin)));
+    vec![
+        ("case.ply".into(), writers::ply_ascii(&m)),
+        ("case.ply".into(), writers::ply_binary(&m, false)),
+        ("case.ply".into(), writers::ply_binary(&m, true)),
+        ("case.gltf".into(), serde_json::to_vec(&embedded).unwrap()),
+        (
+            "case.glb".into(),
+            writers::glb(&writers::gltf_json(&m, None), Some(&bin)),
+        ),
+    ]
+}
+
+#[test]
+fn ply_and_gltf_readers_survive_mutated_and_random_files() {
+    let corpus = ply_gltf_corpus();
+    let dir = scratch();
+    let case = |name: &str, bytes: Vec<u8>| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes).unwrap();
+        let files = vec![(name.to_string(), bytes)];
+        mesh_readers(name, &path, &files)?;
+        // As `lancer render FILE` reads it: materials and textures too.
+        guarded(
+            &format!("{name}: RenderScene::from_mesh"),
+            &files,
+            move || outcome(RenderScene::from_mesh(&path, 4, 4)),
+        )?;
+        Ok(())
+    };
+    run_property("PLY/glTF (mutated)", 400, mutations(), |(which, muts)| {
+        let bytes = mutated(&corpus, which, &muts);
+        case(&corpus[which % corpus.len()].0, bytes)
+    });
+    let names = ["case.ply", "case.gltf", "case.glb"];
+    run_property(
+        "PLY/glTF (random)",
+        60,
+        (0..names.len(), random_bytes()),
+        |(k, bytes)| case(names[k], bytes),
+    );
 }
 
 /// The OBJ folder: the fuzzed case.obj beside the MTL the corpus names.

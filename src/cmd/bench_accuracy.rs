@@ -30,8 +30,8 @@ use super::render::load_scene;
 
 #[derive(Args)]
 pub struct BenchAccuracy {
-    /// Scene: a .toml scene file or an .obj mesh (traced from the scene's camera, and
-    /// rendered for the spp and bounce rows).
+    /// Scene: a .toml scene file or a mesh (.obj, .ply, .gltf, .glb; traced from the scene's
+    /// camera, and rendered for the spp and bounce rows).
     #[arg(default_value = "scenes/cornell.toml")]
     scene: PathBuf,
     /// Width of the timed primary rays' image.

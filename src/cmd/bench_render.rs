@@ -13,7 +13,7 @@ use super::{open_device, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchRender {
-    /// Scene: a .toml scene file or an .obj mesh.
+    /// Scene: a .toml scene file or a mesh (.obj, .ply, .gltf, .glb).
     scene: PathBuf,
     #[arg(long)]
     width: Option<u32>,

@@ -4,14 +4,14 @@ use std::time::Instant;
 use clap::Args;
 use lancer::accel::bvh::{build, BvhStats};
 use lancer::layout::flatten;
-use lancer::mesh::load_mesh;
 use lancer::Result;
 
+use super::input::load_geometry;
 use super::BuildArgs;
 
 #[derive(Args)]
 pub struct BuildCmd {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb) or scene (.toml: its assembled mesh).
     mesh: PathBuf,
     #[command(flatten)]
     build: BuildArgs,
@@ -22,7 +22,7 @@ pub struct BuildCmd {
 
 impl BuildCmd {
     pub fn run(self) -> Result<()> {
-        let mesh = load_mesh(&self.mesh)?;
+        let mesh = load_geometry(&self.mesh)?;
         let opts = self.build.options();
         let t0 = Instant::now();
         let bvh = build(&mesh, &opts);

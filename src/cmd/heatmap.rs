@@ -2,15 +2,15 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::camera::Camera;
-use lancer::mesh::load_mesh;
 use lancer::render::heat_ramp;
 use lancer::{Error, Query, Result, Tracer, TracerOptions};
 
+use super::input::load_geometry;
 use super::{AccelArg, BuildArgs, DeviceArgs};
 
 #[derive(Args)]
 pub struct HeatmapCmd {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb) or scene (.toml: its assembled mesh).
     mesh: PathBuf,
     /// Output PNG.
     #[arg(short, long)]
@@ -44,7 +44,7 @@ impl HeatmapCmd {
                 "a heatmap is a PNG: use a .png file name",
             ));
         }
-        let mesh = load_mesh(&self.mesh)?;
+        let mesh = load_geometry(&self.mesh)?;
         lancer::output::check_output(&self.out, &mesh.sources)?;
         let (w, h) = (self.width, self.height);
         // Rays, hits, statistics and the image: about 80 bytes a pixel.

@@ -10,6 +10,7 @@ mod chart;
 mod check;
 mod compare;
 mod heatmap;
+mod input;
 mod rays;
 mod render;
 mod trace;

@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lancer::mesh::FileKind;
 use lancer::render::{image_kind, EffectSet, Progress, RenderOptions, Renderer, Stop};
 use lancer::{Error, RenderScene, Result};
 
@@ -12,7 +13,8 @@ use super::{spelled, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
-    /// Scene: a .toml scene file, or an .obj mesh (default view, ground plane, sun).
+    /// Scene: a .toml scene file, or a mesh (.obj, .ply, .gltf, .glb) with its materials
+    /// from its default view, on a ground plane under a sun.
     scene: PathBuf,
     /// Output image: .png (sRGB, 8-bit) or .exr (linear float).
     #[arg(short, long)]
@@ -52,13 +54,10 @@ pub fn load_scene(
     width: Option<u32>,
     height: Option<u32>,
 ) -> Result<RenderScene> {
-    let is_obj = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    let mut scene = if is_obj {
-        RenderScene::from_mesh(path, width.unwrap_or(640), height.unwrap_or(480))?
-    } else {
+    let mut scene = if FileKind::of(path)? == FileKind::Scene {
         RenderScene::from_file(path)?
+    } else {
+        RenderScene::from_mesh(path, width.unwrap_or(640), height.unwrap_or(480))?
     };
     if width == Some(0) || height == Some(0) {
         return Err(Error::input(

@@ -1,15 +1,15 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::mesh::load_mesh;
 use lancer::trace::files::{read_rays, write_hits};
 use lancer::{Query, RayStats, Result, Tracer, TracerOptions, TraversalMode};
 
+use super::input::load_geometry;
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct TraceCmd {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb) or scene (.toml: its assembled mesh).
     mesh: PathBuf,
     /// Input ray file (32 bytes a ray).
     #[arg(long)]
@@ -43,7 +43,7 @@ pub struct TraceCmd {
 
 impl TraceCmd {
     pub fn run(self) -> Result<()> {
-        let mesh = load_mesh(&self.mesh)?;
+        let mesh = load_geometry(&self.mesh)?;
         let mut inputs = mesh.sources.clone();
         inputs.push(self.rays.clone());
         lancer::output::check_output(&self.out, &inputs)?;

@@ -1,19 +1,25 @@
 use std::path::Path;
 
-use super::{load_obj, Mesh};
+use super::{load_gltf, load_obj, load_ply, FileKind, Mesh};
 use crate::error::{Error, Result};
 
-/// Loads a mesh for tracing: refuses a file with no usable triangle, and logs a warning
-/// counting what was left out of the BVH.
+/// Loads a mesh for tracing, the reader chosen by the file's extension (.obj, .ply, .gltf,
+/// .glb): refuses a file with no usable triangle, and logs a warning counting what was left
+/// out of the BVH. A scene (.toml) is refused here: it is assembled by the renderer's scene
+/// module.
 pub fn load_mesh(path: &Path) -> Result<Mesh> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    if ext.as_deref() != Some("obj") {
-        return Err(Error::input(path, None, "expected a Wavefront .obj mesh"));
-    }
-    let mesh = load_obj(path)?;
+    let mesh = match FileKind::of(path)? {
+        FileKind::Obj => load_obj(path)?,
+        FileKind::Ply => load_ply(path)?,
+        FileKind::Gltf => load_gltf(path)?.mesh,
+        FileKind::Scene => {
+            return Err(Error::input(
+                path,
+                None,
+                "a scene, not a mesh: load it with RenderScene::from_file",
+            ))
+        }
+    };
     check_usable(path, &mesh)?;
     Ok(mesh)
 }

@@ -1,11 +1,18 @@
-//! Meshes: triangles in file order from OBJ/MTL (tobj), each classified (usable or why not).
+//! Meshes: triangles in file order from OBJ/MTL (tobj), PLY (ply-rs-bw) or glTF 2.0
+//! (gltf), each classified (usable or why not).
 
+mod format;
+mod gltf;
 mod load;
 mod mtl;
 mod obj;
+mod ply;
 
+pub use format::{FileKind, KNOWN_EXTENSIONS};
+pub use gltf::{load_gltf, GltfImage, GltfMaterial, GltfScene};
 pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};
 pub use obj::{load_obj, load_obj_scene, ObjScene};
+pub use ply::load_ply;
 
 use glam::Vec3;
 

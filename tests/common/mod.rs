@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod hard;
+pub mod writers;
 
 use std::path::PathBuf;
 use std::sync::OnceLock;

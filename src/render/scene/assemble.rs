@@ -14,9 +14,7 @@ use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-use crate::mesh::{
-    check_traceable, classify, load_obj_scene, warn_exclusions, Mesh, ObjScene, TriStatus,
-};
+use crate::mesh::{check_traceable, classify, warn_exclusions, Mesh, ObjScene, TriStatus};
 
 /// A surface's material, as both renderers shade it.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,48 +134,64 @@ fn srgb_to_linear(c: u8) -> f32 {
 
 fn load_texture(path: &Path) -> Result<Texture> {
     let img = image::open(path)
-        .map_err(|e| Error::input(path, None, format!("cannot read texture: {e}")))?
-        .to_rgb8();
+        .map_err(|e| Error::input(path, None, format!("cannot read texture: {e}")))?;
+    Ok(decode_texture(img))
+}
+
+/// A decoded sRGB image as a linear texture.
+pub(super) fn decode_texture(img: image::DynamicImage) -> Texture {
+    let img = img.to_rgb8();
     let lut: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
-    Ok(Texture {
+    Texture {
         width: img.width(),
         height: img.height(),
         texels: img
             .pixels()
             .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
             .collect(),
-    })
+    }
 }
 
 /// Accumulates objects into one mesh.
 #[derive(Default)]
-struct Builder {
-    triangles: Vec<Triangle>,
-    status: Vec<TriStatus>,
+pub(super) struct Builder {
+    pub(super) triangles: Vec<Triangle>,
+    pub(super) status: Vec<TriStatus>,
     uvs: Vec<[Vec2; 3]>,
     material_of: Vec<u32>,
     materials: Vec<Material>,
     textures: Vec<Texture>,
     texture_ids: HashMap<PathBuf, usize>,
-    short_faces: usize,
+    pub(super) short_faces: usize,
     /// Every file read: the scene, meshes, MTL libraries, textures.
-    sources: Vec<PathBuf>,
+    pub(super) sources: Vec<PathBuf>,
 }
 
 impl Builder {
     fn texture(&mut self, path: &Path) -> Result<usize> {
-        if let Some(&i) = self.texture_ids.get(path) {
+        let known = self.texture_ids.contains_key(path);
+        let i = self.texture_with(path.to_path_buf(), || load_texture(path))?;
+        if !known {
+            self.sources.push(path.to_path_buf());
+        }
+        Ok(i)
+    }
+
+    /// The index of the texture under `key`, made by `load` the first time.
+    pub(super) fn texture_with(
+        &mut self,
+        key: PathBuf,
+        load: impl FnOnce() -> Result<Texture>,
+    ) -> Result<usize> {
+        if let Some(&i) = self.texture_ids.get(&key) {
             return Ok(i);
         }
-        let t = load_texture(path)?;
-        self.sources.push(path.to_path_buf());
-        self.textures.push(t);
-        self.texture_ids
-            .insert(path.to_path_buf(), self.textures.len() - 1);
+        self.textures.push(load()?);
+        self.texture_ids.insert(key, self.textures.len() - 1);
         Ok(self.textures.len() - 1)
     }
 
-    fn material(&mut self, m: Material) -> u32 {
+    pub(super) fn material(&mut self, m: Material) -> u32 {
         if let Some(i) = self.materials.iter().position(|x| *x == m) {
             return i as u32;
         }
@@ -187,7 +201,7 @@ impl Builder {
 
     /// Adds an OBJ's triangles, transformed; `material` overrides its MTL materials,
     /// `grey` stands in for faces with none.
-    fn add_obj(
+    pub(super) fn add_obj(
         &mut self,
         obj: &ObjScene,
         path: &Path,
@@ -232,7 +246,7 @@ impl Builder {
         }
     }
 
-    fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
+    pub(super) fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
         // A transform can make a good triangle degenerate or overflow: classify again.
         let status = match status {
             TriStatus::Ok => classify(&t),
@@ -434,9 +448,7 @@ impl RenderScene {
             let xf = |p: Vec3| m * p + t;
             match (&o.mesh, o.shape) {
                 (Some(file), None) => {
-                    let mesh_path = dir.join(file);
-                    let obj = load_obj_scene(&mesh_path)?;
-                    b.add_obj(&obj, &mesh_path, mat, grey, xf)?;
+                    b.add_mesh_file(&dir.join(file), mat, grey, xf)?;
                 }
                 (None, Some(shape)) => {
                     let shape = match shape {
@@ -591,14 +603,12 @@ impl RenderScene {
         b.finish(path, camera, settings, lights)
     }
 
-    /// `lancer render MESH.obj`: the mesh from its default view, on a ground plane, lit by
-    /// a sun and a sky-coloured background.
+    /// `lancer render MESH` (.obj, .ply, .gltf, .glb): the mesh with its materials from its
+    /// default view, on a ground plane, lit by a sun and a sky-coloured background.
     pub fn from_mesh(path: &Path, width: u32, height: u32) -> Result<RenderScene> {
-        let obj = load_obj_scene(path)?;
-        let bounds = obj.mesh.bounds();
         let mut b = Builder::default();
         let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
-        b.add_obj(&obj, path, None, grey, |p| p)?;
+        let bounds = b.add_mesh_file(path, None, grey, |p| p)?;
         if !bounds.is_empty() {
             let r = 0.5 * bounds.extent().length();
             let ground = b.material(Material::diffuse(Vec3::splat(0.5)));
@@ -668,7 +678,7 @@ impl Builder {
 }
 
 /// The message of an error without the file prefix it carries, to re-attach elsewhere.
-fn error_message(e: &Error) -> String {
+pub(super) fn error_message(e: &Error) -> String {
     match e {
         Error::Input { msg, .. } => msg.clone(),
         other => other.to_string(),

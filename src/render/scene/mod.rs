@@ -3,6 +3,7 @@
 
 mod assemble;
 mod file;
+mod imported;
 mod shapes;
 
 pub use assemble::{Light, Material, RenderScene, Settings, Texture};

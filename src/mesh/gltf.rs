@@ -1,0 +1,578 @@
+//! glTF 2.0 loading (`.gltf` with external or embedded buffers, and `.glb`) through the
+//! `gltf` crate, which parses and validates the JSON. Buffers and images are read here, each
+//! size checked against the file before it is trusted, and every accessor is bounds-checked
+//! before the crate's reader touches it. The default scene's node tree is flattened into
+//! world-space triangles, in the order the tree is walked (depth first, children in order).
+
+use std::collections::hash_map::{Entry, HashMap};
+use std::path::{Path, PathBuf};
+
+use ::gltf::accessor::{DataType, Dimensions};
+use ::gltf::mesh::{Mode, Semantic};
+use ::gltf::{Accessor, Document, Node, Primitive};
+use base64::Engine;
+use glam::{Mat4, Vec2, Vec3};
+
+use super::{classify, placeholder, Mesh, TriStatus};
+use crate::error::{Error, Result};
+use crate::geometry::Triangle;
+
+/// Bytes a triangle costs from here through the BVH build (as for built-in spheres).
+const BYTES_PER_TRIANGLE: u128 = 256;
+
+/// Where a texture's encoded image is: bytes from a buffer or data URI, or a file.
+#[derive(Clone, Debug)]
+pub enum GltfImage {
+    /// The encoded image (PNG, JPEG).
+    Bytes(Vec<u8>),
+    /// An image file beside the glTF.
+    File(PathBuf),
+}
+
+/// A glTF material's parameters that lancer maps onto its own materials.
+#[derive(Clone, Debug)]
+pub struct GltfMaterial {
+    /// The material's name, or its index.
+    pub name: String,
+    /// Base colour factor, linear RGBA.
+    pub base_color: [f32; 4],
+    /// Base colour texture: (index of the image in the file, where its bytes are).
+    pub base_color_texture: Option<(usize, GltfImage)>,
+    /// Emissive factor × KHR_materials_emissive_strength, linear RGB.
+    pub emissive: [f32; 3],
+    /// Whether an emissive texture was given (lancer uses the factor only).
+    pub emissive_texture: bool,
+    /// KHR_materials_transmission factor (0 when absent).
+    pub transmission: f32,
+    /// KHR_materials_ior (1.5, glTF's default, when absent).
+    pub ior: f32,
+    /// Metallic factor.
+    pub metallic: f32,
+    /// Roughness factor.
+    pub roughness: f32,
+    /// Seen from both sides.
+    pub double_sided: bool,
+}
+
+/// A glTF scene flattened: world-space triangles with texture coordinates and materials.
+#[derive(Clone, Debug, Default)]
+pub struct GltfScene {
+    /// The triangles, node tree walked depth first, each classified.
+    pub mesh: Mesh,
+    /// Texture coordinates of each triangle's corners, of the set its material's base
+    /// colour texture uses, with v pointing up as in OBJ (zero where the file gives none).
+    pub uvs: Vec<[Vec2; 3]>,
+    /// Per triangle: index into `materials`, or None (a primitive with no material).
+    pub material_ids: Vec<Option<usize>>,
+    /// The file's materials, by glTF material index.
+    pub materials: Vec<GltfMaterial>,
+}
+
+/// Loads a glTF 2.0 file's default scene (or its first; or every root node when it has no
+/// scene) as world-space triangles, without materials' textures decoded.
+pub fn load_gltf(path: &Path) -> Result<GltfScene> {
+    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    let bad = |msg: String| Error::input(path, None, msg);
+    let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(&bytes)
+        .map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
+    drop(bytes);
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut sources = vec![path.to_path_buf()];
+    let buffers = read_buffers(path, &dir, &document, &mut blob, &mut sources)?;
+    let materials = document
+        .materials()
+        .map(|m| material(path, &dir, &buffers, &m, &mut sources))
+        .collect::<Result<Vec<_>>>()?;
+    let instances = instances(path, &document)?;
+
+    // Count first, so a file that instances a mesh too often is refused before allocating.
+    let mut total: u128 = 0;
+    for (node, _) in &instances {
+        for p in node.mesh().iter().flat_map(|m| m.primitives()) {
+            total += triangle_count(path, &p)? as u128;
+        }
+    }
+    if total >= u32::MAX as u128 / 2 {
+        return Err(bad(format!(
+            "{total} triangles after instancing, more than lancer indexes: split the scene"
+        )));
+    }
+    crate::limits::check_memory(
+        &format!("{} ({total} triangles)", path.display()),
+        total * BYTES_PER_TRIANGLE,
+        "use a smaller scene",
+    )?;
+
+    let mut out = GltfScene {
+        materials,
+        ..GltfScene::default()
+    };
+    // Each mesh is read once, however many nodes instance it.
+    let mut surfaces: HashMap<usize, Vec<Option<Surface>>> = HashMap::new();
+    let mut skipped = 0usize;
+    for (node, world) in &instances {
+        let Some(mesh) = node.mesh() else { continue };
+        let read = match surfaces.entry(mesh.index()) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => e.insert(
+                mesh.primitives()
+                    .map(|p| read_surface(path, &p, &buffers))
+                    .collect::<Result<Vec<_>>>()?,
+            ),
+        };
+        for s in read.iter() {
+            match s {
+                Some(s) => add_instance(s, world, &mut out),
+                None => skipped += 1,
+            }
+        }
+    }
+    if skipped > 0 {
+        log::warn!(
+            "{}: {skipped} primitives of points or lines left out (no surface to hit)",
+            path.display()
+        );
+    }
+    out.mesh.sources = sources;
+    Ok(out)
+}
+
+/// Each buffer's bytes, checked to hold at least its declared byteLength, and every buffer
+/// view checked to lie inside its buffer.
+fn read_buffers(
+    path: &Path,
+    dir: &Path,
+    doc: &Document,
+    blob: &mut Option<Vec<u8>>,
+    sources: &mut Vec<PathBuf>,
+) -> Result<Vec<Vec<u8>>> {
+    let mut buffers = Vec::new();
+    for b in doc.buffers() {
+        let bad = |msg: String| Error::input(path, None, format!("buffer {}: {msg}", b.index()));
+        let data = match b.source() {
+            ::gltf::buffer::Source::Bin => blob
+                .take()
+                .ok_or_else(|| bad("refers to a GLB binary chunk the file does not have".into()))?,
+            ::gltf::buffer::Source::Uri(uri) => {
+                read_uri(path, dir, uri, b.length(), sources).map_err(&bad)?
+            }
+        };
+        if data.len() < b.length() {
+            return Err(bad(format!(
+                "holds {} bytes but declares byteLength {}: the file is truncated",
+                data.len(),
+                b.length()
+            )));
+        }
+        buffers.push(data);
+    }
+    for v in doc.views() {
+        let len = buffers[v.buffer().index()].len();
+        let end = v.offset().checked_add(v.length());
+        if end.is_none_or(|e| e > len) {
+            return Err(Error::input(
+                path,
+                None,
+                format!(
+                    "bufferView {} reaches past the end of buffer {} ({len} bytes)",
+                    v.index(),
+                    v.buffer().index()
+                ),
+            ));
+        }
+    }
+    Ok(buffers)
+}
+
+/// The bytes of a URI: a base64 data URI, or a file relative to the glTF; `expect` bytes
+/// are declared (a file shorter than that is refused before it is read).
+fn read_uri(
+    path: &Path,
+    dir: &Path,
+    uri: &str,
+    expect: usize,
+    sources: &mut Vec<PathBuf>,
+) -> std::result::Result<Vec<u8>, String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, data) = rest
+            .split_once(";base64,")
+            .ok_or("a data URI that is not base64")?;
+        return base64::engine::general_purpose::STANDARD
+            .decode(data)
+            .map_err(|e| format!("its data URI is not valid base64 ({e})"));
+    }
+    let file = dir.join(percent_decode(uri));
+    let len = std::fs::metadata(&file)
+        .map_err(|e| format!("cannot read {}: {e}", file.display()))?
+        .len();
+    if len < expect as u64 {
+        return Err(format!(
+            "{} is {len} bytes, shorter than the {expect} declared",
+            file.display()
+        ));
+    }
+    crate::limits::check_memory(
+        &file.display().to_string(),
+        len as u128,
+        "use smaller files",
+    )
+    .map_err(|e| e.to_string())?;
+    if file == path {
+        return Err("names the glTF file itself as its buffer".into());
+    }
+    sources.push(file.clone());
+    std::fs::read(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))
+}
+
+/// `%20` and the like in relative URIs (glTF URIs are percent-encoded).
+fn percent_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn material(
+    path: &Path,
+    dir: &Path,
+    buffers: &[Vec<u8>],
+    m: &::gltf::Material,
+    sources: &mut Vec<PathBuf>,
+) -> Result<GltfMaterial> {
+    let name = m
+        .name()
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("#{}", m.index().unwrap_or(0)));
+    let bad = |msg: String| Error::input(path, None, format!("material {name:?}: {msg}"));
+    let pbr = m.pbr_metallic_roughness();
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let emissive = m.emissive_factor().map(|x| x * strength);
+    let base_color = pbr.base_color_factor();
+    let ior = m.ior().unwrap_or(1.5);
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    let (metallic, roughness) = (pbr.metallic_factor(), pbr.roughness_factor());
+    let finite = base_color
+        .iter()
+        .chain(&emissive)
+        .chain(&[ior, transmission, metallic, roughness])
+        .all(|x| x.is_finite());
+    if !finite || base_color.iter().chain(&emissive).any(|&x| x < 0.0) {
+        return Err(bad(
+            "colours and factors must be finite, colours non-negative".into(),
+        ));
+    }
+    let base_color_texture = match pbr.base_color_texture() {
+        None => None,
+        Some(info) => {
+            let image = info.texture().source();
+            let bytes = match image.source() {
+                ::gltf::image::Source::View { view, .. } => GltfImage::Bytes(
+                    buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
+                        .to_vec(),
+                ),
+                ::gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                    GltfImage::Bytes(
+                        read_uri(path, dir, uri, 0, sources)
+                            .map_err(|e| bad(format!("image {}: {e}", image.index())))?,
+                    )
+                }
+                ::gltf::image::Source::Uri { uri, .. } => {
+                    let file = dir.join(percent_decode(uri));
+                    sources.push(file.clone());
+                    GltfImage::File(file)
+                }
+            };
+            Some((image.index(), bytes))
+        }
+    };
+    Ok(GltfMaterial {
+        name,
+        base_color,
+        base_color_texture,
+        emissive,
+        emissive_texture: m.emissive_texture().is_some(),
+        transmission,
+        ior,
+        metallic,
+        roughness,
+        double_sided: m.double_sided(),
+    })
+}
+
+/// The nodes of the scene with a mesh, each with its world transform, in the order the
+/// tree is walked. glTF nodes form trees: a node with two parents or on a cycle is refused
+/// (it would be instanced without end).
+fn instances<'a>(path: &Path, doc: &'a Document) -> Result<Vec<(Node<'a>, Mat4)>> {
+    let n = doc.nodes().len();
+    let mut parent = vec![None; n];
+    for p in doc.nodes() {
+        for c in p.children() {
+            if let Some(q) = parent[c.index()].replace(p.index()) {
+                return Err(Error::input(
+                    path,
+                    None,
+                    format!(
+                        "node {} is a child of nodes {q} and {}: glTF nodes must form trees",
+                        c.index(),
+                        p.index()
+                    ),
+                ));
+            }
+        }
+    }
+    let roots: Vec<Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(s) => s.nodes().collect(),
+        None => doc
+            .nodes()
+            .filter(|x| parent[x.index()].is_none())
+            .collect(),
+    };
+    let mut seen = vec![false; n];
+    let mut out = Vec::new();
+    let mut stack: Vec<(Node, Mat4)> = roots
+        .into_iter()
+        .rev()
+        .map(|r| (r, Mat4::IDENTITY))
+        .collect();
+    while let Some((node, up)) = stack.pop() {
+        if std::mem::replace(&mut seen[node.index()], true) {
+            return Err(Error::input(
+                path,
+                None,
+                format!(
+                    "node {} is reached twice from the scene (a cycle, or listed twice): glTF \
+                     nodes must form trees",
+                    node.index()
+                ),
+            ));
+        }
+        let world = up * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let children: Vec<Node> = node.children().collect();
+        for c in children.into_iter().rev() {
+            stack.push((c, world));
+        }
+        if node.mesh().is_some() {
+            out.push((node, world));
+        }
+    }
+    Ok(out)
+}
+
+/// Checks an accessor before the gltf crate reads it (its reader panics on some bad
+/// layouts): type, no sparse storage, stride, and bounds within its buffer view. Returns
+/// the element count.
+fn check_accessor(
+    path: &Path,
+    acc: &Accessor,
+    what: &str,
+    dims: Dimensions,
+    types: &[DataType],
+) -> Result<usize> {
+    let bad = |msg: String| {
+        Error::input(
+            path,
+            None,
+            format!("accessor {} ({what}): {msg}", acc.index()),
+        )
+    };
+    if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
+        return Err(bad(format!(
+            "is {:?} of {:?}; lancer reads {dims:?} of {types:?}",
+            acc.dimensions(),
+            acc.data_type()
+        )));
+    }
+    if acc.sparse().is_some() {
+        return Err(bad(
+            "sparse accessors are not supported: export the mesh without sparse storage".into(),
+        ));
+    }
+    let view = acc
+        .view()
+        .ok_or_else(|| bad("has no bufferView (no data)".into()))?;
+    let count = acc.count();
+    if count == 0 {
+        return Ok(0);
+    }
+    let elem = acc.size();
+    let stride = view.stride().unwrap_or(elem);
+    if stride < elem {
+        return Err(bad(format!(
+            "byteStride {stride} is less than the {elem} bytes of an element"
+        )));
+    }
+    let end = stride
+        .checked_mul(count - 1)
+        .and_then(|x| x.checked_add(elem))
+        .and_then(|x| x.checked_add(acc.offset()));
+    if end.is_none_or(|e| e > view.length()) {
+        return Err(bad(format!(
+            "{count} elements reach past the end of bufferView {} ({} bytes)",
+            view.index(),
+            view.length()
+        )));
+    }
+    Ok(count)
+}
+
+/// Triangles a primitive makes (0 for points and lines), its accessors checked.
+fn triangle_count(path: &Path, p: &Primitive) -> Result<usize> {
+    let positions = p.get(&Semantic::Positions).ok_or_else(|| {
+        Error::input(
+            path,
+            None,
+            "a mesh primitive has no POSITION attribute".to_string(),
+        )
+    })?;
+    let nv = check_accessor(
+        path,
+        &positions,
+        "POSITION",
+        Dimensions::Vec3,
+        &[DataType::F32],
+    )?;
+    let n = match p.indices() {
+        Some(i) => check_accessor(
+            path,
+            &i,
+            "indices",
+            Dimensions::Scalar,
+            &[DataType::U8, DataType::U16, DataType::U32],
+        )?,
+        None => nv,
+    };
+    Ok(match p.mode() {
+        Mode::Triangles => n / 3,
+        Mode::TriangleStrip | Mode::TriangleFan => n.saturating_sub(2),
+        _ => 0,
+    })
+}
+
+/// A primitive's triangles in its mesh's space, read once for every node that draws it.
+struct Surface {
+    positions: Vec<Vec3>,
+    /// Each triangle's corners (indices into `positions`, possibly out of range).
+    corners: Vec<[usize; 3]>,
+    /// Texture coordinates by vertex, v pointing up.
+    uvs: Vec<Vec2>,
+    material: Option<usize>,
+    /// Indices left over after the last whole triangle (a short face).
+    short: bool,
+}
+
+/// Reads a primitive's triangles; None for points and lines (no surface).
+fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Option<Surface>> {
+    let mode = p.mode();
+    if !matches!(
+        mode,
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    ) {
+        return Ok(None);
+    }
+    let reader = p.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    // Accessors were checked by triangle_count; count 0 means no data to read.
+    let positions: Vec<Vec3> = if p.get(&Semantic::Positions).is_some_and(|a| a.count() > 0) {
+        reader
+            .read_positions()
+            .map(|it| it.map(Vec3::from).collect())
+            .unwrap_or_default()
+    } else {
+        Vec::new()
+    };
+    let indices: Vec<u32> = match p.indices() {
+        Some(a) if a.count() == 0 => Vec::new(),
+        Some(_) => reader
+            .read_indices()
+            .map(|i| i.into_u32().collect())
+            .unwrap_or_default(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    let set =
+        (p.material().pbr_metallic_roughness().base_color_texture()).map_or(0, |t| t.tex_coord());
+    let uvs: Vec<Vec2> = match p.get(&Semantic::TexCoords(set)) {
+        Some(a) => {
+            let n = check_accessor(
+                path,
+                &a,
+                &format!("TEXCOORD_{set}"),
+                Dimensions::Vec2,
+                &[DataType::F32, DataType::U8, DataType::U16],
+            )?;
+            if n == 0 {
+                Vec::new()
+            } else {
+                reader
+                    .read_tex_coords(set)
+                    .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect())
+                    .unwrap_or_default()
+            }
+        }
+        None => Vec::new(),
+    };
+    let corners: Vec<[usize; 3]> = match mode {
+        Mode::Triangles => indices
+            .chunks_exact(3)
+            .map(|c| [c[0] as usize, c[1] as usize, c[2] as usize])
+            .collect(),
+        // glTF 2.0 §3.7.2.1: strip triangle i is (v_i, v_{i+1+i%2}, v_{i+2-i%2}); fan
+        // triangle i is (v_{i+1}, v_{i+2}, v_0).
+        Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+            .map(|i| [i, i + 1 + i % 2, i + 2 - i % 2].map(|k| indices[k] as usize))
+            .collect(),
+        _ => (0..indices.len().saturating_sub(2))
+            .map(|i| [indices[i + 1], indices[i + 2], indices[0]].map(|k| k as usize))
+            .collect(),
+    };
+    Ok(Some(Surface {
+        positions,
+        corners,
+        uvs,
+        material: p.material().index(),
+        short: mode == Mode::Triangles && !indices.len().is_multiple_of(3),
+    }))
+}
+
+/// Adds a surface's triangles, moved into world space by `world`.
+fn add_instance(s: &Surface, world: &Mat4, out: &mut GltfScene) {
+    let Surface {
+        positions,
+        corners,
+        uvs,
+        material,
+        short,
+    } = s;
+    out.mesh.short_faces += usize::from(*short);
+    // A mirroring transform turns faces inside out: swap two corners to keep the front.
+    let flip = world.determinant() < 0.0;
+    for &c in corners {
+        let c = if flip { [c[0], c[2], c[1]] } else { c };
+        let (t, s, uv) = match c.map(|k| positions.get(k)) {
+            [Some(a), Some(b), Some(d)] => {
+                let t = Triangle::new(
+                    world.transform_point3(*a),
+                    world.transform_point3(*b),
+                    world.transform_point3(*d),
+                );
+                let uv = c.map(|k| uvs.get(k).copied().unwrap_or(Vec2::ZERO));
+                (t, classify(&t), uv)
+            }
+            _ => (placeholder(), TriStatus::OutOfRange, [Vec2::ZERO; 3]),
+        };
+        out.mesh.triangles.push(t);
+        out.mesh.status.push(s);
+        out.uvs.push(uv);
+        out.material_ids.push(*material);
+    }
+}

@@ -1,0 +1,243 @@
+//! PLY loading (ASCII and binary, either byte order) through ply-rs-bw: the `vertex`
+//! element's x, y, z and the `face` element's index lists, fan-triangulated in file order
+//! like OBJ polygons. Faces naming no vertex keep their place as placeholders; other
+//! elements are read past and named in a warning.
+
+use std::io::BufReader;
+use std::path::Path;
+
+use glam::Vec3;
+use ply_rs_bw::parser::{ParseError, Parser, Reader};
+use ply_rs_bw::ply::{ElementDef, Property, PropertyAccess, PropertyAccessResult, PropertyType};
+
+use super::{classify, placeholder, Mesh, TriStatus};
+use crate::error::{Error, Result};
+use crate::geometry::Triangle;
+
+/// Bytes a triangle costs from here through the BVH build (as for built-in spheres).
+const BYTES_PER_TRIANGLE: u128 = 256;
+
+/// A vertex position, whatever scalar type the file stores it in.
+struct Vertex([f64; 3]);
+
+impl PropertyAccess for Vertex {
+    fn new() -> Self {
+        Vertex([0.0; 3])
+    }
+    fn set_property(&mut self, name: &str, p: Property) -> PropertyAccessResult {
+        let k = match name {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => return PropertyAccessResult::Ignored,
+        };
+        match scalar(&p) {
+            Some(x) => {
+                self.0[k] = x;
+                PropertyAccessResult::Set
+            }
+            None => PropertyAccessResult::UnsupportedType,
+        }
+    }
+}
+
+fn scalar(p: &Property) -> Option<f64> {
+    Some(match *p {
+        Property::Char(x) => x.into(),
+        Property::UChar(x) => x.into(),
+        Property::Short(x) => x.into(),
+        Property::UShort(x) => x.into(),
+        Property::Int(x) => x.into(),
+        Property::UInt(x) => x.into(),
+        Property::Float(x) => x.into(),
+        Property::Double(x) => x,
+        _ => return None,
+    })
+}
+
+/// A face's vertex indices, widened (negative ones point at no vertex).
+struct Face(Vec<i64>);
+
+impl PropertyAccess for Face {
+    fn new() -> Self {
+        Face(Vec::new())
+    }
+    fn set_property(&mut self, name: &str, p: Property) -> PropertyAccessResult {
+        if !is_index_list(name) {
+            return PropertyAccessResult::Ignored;
+        }
+        self.0 = match p {
+            Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+            _ => return PropertyAccessResult::UnsupportedType,
+        };
+        PropertyAccessResult::Set
+    }
+}
+
+/// An element lancer does not use: read past.
+struct Skip;
+
+impl PropertyAccess for Skip {
+    fn new() -> Self {
+        Skip
+    }
+}
+
+fn is_index_list(name: &str) -> bool {
+    matches!(name, "vertex_indices" | "vertex_index")
+}
+
+/// One line naming the file, the line when ply-rs knows it, and what ply-rs found.
+fn parse_error(path: &Path, e: ParseError) -> Error {
+    let text = e.to_string();
+    let msg = match e.line() {
+        Some(l) => text
+            .strip_prefix(&format!("Line {l}: "))
+            .unwrap_or(&text)
+            .to_string(),
+        None => text,
+    };
+    // ply-rs puts the cause on a second line: one line for people.
+    let msg = msg.split_whitespace().collect::<Vec<_>>().join(" ");
+    Error::input(
+        path,
+        e.line(),
+        format!("PLY parse error: {msg} (is the file complete and its header right?)"),
+    )
+}
+
+/// Refuses an element whose layout lancer cannot read, naming the header's element.
+fn check_element(path: &Path, e: &ElementDef) -> Result<()> {
+    let prop = |n: &str| e.properties.get(n).map(|p| &p.data_type);
+    match e.name.as_str() {
+        "vertex" => {
+            for axis in ["x", "y", "z"] {
+                if !matches!(prop(axis), Some(PropertyType::Scalar(_))) {
+                    return Err(Error::input(
+                        path,
+                        None,
+                        format!("the 'vertex' element has no scalar property '{axis}': a PLY mesh needs x, y and z"),
+                    ));
+                }
+            }
+        }
+        "face" => {
+            let list = e
+                .properties
+                .iter()
+                .find(|(n, _)| is_index_list(n))
+                .map(|(_, p)| &p.data_type);
+            if !matches!(list, Some(PropertyType::List(..))) {
+                return Err(Error::input(
+                    path,
+                    None,
+                    "the 'face' element has no list property 'vertex_indices' (or 'vertex_index')",
+                ));
+            }
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// Loads every triangle of a PLY file in file order (polygons fan-triangulated).
+pub fn load_ply(path: &Path) -> Result<Mesh> {
+    let file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
+    let mut reader = Reader::new(BufReader::new(file));
+    let header = Parser::<Skip>::new()
+        .read_header(&mut reader)
+        .map_err(|e| parse_error(path, e))?;
+    let mut vertices: Option<Vec<Vertex>> = None;
+    let mut faces: Option<Vec<Face>> = None;
+    for (_, e) in &header.elements {
+        check_element(path, e)?;
+        let read = |e| parse_error(path, e);
+        match e.name.as_str() {
+            "vertex" if vertices.is_none() => {
+                vertices = Some(
+                    Parser::<Vertex>::new()
+                        .read_payload_for_element(&mut reader, e, &header)
+                        .map_err(read)?,
+                )
+            }
+            "face" if faces.is_none() => {
+                faces = Some(
+                    Parser::<Face>::new()
+                        .read_payload_for_element(&mut reader, e, &header)
+                        .map_err(read)?,
+                )
+            }
+            _ => {
+                Parser::<Skip>::new()
+                    .read_payload_for_element(&mut reader, e, &header)
+                    .map_err(read)?;
+                if e.count > 0 {
+                    log::warn!(
+                        "{}: {} '{}' elements not used (lancer reads 'vertex' and 'face')",
+                        path.display(),
+                        e.count,
+                        e.name
+                    );
+                }
+            }
+        }
+    }
+    let vertices = vertices.unwrap_or_default();
+    let faces = faces.ok_or_else(|| {
+        Error::input(
+            path,
+            None,
+            "no 'face' element: lancer traces triangles, not point clouds",
+        )
+    })?;
+    let tris: u128 = faces
+        .iter()
+        .map(|f| f.0.len().saturating_sub(2) as u128)
+        .sum();
+    if tris >= u32::MAX as u128 / 2 {
+        return Err(Error::input(
+            path,
+            None,
+            format!("{tris} triangles, more than lancer indexes: split the mesh"),
+        ));
+    }
+    crate::limits::check_memory(
+        &format!("{} ({tris} triangles)", path.display()),
+        tris * BYTES_PER_TRIANGLE,
+        "use a smaller mesh",
+    )?;
+
+    let mut mesh = Mesh {
+        sources: vec![path.to_path_buf()],
+        ..Mesh::default()
+    };
+    let vertex = |i: i64| {
+        let v = vertices.get(usize::try_from(i).ok()?)?;
+        Some(Vec3::new(v.0[0] as f32, v.0[1] as f32, v.0[2] as f32))
+    };
+    for f in &faces {
+        if f.0.len() < 3 {
+            mesh.short_faces += 1;
+            continue;
+        }
+        let corners: Option<Vec<Vec3>> = f.0.iter().map(|&i| vertex(i)).collect();
+        for k in 1..f.0.len() - 1 {
+            let (t, s) = match &corners {
+                Some(c) => {
+                    let t = Triangle::new(c[0], c[k], c[k + 1]);
+                    let s = classify(&t);
+                    (t, s)
+                }
+                None => (placeholder(), TriStatus::OutOfRange),
+            };
+            mesh.triangles.push(t);
+            mesh.status.push(s);
+        }
+    }
+    Ok(mesh)
+}

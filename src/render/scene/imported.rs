@@ -1,0 +1,155 @@
+//! Mesh files as scene objects, the reader chosen by extension (OBJ with its MTL materials,
+//! PLY, glTF 2.0 with its materials), and glTF's metallic-roughness materials mapped onto
+//! lancer's: emissive where the emissive factor is not black, glass where
+//! KHR_materials_transmission is present, mirror for a perfectly smooth metal, diffuse
+//! (base colour factor × base colour texture) otherwise.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+
+use super::assemble::{decode_texture, error_message, Builder, Material};
+use super::file::MaterialKind;
+use crate::error::{Error, Result};
+use crate::geometry::{Aabb, Triangle};
+use crate::mesh::{
+    load_gltf, load_obj_scene, load_ply, warn_exclusions, FileKind, GltfImage, GltfMaterial,
+    TriStatus,
+};
+
+impl Builder {
+    /// Adds a mesh file's triangles, transformed by `xf`; `material` overrides the file's
+    /// own materials, `grey` stands in where it has none. Returns the bounds of what it
+    /// added.
+    pub(super) fn add_mesh_file(
+        &mut self,
+        path: &Path,
+        material: Option<u32>,
+        grey: u32,
+        xf: impl Fn(Vec3) -> Vec3,
+    ) -> Result<Aabb> {
+        let first = self.triangles.len();
+        match FileKind::of(path)? {
+            FileKind::Obj => {
+                let obj = load_obj_scene(path)?;
+                self.add_obj(&obj, path, material, grey, xf)?;
+            }
+            FileKind::Ply => {
+                let mesh = load_ply(path)?;
+                let id = material.unwrap_or(grey);
+                for (t, &s) in mesh.triangles.iter().zip(&mesh.status) {
+                    self.push(xf_triangle(t, &xf), s, [Vec2::ZERO; 3], id);
+                }
+                warn_exclusions(path, &mesh);
+                self.short_faces += mesh.short_faces;
+                self.sources.extend(mesh.sources);
+            }
+            FileKind::Gltf => {
+                let g = load_gltf(path)?;
+                let mut ids = Vec::with_capacity(g.materials.len());
+                if material.is_none() {
+                    for m in &g.materials {
+                        let m = gltf_material(self, path, m)?;
+                        ids.push(self.material(m));
+                    }
+                }
+                for (i, t) in g.mesh.triangles.iter().enumerate() {
+                    let id = material.unwrap_or_else(|| {
+                        g.material_ids[i]
+                            .and_then(|k| ids.get(k).copied())
+                            .unwrap_or(grey)
+                    });
+                    self.push(xf_triangle(t, &xf), g.mesh.status[i], g.uvs[i], id);
+                }
+                warn_exclusions(path, &g.mesh);
+                self.short_faces += g.mesh.short_faces;
+                self.sources.extend(g.mesh.sources);
+            }
+            FileKind::Scene => {
+                return Err(Error::input(
+                    path,
+                    None,
+                    "a scene cannot be an object's mesh: name an .obj, .ply, .gltf or .glb file",
+                ))
+            }
+        }
+        Ok(self.triangles[first..]
+            .iter()
+            .zip(&self.status[first..])
+            .filter(|(_, s)| **s == TriStatus::Ok)
+            .fold(Aabb::EMPTY, |b, (t, _)| b.union(t.bbox())))
+    }
+}
+
+fn xf_triangle(t: &Triangle, xf: &impl Fn(Vec3) -> Vec3) -> Triangle {
+    Triangle::new(xf(t.v[0]), xf(t.v[1]), xf(t.v[2]))
+}
+
+/// lancer's material for a glTF material (see the module comment for the mapping).
+fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Material> {
+    let [r, g, bl, _] = m.base_color;
+    let base = Vec3::new(r, g, bl);
+    if base.max_element() > 1.0 {
+        log::warn!(
+            "{}: material {:?}: base colour {base} reflects more light than arrives; clamped to 1",
+            path.display(),
+            m.name
+        );
+    }
+    let base = base.min(Vec3::ONE);
+    let mut mat = Material::diffuse(base);
+    let emissive = Vec3::from(m.emissive);
+    if emissive.max_element() > 0.0 {
+        if m.emissive_texture {
+            log::warn!(
+                "{}: material {:?}: emissive texture not used (lancer emits the emissive \
+                 factor)",
+                path.display(),
+                m.name
+            );
+        }
+        mat.kind = MaterialKind::Emissive;
+        mat.emission = emissive;
+        mat.two_sided = m.double_sided;
+    } else if m.transmission > 0.0 {
+        mat.kind = MaterialKind::Glass;
+        mat.ior = m.ior.clamp(1.0, 4.0);
+        if mat.ior != m.ior {
+            log::warn!(
+                "{}: material {:?}: ior {} outside [1, 4]; clamped to {}",
+                path.display(),
+                m.name,
+                m.ior,
+                mat.ior
+            );
+        }
+    } else if m.metallic >= 1.0 && m.roughness <= 0.0 {
+        mat.kind = MaterialKind::Mirror;
+    } else if let Some((index, image)) = &m.base_color_texture {
+        // lancer's textures replace the albedo: the factor is multiplied into the texels.
+        let key = PathBuf::from(format!("{}#image{index}*{base}", path.display()));
+        let texture = b.texture_with(key, || {
+            let decoded = match image {
+                GltfImage::Bytes(bytes) => image::load_from_memory(bytes),
+                GltfImage::File(f) => image::open(f),
+            };
+            let decoded = decoded.map_err(|e| {
+                Error::input(
+                    path,
+                    None,
+                    format!(
+                        "material {:?}: base colour texture (image {index}) cannot be read: {e}",
+                        m.name
+                    ),
+                )
+            })?;
+            let mut t = decode_texture(decoded);
+            for x in &mut t.texels {
+                *x *= base;
+            }
+            Ok(t)
+        });
+        mat.texture = Some(texture.map_err(|e| Error::input(path, None, error_message(&e)))?);
+    }
+    Ok(mat)
+}
