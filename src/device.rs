@@ -11,6 +11,10 @@ use crate::gpu::GpuContext;
 pub enum DeviceChoice {
     /// A GPU adapter when one opens, else the CPU (the reason is kept in
     /// [`Device::fallback`]).
+    #[cfg_attr(
+        feature = "cli",
+        value(help = "A GPU adapter when one opens, else the CPU (saying why)")
+    )]
     #[default]
     Auto,
     /// A GPU adapter, or an error.

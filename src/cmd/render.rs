@@ -19,12 +19,18 @@ pub struct RenderCmd {
     /// Output image: .png (sRGB, 8-bit) or .exr (linear float).
     #[arg(short, long)]
     out: PathBuf,
-    /// Image width (default: the scene's, 640 for a mesh).
+    /// Image width (default: the scene's, 640 for a mesh); alone, the height follows the
+    /// scene's aspect ratio.
     #[arg(long)]
     width: Option<u32>,
-    /// Image height (default: the scene's, 480 for a mesh).
+    /// Image height (default: the scene's, 480 for a mesh); alone, the width follows the
+    /// scene's aspect ratio.
     #[arg(long)]
     height: Option<u32>,
+    /// Scale the image size (the scene's, or --width/--height) by this factor, e.g. 0.25 for
+    /// a quick preview.
+    #[arg(long, value_parser = super::positive_finite)]
+    scale: Option<f32>,
     /// Samples per pixel (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -54,11 +60,16 @@ pub fn load_scene(
     width: Option<u32>,
     height: Option<u32>,
 ) -> Result<RenderScene> {
-    let mut scene = if FileKind::of(path)? == FileKind::Scene {
-        RenderScene::from_file(path)?
-    } else {
-        RenderScene::from_mesh(path, width.unwrap_or(640), height.unwrap_or(480))?
-    };
+    load_scene_scaled(path, width, height, None)
+}
+
+/// [`load_scene`] with the image size also scaled by `scale`.
+pub fn load_scene_scaled(
+    path: &std::path::Path,
+    width: Option<u32>,
+    height: Option<u32>,
+    scale: Option<f32>,
+) -> Result<RenderScene> {
     if width == Some(0) || height == Some(0) {
         return Err(Error::input(
             path,
@@ -66,9 +77,38 @@ pub fn load_scene(
             "--width and --height must be positive",
         ));
     }
-    scene.camera.width = width.unwrap_or(scene.camera.width);
-    scene.camera.height = height.unwrap_or(scene.camera.height);
+    let mut scene = if FileKind::of(path)? == FileKind::Scene {
+        RenderScene::from_file(path)?
+    } else {
+        RenderScene::from_mesh(path, 640, 480)?
+    };
+    let (w, h) = image_size(
+        (scene.camera.width, scene.camera.height),
+        width,
+        height,
+        scale.unwrap_or(1.0),
+    );
+    (scene.camera.width, scene.camera.height) = (w, h);
     Ok(scene)
+}
+
+/// The image size from the scene's and the command line's: one side given alone keeps the
+/// scene's aspect ratio; `scale` multiplies the result (never below 1 pixel).
+fn image_size(
+    scene: (u32, u32),
+    width: Option<u32>,
+    height: Option<u32>,
+    scale: f32,
+) -> (u32, u32) {
+    let aspect = scene.0 as f64 / scene.1.max(1) as f64;
+    let (w, h) = match (width, height) {
+        (Some(w), Some(h)) => (w as f64, h as f64),
+        (Some(w), None) => (w as f64, w as f64 / aspect),
+        (None, Some(h)) => (h as f64 * aspect, h as f64),
+        (None, None) => (scene.0 as f64, scene.1 as f64),
+    };
+    let side = |x: f64| (x * scale as f64).round().clamp(1.0, u32::MAX as f64) as u32;
+    (side(w), side(h))
 }
 
 impl RenderCmd {
@@ -82,7 +122,7 @@ impl RenderCmd {
             }
             t => t.map(Duration::from_secs_f64),
         };
-        let scene = load_scene(&self.scene, self.width, self.height)?;
+        let scene = load_scene_scaled(&self.scene, self.width, self.height, self.scale)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
         let device = self.device.open()?;
         let cancel = Arc::new(AtomicBool::new(false));
@@ -165,5 +205,22 @@ impl RenderCmd {
             )));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::image_size;
+
+    #[test]
+    fn one_side_keeps_the_aspect_ratio_and_scale_multiplies() {
+        assert_eq!(image_size((640, 480), Some(320), None, 1.0), (320, 240));
+        assert_eq!(image_size((640, 480), None, Some(96), 1.0), (128, 96));
+        assert_eq!(
+            image_size((640, 480), Some(100), Some(100), 1.0),
+            (100, 100)
+        );
+        assert_eq!(image_size((256, 192), None, None, 0.25), (64, 48));
+        assert_eq!(image_size((256, 192), None, None, 1e-9), (1, 1));
     }
 }

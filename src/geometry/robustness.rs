@@ -44,6 +44,13 @@ pub enum RayOffset {
     ErrorBound,
     /// Along the normal by a fixed epsilon, [`FIXED_OFFSET`] of the scene's diagonal (the
     /// textbook choice: acne where it is too small, tunnelling where too large).
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "Along the normal by 1e-4 of the scene's diagonal (the textbook choice: \
+                      acne where too small, tunnelling where too large)"
+        )
+    )]
     Fixed,
     /// No offset: the ray starts on the surface (shows self-intersection).
     None,
@@ -73,6 +80,13 @@ pub enum Precision {
     /// f64: the oracle's watertight test (`trace::oracle`) as the tracer's triangle test,
     /// whatever [`TriangleTest`] says, over the same f32 boxes. CPU only (the BVH's twin):
     /// it prices the f32 error itself.
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "The f64 oracle's watertight test over the same f32 boxes, whatever \
+                      --triangle-test says (CPU only: prices the f32 error itself)"
+        )
+    )]
     F64,
 }
 

@@ -19,6 +19,10 @@ pub enum BvhMemory {
     Buffers,
     /// Read-only rgba32uint storage textures, TEXEL_ROW texels a row.
     /// lavapipe loads these with a gather instead of a per-lane loop: ~18% more rays/s there.
+    #[cfg_attr(
+        feature = "cli",
+        value(help = "Read-only storage textures (lavapipe gathers their loads: faster there)")
+    )]
     #[default]
     Textures,
 }

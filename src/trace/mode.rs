@@ -19,6 +19,14 @@ pub enum TraversalMode {
     /// workgroup of whole subgroups. Statistics count, per ray, the nodes and triangles its
     /// subgroup loaded while the ray was live (valid, and for any hit not yet answered): the
     /// union of the lanes' traversals, each load shared by the lanes.
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "The lanes of a subgroup walk together, sharing node loads and one \
+                      stack; same closest hits as per-ray (dfs-sign only; needs adapter \
+                      subgroups)"
+        )
+    )]
     Subgroup,
 }
 

@@ -7,7 +7,7 @@ use super::tree::MAX_DEPTH;
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Builder {
-    /// Full sweep SAH over every centroid on all three axes (the seed's algorithm).
+    /// Full sweep SAH over every centroid on all three axes (centroids sorted once per axis).
     #[default]
     Sweep,
     /// Binned SAH with `bins` bins per axis.
