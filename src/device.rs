@@ -38,6 +38,9 @@ impl Device {
             DeviceChoice::Gpu => Ok(Device::gpu(GpuContext::new()?)),
             DeviceChoice::Auto => match GpuContext::new() {
                 Ok(ctx) => Ok(Device::gpu(ctx)),
+                // An adapter asked for by name and not found is the user's error, not a
+                // reason to fall back silently.
+                Err(e) if std::env::var_os("WGPU_ADAPTER_NAME").is_some() => Err(e),
                 Err(e) => {
                     log::info!("no GPU: {e}");
                     Ok(Device {

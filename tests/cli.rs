@@ -592,3 +592,39 @@ fn mesh_and_scene_files_are_chosen_by_extension_and_unknown_ones_refused() {
     ]);
     assert_eq!(image::open(&png).unwrap().to_rgb8().dimensions(), (16, 12));
 }
+
+#[test]
+fn adapters_lists_lavapipe_and_an_unmatched_adapter_name_is_an_error_with_auto_too() {
+    let out = lancer_ok(&["adapters"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("llvmpipe"), "{text}");
+    assert!(
+        text.contains("subgroups") && text.contains("timestamps"),
+        "{text}"
+    );
+    let d = Scratch::new();
+    let quad = d.quad();
+    let (rays, hits) = (d.path("r.bin"), d.path("h.bin"));
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "-o",
+        s(&rays),
+    ]);
+    let out = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args(["trace", s(&quad), "--rays", s(&rays), "--out", s(&hits)])
+        .env("WGPU_ADAPTER_NAME", "no-such-adapter")
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "auto must not fall back to the CPU silently"
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("matches none of the adapters"));
+    assert!(!hits.exists());
+}

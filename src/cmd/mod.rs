@@ -1,5 +1,6 @@
 //! Subcommands of the `lancer` binary: parse, call the library, print.
 
+mod adapters;
 mod bench;
 mod bench_accuracy;
 mod bench_layouts;
@@ -58,6 +59,8 @@ enum Cmd {
     /// Compare two images (difference statistics and picture) or two hit files (judged by
     /// the f64 oracle with --mesh and --rays); exit code 1 when they differ.
     Compare(compare::CompareCmd),
+    /// List every GPU adapter: type, backend, driver, limits and features.
+    Adapters(adapters::AdaptersCmd),
 }
 
 /// BVH builder options shared by the subcommands that build one.
@@ -287,5 +290,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Cmd::Bench(c) => c.run(),
         Cmd::Check(c) => c.run(),
         Cmd::Compare(c) => c.run(),
+        Cmd::Adapters(c) => c.run(),
     }
 }

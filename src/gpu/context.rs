@@ -56,21 +56,15 @@ apt-get install mesa-vulkan-drivers libvulkan1, which includes the lavapipe soft
 or use --device cpu";
 
 impl GpuContext {
-    /// Opens an adapter without a window. Honours `WGPU_BACKEND` (e.g. vulkan, gl) and
-    /// `WGPU_ADAPTER_NAME` (a case-insensitive substring of the adapter name).
+    /// Opens an adapter without a window. Honours `WGPU_BACKEND` (e.g. vulkan, gl),
+    /// `WGPU_ADAPTER_NAME` (a case-insensitive substring of the adapter name) and
+    /// `WGPU_POWER_PREF` (low, high or none; default high).
     pub fn new() -> Result<GpuContext> {
         pollster::block_on(Self::open())
     }
 
     async fn open() -> Result<GpuContext> {
-        check_backend_variable()?;
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        if std::env::var_os("WGPU_BACKEND").is_none() {
-            // Compute only: the primary APIs. The GL backend probes window systems and
-            // prints noise on headless machines; WGPU_BACKEND=gl still selects it.
-            desc.backends = wgpu::Backends::PRIMARY;
-        }
-        let instance = wgpu::Instance::new(desc);
+        let instance = instance()?;
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
             Ok(want) => {
                 let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
@@ -92,7 +86,8 @@ impl GpuContext {
             }
             Err(_) => instance
                 .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
                     ..Default::default()
                 })
                 .await
@@ -181,6 +176,18 @@ impl GpuContext {
 
 /// Refuses a `WGPU_BACKEND` naming no backend wgpu knows (wgpu would only log it and find
 /// no adapter).
+/// The wgpu instance every adapter comes from: `WGPU_BACKEND` honoured, else the primary
+/// APIs only (the GL backend probes window systems and prints noise on headless machines;
+/// `WGPU_BACKEND=gl` still selects it).
+pub(crate) fn instance() -> Result<wgpu::Instance> {
+    check_backend_variable()?;
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    if std::env::var_os("WGPU_BACKEND").is_none() {
+        desc.backends = wgpu::Backends::PRIMARY;
+    }
+    Ok(wgpu::Instance::new(desc))
+}
+
 fn check_backend_variable() -> Result<()> {
     let Ok(value) = std::env::var("WGPU_BACKEND") else {
         return Ok(());

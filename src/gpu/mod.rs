@@ -1,6 +1,7 @@
 //! The GPU side: a headless wgpu device, the shared plumbing, the WGSL sources and the
 //! trace kernel.
 
+mod adapters;
 pub mod bindings;
 mod bvh_memory;
 mod context;
@@ -8,6 +9,7 @@ pub mod plumbing;
 pub mod shaders;
 mod trace;
 
+pub use adapters::{adapters, AdapterSummary};
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
 pub use context::{human_bytes, AdapterReport, GpuContext, SubgroupSizes};
 pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};

@@ -1,0 +1,50 @@
+//! `lancer adapters`: every GPU adapter wgpu finds, and what lancer can use of each.
+
+use clap::Args;
+use lancer::gpu::{adapters, human_bytes};
+use lancer::Result;
+
+#[derive(Args)]
+pub struct AdaptersCmd {}
+
+impl AdaptersCmd {
+    pub fn run(self) -> Result<()> {
+        let all = adapters()?;
+        if all.is_empty() {
+            println!(
+                "no adapter: install a Vulkan driver (Debian/Ubuntu: apt-get install \
+                 mesa-vulkan-drivers libvulkan1, which includes lavapipe) or use --device cpu"
+            );
+            return Ok(());
+        }
+        for (i, a) in all.iter().enumerate() {
+            let yes = |b: bool| if b { "yes" } else { "no" };
+            println!("{i}: {} ({}, {})", a.name, a.device_type, a.backend);
+            println!("   driver            {}", a.driver);
+            println!(
+                "   limits            storage binding {}, 2D texture {} texels, workgroup {} invocations",
+                human_bytes(a.max_storage_buffer_binding),
+                a.max_texture_dimension_2d,
+                a.max_workgroup_invocations
+            );
+            let subgroups = match a.subgroups {
+                Some((lo, hi)) if lo == hi => format!("yes (size {lo})"),
+                Some((lo, hi)) => format!("yes (sizes {lo}–{hi})"),
+                None => "no".into(),
+            };
+            println!(
+                "   features          subgroups {subgroups}, timestamps {}, shader f64 {}",
+                yes(a.timestamps),
+                yes(a.shader_f64)
+            );
+            if a.device_type == "Cpu" {
+                println!("   (a software driver: it runs on the CPU)");
+            }
+        }
+        println!(
+            "choose one with WGPU_ADAPTER_NAME=<part of its name> (WGPU_BACKEND and \
+             WGPU_POWER_PREF=low|high also apply)"
+        );
+        Ok(())
+    }
+}
