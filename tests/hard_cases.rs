@@ -346,3 +346,122 @@ fn directions_down_to_min_dir_hit_like_unit_ones_and_shorter_ones_are_refused() 
         );
     }
 }
+
+/// Two parallel 2 × 2 walls `gap` apart (z = 0 and z = gap), scaled and moved; the first two
+/// triangles are the lower wall.
+fn two_walls(gap: f32, scale: f32, shift: f32) -> Mesh {
+    let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z) * scale + Vec3::splat(shift);
+    let quad = |z: f32| {
+        let [a, b, c, d] = [p(-1., -1., z), p(1., -1., z), p(1., 1., z), p(-1., 1., z)];
+        [Triangle::new(a, b, c), Triangle::new(a, c, d)]
+    };
+    Mesh::from_triangles([quad(0.0), quad(gap)].concat())
+}
+
+/// Secondary rays leaving one of two walls 1e-4 of the scene's width apart, toward the
+/// other: with the error-bound offset every one hits the other wall (no tunnelling) and none
+/// its own triangle, at scales 1e-3 … 1e4 and 1e5 away from the origin, on CPU and GPU. The
+/// scene-relative fixed epsilon (1e-4 of the diagonal) starts beyond the other wall and
+/// tunnels (asserted, so the test can fail); no offset re-hits its own wall.
+#[test]
+fn secondary_rays_between_close_walls_neither_tunnel_nor_re_hit() {
+    let mut fixed_tunnels = 0;
+    // Moved away, the walls stay resolvable while their gap exceeds the hit points' error
+    // bound, about 4e-7 of their distance from the origin (the gap here is 2e-4 × scale).
+    for (scale, shift) in [(1e-3f32, 0.0f32), (1.0, 0.0), (1e4, 0.0), (1e3, 1e5)] {
+        let mesh = two_walls(2e-4, scale, shift);
+        for offset in [RayOffset::ErrorBound, RayOffset::Fixed, RayOffset::None] {
+            let (rays, own) = secondary::secondary_rays(&mesh, 2000, offset, 9);
+            // Rays leaving toward the other wall, clearly (not along the walls), that cross
+            // its plane well inside it (not past its edge).
+            let toward: Vec<(Ray, u32)> = (rays.iter().zip(&own))
+                .filter(|(r, &o)| {
+                    let (up, other_z) = if o < 2 { (1.0, 2e-4) } else { (-1.0, 0.0) };
+                    let z = other_z * scale + shift;
+                    let land = r.origin + r.dir * ((z - r.origin.z) / r.dir.z);
+                    r.dir.z * up > 0.05 * r.dir.length()
+                        && ((land.x - shift) / scale).abs() < 0.99
+                        && ((land.y - shift) / scale).abs() < 0.99
+                })
+                .map(|(r, &o)| (*r, o))
+                .collect();
+            let only: Vec<Ray> = toward.iter().map(|(r, _)| *r).collect();
+            let rob = Robustness {
+                ray_offset: offset,
+                ..Robustness::default()
+            };
+            for device in [&Device::cpu(), gpu_device()] {
+                let hits = trace(device, &mesh, &only, rob);
+                let other = |o: u32, p: u32| (o < 2) != (p < 2) && p != lancer::geometry::MISS;
+                let tunnelled = (hits.iter().zip(&toward))
+                    .filter(|(h, (_, o))| !other(*o, h.prim) && h.prim != *o)
+                    .count();
+                let selfs = (hits.iter().zip(&toward))
+                    .filter(|(h, (_, o))| h.prim == *o)
+                    .count();
+                println!(
+                    "walls ×{scale:e} +{shift:e}, {offset:?} on {device}: {} rays toward the \
+                     other wall, {tunnelled} tunnel through it, {selfs} re-hit their own",
+                    toward.len()
+                );
+                assert!(toward.len() > 1000);
+                if offset == RayOffset::ErrorBound {
+                    assert_eq!(
+                        (tunnelled, selfs),
+                        (0, 0),
+                        "×{scale:e} +{shift:e} on {device}"
+                    );
+                }
+                if offset == RayOffset::Fixed {
+                    fixed_tunnels += tunnelled;
+                }
+            }
+        }
+    }
+    assert!(
+        fixed_tunnels > 0,
+        "the fixed epsilon never tunnelled: the walls are too far apart"
+    );
+}
+
+/// Primary hits' t against the f64 oracle's: a relative error of at most 1e-5, measured
+/// against max(t, scene size × 1e-3) (a tiny t near the origin is f32 cancellation, not the
+/// test's error), for the bunny at scales 1e-4 … 1e4 and moved to 1e5, on CPU and GPU.
+#[test]
+fn primary_hits_t_equals_the_oracles_within_1e_5() {
+    let Some(bunny) = common::load_model("stanford-bunny.obj") else {
+        return;
+    };
+    for (scale, shift) in [(1.0f32, 0.0f32), (1e-4, 0.0), (1e4, 0.0), (1e3, 1e5)] {
+        let tris: Vec<Triangle> = (bunny.triangles.iter())
+            .map(|t| Triangle {
+                v: t.v.map(|p| p * scale + Vec3::splat(shift)),
+            })
+            .collect();
+        let mesh = Mesh::from_triangles(tris);
+        let size = mesh.bounds().extent().length() as f64;
+        let rays = lancer::camera::Camera::default_view(&mesh.bounds(), 48, 48).primary_rays();
+        for device in [&Device::cpu(), gpu_device()] {
+            let hits = trace(device, &mesh, &rays, Robustness::default());
+            let (mut worst, mut compared) = (0.0f64, 0);
+            for (r, h) in rays.iter().zip(&hits) {
+                let Some((t, p)) = oracle::closest(&mesh, r) else {
+                    continue;
+                };
+                if p != h.prim {
+                    continue; // a tie or an edge: judged by the other tests
+                }
+                let err = (h.t as f64 - t).abs() * r.dir.length() as f64
+                    / (t * r.dir.length() as f64).max(size * 1e-3);
+                worst = worst.max(err);
+                compared += 1;
+            }
+            println!("bunny ×{scale:e} +{shift:e} on {device}: {compared} hits, largest relative t error {worst:.2e}");
+            assert!(compared > 500, "too few hits compared");
+            assert!(
+                worst <= 1e-5,
+                "×{scale:e} +{shift:e} on {device}: t error {worst:e}"
+            );
+        }
+    }
+}
