@@ -4,8 +4,10 @@
 //! tree in either BVH memory; the f64 oracle judges the GPU's answers.
 
 mod common;
+#[path = "common/gpu_twin.rs"]
+mod gpu_twin;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use common::hard::{
     coincident_stacks, corner_rays, extreme_rays, grid, invalid_rays, shrinking_corner,
@@ -13,98 +15,17 @@ use common::hard::{
 };
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
+use gpu_twin::{bits, cpu_device, gpu_form, judged, same_on_gpu};
 use lancer::accel::kdtree::{KdOptions, KdTree, MAX_KD_DEPTH};
-use lancer::accel::{build_gpu, AccelKind};
+use lancer::accel::AccelKind;
 use lancer::camera::Camera;
-use lancer::geometry::{Hit, Ray, RayOffset, TriangleTest};
-use lancer::gpu::BvhMemory;
+use lancer::geometry::{Ray, RayOffset, TriangleTest};
 use lancer::layout::Layout;
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{judge, judge_any, Verdict};
 use lancer::{Device, Query, Robustness, Tracer, TracerOptions};
 
-fn cpu_device() -> &'static Device {
-    static DEVICE: OnceLock<Device> = OnceLock::new();
-    DEVICE.get_or_init(Device::cpu)
-}
-
-fn bits(h: &Hit) -> [u32; 4] {
-    [h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()]
-}
-
-/// The kd-tree's GPU form, as `Tracer::with_structure` builds it.
 fn gpu_kd(mesh: &Mesh) -> Arc<dyn Layout> {
-    build_gpu(AccelKind::KdTree, mesh, &Default::default())
-        .unwrap()
-        .expect("the kd-tree has a GPU form")
-}
-
-/// Traces `rays` through `tree` on the CPU twin and on the GPU in both memories, closest and
-/// any hit; asserts that hits and statistics agree bit for bit, and that no ray was cut
-/// short by the driver (it would be traced again on the CPU, and agree trivially). Returns
-/// the GPU's closest and any hits.
-fn same_on_gpu(name: &str, tree: &Arc<dyn Layout>, rays: &[Ray], rob: Robustness) -> [Vec<Hit>; 2] {
-    let options = |memory| TracerOptions {
-        memory,
-        robustness: rob,
-        stats: true,
-        ..TracerOptions::default()
-    };
-    let mut cpu =
-        Tracer::with_layout(cpu_device(), tree.clone(), &options(Default::default())).unwrap();
-    let queries = [Query::Closest, Query::Any];
-    let want = queries.map(|q| cpu.trace(rays, q).unwrap());
-    let mut got = [Vec::new(), Vec::new()];
-    for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
-        let mut gpu = Tracer::with_layout(gpu_device(), tree.clone(), &options(memory)).unwrap();
-        for (q, c) in queries.iter().zip(&want) {
-            let g = gpu.trace(rays, *q).unwrap();
-            let what = format!("{name} {memory:?} {q:?}");
-            assert_eq!(g.cpu_retraced, 0, "{what}: rays cut short by the driver");
-            let (cs, gs) = (c.stats.as_ref().unwrap(), g.stats.as_ref().unwrap());
-            let mut differ = 0;
-            for (i, r) in rays.iter().enumerate() {
-                let same = bits(&c.hits[i]) == bits(&g.hits[i]) && cs[i] == gs[i];
-                if !same {
-                    differ += 1;
-                    if differ <= 3 {
-                        println!(
-                            "{what}: ray {i} {r:?}: CPU {:?} {:?}, GPU {:?} {:?}",
-                            c.hits[i], cs[i], g.hits[i], gs[i]
-                        );
-                    }
-                }
-            }
-            let hits = g.hits.iter().filter(|h| h.is_hit()).count();
-            println!("{what}: {} rays, {hits} hits, {differ} differ", rays.len());
-            assert_eq!(differ, 0, "{what}: GPU ≠ CPU twin");
-            got[(*q == Query::Any) as usize] = g.hits;
-        }
-    }
-    got
-}
-
-/// Judges every `every`-th ray's GPU answers, closest and any hit, by the f64 oracle;
-/// fails on a wrong one. Returns how many closest hits the oracle agrees with exactly.
-fn judged(name: &str, mesh: &Mesh, rays: &[Ray], hits: &[Vec<Hit>; 2], every: usize) -> usize {
-    let mut agree = 0;
-    for (i, r) in rays.iter().enumerate().step_by(every) {
-        for (q, v) in [
-            (Query::Closest, judge(mesh, r, &hits[0][i])),
-            (Query::Any, judge_any(mesh, r, &hits[1][i])),
-        ] {
-            match v {
-                Verdict::Wrong(w) => panic!("{name} {q:?}: ray {i} {r:?}: {w}"),
-                Verdict::Agree if q == Query::Closest => agree += 1,
-                _ => {}
-            }
-        }
-    }
-    println!(
-        "{name}: {agree} of {} judged agree",
-        rays.len().div_ceil(every)
-    );
-    agree
+    gpu_form(AccelKind::KdTree, mesh)
 }
 
 #[test]
