@@ -110,8 +110,9 @@ fn watertight_setup(dir: vec3<f32>) -> Watertight {
     return Watertight(kx, ky, kz, vec3<f32>(dir[kx] * sz, dir[ky] * sz, sz));
 }
 
-// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2), and t's error bound
-// as the quotient num / det (geometry::TriHit).
+// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2), t's error bound
+// as the quotient num / det, and whether a hit whose bound reaches back past the origin is
+// proven in front of it all the same (geometry::TriHit).
 struct TriHit {
     ok: bool,
     t: f32,
@@ -119,11 +120,35 @@ struct TriHit {
     v: f32,
     num: f32,
     det: f32,
+    in_front: bool,
 }
 
 // TriHit::maybe_behind_origin
 fn maybe_behind_origin(h: TriHit) -> bool {
-    return abs(h.t) * h.det <= h.num;
+    return abs(h.t) * h.det <= h.num && !h.in_front;
+}
+
+// geometry::grazing_in_front
+fn grazing_in_front(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, sz: f32, t: f32, mzu: f32) -> bool {
+    if !(sz * a.z > 0.0 && sz * b.z > 0.0 && sz * c.z > 0.0) {
+        return false;
+    }
+    let e1 = b - a;
+    let e2 = c - a;
+    let nx = e1.y * e2.z - e1.z * e2.y;
+    let ny = e1.z * e2.x - e1.x * e2.z;
+    let nz = e1.x * e2.y - e1.y * e2.x;
+    let p = vec3<f32>(0.0 - a.x, 0.0 - a.y, t / sz - a.z);
+    let plane = nx * p.x + ny * p.y + nz * p.z;
+    let n = max(max(abs(nx), abs(ny)), abs(nz));
+    let l1 = max_abs3(e1);
+    let l2 = max_abs3(e2);
+    let noise = max_abs3(p) * (l1 * l2 + mzu * (l1 + l2));
+    return abs(plane) + 0.125 * NEAR_HIT_PLANE_REL * noise <= NEAR_HIT_PLANE_REL * mzu * n;
+}
+
+fn max_abs3(v: vec3<f32>) -> f32 {
+    return max(max(abs(v.x), abs(v.y)), abs(v.z));
 }
 
 // TriHit::t_error
@@ -141,7 +166,7 @@ fn hit_prune(h: TriHit) -> f32 {
 
 // intersect_watertight (Woop, Benthin & Wald 2013)
 fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
-    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
+    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0, false);
     let a = v0 - origin;
     let b = v1 - origin;
     let c = v2 - origin;
@@ -172,14 +197,20 @@ fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec
         let mz = max(max(abs(az), abs(bz)), abs(cz));
         let mzu = max(max(abs(a[w.kz]), abs(b[w.kz])), abs(c[w.kz]));
         let me = max(max(abs(u), abs(v)), abs(ww));
-        res = TriHit(true, t, v / det, ww / det, t_error_numerator(mx, my, mz, mzu, me), abs(det));
+        let num = t_error_numerator(mx, my, mz, mzu, me);
+        var in_front = false;
+        if abs(t) * abs(det) <= num {
+            in_front = grazing_in_front(vec3<f32>(ax, ay, a[w.kz]), vec3<f32>(bx, by, b[w.kz]),
+                                        vec3<f32>(cx, cy, c[w.kz]), w.s.z, t, mzu);
+        }
+        res = TriHit(true, t, v / det, ww / det, num, abs(det), in_front);
     }
     return res;
 }
 
 // intersect_moller_trumbore
 fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, tmin: f32, tmax: f32) -> TriHit {
-    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
+    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0, false);
     let e1 = v1 - v0;
     let e2 = v2 - v0;
     let p = cross(r.dir, e2);
@@ -200,7 +231,7 @@ fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray
     }
     let t = dot(e2, q) * inv;
     if t >= tmin && t <= tmax {
-        res = TriHit(true, t, u, v, 0.0, 1.0);
+        res = TriHit(true, t, u, v, 0.0, 1.0, false);
     }
     return res;
 }
@@ -247,7 +278,7 @@ fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
     let v = sx[0] * sy[2] - sy[0] * sx[2];
     let ww = sx[1] * sy[0] - sy[1] * sx[0];
     let me = max(max(abs(u), abs(v)), abs(ww));
-    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, mzu, me), abs(u + v + ww)));
+    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, mzu, me), abs(u + v + ww), false));
 }
 
 // t_error_numerator

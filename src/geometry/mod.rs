@@ -15,7 +15,7 @@ pub use robustness::{
 };
 pub(crate) use triangle::gamma;
 pub use triangle::{
-    intersect_moller_trumbore, intersect_triangle, intersect_triangle_bounded,
+    grazing_in_front, intersect_moller_trumbore, intersect_triangle, intersect_triangle_bounded,
     intersect_watertight, intersect_watertight_bounded, t_error_bound, TriHit, Triangle,
-    TriangleTest, WatertightRay,
+    TriangleTest, WatertightRay, NEAR_HIT_PLANE_REL,
 };

@@ -123,14 +123,18 @@ pub struct TriHit {
     pub err_num: f32,
     /// |det| of the watertight test, the bound's denominator.
     pub det: f32,
+    /// A hit whose t error bound reaches back past the origin that is nonetheless proven in
+    /// front of it ([`grazing_in_front`]); false for every other hit.
+    pub in_front: bool,
 }
 
 impl TriHit {
     /// Whether the exact t may be ≤ 0 (the hit may lie at or behind the origin, as the
-    /// surface a secondary ray leaves does): |t|·det ≤ err_num, with no division.
+    /// surface a secondary ray leaves does): |t|·det ≤ err_num (no division), unless the
+    /// hit is proven in front (a ray grazing a triangle far ahead, whose bound is loose).
     #[inline(always)]
     pub fn maybe_behind_origin(&self) -> bool {
-        self.t.abs() * self.det <= self.err_num
+        self.t.abs() * self.det <= self.err_num && !self.in_front
     }
 
     /// The bound boxes are cut against once this hit is the best:
@@ -194,12 +198,24 @@ pub fn intersect_watertight_bounded(
         let mz = az.abs().max(bz.abs()).max(cz.abs());
         let mzu = a[2].abs().max(b[2].abs()).max(c[2].abs());
         let me = u.abs().max(v.abs()).max(w.abs());
+        let err_num = t_error_numerator(mx, my, mz, mzu, me);
+        // Only a hit whose bound reaches back past the origin needs the proof (rare).
+        let in_front = t.abs() * det.abs() <= err_num
+            && grazing_in_front(
+                [ax, ay, a[2]],
+                [bx, by, b[2]],
+                [cx, cy, c[2]],
+                wr.s.z,
+                t,
+                mzu,
+            );
         Some(TriHit {
             t,
             u: v / det,
             v: w / det,
-            err_num: t_error_numerator(mx, my, mz, mzu, me),
+            err_num,
             det: det.abs(),
+            in_front,
         })
     } else {
         None
@@ -261,6 +277,7 @@ pub fn intersect_triangle_bounded(
                 // The watertight computation's bound, as a quotient over 1.
                 err_num: t_error_bound(tri, ray.origin, wr),
                 det: 1.0,
+                in_front: false,
             })
         }
     }
@@ -319,9 +336,56 @@ pub fn t_error_bound(tri: &Triangle, origin: Vec3, wr: &WatertightRay) -> f32 {
         v: 0.0,
         err_num: t_error_numerator(mx, my, mz, mzu, me),
         det: (u + v + w).abs(),
+        in_front: false,
     }
     .t_error()
 }
+
+/// For a watertight hit at `t` whose error bound reaches back past the origin (pbrt-v4
+/// would drop it as a possible self-hit): whether it is proven in front of the origin all
+/// the same. Two checks, both of which a ray leaving a surface fails on that surface:
+/// 1. every vertex lies ahead of the origin along the ray: the signs of `s_z·(v − o)[kz]`
+///    are exact in floating point, and an exact hit's t is a convex combination of these
+///    values, so it is > 0;
+/// 2. the hit point lies on the triangle's plane within [`NEAR_HIT_PLANE_REL`] of the
+///    vertices' distance (checked in the shear frame, where its x, y are 0), with what
+///    rounding can do to the check (4 ε of the normal's and the vertices' size, times the
+///    point's distance from a vertex) counted against it. A ray grazing a well-shaped
+///    triangle far ahead passes (its t is uncertain only along the surface, and the bound
+///    is loose); a hit on a needle, a sliver or a triangle a few ulps across at its
+///    distance, whose t or plane is rounding noise, does not.
+///
+/// `a`, `b`, `c`: the vertices' sheared x and y and unscaled z (`(v − o)[kz]`); `sz` =
+/// 1/d_kz; `mzu` the largest |z|. Never inlined: it runs for a few rays in a million.
+/// WGSL `grazing_in_front` is the same, operation for operation.
+#[inline(never)]
+pub fn grazing_in_front(a: [f32; 3], b: [f32; 3], c: [f32; 3], sz: f32, t: f32, mzu: f32) -> bool {
+    if !(sz * a[2] > 0.0 && sz * b[2] > 0.0 && sz * c[2] > 0.0) {
+        return false;
+    }
+    let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let nx = e1[1] * e2[2] - e1[2] * e2[1];
+    let ny = e1[2] * e2[0] - e1[0] * e2[2];
+    let nz = e1[0] * e2[1] - e1[1] * e2[0];
+    // The plane's equation at the hit point (0, 0, t·d_kz), relative to vertex a, and what
+    // rounding can do to it: the normal's own rounding (ε of the edges' product) and the
+    // vertices' (ε of their distance, moving the edges), times the point's distance from
+    // a. A triangle a few ulps across at its distance, or a sliver, has a normal that is
+    // rounding noise, and then nothing is proven.
+    let (px, py, pz) = (0.0 - a[0], 0.0 - a[1], t / sz - a[2]);
+    let plane = nx * px + ny * py + nz * pz;
+    let n = nx.abs().max(ny.abs()).max(nz.abs());
+    let max3 = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let (l1, l2) = (max3(e1), max3(e2));
+    let noise = max3([px, py, pz]) * (l1 * l2 + mzu * (l1 + l2));
+    plane.abs() + 0.125 * NEAR_HIT_PLANE_REL * noise <= NEAR_HIT_PLANE_REL * mzu * n
+}
+
+/// How far off its triangle's plane (relative to the vertices' distance from the origin)
+/// the point of a grazing hit may lie and still be kept by [`grazing_in_front`]: 32 ε, the
+/// f64 oracle's tolerance for a point on a triangle.
+pub const NEAR_HIT_PLANE_REL: f32 = 32.0 * f32::EPSILON;
 
 /// The t error bound's numerator from the largest sheared coordinates (x, y, scaled z), the
 /// largest unscaled z (`mzu`: the error of the shear x − s·z scales with z before the 1/d_z

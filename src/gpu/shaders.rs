@@ -4,7 +4,7 @@
 
 use crate::accel::bvh::MAX_DEPTH;
 use crate::camera::PRIMARY_TMAX;
-use crate::geometry::{FAR_WIDEN, MISS, PARALLEL_INV, RECIP_FLOOR, TIE_SLACK};
+use crate::geometry::{FAR_WIDEN, MISS, NEAR_HIT_PLANE_REL, PARALLEL_INV, RECIP_FLOOR, TIE_SLACK};
 use crate::layout::Layout;
 use crate::render::sampling::POINT_ERROR;
 use crate::render::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED};
@@ -35,20 +35,21 @@ pub enum Shared {
 pub fn shared_constants() -> Vec<(&'static str, Shared)> {
     use Shared::{F32, U32};
     let mut v = vec![
-        ("MISS", U32(MISS)),                            // geometry::MISS
-        ("INCOMPLETE", U32(INCOMPLETE)),                // gpu::INCOMPLETE
-        ("STACK_SIZE", U32(MAX_DEPTH as u32)),          // accel::bvh::MAX_DEPTH
-        ("RECIP_FLOOR", F32(RECIP_FLOOR)),              // geometry::RECIP_FLOOR
-        ("FAR_WIDEN", F32(FAR_WIDEN)),                  // geometry::FAR_WIDEN
-        ("TIE_SLACK", F32(TIE_SLACK)),                  // geometry::TIE_SLACK
-        ("HALF_EPSILON", F32(f32::EPSILON * 0.5)),      // 2⁻²⁴, in geometry::triangle's gamma
-        ("PARALLEL_INV", F32(PARALLEL_INV)),            // geometry::PARALLEL_INV
-        ("MAX_ORIGIN", F32(crate::limits::MAX_ORIGIN)), // limits::MAX_ORIGIN
-        ("MIN_DIR", F32(crate::limits::MIN_DIR)),       // limits::MIN_DIR
-        ("BIG", F32(f32::MAX)),                         // the slab test's ±infinity stand-in
-        ("TEXEL_ROW", U32(TEXEL_ROW)),                  // gpu::TEXEL_ROW
-        ("PRIMARY_TMAX", F32(PRIMARY_TMAX)),            // camera::PRIMARY_TMAX
-        ("PI_INV", F32(std::f32::consts::FRAC_1_PI)),   // the CPU renderer's FRAC_1_PI
+        ("MISS", U32(MISS)),                             // geometry::MISS
+        ("INCOMPLETE", U32(INCOMPLETE)),                 // gpu::INCOMPLETE
+        ("STACK_SIZE", U32(MAX_DEPTH as u32)),           // accel::bvh::MAX_DEPTH
+        ("RECIP_FLOOR", F32(RECIP_FLOOR)),               // geometry::RECIP_FLOOR
+        ("FAR_WIDEN", F32(FAR_WIDEN)),                   // geometry::FAR_WIDEN
+        ("TIE_SLACK", F32(TIE_SLACK)),                   // geometry::TIE_SLACK
+        ("HALF_EPSILON", F32(f32::EPSILON * 0.5)),       // 2⁻²⁴, in geometry::triangle's gamma
+        ("PARALLEL_INV", F32(PARALLEL_INV)),             // geometry::PARALLEL_INV
+        ("MAX_ORIGIN", F32(crate::limits::MAX_ORIGIN)),  // limits::MAX_ORIGIN
+        ("MIN_DIR", F32(crate::limits::MIN_DIR)),        // limits::MIN_DIR
+        ("NEAR_HIT_PLANE_REL", F32(NEAR_HIT_PLANE_REL)), // geometry::NEAR_HIT_PLANE_REL
+        ("BIG", F32(f32::MAX)),                          // the slab test's ±infinity stand-in
+        ("TEXEL_ROW", U32(TEXEL_ROW)),                   // gpu::TEXEL_ROW
+        ("PRIMARY_TMAX", F32(PRIMARY_TMAX)),             // camera::PRIMARY_TMAX
+        ("PI_INV", F32(std::f32::consts::FRAC_1_PI)),    // the CPU renderer's FRAC_1_PI
         ("KIND_DIFFUSE", U32(MaterialKind::Diffuse.code())),
         ("KIND_MIRROR", U32(MaterialKind::Mirror.code())),
         ("KIND_GLASS", U32(MaterialKind::Glass.code())),

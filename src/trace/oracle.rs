@@ -65,6 +65,7 @@ pub fn triangle_hit(tri: &Triangle, ray: &Ray, tmin: f32, tmax: f32) -> Option<T
         v: v as f32,
         err_num: t_error_bound(tri, ray.origin, &WatertightRay::new(ray.dir)) * F64_OVER_F32,
         det: 1.0,
+        in_front: false,
     })
 }
 
