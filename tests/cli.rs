@@ -2,8 +2,9 @@
 
 mod common;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 fn lancer(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lancer"))
@@ -308,6 +309,8 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
         "16",
         "--repeat",
         "1",
+        "--device",
+        "gpu",
         "--json",
         s(&json),
     ]);
@@ -627,4 +630,170 @@ fn adapters_lists_lavapipe_and_an_unmatched_adapter_name_is_an_error_with_auto_t
     );
     assert!(String::from_utf8_lossy(&out.stderr).contains("matches none of the adapters"));
     assert!(!hits.exists());
+}
+
+/// `trace --stats --json` on `quad` with `args` before and after the subcommand and
+/// `env`: the JSON object and stderr.
+fn trace_json(
+    dir: &Scratch,
+    global: &[&str],
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (serde_json::Value, String) {
+    let quad = dir.quad();
+    let (rays, hits) = (dir.path("tj.rays"), dir.path("tj.hits"));
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        s(&rays),
+    ]);
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lancer"));
+    cmd.args(global)
+        .args(["trace", s(&quad), "--rays", s(&rays), "--out", s(&hits)])
+        .args(["--stats", "--json"])
+        .args(args)
+        .env_remove("WGPU_ADAPTER_NAME");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON object ({e}): {:?}", out.stdout));
+    (v, err)
+}
+
+#[test]
+fn auto_runs_on_a_hardware_gpu_else_on_the_cpu_and_says_why() {
+    let dir = Scratch::new();
+    // What this machine has: the adapter wgpu prefers, and whether it is a software one.
+    let preferred = lancer::gpu::GpuContext::new().ok().map(|c| c.adapter);
+    let (auto, err) = trace_json(&dir, &[], &[], &[]);
+    match &preferred {
+        Some(a) if !a.software => assert_eq!(auto["device"], "gpu", "{auto}"),
+        Some(a) => {
+            assert_eq!(auto["device"], "cpu", "{auto}");
+            // One line says what was chosen and why, and how to force the adapter.
+            let why: Vec<&str> = err.lines().filter(|l| l.contains(&a.name)).collect();
+            assert_eq!(why.len(), 1, "{err}");
+            assert!(
+                why[0].contains("using the CPU") && why[0].contains("--device gpu"),
+                "{err}"
+            );
+        }
+        None => assert_eq!(auto["device"], "cpu", "{auto}"),
+    }
+    // -q silences the reason (the summary stays on stderr); the data is the same.
+    let (quiet, err) = trace_json(&dir, &["-q"], &[], &[]);
+    assert_eq!(quiet["device"], auto["device"]);
+    assert!(!err.contains("warning"), "-q printed: {err}");
+    assert!(err.contains("64 rays"), "{err}");
+    let Some(adapter) = preferred else {
+        return;
+    };
+    // --device gpu forces the adapter, software or not; so does naming it with auto.
+    let (gpu, _) = trace_json(&dir, &[], &["--device", "gpu"], &[]);
+    assert_eq!(gpu["device"], "gpu", "{gpu}");
+    let (named, _) = trace_json(&dir, &[], &[], &[("WGPU_ADAPTER_NAME", &adapter.name)]);
+    assert_eq!(named["device"], "gpu", "{named}");
+    assert!(
+        named["adapter"].as_str().unwrap().contains(&adapter.name),
+        "{named}"
+    );
+    // Same answers wherever they ran.
+    assert_eq!(gpu["hits"], auto["hits"]);
+}
+
+#[test]
+fn threads_sets_the_cpu_pool_and_is_validated() {
+    let dir = Scratch::new();
+    for n in ["1", "3"] {
+        let (v, _) = trace_json(&dir, &["--threads", n], &["--device", "cpu"], &[]);
+        assert_eq!(v["cpu_threads"].to_string(), n, "{v}");
+    }
+    // 0 is every core: rayon's default pool.
+    let (all, _) = trace_json(&dir, &[], &["--device", "cpu", "--threads", "0"], &[]);
+    let (default, _) = trace_json(&dir, &[], &["--device", "cpu"], &[]);
+    assert_eq!(all["cpu_threads"], default["cpu_threads"]);
+    for bad in ["-1", "many", "100000"] {
+        let out = lancer(&["--threads", bad, "build", s(&dir.quad())]);
+        assert_eq!(out.status.code(), Some(2), "--threads {bad}");
+    }
+}
+
+#[test]
+fn rays_pipe_into_trace_and_hits_come_out_on_stdout() {
+    let dir = Scratch::new();
+    let quad = dir.quad();
+    let (rays, hits) = (dir.path("p.rays"), dir.path("p.hits"));
+    let view = ["--width", "9", "--height", "7"];
+    lancer_ok(&[&["rays", s(&quad), "-o", s(&rays)][..], &view].concat());
+    let trace = ["--device", "cpu"];
+    lancer_ok(
+        &[
+            &["trace", s(&quad), "--rays", s(&rays), "-o", s(&hits)][..],
+            &trace,
+        ]
+        .concat(),
+    );
+    // lancer rays … -o - | lancer trace MESH --rays - --out - > hits
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args([&["rays", s(&quad), "-o", "-"][..], &view].concat())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let consumer = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args(
+            [
+                &["trace", s(&quad), "--rays", "-", "--out", "-"][..],
+                &trace,
+            ]
+            .concat(),
+        )
+        .stdin(producer.stdout.take().unwrap())
+        .output()
+        .unwrap();
+    let produced = producer.wait_with_output().unwrap();
+    assert!(produced.status.success());
+    assert!(
+        consumer.status.success(),
+        "{}",
+        String::from_utf8_lossy(&consumer.stderr)
+    );
+    // stdout carries the data only, byte for byte what the files hold; the words go to stderr.
+    assert_eq!(consumer.stdout, std::fs::read(&hits).unwrap());
+    assert!(String::from_utf8_lossy(&consumer.stderr).contains("63 rays"));
+    assert!(String::from_utf8_lossy(&produced.stderr).contains("63 rays written to -"));
+    // rays -o - alone writes exactly the ray file.
+    let out = lancer_ok(&[&["rays", s(&quad), "-o", "-"][..], &view].concat());
+    assert_eq!(out.stdout, std::fs::read(&rays).unwrap());
+    // A truncated stream on stdin is refused like a truncated file.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args([
+            "trace",
+            s(&quad),
+            "--rays",
+            "-",
+            "--out",
+            "-",
+            "--device",
+            "cpu",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(&[0u8; 40]).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("<stdin>"));
 }

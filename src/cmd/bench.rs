@@ -13,7 +13,7 @@ use lancer::{
     DeviceChoice, Error, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
 };
 
-use super::{open_device, spelled, AccelArg, BuildArgs};
+use super::{open_bench_device, spelled, AccelArg, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchCmd {
@@ -46,8 +46,10 @@ struct BenchTrace {
     /// Image height in pixels.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// auto and gpu measure the GPU kernels and the CPU tracer side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels and the CPU tracer side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// Timed runs per configuration (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
@@ -105,7 +107,7 @@ impl BenchTrace {
             ("primary closest-hit", Query::Closest, &primary),
             ("shadow any-hit", Query::Any, &shadow),
         ];
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let memories = [BvhMemory::Textures, BvhMemory::Buffers];
         let gpu_configs: Vec<(u32, bool)> = if device.is_cpu() {
             Vec::new()

@@ -25,7 +25,7 @@ use lancer::{
 use serde_json::json;
 
 use super::chart::xy_chart;
-use super::open_device;
+use super::open_bench_device;
 use super::render::load_scene;
 
 #[derive(Args)]
@@ -55,8 +55,10 @@ pub struct BenchAccuracy {
     /// Timed runs per setting (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
-    /// auto and gpu measure the GPU and the CPU side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU and the CPU side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// Error-vs-time charts: NAME-cpu.png and NAME-gpu.png, and the spp convergence curve
     /// NAME-spp.png, from this path's stem.
@@ -428,7 +430,7 @@ impl BenchAccuracy {
         for out in charts.iter().chain([&json_path]) {
             lancer::output::check_output(out, &inputs)?;
         }
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let cpu = Device::cpu();
         let mut devices: Vec<(&'static str, &Device)> = vec![("cpu", &cpu)];
         if !device.is_cpu() {

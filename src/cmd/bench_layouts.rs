@@ -18,7 +18,7 @@ use lancer::{
 };
 
 use super::check::{layout_choice, LayoutChoice};
-use super::{open_device, spelled, view_ray_sets, BuilderArgs};
+use super::{open_bench_device, spelled, view_ray_sets, BuilderArgs};
 
 #[derive(Args)]
 pub struct BenchLayouts {
@@ -30,8 +30,10 @@ pub struct BenchLayouts {
     /// Height of the default view.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// auto and gpu measure the GPU kernels and the CPU twins side by side; cpu only the twins.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels and the CPU twins side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// GPU: where the kernels read the layout from.
     #[arg(long, value_enum, default_value_t = BvhMemory::default())]
@@ -108,7 +110,7 @@ impl BenchLayouts {
         let reference = flatten(LayoutKind::default(), &tree, &mesh);
         let rob = Robustness::default();
         let sets = view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?;
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let kinds = self.layouts.kinds();
         let repeat = self.repeat as usize;
         let per_set = if device.is_cpu() { repeat } else { 2 * repeat };

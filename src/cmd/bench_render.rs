@@ -9,7 +9,7 @@ use lancer::render::{EffectSet, RenderOptions, Renderer};
 use lancer::{Device, DeviceChoice, Result, Robustness, Vec3};
 
 use super::render::load_scene;
-use super::{open_device, BuildArgs};
+use super::{open_bench_device, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchRender {
@@ -22,8 +22,10 @@ pub struct BenchRender {
     /// Timed samples per pixel per configuration (after one untimed warm-up sample).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
-    /// auto and gpu measure the GPU and the CPU side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU and the CPU side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     #[command(flatten)]
     build: BuildArgs,
@@ -37,7 +39,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 impl BenchRender {
     pub fn run(self) -> Result<()> {
         let scene = load_scene(&self.scene, self.width, self.height)?;
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let cpu = Device::cpu();
         let options = RenderOptions {
             build: self.build.options(),

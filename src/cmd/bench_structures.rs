@@ -28,7 +28,7 @@ use lancer::{
 };
 use serde::Serialize;
 
-use super::{open_device, spelled};
+use super::{open_bench_device, spelled};
 
 #[derive(Args)]
 pub struct BenchStructures {
@@ -45,9 +45,10 @@ pub struct BenchStructures {
     /// primary rays).
     #[arg(long)]
     random: Option<u32>,
-    /// auto and gpu also time the GPU kernels of the BVH, the kd-tree and the BIH; cpu only
-    /// the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels of the BVH, the kd-tree and the BIH and the CPU side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// GPU: where the kernels read the structure from.
     #[arg(long, value_enum, default_value_t = BvhMemory::default())]
@@ -270,7 +271,7 @@ impl BenchStructures {
             ("shadow", Query::Any, &shadow),
             ("random", Query::Closest, &random),
         ];
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let kinds = AccelKind::ALL;
         let repeat = self.repeat as usize;
         let gpu_kinds = match device.is_cpu() {

@@ -60,48 +60,27 @@ impl GpuContext {
     /// `WGPU_ADAPTER_NAME` (a case-insensitive substring of the adapter name) and
     /// `WGPU_POWER_PREF` (low, high or none; default high).
     pub fn new() -> Result<GpuContext> {
-        pollster::block_on(Self::open())
+        pollster::block_on(async { Self::on(pick_adapter().await?).await })
     }
 
-    async fn open() -> Result<GpuContext> {
-        let instance = instance()?;
-        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
-            Ok(want) => {
-                let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
-                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-                adapters
-                    .into_iter()
-                    .find(|a| {
-                        a.get_info()
-                            .name
-                            .to_lowercase()
-                            .contains(&want.to_lowercase())
-                    })
-                    .ok_or_else(|| {
-                        Error::Gpu(format!(
-                            "WGPU_ADAPTER_NAME={want} matches none of the adapters: [{}]",
-                            names.join(", ")
-                        ))
-                    })?
+    /// Opens the adapter [`GpuContext::new`] would, unless it is a software one (a CPU
+    /// driver such as lavapipe) and `WGPU_ADAPTER_NAME` did not name it: then `Ok(Err(report))`
+    /// of it, without opening a device. The preferred adapter is software
+    /// only where no hardware one exists (wgpu ranks discrete, integrated, virtual, then CPU).
+    pub fn new_hardware() -> Result<std::result::Result<GpuContext, AdapterReport>> {
+        pollster::block_on(async {
+            let adapter = pick_adapter().await?;
+            let named = std::env::var_os("WGPU_ADAPTER_NAME").is_some();
+            if !named && adapter.get_info().device_type == wgpu::DeviceType::Cpu {
+                return Ok(Err(report_of(&adapter.get_info())));
             }
-            Err(_) => instance
-                .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::from_env()
-                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
-                    ..Default::default()
-                })
-                .await
-                .map_err(|_| Error::Gpu(INSTALL_HINT.into()))?,
-        };
+            Ok(Ok(Self::on(adapter).await?))
+        })
+    }
+
+    async fn on(adapter: wgpu::Adapter) -> Result<GpuContext> {
         let info = adapter.get_info();
-        let report = AdapterReport {
-            name: info.name.clone(),
-            driver: format!("{} {}", info.driver, info.driver_info)
-                .trim()
-                .to_string(),
-            backend: format!("{:?}", info.backend),
-            software: info.device_type == wgpu::DeviceType::Cpu,
-        };
+        let report = report_of(&info);
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         // Subgroups only where the adapter has them: kernels that use them are optional.
         let subgroups = adapter
@@ -171,6 +150,50 @@ impl GpuContext {
             )));
         }
         Ok(())
+    }
+}
+
+/// The adapter `WGPU_ADAPTER_NAME` names, else the one wgpu prefers under `WGPU_POWER_PREF`.
+async fn pick_adapter() -> Result<wgpu::Adapter> {
+    let instance = instance()?;
+    match std::env::var("WGPU_ADAPTER_NAME") {
+        Ok(want) => {
+            let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+            let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+            adapters
+                .into_iter()
+                .find(|a| {
+                    a.get_info()
+                        .name
+                        .to_lowercase()
+                        .contains(&want.to_lowercase())
+                })
+                .ok_or_else(|| {
+                    Error::Gpu(format!(
+                        "WGPU_ADAPTER_NAME={want} matches none of the adapters: [{}]",
+                        names.join(", ")
+                    ))
+                })
+        }
+        Err(_) => instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::from_env()
+                    .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                ..Default::default()
+            })
+            .await
+            .map_err(|_| Error::Gpu(INSTALL_HINT.into())),
+    }
+}
+
+fn report_of(info: &wgpu::AdapterInfo) -> AdapterReport {
+    AdapterReport {
+        name: info.name.clone(),
+        driver: format!("{} {}", info.driver, info.driver_info)
+            .trim()
+            .to_string(),
+        backend: format!("{:?}", info.backend),
+        software: info.device_type == wgpu::DeviceType::Cpu,
     }
 }
 
