@@ -231,7 +231,7 @@ fn bench_render_prints_both_kernels() {
         "--height",
         "12",
         "--spp",
-        "1",
+        "3",
         "--device",
         "cpu",
     ]);
@@ -239,6 +239,10 @@ fn bench_render_prints_both_kernels() {
     assert!(text.contains("| cpu | specialised |"), "{text}");
     assert!(text.contains("| cpu | all effects |"), "{text}");
     assert!(text.contains("effects: shadows textures"), "{text}");
+    assert!(text.contains("median of 3"), "{text}");
+    // A median needs samples to choose from: fewer than 3 is a usage error.
+    let out = lancer(&["bench", "render", s(&scene("textured.toml")), "--spp", "2"]);
+    assert_eq!(out.status.code(), Some(2));
 }
 
 /// The traversal modes a layout runs in on this adapter: per-ray, and subgroup where both
@@ -796,4 +800,263 @@ fn rays_pipe_into_trace_and_hits_come_out_on_stdout() {
     assert_eq!(out.status.code(), Some(2));
     assert!(out.stdout.is_empty());
     assert!(String::from_utf8_lossy(&out.stderr).contains("<stdin>"));
+}
+
+/// Runs lancer expecting `code`; stdout must be exactly one line holding one JSON object.
+fn json_of(args: &[&str], code: i32) -> (serde_json::Value, String) {
+    let out = lancer(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(
+        text.lines().count(),
+        1,
+        "{args:?}: stdout is not one line:\n{text}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v.is_object(), "{v}");
+    (v, err)
+}
+
+/// Every key of `v`, of the objects in its arrays included.
+fn keys(v: &serde_json::Value, into: &mut std::collections::BTreeSet<String>) {
+    match v {
+        serde_json::Value::Object(m) => {
+            for (k, x) in m {
+                into.insert(k.clone());
+                keys(x, into);
+            }
+        }
+        serde_json::Value::Array(a) => a.iter().for_each(|x| keys(x, into)),
+        _ => {}
+    }
+}
+
+#[test]
+fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented() {
+    let d = Scratch::new();
+    let quad = d.quad();
+    let (rays, ha, hb, png) = (
+        d.path("r.bin"),
+        d.path("a.hits"),
+        d.path("b.hits"),
+        d.path("h.png"),
+    );
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        s(&rays),
+    ]);
+    lancer_ok(&[
+        "heatmap",
+        s(&quad),
+        "-o",
+        s(&png),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--device",
+        "cpu",
+    ]);
+    let small = ["--width", "8", "--height", "8", "--repeat", "1"];
+    let textured = scene("textured.toml");
+    let chart = d.path("acc.png");
+    let gpu = lancer::gpu::GpuContext::new().is_ok();
+    let mut runs: Vec<(Vec<&str>, i32, &str)> = vec![
+        (vec!["build", s(&quad), "--json"], 0, ""),
+        (
+            vec![
+                "trace",
+                s(&quad),
+                "--rays",
+                s(&rays),
+                "-o",
+                s(&ha),
+                "--stats",
+                "--json",
+            ],
+            0,
+            "64 rays",
+        ),
+        (vec!["compare", s(&png), s(&png), "--json"], 0, "0 pixels"),
+        (
+            vec!["bench", "trace", s(&quad), "--device", "cpu", "--json"],
+            0,
+            "| primary",
+        ),
+        (
+            vec![
+                "bench",
+                "render",
+                s(&textured),
+                "--spp",
+                "3",
+                "--device",
+                "cpu",
+                "--json",
+            ],
+            0,
+            "| cpu | specialised",
+        ),
+        (
+            vec![
+                "bench",
+                "structures",
+                s(&quad),
+                "--random",
+                "10",
+                "--device",
+                "cpu",
+                "--json",
+                "-",
+            ],
+            0,
+            "| octree |",
+        ),
+        (
+            vec!["bench", "layouts", s(&quad), "--device", "cpu", "--json"],
+            0,
+            "| dfs-sign |",
+        ),
+        (
+            vec![
+                "bench",
+                "accuracy",
+                s(&textured),
+                "--render-size",
+                "4",
+                "--reference-spp",
+                "16",
+                "--max-spp",
+                "1",
+                "--reference-bounces",
+                "1",
+                "--device",
+                "cpu",
+                "--chart",
+                s(&chart),
+                "--json",
+            ],
+            0,
+            "| defaults |",
+        ),
+    ];
+    // Small views and one timed run: bench render has neither option.
+    for r in runs
+        .iter_mut()
+        .filter(|r| r.0[0] == "bench" && r.0[1] != "render")
+    {
+        r.0.splice(3..3, small);
+    }
+    if gpu {
+        runs.push((
+            vec![
+                "check",
+                s(&quad),
+                "--width",
+                "4",
+                "--height",
+                "4",
+                "--device",
+                "gpu",
+                "--json",
+            ],
+            0,
+            "every answer agrees",
+        ));
+    }
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let section = readme
+        .split("### JSON output")
+        .nth(1)
+        .and_then(|t| t.split("\n## ").next())
+        .expect("a JSON output section in the README");
+    for (args, code, text) in &runs {
+        let (v, err) = json_of(args, *code);
+        assert!(
+            err.contains(text),
+            "{args:?}: the text is not on stderr: {err}"
+        );
+        let mut all = Default::default();
+        keys(&v, &mut all);
+        for k in all {
+            assert!(
+                section.contains(&format!("`{k}`")),
+                "{args:?}: key {k} is not in the README"
+            );
+        }
+    }
+    // A difference still prints its object, then exits 1.
+    let mut bytes = std::fs::read(&ha).unwrap();
+    let k = bytes
+        .chunks(16)
+        .position(|h| h[4..8] != [0xff; 4])
+        .expect("a hit")
+        * 16;
+    let t = f32::from_le_bytes(bytes[k..k + 4].try_into().unwrap()) * 1.5;
+    bytes[k..k + 4].copy_from_slice(&t.to_le_bytes());
+    std::fs::write(&hb, bytes).unwrap();
+    let judged = ["--mesh", s(&quad), "--rays", s(&rays)];
+    let (v, _) = json_of(
+        &[&["compare", s(&ha), s(&hb), "--json"][..], &judged].concat(),
+        1,
+    );
+    assert_eq!(
+        (
+            v["kind"].as_str(),
+            v["disagree"].as_u64(),
+            v["judged"].as_bool()
+        ),
+        (Some("hits"), Some(1), Some(true)),
+        "{v}"
+    );
+    let (v, _) = json_of(&["compare", s(&ha), s(&hb), "--json"], 1);
+    assert_eq!(
+        (v["disagree"].as_u64(), v["genuine_ties"].is_null()),
+        (Some(1), true),
+        "{v}"
+    );
+    // --json FILE.json writes the file and keeps the tables on stdout; any other name
+    // (a mesh given after --json, say) is refused before anything is written.
+    let file = d.path("t.json");
+    let out = lancer_ok(
+        &[
+            &[
+                "bench",
+                "trace",
+                s(&quad),
+                "--device",
+                "cpu",
+                "--json",
+                s(&file),
+            ][..],
+            &small,
+        ]
+        .concat(),
+    );
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    assert_eq!(v["runs"].as_array().unwrap().len(), 2, "{v}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("| primary"));
+    let before = std::fs::read(&quad).unwrap();
+    let out = lancer(&["bench", "layouts", "--json", s(&quad)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(std::fs::read(&quad).unwrap(), before);
+    // Two writers of stdout at once is a usage error.
+    let out = lancer(&[
+        "trace",
+        s(&quad),
+        "--rays",
+        s(&rays),
+        "--out",
+        "-",
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
 }

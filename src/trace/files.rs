@@ -31,7 +31,7 @@ pub fn decode_rays(name: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
 }
 
 fn decode_ray_bytes(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
-    if bytes.len() % RAY_BYTES != 0 {
+    if !bytes.len().is_multiple_of(RAY_BYTES) {
         return Err(Error::input(
             path,
             None,
