@@ -1060,3 +1060,69 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
     ]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// The names in the "Commands:" list of a help text (clap's own `help` left out).
+fn commands_in(help: &str) -> Vec<String> {
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| *c != "help")
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn every_subcommand_has_help_and_every_option_says_what_it_does() {
+    let top = String::from_utf8(lancer_ok(&["--help"]).stdout).unwrap();
+    let mut commands: Vec<Vec<String>> = Vec::new();
+    for c in commands_in(&top) {
+        let help = String::from_utf8(lancer_ok(&[&c, "--help"]).stdout).unwrap();
+        let subs = commands_in(&help);
+        if subs.is_empty() {
+            commands.push(vec![c]);
+        } else {
+            commands.extend(subs.into_iter().map(|s| vec![c.clone(), s]));
+        }
+    }
+    assert!(commands.len() >= 12, "{commands:?}");
+    for cmd in &commands {
+        let mut args: Vec<&str> = cmd.iter().map(String::as_str).collect();
+        args.push("--help");
+        let text = String::from_utf8(lancer_ok(&args).stdout).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let mut options = 0;
+        for (i, line) in lines.iter().enumerate() {
+            let t = line.trim_start();
+            // Option lines are indented 2 (with a short form) or 6; their words, 10 or more.
+            if line.len() - t.len() > 6 || !t.starts_with('-') {
+                continue;
+            }
+            options += 1;
+            let same_line = t
+                .find("  ")
+                .map(|k| t[k..].trim())
+                .filter(|d| !d.is_empty());
+            let words = same_line.unwrap_or_else(|| lines.get(i + 1).map_or("", |n| n.trim()));
+            assert!(
+                words.len() > 3 && !words.starts_with('-') && !words.starts_with("[default"),
+                "lancer {}: {t:?} does not say what it does",
+                cmd.join(" ")
+            );
+        }
+        assert!(
+            options >= 3,
+            "lancer {}: no options found in\n{text}",
+            cmd.join(" ")
+        );
+        // Help is for people: no rustdoc links, no shader binding numbers.
+        for internal in ["[`", "`]", "@binding", "binding("] {
+            assert!(
+                !text.contains(internal),
+                "lancer {}: {internal} in\n{text}",
+                cmd.join(" ")
+            );
+        }
+    }
+}

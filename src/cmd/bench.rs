@@ -30,7 +30,8 @@ enum BenchWhat {
     Trace(BenchTrace),
     /// Milliseconds per spp on GPU and CPU, specialised vs all-effects kernel.
     Render(super::bench_render::BenchRender),
-    /// Every acceleration structure on one mesh (CPU): build, memory, work and speed.
+    /// Every acceleration structure on one mesh or scene: build, memory, work and speed (on
+    /// the CPU, and on the GPU for those with a GPU kernel).
     Structures(super::bench_structures::BenchStructures),
     /// Every flattened layout on one mesh: bytes, work and bytes loaded per ray, CPU twin
     /// and GPU speed for primary, shadow and bounce rays.
@@ -41,7 +42,7 @@ enum BenchWhat {
 
 #[derive(Args)]
 struct BenchTrace {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb).
     mesh: PathBuf,
     /// Image width in pixels.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]

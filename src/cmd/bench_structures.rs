@@ -34,7 +34,7 @@ use super::{open_bench_device, spelled};
 
 #[derive(Args)]
 pub struct BenchStructures {
-    /// OBJ mesh (primary rays from its default view), or TOML scene (all its objects, primary
+    /// Mesh (.obj, .ply, .gltf, .glb; primary rays from its default view) or TOML scene (all its objects, primary
     /// rays from its camera), e.g. scenes/teapot-in-stadium.toml.
     mesh: PathBuf,
     /// Image width of the primary rays.

@@ -70,8 +70,10 @@ enum Cmd {
 /// BVH builder options shared by the subcommands that build one.
 #[derive(Args, Clone, Debug)]
 pub struct BuilderArgs {
-    /// Builder.
-    #[arg(long, value_enum, default_value_t = Builder::Sweep)]
+    /// BVH builder: sweep (the SAH over every split position on all three axes), binned (the
+    /// SAH over --bins candidate splits per axis: a faster build) or median (the object median
+    /// of the longest axis: the fastest build, slower traversal).
+    #[arg(long, value_enum, default_value_t = Builder::Sweep, hide_possible_values = true)]
     builder: Builder,
     /// Bins per axis (binned builder), 2 to 64.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(2..=MAX_BINS as i64))]
@@ -213,7 +215,7 @@ fn told(device: Device) -> Result<Device> {
 /// The robustness knobs on the command line.
 #[derive(Args, Clone, Debug)]
 pub struct RobustnessArgs {
-    /// Triangle test.
+    /// Ray–triangle test.
     #[arg(long, value_enum, default_value_t = TriangleTest::Watertight)]
     triangle_test: TriangleTest,
     /// Slab (ray–box) test.
