@@ -955,6 +955,17 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
         r.0.splice(3..3, small);
     }
     if gpu {
+        // check needs a GPU: auto takes any adapter there, lavapipe included.
+        lancer_ok(&[
+            "check",
+            s(&quad),
+            "--width",
+            "4",
+            "--height",
+            "4",
+            "--layout",
+            "dfs-sign",
+        ]);
         runs.push((
             vec![
                 "check",

@@ -152,7 +152,8 @@ impl CheckCmd {
     pub fn run(self) -> Result<()> {
         let say = Say::new(self.json);
         let mesh = load_mesh(&self.mesh)?;
-        let device = self.device.open()?;
+        // A check needs a GPU: auto takes any adapter here, a software one included.
+        let device = self.device.open_any_gpu()?;
         let Some(ctx) = device.gpu_context() else {
             return Err(Error::Gpu(
                 "check compares the GPU with the CPU and no GPU adapter opened: install a Vulkan \

@@ -58,7 +58,7 @@ enum Cmd {
     /// Measure speed.
     Bench(bench::BenchCmd),
     /// Trace the same rays on each layout's CPU twin and GPU kernel and compare the answers
-    /// (exit code 1 on any disagreement).
+    /// (exit code 1 on any disagreement); --device auto takes any adapter, lavapipe included.
     Check(check::CheckCmd),
     /// Compare two images (difference statistics and picture) or two hit files (judged by
     /// the f64 oracle with --mesh and --rays); exit code 1 when they differ.
@@ -185,6 +185,12 @@ impl DeviceArgs {
     /// Opens the device, saying why `auto` chose the CPU.
     pub fn open(&self) -> Result<Device> {
         told(Device::open(self.device)?)
+    }
+
+    /// Opens the device for a command that needs a GPU: `auto` takes any adapter, a
+    /// software one included.
+    pub fn open_any_gpu(&self) -> Result<Device> {
+        open_bench_device(self.device)
     }
 }
 
