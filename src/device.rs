@@ -49,7 +49,7 @@ impl Device {
                          CPU tracer; --device gpu forces it",
                         software.name
                     );
-                    log::info!("using the CPU: {why}");
+                    log::debug!("using the CPU: {why}");
                     Ok(Device {
                         gpu: None,
                         fallback: Some(why),
