@@ -693,9 +693,12 @@ fn auto_runs_on_a_hardware_gpu_else_on_the_cpu_and_says_why() {
         }
         None => assert_eq!(auto["device"], "cpu", "{auto}"),
     }
-    // The power preference orders hardware adapters; it never makes auto take a software one.
-    let (low, _) = trace_json(&dir, &[], &[], &[("WGPU_POWER_PREF", "low")]);
-    assert_eq!(low["device"], auto["device"], "{low}");
+    // The power preference orders hardware adapters (none: wgpu's order, software first or
+    // not); it never makes auto take a software one.
+    for pref in ["low", "none"] {
+        let (v, _) = trace_json(&dir, &[], &[], &[("WGPU_POWER_PREF", pref)]);
+        assert_eq!(v["device"], auto["device"], "WGPU_POWER_PREF={pref}: {v}");
+    }
     // -q silences the reason (the summary stays on stderr); the data is the same.
     let (quiet, err) = trace_json(&dir, &["-q"], &[], &[]);
     assert_eq!(quiet["device"], auto["device"]);

@@ -60,21 +60,27 @@ impl GpuContext {
     /// `WGPU_ADAPTER_NAME` (a case-insensitive substring of the adapter name) and
     /// `WGPU_POWER_PREF` (low, high or none; default high).
     pub fn new() -> Result<GpuContext> {
-        pollster::block_on(async { Self::on(pick_adapter().await?).await })
+        pollster::block_on(async { Self::on(pick_adapter(&instance()?).await?).await })
     }
 
-    /// Opens the adapter [`GpuContext::new`] would, unless it is a software one (a CPU
-    /// driver such as lavapipe) and `WGPU_ADAPTER_NAME` did not name it: then `Ok(Err(report))`
-    /// of it, without opening a device. The preferred adapter is software
-    /// only where no hardware one exists (wgpu ranks discrete, integrated, virtual, then CPU).
+    /// Opens the adapter [`GpuContext::new`] would when it is a hardware one (or the one
+    /// `WGPU_ADAPTER_NAME` names); where it is a software one (a CPU driver such as
+    /// lavapipe), another adapter that is not, and where there is none, `Ok(Err(report))` of
+    /// the software one, without opening a device.
     pub fn new_hardware() -> Result<std::result::Result<GpuContext, AdapterReport>> {
         pollster::block_on(async {
-            let adapter = pick_adapter().await?;
-            let named = std::env::var_os("WGPU_ADAPTER_NAME").is_some();
-            if !named && adapter.get_info().device_type == wgpu::DeviceType::Cpu {
-                return Ok(Err(report_of(&adapter.get_info())));
+            let instance = instance()?;
+            let adapter = pick_adapter(&instance).await?;
+            let software = |a: &wgpu::Adapter| a.get_info().device_type == wgpu::DeviceType::Cpu;
+            if std::env::var_os("WGPU_ADAPTER_NAME").is_some() || !software(&adapter) {
+                return Ok(Ok(Self::on(adapter).await?));
             }
-            Ok(Ok(Self::on(adapter).await?))
+            // wgpu ranks hardware adapters first, except under WGPU_POWER_PREF=none.
+            let others = instance.enumerate_adapters(wgpu::Backends::all()).await;
+            match others.into_iter().find(|a| !software(a)) {
+                Some(hardware) => Ok(Ok(Self::on(hardware).await?)),
+                None => Ok(Err(report_of(&adapter.get_info()))),
+            }
         })
     }
 
@@ -154,8 +160,7 @@ impl GpuContext {
 }
 
 /// The adapter `WGPU_ADAPTER_NAME` names, else the one wgpu prefers under `WGPU_POWER_PREF`.
-async fn pick_adapter() -> Result<wgpu::Adapter> {
-    let instance = instance()?;
+async fn pick_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
     match std::env::var("WGPU_ADAPTER_NAME") {
         Ok(want) => {
             let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
