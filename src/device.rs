@@ -9,11 +9,16 @@ use crate::gpu::GpuContext;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum DeviceChoice {
-    /// A GPU adapter when one opens, else the CPU (the reason is kept in
-    /// [`Device::fallback`]).
+    /// A hardware GPU adapter when one opens, else the CPU: where the only adapter is a
+    /// software one (lavapipe), the CPU tracers are faster than it. `WGPU_ADAPTER_NAME`
+    /// naming an adapter selects it, software or not. The reason for the CPU is kept in
+    /// [`Device::fallback`].
     #[cfg_attr(
         feature = "cli",
-        value(help = "A GPU adapter when one opens, else the CPU (saying why)")
+        value(
+            help = "A hardware GPU when one opens, else the CPU (saying why; a software \
+                    adapter such as lavapipe is slower than the CPU tracer)"
+        )
     )]
     #[default]
     Auto,
@@ -36,19 +41,44 @@ impl Device {
         match choice {
             DeviceChoice::Cpu => Ok(Device::cpu()),
             DeviceChoice::Gpu => Ok(Device::gpu(GpuContext::new()?)),
-            DeviceChoice::Auto => match GpuContext::new() {
-                Ok(ctx) => Ok(Device::gpu(ctx)),
-                // An adapter asked for by name and not found is the user's error, not a
-                // reason to fall back silently.
-                Err(e) if std::env::var_os("WGPU_ADAPTER_NAME").is_some() => Err(e),
-                Err(e) => {
-                    log::info!("no GPU: {e}");
+            DeviceChoice::Auto => match GpuContext::new_hardware() {
+                Ok(Ok(ctx)) => Ok(Device::gpu(ctx)),
+                Ok(Err(software)) => {
+                    let why = format!(
+                        "the only GPU adapter is {}, a software rasteriser slower than the \
+                         CPU tracer; --device gpu forces it",
+                        software.name
+                    );
+                    log::debug!("using the CPU: {why}");
                     Ok(Device {
                         gpu: None,
-                        fallback: Some(e.to_string()),
+                        fallback: Some(why),
                     })
                 }
+                Err(e) => Device::or_cpu(Err(e)),
             },
+        }
+    }
+
+    /// A GPU adapter when one opens, a software one included, else the CPU (the reason
+    /// kept in [`Device::fallback`]): what a benchmark measures beside the CPU.
+    pub fn open_any() -> Result<Device> {
+        Device::or_cpu(GpuContext::new())
+    }
+
+    /// The GPU that opened, else the CPU with the reason; an adapter asked for by name and
+    /// not found is the user's error, not a reason to fall back silently.
+    fn or_cpu(opened: Result<GpuContext>) -> Result<Device> {
+        match opened {
+            Ok(ctx) => Ok(Device::gpu(ctx)),
+            Err(e) if std::env::var_os("WGPU_ADAPTER_NAME").is_some() => Err(e),
+            Err(e) => {
+                log::info!("no GPU: {e}");
+                Ok(Device {
+                    gpu: None,
+                    fallback: Some(e.to_string()),
+                })
+            }
         }
     }
 
@@ -78,7 +108,8 @@ impl Device {
         self.gpu.is_none()
     }
 
-    /// Why `Auto` fell back to the CPU (None when it did not).
+    /// Why `Auto` chose the CPU: no adapter opened, or the only one is a software
+    /// rasteriser (None when it did not choose the CPU).
     pub fn fallback(&self) -> Option<&str> {
         self.fallback.as_deref()
     }

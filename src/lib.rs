@@ -4,8 +4,9 @@
 //!
 //! # Quick start
 //!
-//! Load a mesh, trace four rays on the CPU and on the GPU (any wgpu adapter; without one,
-//! `DeviceChoice::Auto` falls back to the CPU and says why), and render a scene to PNG:
+//! Load a mesh, trace four rays on the CPU and on the GPU (a hardware adapter; without one,
+//! or with only a software one such as lavapipe, `DeviceChoice::Auto` runs on the CPU and
+//! says why; `DeviceChoice::Gpu` takes any adapter), and render a scene to PNG:
 //!
 //! ```
 //! use std::path::Path;
@@ -20,7 +21,7 @@
 //!     .map(|i| Ray::new(Vec3::new(270.0 + i as f32, 270.0, 1359.2), Vec3::NEG_Z, 0.0, 1e30))
 //!     .collect();
 //! for choice in [DeviceChoice::Cpu, DeviceChoice::Auto] {
-//!     // Auto falls back to the CPU without a GPU; `device.fallback()` says why.
+//!     // Auto uses the CPU without a hardware GPU; `device.fallback()` says why.
 //!     let device = Device::open(choice)?;
 //!     let mut tracer = Tracer::new(&device, &mesh, &TracerOptions::default())?;
 //!     let result = tracer.trace(&rays, Query::Closest)?;

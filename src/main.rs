@@ -76,6 +76,12 @@ fn main() {
             writeln!(f, "{kind}: {}", r.args())
         })
         .init();
+    if cli.threads > 0 {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(cli.threads.into());
+        if let Err(e) = pool.build_global() {
+            log::warn!("--threads {}: {e}", cli.threads);
+        }
+    }
     if let Err(e) = cmd::run(cli) {
         eprintln!("error: {e}");
         std::process::exit(e.exit_code());

@@ -2,8 +2,9 @@
 
 mod common;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 fn lancer(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lancer"))
@@ -230,7 +231,7 @@ fn bench_render_prints_both_kernels() {
         "--height",
         "12",
         "--spp",
-        "1",
+        "3",
         "--device",
         "cpu",
     ]);
@@ -238,6 +239,10 @@ fn bench_render_prints_both_kernels() {
     assert!(text.contains("| cpu | specialised |"), "{text}");
     assert!(text.contains("| cpu | all effects |"), "{text}");
     assert!(text.contains("effects: shadows textures"), "{text}");
+    assert!(text.contains("median of 3"), "{text}");
+    // A median needs samples to choose from: fewer than 3 is a usage error.
+    let out = lancer(&["bench", "render", s(&scene("textured.toml")), "--spp", "2"]);
+    assert_eq!(out.status.code(), Some(2));
 }
 
 /// The traversal modes a layout runs in on this adapter: per-ray, and subgroup where both
@@ -308,6 +313,8 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
         "16",
         "--repeat",
         "1",
+        "--device",
+        "gpu",
         "--json",
         s(&json),
     ]);
@@ -627,4 +634,512 @@ fn adapters_lists_lavapipe_and_an_unmatched_adapter_name_is_an_error_with_auto_t
     );
     assert!(String::from_utf8_lossy(&out.stderr).contains("matches none of the adapters"));
     assert!(!hits.exists());
+}
+
+/// `trace --stats --json` on `quad` with `args` before and after the subcommand and
+/// `env`: the JSON object and stderr.
+fn trace_json(
+    dir: &Scratch,
+    global: &[&str],
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (serde_json::Value, String) {
+    let quad = dir.quad();
+    let (rays, hits) = (dir.path("tj.rays"), dir.path("tj.hits"));
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        s(&rays),
+    ]);
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lancer"));
+    cmd.args(global)
+        .args(["trace", s(&quad), "--rays", s(&rays), "--out", s(&hits)])
+        .args(["--stats", "--json"])
+        .args(args)
+        .env_remove("WGPU_ADAPTER_NAME");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON object ({e}): {:?}", out.stdout));
+    (v, err)
+}
+
+#[test]
+fn auto_runs_on_a_hardware_gpu_else_on_the_cpu_and_says_why() {
+    let dir = Scratch::new();
+    // What this machine has: the adapter wgpu prefers, and whether it is a software one.
+    let preferred = lancer::gpu::GpuContext::new().ok().map(|c| c.adapter);
+    let (auto, err) = trace_json(&dir, &[], &[], &[]);
+    match &preferred {
+        Some(a) if !a.software => assert_eq!(auto["device"], "gpu", "{auto}"),
+        Some(a) => {
+            assert_eq!(auto["device"], "cpu", "{auto}");
+            // One line says what was chosen and why, and how to force the adapter.
+            let why: Vec<&str> = err.lines().filter(|l| l.contains(&a.name)).collect();
+            assert_eq!(why.len(), 1, "{err}");
+            assert!(
+                why[0].contains("using the CPU") && why[0].contains("--device gpu"),
+                "{err}"
+            );
+        }
+        None => assert_eq!(auto["device"], "cpu", "{auto}"),
+    }
+    // The power preference orders hardware adapters (none: wgpu's order, software first or
+    // not); it never makes auto take a software one.
+    for pref in ["low", "none"] {
+        let (v, _) = trace_json(&dir, &[], &[], &[("WGPU_POWER_PREF", pref)]);
+        assert_eq!(v["device"], auto["device"], "WGPU_POWER_PREF={pref}: {v}");
+    }
+    // -q silences the reason (the summary stays on stderr); the data is the same.
+    let (quiet, err) = trace_json(&dir, &["-q"], &[], &[]);
+    assert_eq!(quiet["device"], auto["device"]);
+    assert!(!err.contains("warning"), "-q printed: {err}");
+    assert!(err.contains("64 rays"), "{err}");
+    let Some(adapter) = preferred else {
+        return;
+    };
+    // --device gpu forces the adapter, software or not; so does naming it with auto.
+    let (gpu, _) = trace_json(&dir, &[], &["--device", "gpu"], &[]);
+    assert_eq!(gpu["device"], "gpu", "{gpu}");
+    let (named, _) = trace_json(&dir, &[], &[], &[("WGPU_ADAPTER_NAME", &adapter.name)]);
+    assert_eq!(named["device"], "gpu", "{named}");
+    assert!(
+        named["adapter"].as_str().unwrap().contains(&adapter.name),
+        "{named}"
+    );
+    // Same answers wherever they ran.
+    assert_eq!(gpu["hits"], auto["hits"]);
+}
+
+#[test]
+fn threads_sets_the_cpu_pool_and_is_validated() {
+    let dir = Scratch::new();
+    for n in ["1", "3"] {
+        let (v, _) = trace_json(&dir, &["--threads", n], &["--device", "cpu"], &[]);
+        assert_eq!(v["cpu_threads"].to_string(), n, "{v}");
+    }
+    // 0 is every core: rayon's default pool.
+    let (all, _) = trace_json(&dir, &[], &["--device", "cpu", "--threads", "0"], &[]);
+    let (default, _) = trace_json(&dir, &[], &["--device", "cpu"], &[]);
+    assert_eq!(all["cpu_threads"], default["cpu_threads"]);
+    for bad in ["-1", "many", "100000"] {
+        let out = lancer(&["--threads", bad, "build", s(&dir.quad())]);
+        assert_eq!(out.status.code(), Some(2), "--threads {bad}");
+    }
+}
+
+#[test]
+fn rays_pipe_into_trace_and_hits_come_out_on_stdout() {
+    let dir = Scratch::new();
+    let quad = dir.quad();
+    let (rays, hits) = (dir.path("p.rays"), dir.path("p.hits"));
+    let view = ["--width", "9", "--height", "7"];
+    lancer_ok(&[&["rays", s(&quad), "-o", s(&rays)][..], &view].concat());
+    let trace = ["--device", "cpu"];
+    lancer_ok(
+        &[
+            &["trace", s(&quad), "--rays", s(&rays), "-o", s(&hits)][..],
+            &trace,
+        ]
+        .concat(),
+    );
+    // lancer rays … -o - | lancer trace MESH --rays - --out - > hits
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args([&["rays", s(&quad), "-o", "-"][..], &view].concat())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let consumer = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args(
+            [
+                &["trace", s(&quad), "--rays", "-", "--out", "-"][..],
+                &trace,
+            ]
+            .concat(),
+        )
+        .stdin(producer.stdout.take().unwrap())
+        .output()
+        .unwrap();
+    let produced = producer.wait_with_output().unwrap();
+    assert!(produced.status.success());
+    assert!(
+        consumer.status.success(),
+        "{}",
+        String::from_utf8_lossy(&consumer.stderr)
+    );
+    // stdout carries the data only, byte for byte what the files hold; the words go to stderr.
+    assert_eq!(consumer.stdout, std::fs::read(&hits).unwrap());
+    assert!(String::from_utf8_lossy(&consumer.stderr).contains("63 rays"));
+    assert!(String::from_utf8_lossy(&produced.stderr).contains("63 rays written to -"));
+    // rays -o - alone writes exactly the ray file.
+    let out = lancer_ok(&[&["rays", s(&quad), "-o", "-"][..], &view].concat());
+    assert_eq!(out.stdout, std::fs::read(&rays).unwrap());
+    // A truncated stream on stdin is refused like a truncated file.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args([
+            "trace",
+            s(&quad),
+            "--rays",
+            "-",
+            "--out",
+            "-",
+            "--device",
+            "cpu",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(&[0u8; 40]).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("<stdin>"));
+}
+
+/// Runs lancer expecting `code`; stdout must be exactly one line holding one JSON object.
+fn json_of(args: &[&str], code: i32) -> (serde_json::Value, String) {
+    let out = lancer(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(
+        text.lines().count(),
+        1,
+        "{args:?}: stdout is not one line:\n{text}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v.is_object(), "{v}");
+    (v, err)
+}
+
+/// Every key of `v`, of the objects in its arrays included.
+fn keys(v: &serde_json::Value, into: &mut std::collections::BTreeSet<String>) {
+    match v {
+        serde_json::Value::Object(m) => {
+            for (k, x) in m {
+                into.insert(k.clone());
+                keys(x, into);
+            }
+        }
+        serde_json::Value::Array(a) => a.iter().for_each(|x| keys(x, into)),
+        _ => {}
+    }
+}
+
+#[test]
+fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented() {
+    let d = Scratch::new();
+    let quad = d.quad();
+    let (rays, ha, hb, png) = (
+        d.path("r.bin"),
+        d.path("a.hits"),
+        d.path("b.hits"),
+        d.path("h.png"),
+    );
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        s(&rays),
+    ]);
+    lancer_ok(&[
+        "heatmap",
+        s(&quad),
+        "-o",
+        s(&png),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--device",
+        "cpu",
+    ]);
+    let small = ["--width", "8", "--height", "8", "--repeat", "1"];
+    let textured = scene("textured.toml");
+    let chart = d.path("acc.png");
+    let gpu = lancer::gpu::GpuContext::new().is_ok();
+    let mut runs: Vec<(Vec<&str>, i32, &str)> = vec![
+        (vec!["build", s(&quad), "--json"], 0, ""),
+        (
+            vec![
+                "trace",
+                s(&quad),
+                "--rays",
+                s(&rays),
+                "-o",
+                s(&ha),
+                "--stats",
+                "--json",
+            ],
+            0,
+            "64 rays",
+        ),
+        (vec!["compare", s(&png), s(&png), "--json"], 0, "0 pixels"),
+        (
+            vec!["bench", "trace", s(&quad), "--device", "cpu", "--json"],
+            0,
+            "| primary",
+        ),
+        (
+            vec![
+                "bench",
+                "render",
+                s(&textured),
+                "--spp",
+                "3",
+                "--device",
+                "cpu",
+                "--json",
+            ],
+            0,
+            "| cpu | specialised",
+        ),
+        (
+            vec![
+                "bench",
+                "structures",
+                s(&quad),
+                "--random",
+                "10",
+                "--device",
+                "cpu",
+                "--json",
+                "-",
+            ],
+            0,
+            "| octree |",
+        ),
+        (
+            vec!["bench", "layouts", s(&quad), "--device", "cpu", "--json"],
+            0,
+            "| dfs-sign |",
+        ),
+        (
+            vec![
+                "bench",
+                "accuracy",
+                s(&textured),
+                "--render-size",
+                "4",
+                "--reference-spp",
+                "16",
+                "--max-spp",
+                "1",
+                "--reference-bounces",
+                "1",
+                "--device",
+                "cpu",
+                "--chart",
+                s(&chart),
+                "--json",
+            ],
+            0,
+            "| defaults |",
+        ),
+    ];
+    // Small views and one timed run: bench render has neither option.
+    for r in runs
+        .iter_mut()
+        .filter(|r| r.0[0] == "bench" && r.0[1] != "render")
+    {
+        r.0.splice(3..3, small);
+    }
+    if gpu {
+        // check needs a GPU: auto takes any adapter there, lavapipe included.
+        lancer_ok(&[
+            "check",
+            s(&quad),
+            "--width",
+            "4",
+            "--height",
+            "4",
+            "--layout",
+            "dfs-sign",
+        ]);
+        runs.push((
+            vec![
+                "check",
+                s(&quad),
+                "--width",
+                "4",
+                "--height",
+                "4",
+                "--device",
+                "gpu",
+                "--json",
+            ],
+            0,
+            "every answer agrees",
+        ));
+    }
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let section = readme
+        .split("### JSON output")
+        .nth(1)
+        .and_then(|t| t.split("\n## ").next())
+        .expect("a JSON output section in the README");
+    for (args, code, text) in &runs {
+        let (v, err) = json_of(args, *code);
+        assert!(
+            err.contains(text),
+            "{args:?}: the text is not on stderr: {err}"
+        );
+        let mut all = Default::default();
+        keys(&v, &mut all);
+        for k in all {
+            assert!(
+                section.contains(&format!("`{k}`")),
+                "{args:?}: key {k} is not in the README"
+            );
+        }
+    }
+    // A difference still prints its object, then exits 1.
+    let mut bytes = std::fs::read(&ha).unwrap();
+    let k = bytes
+        .chunks(16)
+        .position(|h| h[4..8] != [0xff; 4])
+        .expect("a hit")
+        * 16;
+    let t = f32::from_le_bytes(bytes[k..k + 4].try_into().unwrap()) * 1.5;
+    bytes[k..k + 4].copy_from_slice(&t.to_le_bytes());
+    std::fs::write(&hb, bytes).unwrap();
+    let judged = ["--mesh", s(&quad), "--rays", s(&rays)];
+    let (v, _) = json_of(
+        &[&["compare", s(&ha), s(&hb), "--json"][..], &judged].concat(),
+        1,
+    );
+    assert_eq!(
+        (
+            v["kind"].as_str(),
+            v["disagree"].as_u64(),
+            v["judged"].as_bool()
+        ),
+        (Some("hits"), Some(1), Some(true)),
+        "{v}"
+    );
+    let (v, _) = json_of(&["compare", s(&ha), s(&hb), "--json"], 1);
+    assert_eq!(
+        (v["disagree"].as_u64(), v["genuine_ties"].is_null()),
+        (Some(1), true),
+        "{v}"
+    );
+    // --json FILE.json writes the file and keeps the tables on stdout; any other name
+    // (a mesh given after --json, say) is refused before anything is written.
+    let file = d.path("t.json");
+    let out = lancer_ok(
+        &[
+            &[
+                "bench",
+                "trace",
+                s(&quad),
+                "--device",
+                "cpu",
+                "--json",
+                s(&file),
+            ][..],
+            &small,
+        ]
+        .concat(),
+    );
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    assert_eq!(v["runs"].as_array().unwrap().len(), 2, "{v}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("| primary"));
+    let before = std::fs::read(&quad).unwrap();
+    let out = lancer(&["bench", "layouts", "--json", s(&quad)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(std::fs::read(&quad).unwrap(), before);
+    // Two writers of stdout at once is a usage error.
+    let out = lancer(&[
+        "trace",
+        s(&quad),
+        "--rays",
+        s(&rays),
+        "--out",
+        "-",
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+/// The names in the "Commands:" list of a help text (clap's own `help` left out).
+fn commands_in(help: &str) -> Vec<String> {
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| *c != "help")
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn every_subcommand_has_help_and_every_option_says_what_it_does() {
+    let top = String::from_utf8(lancer_ok(&["--help"]).stdout).unwrap();
+    let mut commands: Vec<Vec<String>> = Vec::new();
+    for c in commands_in(&top) {
+        let help = String::from_utf8(lancer_ok(&[&c, "--help"]).stdout).unwrap();
+        let subs = commands_in(&help);
+        if subs.is_empty() {
+            commands.push(vec![c]);
+        } else {
+            commands.extend(subs.into_iter().map(|s| vec![c.clone(), s]));
+        }
+    }
+    assert!(commands.len() >= 12, "{commands:?}");
+    for cmd in &commands {
+        let mut args: Vec<&str> = cmd.iter().map(String::as_str).collect();
+        args.push("--help");
+        let text = String::from_utf8(lancer_ok(&args).stdout).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let mut options = 0;
+        for (i, line) in lines.iter().enumerate() {
+            let t = line.trim_start();
+            // Option lines are indented 2 (with a short form) or 6; their words, 10 or more.
+            if line.len() - t.len() > 6 || !t.starts_with('-') {
+                continue;
+            }
+            options += 1;
+            let same_line = t
+                .find("  ")
+                .map(|k| t[k..].trim())
+                .filter(|d| !d.is_empty());
+            let words = same_line.unwrap_or_else(|| lines.get(i + 1).map_or("", |n| n.trim()));
+            assert!(
+                words.len() > 3 && !words.starts_with('-') && !words.starts_with("[default"),
+                "lancer {}: {t:?} does not say what it does",
+                cmd.join(" ")
+            );
+        }
+        assert!(
+            options >= 3,
+            "lancer {}: no options found in\n{text}",
+            cmd.join(" ")
+        );
+        // Help is for people: no rustdoc links, no shader binding numbers.
+        for internal in ["[`", "`]", "@binding", "binding("] {
+            assert!(
+                !text.contains(internal),
+                "lancer {}: {internal} in\n{text}",
+                cmd.join(" ")
+            );
+        }
+    }
 }

@@ -13,7 +13,10 @@ use lancer::{
     DeviceChoice, Error, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
 };
 
-use super::{open_device, spelled, AccelArg, BuildArgs};
+use serde::Serialize;
+
+use super::out::{json_to, say, JsonTo, Say};
+use super::{open_bench_device, spelled, AccelArg, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchCmd {
@@ -27,7 +30,8 @@ enum BenchWhat {
     Trace(BenchTrace),
     /// Milliseconds per spp on GPU and CPU, specialised vs all-effects kernel.
     Render(super::bench_render::BenchRender),
-    /// Every acceleration structure on one mesh (CPU): build, memory, work and speed.
+    /// Every acceleration structure on one mesh or scene: build, memory, work and speed (on
+    /// the CPU, and on the GPU for those with a GPU kernel).
     Structures(super::bench_structures::BenchStructures),
     /// Every flattened layout on one mesh: bytes, work and bytes loaded per ray, CPU twin
     /// and GPU speed for primary, shadow and bounce rays.
@@ -38,7 +42,7 @@ enum BenchWhat {
 
 #[derive(Args)]
 struct BenchTrace {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb).
     mesh: PathBuf,
     /// Image width in pixels.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
@@ -46,17 +50,94 @@ struct BenchTrace {
     /// Image height in pixels.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// auto and gpu measure the GPU kernels and the CPU tracer side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels and the CPU tracer side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// Timed runs per configuration (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
     #[command(flatten)]
     build: BuildArgs,
-    /// Acceleration structure: one with a GPU kernel (the BVH in `--layout`, the kd-tree, the BIH).
+    /// Acceleration structure: one with a GPU kernel (the BVH in --layout, the kd-tree, the BIH).
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
+    #[command(flatten)]
+    json: JsonArg,
+}
+
+/// `--json [FILE.json]`, shared by the benches.
+#[derive(Args)]
+pub struct JsonArg {
+    /// Also write the results as one JSON object: on stdout with --json alone or --json -
+    /// (the tables then go to stderr), or in FILE.json (keys: the README's "JSON output").
+    #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
+    pub json: Option<JsonTo>,
+}
+
+impl JsonArg {
+    /// Where the tables go.
+    pub fn say(&self) -> Say {
+        Say::new(self.json.as_ref().is_some_and(JsonTo::is_stdout))
+    }
+
+    /// Checks a JSON file's path before work starts.
+    pub fn check(&self, inputs: &[PathBuf]) -> Result<()> {
+        self.json.as_ref().map_or(Ok(()), |j| j.check(inputs))
+    }
+
+    /// Writes the report where --json asks (nowhere without it).
+    pub fn write(&self, report: &impl Serialize, say: Say) -> Result<()> {
+        self.json.as_ref().map_or(Ok(()), |j| j.write(report, say))
+    }
+}
+
+/// `bench trace --json`: one object a run.
+#[derive(Serialize)]
+struct BenchTraceReport {
+    /// The mesh file.
+    mesh: String,
+    /// Triangles in the structure's leaves.
+    triangles: usize,
+    /// Width of the default view.
+    width: u32,
+    /// Height of the default view.
+    height: u32,
+    /// The structure timed.
+    structure: String,
+    /// The GPU adapter, or null.
+    adapter: Option<String>,
+    /// CPU threads.
+    cpu_threads: usize,
+    /// Timed runs per configuration (the median is reported).
+    repeat: u64,
+    /// One object per ray set and configuration.
+    runs: Vec<BenchTraceRun>,
+}
+
+/// One ray set × device configuration.
+#[derive(Serialize)]
+struct BenchTraceRun {
+    /// "primary closest-hit" or "shadow any-hit".
+    rays: &'static str,
+    /// Rays in the set.
+    count: usize,
+    /// "cpu" or "gpu".
+    device: &'static str,
+    /// GPU: "textures" or "buffers" (null on the CPU).
+    bvh_memory: Option<String>,
+    /// GPU: invocations per workgroup (null on the CPU).
+    workgroup_size: Option<u32>,
+    /// GPU: "checked" or "trusted" shader module (null on the CPU).
+    module: Option<&'static str>,
+    /// Million rays per second by GPU time (the CPU's: by wall time; null without
+    /// timestamp queries).
+    mrays_per_s_gpu_time: Option<f64>,
+    /// Million rays per second by wall time (GPU: upload, dispatch and read-back).
+    mrays_per_s_wall: f64,
+    /// Mean nodes (or cells) visited per ray.
+    nodes_per_ray: f64,
 }
 
 impl BenchCmd {
@@ -71,9 +152,15 @@ impl BenchCmd {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The median: the middle value, or the mean of the two middle ones (NaN when empty, or
+/// when a middle value is NaN).
+pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }
 
 fn nodes_per_ray(s: &[RayStats]) -> f64 {
@@ -82,6 +169,8 @@ fn nodes_per_ray(s: &[RayStats]) -> f64 {
 
 impl BenchTrace {
     fn run(self) -> Result<()> {
+        let say = self.json.say();
+        self.json.check(std::slice::from_ref(&self.mesh))?;
         let mesh = load_mesh(&self.mesh)?;
         lancer::limits::check_image(
             self.width,
@@ -105,7 +194,7 @@ impl BenchTrace {
             ("primary closest-hit", Query::Closest, &primary),
             ("shadow any-hit", Query::Any, &shadow),
         ];
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let memories = [BvhMemory::Textures, BvhMemory::Buffers];
         let gpu_configs: Vec<(u32, bool)> = if device.is_cpu() {
             Vec::new()
@@ -137,12 +226,17 @@ impl BenchTrace {
                 bar.inc(1);
             }
             let rate = n / median(times) / 1e6;
-            rows.push(format!(
-                "| {name} | {} | cpu ({} threads) | – | – | – | {rate:.2} | {rate:.2} | {:.2} |",
-                rays.len(),
-                rayon::current_num_threads(),
-                nodes_per_ray(&stats)
-            ));
+            rows.push(BenchTraceRun {
+                rays: name,
+                count: rays.len(),
+                device: "cpu",
+                bvh_memory: None,
+                workgroup_size: None,
+                module: None,
+                mrays_per_s_gpu_time: Some(rate),
+                mrays_per_s_wall: rate,
+                nodes_per_ray: nodes_per_ray(&stats),
+            });
             if device.is_cpu() {
                 continue;
             }
@@ -170,18 +264,24 @@ impl BenchTrace {
                     tracer.set_kernel(rob, wg, true);
                     let s = tracer.trace(rays, query)?.stats;
                     let module = if trusted { "trusted" } else { "checked" };
-                    rows.push(format!(
-                        "| {name} | {} | gpu | {bvh} | {wg} | {module} | {:.2} | {:.2} | {:.2} |",
-                        rays.len(),
-                        n / median(gpu) / 1e3,
-                        n / median(wall) / 1e3,
-                        nodes_per_ray(&s.unwrap_or_default())
-                    ));
+                    let gpu = n / median(gpu) / 1e3;
+                    rows.push(BenchTraceRun {
+                        rays: name,
+                        count: rays.len(),
+                        device: "gpu",
+                        bvh_memory: Some(bvh.clone()),
+                        workgroup_size: Some(wg),
+                        module: Some(module),
+                        mrays_per_s_gpu_time: gpu.is_finite().then_some(gpu),
+                        mrays_per_s_wall: n / median(wall) / 1e3,
+                        nodes_per_ray: nodes_per_ray(&s.unwrap_or_default()),
+                    });
                 }
             }
         }
         bar.finish_and_clear();
-        println!(
+        say!(
+            say,
             "mesh {}  {} triangles in leaves  {}x{}  structure {}",
             self.mesh.display(),
             layout.triangles(),
@@ -190,13 +290,41 @@ impl BenchTrace {
             layout.name()
         );
         if let Some(ctx) = device.gpu_context() {
-            println!("adapter {}", ctx.adapter);
+            say!(say, "adapter {}", ctx.adapter);
         }
-        println!("| rays | count | device | BVH memory | workgroup | module | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray |");
-        println!("|---|---|---|---|---|---|---|---|---|");
-        for r in rows {
-            println!("{r}");
+        say!(say, "| rays | count | device | BVH memory | workgroup | module | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray |");
+        say!(say, "|---|---|---|---|---|---|---|---|---|");
+        let threads = rayon::current_num_threads();
+        let or_dash = |x: Option<String>| x.unwrap_or("–".into());
+        for r in &rows {
+            let device = match r.device {
+                "cpu" => format!("cpu ({threads} threads)"),
+                d => d.to_string(),
+            };
+            say!(
+                say,
+                "| {} | {} | {device} | {} | {} | {} | {} | {:.2} | {:.2} |",
+                r.rays,
+                r.count,
+                or_dash(r.bvh_memory.clone()),
+                or_dash(r.workgroup_size.map(|w| w.to_string())),
+                or_dash(r.module.map(String::from)),
+                or_dash(r.mrays_per_s_gpu_time.map(|m| format!("{m:.2}"))),
+                r.mrays_per_s_wall,
+                r.nodes_per_ray
+            );
         }
-        Ok(())
+        let report = BenchTraceReport {
+            mesh: self.mesh.display().to_string(),
+            triangles: layout.triangles(),
+            width: self.width,
+            height: self.height,
+            structure: layout.name().to_string(),
+            adapter: device.gpu_context().map(|c| c.adapter.to_string()),
+            cpu_threads: threads,
+            repeat: self.repeat,
+            runs: rows,
+        };
+        self.json.write(&report, say)
     }
 }

@@ -22,10 +22,12 @@ use lancer::{
     Device, DeviceChoice, Error, Query, Ray, RayStats, RenderOptions, RenderScene, Renderer,
     Result, Robustness, Tracer, TracerOptions, Vec3,
 };
-use serde_json::json;
+use serde::Serialize;
 
+use super::bench::median;
 use super::chart::xy_chart;
-use super::open_device;
+use super::open_bench_device;
+use super::out::{json_to, say, JsonTo, Say};
 use super::render::load_scene;
 
 #[derive(Args)]
@@ -55,16 +57,20 @@ pub struct BenchAccuracy {
     /// Timed runs per setting (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
-    /// auto and gpu measure the GPU and the CPU side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU and the CPU side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// Error-vs-time charts: NAME-cpu.png and NAME-gpu.png, and the spp convergence curve
     /// NAME-spp.png, from this path's stem.
-    #[arg(long, default_value = "bench-accuracy.png")]
+    #[arg(long, value_name = "NAME.png", default_value = "bench-accuracy.png")]
     chart: PathBuf,
-    /// JSON output (default: the chart path with .json).
-    #[arg(long)]
-    json: Option<PathBuf>,
+    /// The results as one JSON object: on stdout with --json alone or --json - (the table
+    /// then goes to stderr), or in FILE.json (default: the --chart path with .json; keys:
+    /// the README's "JSON output").
+    #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
+    json: Option<JsonTo>,
 }
 
 /// Rays aimed at the closed icosphere's vertices and edges (leaks).
@@ -199,26 +205,60 @@ fn settings() -> Vec<Setting> {
     s
 }
 
-/// One row of the table (and of the JSON).
-#[derive(Default)]
+/// One row of the table (a JSON `rows` entry); null where a row does not measure it.
+#[derive(Default, Serialize)]
 struct Row {
+    /// What is varied: defaults, triangle test, slab test, ray offset, shader checks, CPU
+    /// precision, fastest, BVH builder, spp or max bounces.
     knob: String,
+    /// The setting of the knob.
     setting: String,
+    /// "cpu" or "gpu".
     device: &'static str,
+    /// Median ms of the scene's primary and shadow rays (trace rows) or of the render.
     ms: f64,
+    /// Million rays (render rows: camera samples) per second.
+    #[serde(rename = "mrays_per_s")]
     mrays: f64,
+    /// ms relative to the defaults on the same device.
+    #[serde(rename = "relative_to_default")]
     relative: Option<f64>,
+    /// Rays that leak through the closed icosphere.
     leaks: Option<usize>,
+    /// Rays of the constructed hard cases that miss a triangle they hit.
     false_misses: Option<usize>,
+    /// Secondary rays that hit the surface they leave, in %.
     self_hits_pct: Option<f64>,
     /// Leaks, false misses and self-hits in % of the rays they are counted on.
     error_pct: Option<f64>,
+    /// SAH cost of the BVH.
+    #[serde(rename = "sah_cost")]
     sah: Option<f64>,
+    /// Mean nodes visited per primary ray.
+    #[serde(rename = "nodes_per_ray")]
     nodes: Option<f64>,
+    /// Mean triangles tested per primary ray.
+    #[serde(rename = "tris_per_ray")]
     tris: Option<f64>,
+    /// RMSE against the reference render (linear radiance).
     rmse: Option<f64>,
+    /// Bias of the mean against the reference's, in % of it.
     bias_pct: Option<f64>,
+    /// Samples per pixel of the render rows.
     spp: Option<u32>,
+}
+
+/// The whole run (the JSON).
+#[derive(Serialize)]
+struct Report<'a> {
+    /// The scene file.
+    scene: String,
+    /// The GPU adapter, or null.
+    adapter: Option<String>,
+    /// CPU threads.
+    cpu_threads: usize,
+    /// One object per knob setting and device.
+    rows: &'a [Row],
 }
 
 /// What the trace settings are measured on.
@@ -264,11 +304,6 @@ impl Work {
     fn case_rays(&self) -> usize {
         self.cases.iter().map(|c| c.rays.len()).sum()
     }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// Milliseconds of one trace: GPU time where the device measures it, else wall time.
@@ -417,18 +452,18 @@ fn render(scene: &RenderScene, device: &Device, spp: u32, seed: u32) -> Result<(
 
 impl BenchAccuracy {
     pub fn run(self) -> Result<()> {
-        let json_path = self
-            .json
-            .clone()
-            .unwrap_or_else(|| self.chart.with_extension("json"));
+        let json =
+            (self.json.clone()).unwrap_or_else(|| JsonTo::File(self.chart.with_extension("json")));
+        let say = Say::new(json.is_stdout());
         let charts = ["cpu", "gpu", "spp"].map(|k| chart_path(&self.chart, k));
         let mut inputs = vec![self.scene.clone()];
         let scene = load_scene(&self.scene, None, None)?;
         inputs.extend(scene.mesh.sources.iter().cloned());
-        for out in charts.iter().chain([&json_path]) {
+        for out in &charts {
             lancer::output::check_output(out, &inputs)?;
         }
-        let device = open_device(self.device)?;
+        json.check(&inputs)?;
+        let device = open_bench_device(self.device)?;
         let cpu = Device::cpu();
         let mut devices: Vec<(&'static str, &Device)> = vec![("cpu", &cpu)];
         if !device.is_cpu() {
@@ -530,7 +565,8 @@ impl BenchAccuracy {
 
         // The report.
         let (w, h) = (self.width, self.height);
-        println!(
+        say!(
+            say,
             "scene {}  {} triangles  primary {w}x{h} + shadow rays ({} rays)  {} CPU threads",
             self.scene.display(),
             work.mesh.included().len(),
@@ -543,24 +579,32 @@ impl BenchAccuracy {
             } else {
                 "wall time"
             };
-            println!("adapter {} (GPU times: {timing})", ctx.adapter);
+            say!(say, "adapter {} (GPU times: {timing})", ctx.adapter);
         }
-        println!(
+        say!(
+            say,
             "leaks: of {LEAK_RAYS} rays aimed at the vertices and edges of a closed icosphere \
              ({} triangles); false misses: of {} constructed hard-case rays; self-hits: % of \
              the secondary rays from {SECONDARY_POINTS} surface points",
             work.sphere.len(),
             work.case_rays()
         );
-        println!(
+        say!(
+            say,
             "renders: {0}x{0} px; reference {1} spp, {2} bounces on the CPU ({3:.0} ms); bounce \
              rows at {BOUNCE_SPP} spp; bias in % of the reference's mean",
-            self.render_size, self.reference_spp, self.reference_bounces, ref_ms
+            self.render_size,
+            self.reference_spp,
+            self.reference_bounces,
+            ref_ms
         );
-        println!("| knob | setting | device | ms | Mrays/s | × default | leaks | false misses | self-hits % | SAH cost | nodes/ray | tris/ray | RMSE | bias % |");
-        println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        say!(say, "| knob | setting | device | ms | Mrays/s | × default | leaks | false misses | self-hits % | SAH cost | nodes/ray | tris/ray | RMSE | bias % |");
+        say!(
+            say,
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        );
         for r in &rows {
-            println!("{}", table_row(r));
+            say!(say, "{}", table_row(r));
         }
         for &(dev_name, _) in &devices {
             let ms = |name: &str| {
@@ -569,22 +613,29 @@ impl BenchAccuracy {
                     .map(|r| r.ms)
             };
             if let (Some(robust), Some(fast)) = (ms(DEFAULTS), ms(FASTEST)) {
-                println!(
+                say!(
+                    say,
                     "{dev_name}: the robust defaults take {robust:.2} ms, the fastest settings \
                      {fast:.2} ms: robust costs {:+.1}%",
                     100.0 * (robust / fast - 1.0)
                 );
             }
         }
-        write_json(&json_path, &self.scene, &device, &rows)?;
         draw_charts(&charts, &rows, &devices)?;
-        println!(
-            "wrote {}, {}, {}, {}",
-            json_path.display(),
+        say!(
+            say,
+            "charts -> {}, {}, {}",
             charts[0].display(),
             charts[1].display(),
             charts[2].display()
         );
+        let report = Report {
+            scene: self.scene.display().to_string(),
+            adapter: device.gpu_context().map(|c| c.adapter.to_string()),
+            cpu_threads: rayon::current_num_threads(),
+            rows: &rows,
+        };
+        json.write(&report, say)?;
         Ok(())
     }
 }
@@ -639,30 +690,6 @@ fn table_row(r: &Row) -> String {
         opt(r.rmse, |x| format!("{x:.4}")),
         opt(r.bias_pct, |x| format!("{x:+.2}")),
     )
-}
-
-fn write_json(path: &Path, scene: &Path, device: &Device, rows: &[Row]) -> Result<()> {
-    let rows: Vec<_> = rows
-        .iter()
-        .map(|r| {
-            json!({
-                "knob": r.knob, "setting": r.setting, "device": r.device, "ms": r.ms,
-                "mrays_per_s": r.mrays, "relative_to_default": r.relative, "leaks": r.leaks,
-                "false_misses": r.false_misses, "self_hits_pct": r.self_hits_pct,
-                "error_pct": r.error_pct,
-                "sah_cost": r.sah, "nodes_per_ray": r.nodes, "tris_per_ray": r.tris,
-                "rmse": r.rmse, "bias_pct": r.bias_pct, "spp": r.spp,
-            })
-        })
-        .collect();
-    let doc = json!({
-        "scene": scene.display().to_string(),
-        "adapter": device.gpu_context().map(|c| c.adapter.to_string()),
-        "cpu_threads": rayon::current_num_threads(),
-        "rows": rows,
-    });
-    let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Usage(e.to_string()))?;
-    lancer::output::write_bytes(path, text.as_bytes())
 }
 
 /// Error vs time per device (one point per setting), and RMSE vs spp.

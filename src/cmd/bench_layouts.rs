@@ -17,12 +17,16 @@ use lancer::{
     TraversalMode,
 };
 
+use serde::{Serialize, Serializer};
+
+use super::bench::{median, JsonArg};
 use super::check::{layout_choice, LayoutChoice};
-use super::{open_device, spelled, view_ray_sets, BuilderArgs};
+use super::out::{check_output, say};
+use super::{open_bench_device, spelled, view_ray_sets, BuilderArgs};
 
 #[derive(Args)]
 pub struct BenchLayouts {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb).
     mesh: PathBuf,
     /// Width of the default view (primary rays; shadow and bounce rays start at their hits).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
@@ -30,8 +34,10 @@ pub struct BenchLayouts {
     /// Height of the default view.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// auto and gpu measure the GPU kernels and the CPU twins side by side; cpu only the twins.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels and the CPU twins side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// GPU: where the kernels read the layout from.
     #[arg(long, value_enum, default_value_t = BvhMemory::default())]
@@ -42,41 +48,90 @@ pub struct BenchLayouts {
     /// Timed runs per layout and ray set (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
-    /// Also write the results as JSON here.
-    #[arg(long)]
-    json: Option<PathBuf>,
-    /// Also draw Mrays/s per layout and ray set as a PNG bar chart here.
-    #[arg(long)]
+    #[command(flatten)]
+    json: JsonArg,
+    /// Also draw Mrays/s per layout and ray set as a PNG bar chart here (none by default).
+    #[arg(long, value_name = "FILE.png")]
     chart: Option<PathBuf>,
     #[command(flatten)]
     build: BuilderArgs,
 }
 
-/// One layout × mode × ray set.
+/// One layout × mode × ray set (a JSON `runs` entry).
+#[derive(Serialize)]
 struct Row {
+    /// `--layout` name.
+    #[serde(serialize_with = "layout_name")]
     layout: LayoutKind,
+    /// Traversal mode: per-ray or subgroup.
+    #[serde(serialize_with = "mode_name")]
     mode: TraversalMode,
+    /// primary (closest hit), shadow (any hit) or bounce (closest hit).
     rays: String,
+    /// Rays in the set.
     count: usize,
+    /// Mean nodes visited per ray (subgroup rows: loaded by the ray's subgroup).
+    #[serde(rename = "nodes_per_ray")]
     nodes: f64,
+    /// Mean triangles tested per ray.
+    #[serde(rename = "triangles_per_ray")]
     tris: f64,
+    /// Nodes × node size + triangles × 48 bytes.
+    #[serde(rename = "bytes_loaded_per_ray")]
     bytes_loaded: f64,
-    /// The CPU twin traces per ray: None on subgroup rows.
+    /// CPU twin, median of --repeat runs; null on subgroup rows (the twin traces per ray).
+    #[serde(rename = "cpu_mrays_per_s")]
     cpu_mrays: Option<f64>,
+    /// GPU kernel, median of --repeat runs (GPU time where the adapter reports it); null
+    /// without a GPU.
+    #[serde(rename = "gpu_mrays_per_s")]
     gpu_mrays: Option<f64>,
 }
 
-/// One layout's size.
+/// One layout's size (a JSON `layouts` entry).
+#[derive(Serialize)]
 struct Size {
+    /// `--layout` name.
+    #[serde(serialize_with = "layout_name")]
     layout: LayoutKind,
+    /// Wall time to flatten the BVH into the layout.
     flatten_ms: f64,
+    /// Bytes of the layout (nodes and leaf triangles).
     bytes: usize,
+    /// Bytes per triangle of the mesh.
+    #[serde(rename = "bytes_per_triangle")]
     per_tri: f64,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+/// The whole run (`--json`).
+#[derive(Serialize)]
+struct Report<'a> {
+    /// The mesh file.
+    mesh: String,
+    /// Triangles in the mesh.
+    triangles: usize,
+    /// Width of the default view.
+    width: u32,
+    /// Height of the default view.
+    height: u32,
+    /// The GPU adapter, or "none (CPU only)".
+    adapter: String,
+    /// `--bvh-memory`.
+    bvh_memory: String,
+    /// CPU threads.
+    cpu_threads: usize,
+    /// One object per layout.
+    layouts: &'a [Size],
+    /// One object per layout, mode and ray set.
+    runs: &'a [Row],
+}
+
+fn layout_name<S: Serializer>(k: &LayoutKind, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(k.name())
+}
+
+fn mode_name<S: Serializer>(m: &TraversalMode, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(m.name())
 }
 
 /// GPU Mrays/s of `tracer` (statistics off): the median of `repeat` timed runs, after an
@@ -103,12 +158,17 @@ fn time_gpu(
 
 impl BenchLayouts {
     pub fn run(self) -> Result<()> {
+        let say = self.json.say();
+        self.json.check(std::slice::from_ref(&self.mesh))?;
+        if let Some(chart) = &self.chart {
+            check_output(chart, std::slice::from_ref(&self.mesh))?;
+        }
         let mesh = load_mesh(&self.mesh)?;
         let tree = build(&mesh, &self.build.options());
         let reference = flatten(LayoutKind::default(), &tree, &mesh);
         let rob = Robustness::default();
         let sets = view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?;
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let kinds = self.layouts.kinds();
         let repeat = self.repeat as usize;
         let per_set = if device.is_cpu() { repeat } else { 2 * repeat };
@@ -210,7 +270,8 @@ impl BenchLayouts {
         let adapter = device
             .gpu_context()
             .map_or("none (CPU only)".to_string(), |c| c.adapter.to_string());
-        println!(
+        say!(
+            say,
             "mesh {}  {} triangles  view {}x{}  builder {}  {} CPU threads",
             self.mesh.display(),
             mesh.len(),
@@ -219,22 +280,31 @@ impl BenchLayouts {
             spelled(self.build.options().builder),
             rayon::current_num_threads()
         );
-        println!("adapter {adapter}  (BVH in {})", spelled(self.bvh_memory));
-        println!();
-        println!("| layout | flatten ms | bytes | bytes/triangle |");
-        println!("|---|---|---|---|");
+        say!(
+            say,
+            "adapter {adapter}  (BVH in {})",
+            spelled(self.bvh_memory)
+        );
+        say!(say);
+        say!(say, "| layout | flatten ms | bytes | bytes/triangle |");
+        say!(say, "|---|---|---|---|");
         for s in &sizes {
-            println!(
+            say!(
+                say,
                 "| {} | {:.1} | {} | {:.1} |",
-                s.layout, s.flatten_ms, s.bytes, s.per_tri
+                s.layout,
+                s.flatten_ms,
+                s.bytes,
+                s.per_tri
             );
         }
-        println!();
-        println!("| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |");
-        println!("|---|---|---|---|---|---|---|---|---|");
+        say!(say);
+        say!(say, "| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |");
+        say!(say, "|---|---|---|---|---|---|---|---|---|");
         let or_dash = |x: Option<f64>| x.map_or("–".to_string(), |g| format!("{g:.2}"));
         for r in &rows {
-            println!(
+            say!(
+                say,
                 "| {} | {} | {} | {} | {:.1} | {:.1} | {:.0} | {} | {} |",
                 r.layout,
                 r.mode,
@@ -248,8 +318,9 @@ impl BenchLayouts {
             );
         }
         if rows.iter().any(|r| r.mode == TraversalMode::Subgroup) {
-            println!();
-            println!(
+            say!(say);
+            say!(
+                say,
                 "subgroup rows: nodes and triangles its subgroup loaded while a ray was live \
                  (the union of the lanes' traversals; the lanes share each load); the CPU twin \
                  traces per ray."
@@ -290,32 +361,20 @@ impl BenchLayouts {
                 rayon::current_num_threads()
             );
             super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)?;
-            println!("\nchart -> {}", path.display());
+            say!(say, "\nchart -> {}", path.display());
         }
-        if let Some(path) = &self.json {
-            let json = serde_json::json!({
-                "mesh": self.mesh.display().to_string(),
-                "triangles": mesh.len(),
-                "width": self.width,
-                "height": self.height,
-                "adapter": adapter,
-                "bvh_memory": spelled(self.bvh_memory),
-                "cpu_threads": rayon::current_num_threads(),
-                "layouts": sizes.iter().map(|s| serde_json::json!({
-                    "layout": s.layout.name(), "flatten_ms": s.flatten_ms,
-                    "bytes": s.bytes, "bytes_per_triangle": s.per_tri,
-                })).collect::<Vec<_>>(),
-                "runs": rows.iter().map(|r| serde_json::json!({
-                    "layout": r.layout.name(), "mode": r.mode.name(), "rays": r.rays, "count": r.count,
-                    "nodes_per_ray": r.nodes, "triangles_per_ray": r.tris,
-                    "bytes_loaded_per_ray": r.bytes_loaded,
-                    "cpu_mrays_per_s": r.cpu_mrays, "gpu_mrays_per_s": r.gpu_mrays,
-                })).collect::<Vec<_>>(),
-            });
-            let text = serde_json::to_string_pretty(&json).unwrap_or_default();
-            lancer::output::write_bytes(path, text.as_bytes())?;
-            println!("\nJSON -> {}", path.display());
-        }
+        let report = Report {
+            mesh: self.mesh.display().to_string(),
+            triangles: mesh.len(),
+            width: self.width,
+            height: self.height,
+            adapter,
+            bvh_memory: spelled(self.bvh_memory),
+            cpu_threads: rayon::current_num_threads(),
+            layouts: &sizes,
+            runs: &rows,
+        };
+        self.json.write(&report, say)?;
         Ok(())
     }
 }

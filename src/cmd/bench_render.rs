@@ -8,36 +8,84 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lancer::render::{EffectSet, RenderOptions, Renderer};
 use lancer::{Device, DeviceChoice, Result, Robustness, Vec3};
 
+use serde::Serialize;
+
+use super::bench::{median, JsonArg};
+use super::out::say;
 use super::render::load_scene;
-use super::{open_device, BuildArgs};
+use super::{open_bench_device, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchRender {
     /// Scene: a .toml scene file or a mesh (.obj, .ply, .gltf, .glb).
     scene: PathBuf,
-    #[arg(long)]
+    /// Image width in pixels (default: the scene's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     width: Option<u32>,
-    #[arg(long)]
+    /// Image height in pixels (default: the scene's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     height: Option<u32>,
-    /// Timed samples per pixel per configuration (after one untimed warm-up sample).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Timed samples per pixel per configuration, 3 or more (after one untimed warm-up
+    /// sample); each is timed alone and the median is reported.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(3..))]
     spp: u32,
-    /// auto and gpu measure the GPU and the CPU side by side; cpu only the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU and the CPU side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     #[command(flatten)]
     build: BuildArgs,
+    #[command(flatten)]
+    json: JsonArg,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+/// `bench render --json`: one object a run.
+#[derive(Serialize)]
+struct BenchRenderReport {
+    /// The scene file.
+    scene: String,
+    /// Triangles in the scene's BVH.
+    triangles: usize,
+    /// Image width in pixels.
+    width: u32,
+    /// Image height in pixels.
+    height: u32,
+    /// The scene's effects (what the specialised kernel compiles in).
+    effects: String,
+    /// The GPU adapter, or null.
+    adapter: Option<String>,
+    /// CPU threads.
+    cpu_threads: usize,
+    /// Timed samples per pixel per configuration.
+    samples: u32,
+    /// One object per device and kernel.
+    runs: Vec<BenchRenderRun>,
+}
+
+/// One device × kernel.
+#[derive(Serialize)]
+struct BenchRenderRun {
+    /// "gpu" or "cpu".
+    device: &'static str,
+    /// "specialised" (the scene's effects) or "all effects".
+    kernel: &'static str,
+    /// Median milliseconds per sample per pixel.
+    ms_per_spp: f64,
+    /// Fastest sample, in ms.
+    ms_min: f64,
+    /// Slowest sample, in ms.
+    ms_max: f64,
+    /// Million camera rays per second at the median.
+    mrays_per_s: f64,
 }
 
 impl BenchRender {
     pub fn run(self) -> Result<()> {
+        let say = self.json.say();
+        self.json.check(std::slice::from_ref(&self.scene))?;
         let scene = load_scene(&self.scene, self.width, self.height)?;
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let cpu = Device::cpu();
         let options = RenderOptions {
             build: self.build.options(),
@@ -58,8 +106,8 @@ impl BenchRender {
         let seed = scene.settings.seed;
         let rob = Robustness::default();
         let mut accum = vec![Vec3::ZERO; (scene.camera.width * scene.camera.height) as usize];
-        // (device, kernel, ms per spp)
-        let mut rows: Vec<(&str, &str, f64)> = Vec::new();
+        let mut rows = Vec::new();
+        let pixels = (scene.camera.width * scene.camera.height) as f64;
         let mut triangles = 0;
         for (dev_name, dev) in devices {
             let mut renderer = Renderer::new(&scene, dev, &options)?;
@@ -74,37 +122,71 @@ impl BenchRender {
                     ms.push(renderer.add_sample(fx, rob, seed, s, &mut accum)?);
                     bar.inc(1);
                 }
-                rows.push((dev_name, name, median(ms)));
+                let ms_per_spp = median(ms.clone());
+                rows.push(BenchRenderRun {
+                    device: dev_name,
+                    kernel: name,
+                    ms_per_spp,
+                    ms_min: ms.iter().copied().fold(f64::INFINITY, f64::min),
+                    ms_max: ms.iter().copied().fold(0.0, f64::max),
+                    mrays_per_s: pixels / (ms_per_spp * 1e-3) * 1e-6,
+                });
             }
         }
         bar.finish_and_clear();
         let (w, h) = (scene.camera.width, scene.camera.height);
-        println!(
+        say!(
+            say,
             "scene {}  {} triangles  {w}x{h}  effects: {specialised}",
             self.scene.display(),
             triangles
         );
         if let Some(ctx) = device.gpu_context() {
-            println!("adapter {}", ctx.adapter);
+            say!(say, "adapter {}", ctx.adapter);
         }
-        println!(
-            "| device | kernel | ms per spp (median of {}) | M camera rays/s |",
+        say!(
+            say,
+            "| device | kernel | ms per spp (median of {}) | fastest – slowest ms | M camera rays/s |",
             self.spp
         );
-        println!("|---|---|---|---|");
-        for (dev, kernel, ms) in &rows {
-            let rate = (w * h) as f64 / (ms * 1e-3) * 1e-6;
-            println!("| {dev} | {kernel} | {ms:.1} | {rate:.2} |");
+        say!(say, "|---|---|---|---|---|");
+        for r in &rows {
+            say!(
+                say,
+                "| {} | {} | {:.1} | {:.1} – {:.1} | {:.2} |",
+                r.device,
+                r.kernel,
+                r.ms_per_spp,
+                r.ms_min,
+                r.ms_max,
+                r.mrays_per_s
+            );
         }
         for dev in ["gpu", "cpu"] {
-            let of = |k: &str| rows.iter().find(|r| r.0 == dev && r.1 == k).map(|r| r.2);
+            let of = |k: &str| {
+                (rows.iter())
+                    .find(|r| r.device == dev && r.kernel == k)
+                    .map(|r| r.ms_per_spp)
+            };
             if let (Some(s), Some(a)) = (of("specialised"), of("all effects")) {
-                println!(
+                say!(
+                    say,
                     "{dev}: specialisation saves {:.1}% ({a:.1} → {s:.1} ms per spp)",
                     100.0 * (a - s) / a
                 );
             }
         }
-        Ok(())
+        let report = BenchRenderReport {
+            scene: self.scene.display().to_string(),
+            triangles,
+            width: w,
+            height: h,
+            effects: specialised.to_string(),
+            adapter: device.gpu_context().map(|c| c.adapter.to_string()),
+            cpu_threads: rayon::current_num_threads(),
+            samples: self.spp,
+            runs: rows,
+        };
+        self.json.write(&report, say)
     }
 }

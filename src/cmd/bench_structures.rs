@@ -28,11 +28,13 @@ use lancer::{
 };
 use serde::Serialize;
 
-use super::{open_device, spelled};
+use super::bench::{median, JsonArg};
+use super::out::{check_output, say};
+use super::{open_bench_device, spelled};
 
 #[derive(Args)]
 pub struct BenchStructures {
-    /// OBJ mesh (primary rays from its default view), or TOML scene (all its objects, primary
+    /// Mesh (.obj, .ply, .gltf, .glb; primary rays from its default view) or TOML scene (all its objects, primary
     /// rays from its camera), e.g. scenes/teapot-in-stadium.toml.
     mesh: PathBuf,
     /// Image width of the primary rays.
@@ -43,11 +45,12 @@ pub struct BenchStructures {
     height: u32,
     /// Random rays: origins uniform in the bounds, directions uniform (default: as many as
     /// primary rays).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     random: Option<u32>,
-    /// auto and gpu also time the GPU kernels of the BVH, the kd-tree and the BIH; cpu only
-    /// the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels of the BVH, the kd-tree and the BIH and the CPU side by side, on any adapter
+    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
+    /// and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
     /// GPU: where the kernels read the structure from.
     #[arg(long, value_enum, default_value_t = BvhMemory::default())]
@@ -55,11 +58,11 @@ pub struct BenchStructures {
     /// Timed runs per structure and ray set (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
-    /// Also write the results as JSON here (keys: see the README).
-    #[arg(long)]
-    json: Option<PathBuf>,
-    /// Also draw Mrays/s per structure and ray set (CPU, GPU) as a PNG bar chart here.
-    #[arg(long)]
+    #[command(flatten)]
+    json: JsonArg,
+    /// Also draw Mrays/s per structure and ray set (CPU, GPU) as a PNG bar chart here (none
+    /// by default).
+    #[arg(long, value_name = "FILE.png")]
     chart: Option<PathBuf>,
 }
 
@@ -114,15 +117,21 @@ struct Report<'a> {
     mesh: String,
     /// Triangles traced.
     triangles: usize,
+    /// Width of the primary rays' image.
     width: u32,
+    /// Height of the primary rays' image.
     height: u32,
     /// The GPU adapter, or "none (CPU only)".
     adapter: String,
     /// `--bvh-memory`.
     bvh_memory: String,
+    /// CPU threads.
     cpu_threads: usize,
+    /// Timed runs per structure and ray set.
     repeat: u64,
+    /// One object per structure.
     structures: &'a [Size],
+    /// One object per structure and ray set.
     runs: &'a [Run],
 }
 
@@ -199,11 +208,6 @@ fn build_one(kind: AccelKind, mesh: &Mesh) -> Result<Built> {
     })
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// The mesh and the camera of the primary rays: a scene's own, or an OBJ's default view.
 fn load(path: &Path, width: u32, height: u32) -> Result<(Mesh, Camera)> {
     let is_toml = path
@@ -240,6 +244,11 @@ fn random_rays(mesh: &Mesh, n: u32) -> Vec<Ray> {
 
 impl BenchStructures {
     pub fn run(self) -> Result<()> {
+        let say = self.json.say();
+        self.json.check(std::slice::from_ref(&self.mesh))?;
+        if let Some(chart) = &self.chart {
+            check_output(chart, std::slice::from_ref(&self.mesh))?;
+        }
         let n_primary = self.width as u64 * self.height as u64;
         let n_random = self.random.map_or(n_primary, u64::from);
         // Three ray sets and their hits in memory: ~200 bytes a pixel.
@@ -270,7 +279,7 @@ impl BenchStructures {
             ("shadow", Query::Any, &shadow),
             ("random", Query::Closest, &random),
         ];
-        let device = open_device(self.device)?;
+        let device = open_bench_device(self.device)?;
         let kinds = AccelKind::ALL;
         let repeat = self.repeat as usize;
         let gpu_kinds = match device.is_cpu() {
@@ -342,7 +351,8 @@ impl BenchStructures {
         let adapter = device
             .gpu_context()
             .map_or("none (CPU only)".to_string(), |c| c.adapter.to_string());
-        println!(
+        say!(
+            say,
             "mesh {}  {} triangles  {}x{} primary, {} shadow, {} random rays  {} CPU threads",
             self.mesh.display(),
             mesh.included().len(),
@@ -352,17 +362,19 @@ impl BenchStructures {
             random.len(),
             rayon::current_num_threads()
         );
-        println!(
+        say!(
+            say,
             "adapter {adapter}  (structures in {})",
             spelled(self.bvh_memory)
         );
-        println!();
-        println!("| structure | build ms | bytes | bytes/triangle | duplicated refs | max depth | GPU kernel |");
-        println!("|---|---|---|---|---|---|---|");
+        say!(say);
+        say!(say, "| structure | build ms | bytes | bytes/triangle | duplicated refs | max depth | GPU kernel |");
+        say!(say, "|---|---|---|---|---|---|---|");
         let tris = mesh.included().len().max(1) as f64;
         for s in &sizes {
             let depth = s.max_depth.map_or("–".to_string(), |d| d.to_string());
-            println!(
+            say!(
+                say,
                 "| {} | {:.1} | {} | {:.1} | {} | {depth} | {} |",
                 s.structure,
                 s.build_ms,
@@ -372,14 +384,15 @@ impl BenchStructures {
                 if s.gpu { "yes" } else { "no" }
             );
         }
-        println!();
-        println!("| structure | rays | count | nodes or cells/ray | triangles/ray | CPU Mrays/s | GPU Mrays/s |");
-        println!("|---|---|---|---|---|---|---|");
+        say!(say);
+        say!(say, "| structure | rays | count | nodes or cells/ray | triangles/ray | CPU Mrays/s | GPU Mrays/s |");
+        say!(say, "|---|---|---|---|---|---|---|");
         for r in &runs {
             let gpu = r
                 .gpu_mrays_per_s
                 .map_or("–".to_string(), |g| format!("{g:.2}"));
-            println!(
+            say!(
+                say,
                 "| {} | {} | {} | {:.1} | {:.1} | {:.2} | {gpu} |",
                 r.structure,
                 r.rays,
@@ -391,9 +404,9 @@ impl BenchStructures {
         }
         if let Some(path) = &self.chart {
             self.draw_chart(path, &device, &sets.map(|s| s.0), &runs)?;
-            println!("\nchart -> {}", path.display());
+            say!(say, "\nchart -> {}", path.display());
         }
-        if let Some(path) = &self.json {
+        {
             let report = Report {
                 mesh: self.mesh.display().to_string(),
                 triangles: mesh.included().len(),
@@ -406,9 +419,7 @@ impl BenchStructures {
                 structures: &sizes,
                 runs: &runs,
             };
-            let text = serde_json::to_string_pretty(&report).unwrap_or_default();
-            lancer::output::write_bytes(path, text.as_bytes())?;
-            println!("\nJSON -> {}", path.display());
+            self.json.write(&report, say)?;
         }
         Ok(())
     }

@@ -5,9 +5,11 @@ use clap::Args;
 use lancer::accel::bvh::{build, BvhStats};
 use lancer::layout::flatten;
 use lancer::Result;
+use serde::Serialize;
 
 use super::input::load_geometry;
-use super::BuildArgs;
+use super::out::print_json;
+use super::{spelled, BuildArgs};
 
 #[derive(Args)]
 pub struct BuildCmd {
@@ -15,9 +17,32 @@ pub struct BuildCmd {
     mesh: PathBuf,
     #[command(flatten)]
     build: BuildArgs,
-    /// Print one JSON object instead of text.
+    /// Print one JSON object instead of text (keys: the README's "JSON output").
     #[arg(long)]
     json: bool,
+}
+
+/// `build --json`: one object a run.
+#[derive(Serialize)]
+struct BuildReport {
+    /// `--builder`.
+    builder: String,
+    /// `--layout`.
+    layout: &'static str,
+    /// Triangles in the BVH (those with NaN, zero area or out of range are left out).
+    triangles: usize,
+    /// Nodes, leaves included.
+    nodes: usize,
+    /// Leaves.
+    leaves: usize,
+    /// Depth of the deepest leaf (the root is depth 0).
+    max_depth: usize,
+    /// SAH cost of the tree with --t-cube and --t-obj.
+    sah_cost: f64,
+    /// Wall time to build and flatten, in ms.
+    build_ms: f64,
+    /// Bytes of the flattened layout (what the GPU holds).
+    bytes: usize,
 }
 
 impl BuildCmd {
@@ -30,14 +55,19 @@ impl BuildCmd {
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let s = BvhStats::of(&bvh, &opts);
         if self.json {
-            let j = serde_json::json!({
-                "triangles": s.triangles, "nodes": s.nodes, "leaves": s.leaves,
-                "max_depth": s.max_depth, "sah_cost": s.sah_cost, "build_ms": ms,
-                "bytes": layout.bytes(), "layout": self.build.layout.name(),
-            });
-            println!("{j}");
+            print_json(&BuildReport {
+                builder: spelled(opts.builder),
+                layout: self.build.layout.name(),
+                triangles: s.triangles,
+                nodes: s.nodes,
+                leaves: s.leaves,
+                max_depth: s.max_depth,
+                sah_cost: s.sah_cost,
+                build_ms: ms,
+                bytes: layout.bytes(),
+            })?;
         } else {
-            println!("builder     {:?}", opts.builder);
+            println!("builder     {}", spelled(opts.builder));
             println!("layout      {}", self.build.layout);
             println!("triangles   {}", s.triangles);
             println!("nodes       {}", s.nodes);

@@ -13,8 +13,48 @@ use lancer::mesh::load_mesh;
 use lancer::trace::compare::compare_hits;
 use lancer::trace::files::read_rays;
 use lancer::{Device, Error, Query, Ray, Result, Tracer, TracerOptions, TraversalMode};
+use serde::Serialize;
 
+use super::out::{print_json, say, Say};
 use super::{view_ray_sets, BuilderArgs, DeviceArgs, RobustnessArgs};
+
+/// `check --json`: one object a run.
+#[derive(Serialize)]
+struct CheckReport {
+    /// The GPU adapter checked.
+    adapter: String,
+    /// One row per layout, mode, ray set and query.
+    rows: Vec<CheckRow>,
+    /// Answers that disagree, over all rows (exit code 1 when above 0).
+    disagree: usize,
+    /// "LAYOUT MODE" pairs asked for by name that could not run (exit code 1).
+    not_run: Vec<String>,
+}
+
+/// One layout × mode × ray set × query.
+#[derive(Serialize)]
+struct CheckRow {
+    /// `--layout` name.
+    layout: &'static str,
+    /// Traversal mode.
+    mode: &'static str,
+    /// primary, shadow, bounce, or the ray file.
+    rays: String,
+    /// "closest" or "any".
+    query: &'static str,
+    /// False where the layout or the adapter has no such mode (the counts are then 0).
+    ran: bool,
+    /// Rays traced.
+    count: usize,
+    /// Answers equal bit for bit.
+    identical: usize,
+    /// Same triangle, t within 2 ulp (identical ones included).
+    agree: usize,
+    /// Different answers the f64 oracle finds both right.
+    genuine_ties: usize,
+    /// Wrong answers.
+    disagree: usize,
+}
 
 /// A layout, or all of them.
 #[derive(Clone, Copy, Debug)]
@@ -77,7 +117,7 @@ impl LayoutChoice {
 
 #[derive(Args)]
 pub struct CheckCmd {
-    /// OBJ mesh.
+    /// Mesh (.obj, .ply, .gltf, .glb).
     mesh: PathBuf,
     /// Ray file (32 bytes a ray); by default the primary rays of the default view
     /// (--width × --height) and the shadow and diffuse bounce rays from their hits.
@@ -102,12 +142,18 @@ pub struct CheckCmd {
     robustness: RobustnessArgs,
     #[command(flatten)]
     build: BuilderArgs,
+    /// Print the results as one JSON object on stdout, the table on stderr (keys: the
+    /// README's "JSON output").
+    #[arg(long)]
+    json: bool,
 }
 
 impl CheckCmd {
     pub fn run(self) -> Result<()> {
+        let say = Say::new(self.json);
         let mesh = load_mesh(&self.mesh)?;
-        let device = self.device.open()?;
+        // A check needs a GPU: auto takes any adapter here, a software one included.
+        let device = self.device.open_any_gpu()?;
         let Some(ctx) = device.gpu_context() else {
             return Err(Error::Gpu(
                 "check compares the GPU with the CPU and no GPU adapter opened: install a Vulkan \
@@ -131,11 +177,13 @@ impl CheckCmd {
                 view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?
             }
         };
-        println!("adapter {}", ctx.adapter);
-        println!(
+        say!(say, "adapter {}", ctx.adapter);
+        say!(
+            say,
             "| layout | mode | rays | query | count | identical | agree | genuine ties | disagree |"
         );
-        println!("|---|---|---|---|---|---|---|---|---|");
+        say!(say, "|---|---|---|---|---|---|---|---|---|");
+        let mut rows = Vec::new();
         let cpu = Device::cpu();
         let mut bad = 0usize;
         let mut not_run = Vec::new();
@@ -160,7 +208,19 @@ impl CheckCmd {
                 gpu.set_mode(mode);
                 if gpu.mode() != mode {
                     // The library's warning says why; a mode asked for by name is an error.
-                    println!("| {kind} | {mode} | – | – | – | – | – | – | not run |");
+                    say!(say, "| {kind} | {mode} | – | – | – | – | – | – | not run |");
+                    rows.push(CheckRow {
+                        layout: kind.name(),
+                        mode: mode.name(),
+                        rays: String::new(),
+                        query: "",
+                        ran: false,
+                        count: 0,
+                        identical: 0,
+                        agree: 0,
+                        genuine_ties: 0,
+                        disagree: 0,
+                    });
                     if let ModeChoice::One(_) = self.modes {
                         not_run.push(format!("{kind} {mode}"));
                     }
@@ -169,7 +229,23 @@ impl CheckCmd {
                 for ((name, query, rays), c) in sets.iter().zip(&twin_hits) {
                     let g = gpu.trace(rays, *query)?.hits;
                     let cmp = compare_hits(&mesh, rays, *query, c, &g);
-                    println!(
+                    rows.push(CheckRow {
+                        layout: kind.name(),
+                        mode: mode.name(),
+                        rays: name.clone(),
+                        query: match query {
+                            Query::Closest => "closest",
+                            Query::Any => "any",
+                        },
+                        ran: true,
+                        count: rays.len(),
+                        identical: cmp.identical,
+                        agree: cmp.agree,
+                        genuine_ties: cmp.ties,
+                        disagree: cmp.disagree.len(),
+                    });
+                    say!(
+                        say,
                         "| {kind} | {mode} | {name} | {query:?} | {} | {} | {} | {} | {} |",
                         rays.len(),
                         cmp.identical,
@@ -187,6 +263,14 @@ impl CheckCmd {
                 }
             }
         }
+        if self.json {
+            print_json(&CheckReport {
+                adapter: ctx.adapter.to_string(),
+                rows,
+                disagree: bad,
+                not_run: not_run.clone(),
+            })?;
+        }
         if bad > 0 {
             return Err(Error::Differ(format!(
                 "{bad} answers disagree between the GPU and the CPU twin (listed above)"
@@ -199,7 +283,7 @@ impl CheckCmd {
                 ctx.adapter.name
             )));
         }
-        println!("every answer agrees or is a genuine tie");
+        say!(say, "every answer agrees or is a genuine tie");
         Ok(())
     }
 }

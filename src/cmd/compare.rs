@@ -8,6 +8,57 @@ use lancer::render::{compare_images, load_image};
 use lancer::trace::compare::{compare_hits, T_ULPS};
 use lancer::trace::files::{read_hits, read_rays};
 use lancer::{Error, Query, Result};
+use serde::Serialize;
+
+use super::out::{print_json, say, Say};
+
+/// `compare --json` on two images: one object a run.
+#[derive(Serialize)]
+struct ImagesReport {
+    /// "images".
+    kind: &'static str,
+    /// Width in pixels.
+    width: u32,
+    /// Height in pixels.
+    height: u32,
+    /// Largest difference of a channel (linear radiance).
+    max: f32,
+    /// Mean over pixels of each pixel's largest channel difference.
+    mean: f64,
+    /// Root mean square difference over every channel of every pixel.
+    rmse: f64,
+    /// Pixels whose difference exceeds --threshold.
+    over: usize,
+    /// `over` in % of the pixels.
+    over_percent: f64,
+    /// --threshold.
+    threshold: f32,
+    /// --tolerance (%).
+    tolerance: f32,
+    /// Whether more than --tolerance % of pixels differ (exit code 1).
+    differ: bool,
+    /// The difference PNG written (--out), or null.
+    out: Option<String>,
+}
+
+/// `compare --json` on two hit files: one object a run.
+#[derive(Serialize)]
+struct HitsReport {
+    /// "hits".
+    kind: &'static str,
+    /// Answers compared.
+    rays: usize,
+    /// Answers equal bit for bit.
+    identical: usize,
+    /// Same triangle, t within 2 ulp (identical ones included).
+    agree: usize,
+    /// Different answers the f64 oracle finds both right (null without --mesh and --rays).
+    genuine_ties: Option<usize>,
+    /// Wrong answers (without the oracle: every answer that does not agree).
+    disagree: usize,
+    /// Whether the f64 oracle judged the differences (--mesh and --rays given).
+    judged: bool,
+}
 
 #[derive(Args)]
 pub struct CompareCmd {
@@ -22,7 +73,8 @@ pub struct CompareCmd {
     /// Images: exit with code 1 when more than this percentage of pixels differ.
     #[arg(long, default_value_t = 0.0, value_parser = super::non_negative_finite)]
     tolerance: f32,
-    /// Images: write the difference as a PNG (black where equal, yellow at --threshold × 10).
+    /// Images: write the difference as a PNG (black where equal, yellow at --threshold × 10);
+    /// none by default.
     #[arg(short, long)]
     out: Option<PathBuf>,
     /// Hit files: the mesh that was traced; with --rays, differences are judged by the f64
@@ -35,6 +87,10 @@ pub struct CompareCmd {
     /// Hit files: the answers are any-hit (occlusion) answers.
     #[arg(long)]
     any_hit: bool,
+    /// Print the result as one JSON object on stdout, the text on stderr (keys: the
+    /// README's "JSON output").
+    #[arg(long)]
+    json: bool,
 }
 
 impl CompareCmd {
@@ -64,7 +120,9 @@ impl CompareCmd {
         }
         let (a, b) = (load_image(&self.a)?, load_image(&self.b)?);
         let d = compare_images(&a, &b, self.threshold)?;
-        println!(
+        let say = Say::new(self.json);
+        say!(
+            say,
             "{}×{} pixels: max difference {:.6}, mean {:.6}, RMSE {:.6}; {} pixels ({:.3} %) \
              over {}",
             d.width,
@@ -83,9 +141,26 @@ impl CompareCmd {
                     .write_to(w, image::ImageFormat::Png)
                     .map_err(std::io::Error::other)
             })?;
-            println!("difference -> {}", out.display());
+            say!(say, "difference -> {}", out.display());
         }
-        if d.over_percent() > self.tolerance as f64 {
+        let differ = d.over_percent() > self.tolerance as f64;
+        if self.json {
+            print_json(&ImagesReport {
+                kind: "images",
+                width: d.width,
+                height: d.height,
+                max: d.max,
+                mean: d.mean,
+                rmse: d.rmse,
+                over: d.over,
+                over_percent: d.over_percent(),
+                threshold: d.threshold,
+                tolerance: self.tolerance,
+                differ,
+                out: self.out.as_ref().map(|p| p.display().to_string()),
+            })?;
+        }
+        if differ {
             return Err(Error::Differ(format!(
                 "the images differ: {:.3} % of pixels over {}, more than the tolerance of {} %",
                 d.over_percent(),
@@ -117,6 +192,7 @@ impl CompareCmd {
         } else {
             Query::Closest
         };
+        let say = Say::new(self.json);
         let (Some(mesh), Some(rays)) = (&self.mesh, &self.rays) else {
             // No oracle: only identity and t within T_ULPS on the same triangle.
             let same = |x: &lancer::Hit, y: &lancer::Hit| {
@@ -133,12 +209,24 @@ impl CompareCmd {
                 })
                 .count();
             let agree = a.iter().zip(&b).filter(|(x, y)| same(x, y)).count();
-            println!(
+            say!(
+                say,
                 "{} rays: {identical} identical, {agree} agree (same triangle, t within {T_ULPS} \
                  ulp), {} differ (give --mesh and --rays to have the oracle judge them)",
                 a.len(),
                 a.len() - agree
             );
+            if self.json {
+                print_json(&HitsReport {
+                    kind: "hits",
+                    rays: a.len(),
+                    identical,
+                    agree,
+                    genuine_ties: None,
+                    disagree: a.len() - agree,
+                    judged: false,
+                })?;
+            }
             if agree < a.len() {
                 return Err(Error::Differ(format!("{} answers differ", a.len() - agree)));
             }
@@ -154,7 +242,8 @@ impl CompareCmd {
             )));
         }
         let c = compare_hits(&mesh, &rays, query, &a, &b);
-        println!(
+        say!(
+            say,
             "{} rays: {} identical, {} agree (same triangle, t within {T_ULPS} ulp), {} genuine \
              ties (the f64 oracle finds both right), {} disagree",
             rays.len(),
@@ -164,10 +253,25 @@ impl CompareCmd {
             c.disagree.len()
         );
         for d in c.disagree.iter().take(10) {
-            println!(
+            say!(
+                say,
                 "  ray {}: {:?} vs {:?}: {}",
-                d.ray, d.reference, d.other, d.why
+                d.ray,
+                d.reference,
+                d.other,
+                d.why
             );
+        }
+        if self.json {
+            print_json(&HitsReport {
+                kind: "hits",
+                rays: rays.len(),
+                identical: c.identical,
+                agree: c.agree,
+                genuine_ties: Some(c.ties),
+                disagree: c.disagree.len(),
+                judged: true,
+            })?;
         }
         if !c.disagree.is_empty() {
             return Err(Error::Differ(format!(

@@ -12,6 +12,7 @@ mod check;
 mod compare;
 mod heatmap;
 mod input;
+mod out;
 mod rays;
 mod render;
 mod trace;
@@ -35,6 +36,9 @@ pub struct Cli {
     /// Print more about what happens (-v: info, -vv: debug).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     pub verbose: u8,
+    /// Threads for the CPU tracers, renderer and builders (0: one per core).
+    #[arg(long, global = true, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=4096))]
+    pub threads: u16,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -54,7 +58,7 @@ enum Cmd {
     /// Measure speed.
     Bench(bench::BenchCmd),
     /// Trace the same rays on each layout's CPU twin and GPU kernel and compare the answers
-    /// (exit code 1 on any disagreement).
+    /// (exit code 1 on any disagreement); --device auto takes any adapter, lavapipe included.
     Check(check::CheckCmd),
     /// Compare two images (difference statistics and picture) or two hit files (judged by
     /// the f64 oracle with --mesh and --rays); exit code 1 when they differ.
@@ -66,8 +70,10 @@ enum Cmd {
 /// BVH builder options shared by the subcommands that build one.
 #[derive(Args, Clone, Debug)]
 pub struct BuilderArgs {
-    /// Builder.
-    #[arg(long, value_enum, default_value_t = Builder::Sweep)]
+    /// BVH builder: sweep (the SAH over every split position on all three axes), binned (the
+    /// SAH over --bins candidate splits per axis: a faster build) or median (the object median
+    /// of the longest axis: the fastest build, slower traversal).
+    #[arg(long, value_enum, default_value_t = Builder::Sweep, hide_possible_values = true)]
     builder: Builder,
     /// Bins per axis (binned builder), 2 to 64.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(2..=MAX_BINS as i64))]
@@ -161,7 +167,8 @@ impl AccelArg {
 /// Where to run, and how the GPU reads the BVH.
 #[derive(Args, Clone, Debug)]
 pub struct DeviceArgs {
-    /// auto: the GPU when an adapter opens, else the CPU (with a printed warning).
+    /// Where to run. auto: a hardware GPU when one opens, else the CPU tracer, saying why
+    /// (a software adapter such as lavapipe is slower than the CPU; --device gpu uses it).
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// GPU: where the kernels read the BVH from (storage textures or storage buffers).
@@ -175,22 +182,36 @@ impl DeviceArgs {
         self.bvh_memory
     }
 
-    /// Opens the device, printing why `auto` fell back to the CPU and when timings come
-    /// from a software adapter.
+    /// Opens the device, saying why `auto` chose the CPU.
     pub fn open(&self) -> Result<Device> {
-        open_device(self.device)
+        told(Device::open(self.device)?)
+    }
+
+    /// Opens the device for a command that needs a GPU: `auto` takes any adapter, a
+    /// software one included.
+    pub fn open_any_gpu(&self) -> Result<Device> {
+        open_bench_device(self.device)
     }
 }
 
-/// Opens a device; the CLI's words for a fallback and for a software adapter.
-pub fn open_device(choice: DeviceChoice) -> Result<Device> {
-    let device = Device::open(choice)?;
+/// Opens the device a bench measures beside the CPU: with `auto`, any GPU adapter that
+/// opens, a software one included (the bench times its kernels); `cpu`: none.
+pub fn open_bench_device(choice: DeviceChoice) -> Result<Device> {
+    told(match choice {
+        DeviceChoice::Auto => Device::open_any()?,
+        other => Device::open(other)?,
+    })
+}
+
+/// The device, once the CLI has said why it is the CPU and when GPU timings come from a
+/// software adapter.
+fn told(device: Device) -> Result<Device> {
     if let Some(why) = device.fallback() {
-        eprintln!("warning: {why}; running on the CPU");
+        log::warn!("using the CPU: {why}");
     }
     if let Some(ctx) = device.gpu_context().filter(|c| c.adapter.software) {
-        eprintln!(
-            "warning: {} is a software adapter (CPU); GPU timings are not a GPU's",
+        log::warn!(
+            "{} is a software adapter (CPU); GPU timings are not a GPU's",
             ctx.adapter
         );
     }
@@ -200,7 +221,7 @@ pub fn open_device(choice: DeviceChoice) -> Result<Device> {
 /// The robustness knobs on the command line.
 #[derive(Args, Clone, Debug)]
 pub struct RobustnessArgs {
-    /// Triangle test.
+    /// Ray–triangle test.
     #[arg(long, value_enum, default_value_t = TriangleTest::Watertight)]
     triangle_test: TriangleTest,
     /// Slab (ray–box) test.

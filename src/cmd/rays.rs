@@ -3,12 +3,14 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::camera::Camera;
 use lancer::mesh::load_mesh;
-use lancer::trace::files::write_rays;
+use lancer::trace::files::encode_rays;
 use lancer::Result;
+
+use super::out::{check_output, is_std, say, write_output, Say};
 
 #[derive(Args)]
 pub struct RaysCmd {
-    /// OBJ mesh whose default view is used.
+    /// Mesh (.obj, .ply, .gltf, .glb) whose default view is used.
     mesh: PathBuf,
     /// Image width in pixels.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
@@ -16,7 +18,7 @@ pub struct RaysCmd {
     /// Image height in pixels.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// Output ray file.
+    /// Output ray file (32 bytes a ray), or - for stdout (text then goes to stderr).
     #[arg(short, long)]
     out: PathBuf,
 }
@@ -24,7 +26,7 @@ pub struct RaysCmd {
 impl RaysCmd {
     pub fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
-        lancer::output::check_output(&self.out, &mesh.sources)?;
+        check_output(&self.out, &mesh.sources)?;
         // The rays in memory and their bytes on the way out: 64 bytes a ray.
         lancer::limits::check_image(
             self.width,
@@ -34,8 +36,9 @@ impl RaysCmd {
         )?;
         let cam = Camera::default_view(&mesh.bounds(), self.width, self.height);
         let rays = cam.primary_rays();
-        write_rays(&self.out, &rays)?;
-        println!("{} rays written to {}", rays.len(), self.out.display());
+        write_output(&self.out, &encode_rays(&rays))?;
+        let say = Say::new(is_std(&self.out));
+        say!(say, "{} rays written to {}", rays.len(), self.out.display());
         Ok(())
     }
 }

@@ -60,48 +60,33 @@ impl GpuContext {
     /// `WGPU_ADAPTER_NAME` (a case-insensitive substring of the adapter name) and
     /// `WGPU_POWER_PREF` (low, high or none; default high).
     pub fn new() -> Result<GpuContext> {
-        pollster::block_on(Self::open())
+        pollster::block_on(async { Self::on(pick_adapter(&instance()?).await?).await })
     }
 
-    async fn open() -> Result<GpuContext> {
-        let instance = instance()?;
-        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
-            Ok(want) => {
-                let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
-                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-                adapters
-                    .into_iter()
-                    .find(|a| {
-                        a.get_info()
-                            .name
-                            .to_lowercase()
-                            .contains(&want.to_lowercase())
-                    })
-                    .ok_or_else(|| {
-                        Error::Gpu(format!(
-                            "WGPU_ADAPTER_NAME={want} matches none of the adapters: [{}]",
-                            names.join(", ")
-                        ))
-                    })?
+    /// Opens the adapter [`GpuContext::new`] would when it is a hardware one (or the one
+    /// `WGPU_ADAPTER_NAME` names); where it is a software one (a CPU driver such as
+    /// lavapipe), another adapter that is not, and where there is none, `Ok(Err(report))` of
+    /// the software one, without opening a device.
+    pub fn new_hardware() -> Result<std::result::Result<GpuContext, AdapterReport>> {
+        pollster::block_on(async {
+            let instance = instance()?;
+            let adapter = pick_adapter(&instance).await?;
+            let software = |a: &wgpu::Adapter| a.get_info().device_type == wgpu::DeviceType::Cpu;
+            if std::env::var_os("WGPU_ADAPTER_NAME").is_some() || !software(&adapter) {
+                return Ok(Ok(Self::on(adapter).await?));
             }
-            Err(_) => instance
-                .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::from_env()
-                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
-                    ..Default::default()
-                })
-                .await
-                .map_err(|_| Error::Gpu(INSTALL_HINT.into()))?,
-        };
+            // wgpu ranks hardware adapters first, except under WGPU_POWER_PREF=none.
+            let others = instance.enumerate_adapters(wgpu::Backends::all()).await;
+            match others.into_iter().find(|a| !software(a)) {
+                Some(hardware) => Ok(Ok(Self::on(hardware).await?)),
+                None => Ok(Err(report_of(&adapter.get_info()))),
+            }
+        })
+    }
+
+    async fn on(adapter: wgpu::Adapter) -> Result<GpuContext> {
         let info = adapter.get_info();
-        let report = AdapterReport {
-            name: info.name.clone(),
-            driver: format!("{} {}", info.driver, info.driver_info)
-                .trim()
-                .to_string(),
-            backend: format!("{:?}", info.backend),
-            software: info.device_type == wgpu::DeviceType::Cpu,
-        };
+        let report = report_of(&info);
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         // Subgroups only where the adapter has them: kernels that use them are optional.
         let subgroups = adapter
@@ -171,6 +156,49 @@ impl GpuContext {
             )));
         }
         Ok(())
+    }
+}
+
+/// The adapter `WGPU_ADAPTER_NAME` names, else the one wgpu prefers under `WGPU_POWER_PREF`.
+async fn pick_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
+    match std::env::var("WGPU_ADAPTER_NAME") {
+        Ok(want) => {
+            let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+            let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+            adapters
+                .into_iter()
+                .find(|a| {
+                    a.get_info()
+                        .name
+                        .to_lowercase()
+                        .contains(&want.to_lowercase())
+                })
+                .ok_or_else(|| {
+                    Error::Gpu(format!(
+                        "WGPU_ADAPTER_NAME={want} matches none of the adapters: [{}]",
+                        names.join(", ")
+                    ))
+                })
+        }
+        Err(_) => instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::from_env()
+                    .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                ..Default::default()
+            })
+            .await
+            .map_err(|_| Error::Gpu(INSTALL_HINT.into())),
+    }
+}
+
+fn report_of(info: &wgpu::AdapterInfo) -> AdapterReport {
+    AdapterReport {
+        name: info.name.clone(),
+        driver: format!("{} {}", info.driver, info.driver_info)
+            .trim()
+            .to_string(),
+        backend: format!("{:?}", info.backend),
+        software: info.device_type == wgpu::DeviceType::Cpu,
     }
 }
 

@@ -10,22 +10,28 @@ const RAY_BYTES: usize = std::mem::size_of::<Ray>();
 
 /// Reads a ray file (32 little-endian bytes a ray); refuses a size not a multiple of 32.
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
-    let rays = read_ray_bytes(path)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    decode_rays(path, &bytes)
+}
+
+/// The rays of a ray file's bytes (read from `name`, which errors and warnings name);
+/// refuses a size not a multiple of 32 and counts invalid rays in a warning.
+pub fn decode_rays(name: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
+    let rays = decode_ray_bytes(name, bytes)?;
     let invalid = rays.iter().filter(|r| !r.is_valid()).count();
     if invalid > 0 {
         log::warn!(
             "{}: {invalid} of {} rays are invalid (NaN/Inf, an origin beyond ±1e12, a zero \
              direction or an empty interval); they are reported as misses",
-            path.display(),
+            name.display(),
             rays.len()
         );
     }
     Ok(rays)
 }
 
-fn read_ray_bytes(path: &Path) -> Result<Vec<Ray>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
-    if bytes.len() % RAY_BYTES != 0 {
+fn decode_ray_bytes(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
+    if !bytes.len().is_multiple_of(RAY_BYTES) {
         return Err(Error::input(
             path,
             None,
@@ -54,6 +60,11 @@ fn read_ray_bytes(path: &Path) -> Result<Vec<Ray>> {
 
 /// Writes rays as a ray file (32 little-endian bytes a ray).
 pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
+    crate::output::write_bytes(path, &encode_rays(rays))
+}
+
+/// The bytes of a ray file holding `rays`.
+pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
     let mut out = Vec::with_capacity(rays.len() * RAY_BYTES);
     for r in rays {
         for x in [
@@ -62,11 +73,16 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<()> {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }
-    crate::output::write_bytes(path, &out)
+    out
 }
 
 /// Writes hits as a hit file (16 little-endian bytes a hit).
 pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
+    crate::output::write_bytes(path, &encode_hits(hits))
+}
+
+/// The bytes of a hit file holding `hits`.
+pub fn encode_hits(hits: &[Hit]) -> Vec<u8> {
     let mut out = Vec::with_capacity(hits.len() * 16);
     for h in hits {
         out.extend_from_slice(&h.t.to_le_bytes());
@@ -74,7 +90,7 @@ pub fn write_hits(path: &Path, hits: &[Hit]) -> Result<()> {
         out.extend_from_slice(&h.u.to_le_bytes());
         out.extend_from_slice(&h.v.to_le_bytes());
     }
-    crate::output::write_bytes(path, &out)
+    out
 }
 
 /// Reads a hit file (16 little-endian bytes a hit); refuses a size not a multiple of 16.

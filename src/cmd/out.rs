@@ -1,0 +1,144 @@
+//! Where a command's output goes: data (JSON, ray and hit files) to a file or to stdout
+//! (`-`), and the human summary to stdout, or to stderr when stdout carries data, so that
+//! `lancer … --json | jq` and `lancer rays … -o - | lancer trace … --rays -` see data only.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use lancer::{Error, Result};
+use serde::Serialize;
+
+/// The human-readable lines of one command: on stdout, or on stderr when stdout carries
+/// data.
+#[derive(Clone, Copy, Debug)]
+pub struct Say {
+    stderr: bool,
+}
+
+impl Say {
+    /// Lines on stderr when `stdout_is_data`, else on stdout.
+    pub fn new(stdout_is_data: bool) -> Say {
+        Say {
+            stderr: stdout_is_data,
+        }
+    }
+
+    /// Prints one line.
+    pub fn line(&self, args: std::fmt::Arguments) {
+        if self.stderr {
+            eprintln!("{args}");
+        } else {
+            println!("{args}");
+        }
+    }
+}
+
+/// `say!(say, "format", args…)`: one human-readable line where `say` sends them.
+macro_rules! say {
+    ($say:expr) => {
+        $say.line(format_args!(""))
+    };
+    ($say:expr, $($arg:tt)*) => {
+        $say.line(format_args!($($arg)*))
+    };
+}
+pub(crate) use say;
+
+/// Whether a path is `-` (stdin or stdout).
+pub fn is_std(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+/// Checks an output path before work starts (`-`, stdout, needs no check).
+pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
+    if is_std(out) {
+        return Ok(());
+    }
+    lancer::output::check_output(out, inputs)
+}
+
+/// The bytes of a file, or of stdin for `-`.
+pub fn read_input(path: &Path) -> Result<Vec<u8>> {
+    if !is_std(path) {
+        return std::fs::read(path).map_err(|e| Error::read(path, e));
+    }
+    let mut bytes = Vec::new();
+    std::io::stdin()
+        .lock()
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::read(Path::new("<stdin>"), e))?;
+    Ok(bytes)
+}
+
+/// Writes `bytes` to a file atomically, or to stdout for `-`.
+pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
+    if !is_std(path) {
+        return lancer::output::write_bytes(path, bytes);
+    }
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_all(bytes)
+        .and_then(|_| stdout.flush())
+        .map_err(|e| Error::io(Path::new("<stdout>"), e))
+}
+
+/// Where `--json` sends its one object: stdout (`--json` alone, or `--json -`) or a file.
+#[derive(Clone, Debug)]
+pub enum JsonTo {
+    /// One line on stdout; the human summary goes to stderr.
+    Stdout,
+    /// A file (indented), written atomically; the summary stays on stdout.
+    File(PathBuf),
+}
+
+/// `--json [FILE.json]`: a file name must end in .json, so that a mesh written after
+/// `--json` is refused rather than overwritten.
+pub fn json_to(s: &str) -> std::result::Result<JsonTo, String> {
+    if s == "-" {
+        return Ok(JsonTo::Stdout);
+    }
+    let path = PathBuf::from(s);
+    match path.extension() {
+        Some(e) if e.eq_ignore_ascii_case("json") => Ok(JsonTo::File(path)),
+        _ => Err(format!(
+            "{s} is not a .json file name: give FILE.json, or - or nothing for stdout (put the \
+             mesh before --json)"
+        )),
+    }
+}
+
+impl JsonTo {
+    /// Whether stdout carries the JSON.
+    pub fn is_stdout(&self) -> bool {
+        matches!(self, JsonTo::Stdout)
+    }
+
+    /// Checks the file before work starts.
+    pub fn check(&self, inputs: &[PathBuf]) -> Result<()> {
+        match self {
+            JsonTo::Stdout => Ok(()),
+            JsonTo::File(path) => lancer::output::check_output(path, inputs),
+        }
+    }
+
+    /// Writes the object; says where for a file.
+    pub fn write(&self, value: &impl Serialize, say: Say) -> Result<()> {
+        match self {
+            JsonTo::Stdout => print_json(value),
+            JsonTo::File(path) => {
+                let text = serde_json::to_string_pretty(value)
+                    .map_err(|e| Error::io(path, std::io::Error::other(e)))?;
+                lancer::output::write_bytes(path, text.as_bytes())?;
+                say!(say, "JSON -> {}", path.display());
+                Ok(())
+            }
+        }
+    }
+}
+
+/// One JSON object on one line of stdout.
+pub fn print_json(value: &impl Serialize) -> Result<()> {
+    let text = serde_json::to_string(value)
+        .map_err(|e| Error::io(Path::new("<stdout>"), std::io::Error::other(e)))?;
+    write_output(Path::new("-"), format!("{text}\n").as_bytes())
+}
