@@ -9,7 +9,7 @@ use lancer::mesh::FileKind;
 use lancer::render::{image_kind, EffectSet, Progress, RenderOptions, Renderer, Stop};
 use lancer::{Error, RenderScene, Result};
 
-use super::{spelled, BuildArgs, DeviceArgs, RobustnessArgs};
+use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -50,6 +50,9 @@ pub struct RenderCmd {
     stats: bool,
     #[command(flatten)]
     build: BuildArgs,
+    /// Acceleration structure (all but the BVH, the kd-tree and the BIH render on the CPU).
+    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
+    accel: AccelArg,
     #[command(flatten)]
     robustness: RobustnessArgs,
 }
@@ -124,7 +127,7 @@ impl RenderCmd {
         };
         let scene = load_scene_scaled(&self.scene, self.width, self.height, self.scale)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
-        let device = self.device.open()?;
+        let device = self.accel.open(&self.device)?;
         let cancel = Arc::new(AtomicBool::new(false));
         {
             let cancel = cancel.clone();
@@ -152,7 +155,7 @@ impl RenderCmd {
             cancel: Some(cancel),
             progress: Some(progress),
             build: self.build.options(),
-            layout: self.build.layout,
+            accel: self.accel.kind(self.build.layout),
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
         };
@@ -175,18 +178,19 @@ impl RenderCmd {
             done.seconds
         );
         if self.stats {
-            let s = renderer.bvh_stats();
             println!(
-                "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}  build {:.1} ms",
-                s.triangles,
-                s.nodes,
-                s.leaves,
-                s.max_depth,
-                s.sah_cost,
+                "structure: {}  build {:.1} ms",
+                renderer.structure(),
                 renderer.build_ms()
             );
+            if let Some(s) = renderer.bvh_stats() {
+                println!(
+                    "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}",
+                    s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost,
+                );
+                println!("layout: {}", self.build.layout);
+            }
             println!("effects: {}", done.effects);
-            println!("layout: {}", self.build.layout);
             if !device.is_cpu() {
                 println!("BVH memory: {}", spelled(self.device.bvh_memory));
             }

@@ -1,4 +1,4 @@
-//! One renderer API for both devices: build the scene's BVH once, then render with a number
+//! One renderer API for both devices: build the scene's acceleration structure once, then render with a number
 //! of samples, a time limit, a cancel flag and a progress callback. The progressive loop and
 //! the division by the sample count live here, not in callers.
 
@@ -14,11 +14,12 @@ use super::gpu::GpuRenderer;
 use super::image::Image;
 use super::scene::RenderScene;
 use crate::accel::bvh::{self, BuildOptions, BvhStats};
+use crate::accel::{self, Accel, AccelKind};
 use crate::device::Device;
 use crate::error::{Error, Result};
 use crate::geometry::Robustness;
 use crate::gpu::BvhMemory;
-use crate::layout::{self, Layout, LayoutKind};
+use crate::layout::{self, Layout};
 
 /// Where a render stands, for a progress callback.
 #[derive(Clone, Copy, Debug)]
@@ -53,10 +54,10 @@ pub struct RenderOptions {
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called after every sample.
     pub progress: Option<ProgressFn>,
-    /// BVH builder (used by [`Renderer::new`]).
+    /// BVH builder (used by [`Renderer::new`] for a BVH).
     pub build: BuildOptions,
-    /// Flattened layout (used by [`Renderer::new`]).
-    pub layout: LayoutKind,
+    /// Acceleration structure, a BVH with its flattened layout (used by [`Renderer::new`]).
+    pub accel: AccelKind,
     /// GPU: where the kernel reads the BVH from (used by [`Renderer::new`]).
     pub memory: BvhMemory,
 }
@@ -93,18 +94,21 @@ pub struct Rendered {
     pub cpu_pixels: usize,
 }
 
-/// A scene's BVH built, flattened and (on a GPU) uploaded with the render kernel.
+/// A scene's acceleration structure built and (on a GPU) uploaded with the render kernel.
 pub struct Renderer<'a> {
     scene: &'a RenderScene,
-    layout: Box<dyn Layout>,
-    stats: BvhStats,
+    kind: AccelKind,
+    /// What the CPU traces: the structure, or the GPU form's twin.
+    accel: Arc<dyn Accel>,
+    stats: Option<BvhStats>,
     build_ms: f64,
     gpu: Option<GpuRenderer<'a>>,
 }
 
 impl<'a> Renderer<'a> {
-    /// Builds the scene's BVH with `options.build`, flattens it in `options.layout`, and on
-    /// a GPU uploads it (in `options.memory`) with the scene.
+    /// Builds the scene's structure `options.accel` (a BVH with `options.build`, flattened
+    /// in its layout), and on a GPU its GPU form, uploaded (in `options.memory`) with the
+    /// scene. A structure without a GPU kernel on a GPU device is an [`Error::Usage`].
     pub fn new(
         scene: &'a RenderScene,
         device: &'a Device,
@@ -113,43 +117,65 @@ impl<'a> Renderer<'a> {
         // Accumulator, image and encoding: about 48 bytes a pixel on either device.
         let (w, h) = (scene.camera.width, scene.camera.height);
         crate::limits::check_image(w, h, 48, "use a smaller --width/--height")?;
+        let kind = options.accel;
         let start = Instant::now();
-        let tree = bvh::build(&scene.mesh, &options.build);
-        let layout = layout::flatten(options.layout, &tree, &scene.mesh);
+        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn Layout>>, _) = match kind {
+            AccelKind::Bvh(layout_kind) => {
+                let tree = bvh::build(&scene.mesh, &options.build);
+                let flat: Arc<dyn Layout> = layout::flatten(layout_kind, &tree, &scene.mesh).into();
+                (flat.clone(), Some(flat), Some(tree))
+            }
+            _ if device.is_cpu() => (
+                accel::build(kind, &scene.mesh, &options.build)?.into(),
+                None,
+                None,
+            ),
+            _ => match accel::build_gpu(kind, &scene.mesh, &options.build)? {
+                Some(flat) => (flat.clone(), Some(flat), None),
+                None => {
+                    return Err(Error::Usage(format!(
+                        "the {kind} structure runs on the CPU only (only the BVH, the kd-tree \
+                         and the BIH have GPU kernels): use --device cpu"
+                    )))
+                }
+            },
+        };
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
-        let stats = BvhStats::of(&tree, &options.build);
-        drop(tree);
-        let gpu = match device.gpu_context() {
-            Some(ctx) => Some(GpuRenderer::new(
-                ctx,
-                scene,
-                layout.as_ref(),
-                options.memory,
-            )?),
-            None => None,
+        let stats = stats.map(|tree| BvhStats::of(&tree, &options.build));
+        let gpu = match (device.gpu_context(), &gpu_form) {
+            (Some(ctx), Some(flat)) => {
+                Some(GpuRenderer::new(ctx, scene, flat.as_ref(), options.memory)?)
+            }
+            _ => None,
         };
         Ok(Renderer {
             scene,
-            layout,
+            kind,
+            accel,
             stats,
             build_ms,
             gpu,
         })
     }
 
-    /// The BVH's shape and cost.
-    pub fn bvh_stats(&self) -> &BvhStats {
-        &self.stats
+    /// The BVH's shape and cost (None for the other structures).
+    pub fn bvh_stats(&self) -> Option<&BvhStats> {
+        self.stats.as_ref()
     }
 
-    /// Milliseconds spent building and flattening the BVH.
+    /// Milliseconds spent building (and flattening) the structure.
     pub fn build_ms(&self) -> f64 {
         self.build_ms
     }
 
-    /// The flattened layout (on the CPU, the structure traced).
-    pub fn layout(&self) -> &dyn Layout {
-        self.layout.as_ref()
+    /// The structure rendered through.
+    pub fn structure(&self) -> AccelKind {
+        self.kind
+    }
+
+    /// The structure the CPU traces (on a GPU, the twin of the GPU kernel's).
+    pub fn accel(&self) -> &dyn Accel {
+        self.accel.as_ref()
     }
 
     /// Adds sample `sample` of every pixel to `accum` (CPU) or to the device's accumulator
@@ -169,7 +195,7 @@ impl<'a> Renderer<'a> {
                 g.add_sample(fx, robustness, seed, sample)?;
             }
             None => {
-                let cpu = CpuRenderer::new(self.scene, self.layout.as_ref(), robustness);
+                let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), robustness);
                 cpu.accumulate(fx, seed, accum, sample, 1);
             }
         }
@@ -237,7 +263,7 @@ impl<'a> Renderer<'a> {
                      rendered them again on the CPU",
                     redo.len()
                 );
-                let cpu = CpuRenderer::new(self.scene, self.layout.as_ref(), rob);
+                let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), rob);
                 for &i in &redo {
                     let (x, y) = (i as u32 % w, i as u32 / w);
                     accum[i] = (0..done).fold(Vec3::ZERO, |a, s| a + cpu.sample(fx, seed, x, y, s));
@@ -262,7 +288,7 @@ impl<'a> Renderer<'a> {
     }
 }
 
-/// Builds the scene's BVH on `device` and renders it: [`Renderer::new`] then
+/// Builds the scene's structure on `device` and renders it: [`Renderer::new`] then
 /// [`Renderer::render`].
 pub fn render(scene: &RenderScene, device: &Device, options: &RenderOptions) -> Result<Rendered> {
     Renderer::new(scene, device, options)?.render(options)
