@@ -70,8 +70,12 @@ struct Params {
     emit_total: f32,
     ao_distance: f32,
     fixed_offset: f32,
+    crop_x0: u32,
+    crop_y0: u32,
+    crop_width: u32,
     pad1: u32,
     pad2: u32,
+    pad3: u32,
 }
 
 @group(0) @binding(BINDING_RENDER_SHADES) var<storage, read> shades: array<Shade>;
@@ -374,9 +378,10 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.count {
         return;
     }
+    // The accumulator holds the crop's pixels; the random numbers are the full image's.
     let pixel = params.offset + gid.x;
     sample_incomplete = false;
-    let c = radiance(pixel % params.width, pixel / params.width);
+    let c = radiance(params.crop_x0 + pixel % params.crop_width, params.crop_y0 + pixel / params.crop_width);
     // w counts the samples of this pixel that a driver cut short.
     accum[pixel] += vec4<f32>(c, select(0.0, 1.0, sample_incomplete));
 }

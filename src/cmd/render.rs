@@ -6,7 +6,7 @@ use std::time::Duration;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::mesh::FileKind;
-use lancer::render::{image_kind, EffectSet, Progress, RenderOptions, Renderer, Stop};
+use lancer::render::{image_kind, Crop, EffectSet, Progress, RenderOptions, Renderer, Stop};
 use lancer::{Error, RenderScene, Result};
 
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
@@ -40,6 +40,11 @@ pub struct RenderCmd {
     /// Stop after the last sample that fits in this many seconds (at least one sample).
     #[arg(long)]
     time_limit: Option<f64>,
+    /// Render only the tile of columns X0..X1 and rows Y0..Y1 of the image (half-open pixel
+    /// bounds), with the full image's random numbers; an EXR tile records where it sits, and
+    /// `lancer merge` joins the tiles into the full image.
+    #[arg(long, num_args = 4, value_names = ["X0", "Y0", "X1", "Y1"])]
+    crop: Option<Vec<u32>>,
     #[command(flatten)]
     device: DeviceArgs,
     /// Compile every effect in, whatever the scene calls for (for comparisons).
@@ -127,6 +132,13 @@ impl RenderCmd {
         };
         let scene = load_scene_scaled(&self.scene, self.width, self.height, self.scale)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
+        let crop = match self.crop.as_deref() {
+            Some(&[x0, y0, x1, y1]) => Some(Crop { x0, y0, x1, y1 }),
+            _ => None,
+        };
+        if let Some(c) = crop {
+            c.check(scene.camera.width, scene.camera.height)?;
+        }
         let device = self.accel.open(&self.device)?;
         let cancel = Arc::new(AtomicBool::new(false));
         {
@@ -158,20 +170,28 @@ impl RenderCmd {
             accel: self.accel.kind(self.build.layout),
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
+            crop,
         };
         let mut renderer = Renderer::new(&scene, &device, &options)?;
         let done = renderer.render(&options);
         bar.finish_and_clear();
         let done = done?;
         done.image.save(&self.out)?;
-        let (w, h) = (scene.camera.width, scene.camera.height);
+        let (w, h) = (done.image.width, done.image.height);
+        let tile = match crop {
+            Some(c) => format!(
+                " tile {} {} {} {} of {}x{}",
+                c.x0, c.y0, c.x1, c.y1, scene.camera.width, scene.camera.height
+            ),
+            None => String::new(),
+        };
         let why = match done.stop {
             Stop::Cancelled => " (interrupted: saved what had accumulated)",
             Stop::TimeLimit => " (time limit)",
             Stop::Complete => "",
         };
         println!(
-            "{w}x{h} {}/{} spp -> {} ({device}, {:.2} s){why}",
+            "{w}x{h}{tile} {}/{} spp -> {} ({device}, {:.2} s){why}",
             done.samples,
             done.requested,
             self.out.display(),

@@ -7,6 +7,7 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use super::crop::Crop;
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, point_error, Rng};
 use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
@@ -256,11 +257,19 @@ impl<'a> CpuRenderer<'a> {
         radiance
     }
 
-    /// Adds samples [first, first + count) of every pixel to `accum` (row-major).
-    pub fn accumulate(&self, fx: EffectSet, seed: u32, accum: &mut [Vec3], first: u32, count: u32) {
-        let w = self.scene.camera.width;
+    /// Adds samples [first, first + count) of every pixel of `crop` to `accum` (row-major
+    /// in the crop), with the full image's random numbers.
+    pub fn accumulate(
+        &self,
+        fx: EffectSet,
+        seed: u32,
+        crop: Crop,
+        accum: &mut [Vec3],
+        first: u32,
+        count: u32,
+    ) {
         accum.par_iter_mut().enumerate().for_each(|(i, a)| {
-            let (x, y) = (i as u32 % w, i as u32 / w);
+            let (x, y) = crop.pixel(i);
             for s in first..first + count {
                 *a += self.sample(fx, seed, x, y, s);
             }

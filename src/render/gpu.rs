@@ -5,6 +5,7 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
+use super::crop::Crop;
 use super::effects::EffectSet;
 use super::scene::{Light, LightKind, RenderScene};
 use crate::error::Result;
@@ -139,10 +140,18 @@ pub struct RenderParams {
     pub ao_distance: f32,
     /// The epsilon of the fixed ray offset (RayOffset::Fixed), scene units.
     pub fixed_offset: f32,
+    /// First column of the crop rendered (0: the whole image).
+    pub crop_x0: u32,
+    /// First row of the crop rendered.
+    pub crop_y0: u32,
+    /// Columns in the crop: the accumulator is the crop's pixels, row-major.
+    pub crop_width: u32,
     /// Padding (zero).
     pub _pad1: u32,
     /// Padding (zero).
     pub _pad2: u32,
+    /// Padding (zero).
+    pub _pad3: u32,
 }
 
 /// The scene and a layout on the device, the render kernel compiled for them, and the
@@ -162,15 +171,18 @@ pub struct GpuRenderer<'a> {
 
 impl<'a> GpuRenderer<'a> {
     /// Validates and uploads the layout (in `memory`) and the scene, and compiles the
-    /// kernel; the accumulator starts at zero.
+    /// kernel that renders the pixels of `crop` (checked against the image by the caller);
+    /// the accumulator starts at zero.
     pub fn new(
         ctx: &'a GpuContext,
         scene: &RenderScene,
         layout: &dyn Layout,
         memory: BvhMemory,
+        crop: Crop,
     ) -> Result<Self> {
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
-        let pixels = scene.camera.width * scene.camera.height;
+        // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
+        let pixels = crop.pixels() as u32;
         let shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
             .map(|(i, t)| {
                 let uv = scene.uvs[i];
@@ -332,6 +344,9 @@ impl<'a> GpuRenderer<'a> {
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
             ao_distance: s.ao_distance,
             fixed_offset: scene.fixed_offset(),
+            crop_x0: crop.x0,
+            crop_y0: crop.y0,
+            crop_width: crop.width(),
             ..RenderParams::default()
         };
         Ok(GpuRenderer {
@@ -402,7 +417,7 @@ impl<'a> GpuRenderer<'a> {
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
-    /// The accumulated sums, one per pixel, row-major, and for each pixel the number of its
+    /// The accumulated sums, one per pixel of the crop, row-major, and for each pixel the number of its
     /// samples in which the driver cut a traversal short (those sums are wrong).
     pub fn read_accum(&self) -> Result<(Vec<Vec3>, Vec<u32>)> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());

@@ -1,9 +1,12 @@
 //! Writing renders: PNG (sRGB, 8-bit) or OpenEXR (linear, float), by the file extension.
+//! A tile's EXR records where the tile sits in the full image (see [`ExrImage`]).
 
 use std::path::Path;
 
 use glam::Vec3;
 
+use super::crop::{Crop, Tile};
+use super::exr::ExrImage;
 use crate::error::{Error, Result};
 
 fn srgb(x: f32) -> u8 {
@@ -75,13 +78,38 @@ pub struct Image {
     pub height: u32,
     /// `width × height` linear RGB values.
     pub pixels: Vec<Vec3>,
+    /// For a tile of a larger image (a render with a crop): where it sits. None: the
+    /// whole image.
+    pub tile: Option<Tile>,
 }
 
 impl Image {
     /// Saves the image as PNG (sRGB 8-bit) or EXR (linear float), chosen by the extension,
-    /// written atomically.
+    /// written atomically. A tile's EXR has its bounds as data window and the full image as
+    /// display window; a tile's PNG holds the tile's pixels only.
     pub fn save(&self, path: &Path) -> Result<()> {
-        save_image(path, &self.pixels, self.width, self.height)
+        match image_kind(path)? {
+            ImageKind::Png => save_image(path, &self.pixels, self.width, self.height),
+            ImageKind::Exr => self.to_exr().write(path),
+        }
+    }
+
+    /// The image as EXR channels R, G, B, placed as its tile says.
+    pub fn to_exr(&self) -> ExrImage {
+        let tile = self.tile.unwrap_or(Tile {
+            bounds: Crop::full(self.width, self.height),
+            full_width: self.width,
+            full_height: self.height,
+        });
+        let channel = |k: usize| self.pixels.iter().map(|c| c[k]).collect();
+        ExrImage {
+            tile,
+            channels: vec![
+                ("B".into(), channel(2)),
+                ("G".into(), channel(1)),
+                ("R".into(), channel(0)),
+            ],
+        }
     }
 
     /// The image as 8-bit sRGB (values clipped to [0, 1]).

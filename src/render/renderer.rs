@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 use super::cpu::CpuRenderer;
+use super::crop::{Crop, Tile};
 use super::effects::EffectSet;
 use super::gpu::GpuRenderer;
 use super::image::Image;
@@ -60,6 +61,9 @@ pub struct RenderOptions {
     pub accel: AccelKind,
     /// GPU: where the kernel reads the BVH from (used by [`Renderer::new`]).
     pub memory: BvhMemory,
+    /// Render only these pixels of the image, with the full image's random numbers (used
+    /// by [`Renderer::new`]; None: the whole image).
+    pub crop: Option<Crop>,
 }
 
 /// Why a render stopped.
@@ -102,21 +106,32 @@ pub struct Renderer<'a> {
     accel: Arc<dyn Accel>,
     stats: Option<BvhStats>,
     build_ms: f64,
+    crop: Crop,
     gpu: Option<GpuRenderer<'a>>,
 }
 
 impl<'a> Renderer<'a> {
     /// Builds the scene's structure `options.accel` (a BVH with `options.build`, flattened
     /// in its layout), and on a GPU its GPU form, uploaded (in `options.memory`) with the
-    /// scene. A structure without a GPU kernel on a GPU device is an [`Error::Usage`].
+    /// scene. A structure without a GPU kernel on a GPU device, and a crop that is empty or
+    /// reaches outside the image, are [`Error::Usage`]s.
     pub fn new(
         scene: &'a RenderScene,
         device: &'a Device,
         options: &RenderOptions,
     ) -> Result<Self> {
-        // Accumulator, image and encoding: about 48 bytes a pixel on either device.
         let (w, h) = (scene.camera.width, scene.camera.height);
-        crate::limits::check_image(w, h, 48, "use a smaller --width/--height")?;
+        // Pixel indices of the full image seed the random numbers: they must fit a u32.
+        crate::limits::check_image(w, h, 0, "use a smaller --width/--height")?;
+        let crop = options.crop.unwrap_or(Crop::full(w, h));
+        crop.check(w, h)?;
+        // Accumulator, image and encoding: about 48 bytes a pixel on either device.
+        crate::limits::check_image(
+            crop.width(),
+            crop.height(),
+            48,
+            "use a smaller --width/--height or render tiles (--crop)",
+        )?;
         let kind = options.accel;
         let start = Instant::now();
         let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn Layout>>, _) = match kind {
@@ -143,9 +158,13 @@ impl<'a> Renderer<'a> {
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
         let stats = stats.map(|tree| BvhStats::of(&tree, &options.build));
         let gpu = match (device.gpu_context(), &gpu_form) {
-            (Some(ctx), Some(flat)) => {
-                Some(GpuRenderer::new(ctx, scene, flat.as_ref(), options.memory)?)
-            }
+            (Some(ctx), Some(flat)) => Some(GpuRenderer::new(
+                ctx,
+                scene,
+                flat.as_ref(),
+                options.memory,
+                crop,
+            )?),
             _ => None,
         };
         Ok(Renderer {
@@ -154,6 +173,7 @@ impl<'a> Renderer<'a> {
             accel,
             stats,
             build_ms,
+            crop,
             gpu,
         })
     }
@@ -178,7 +198,12 @@ impl<'a> Renderer<'a> {
         self.accel.as_ref()
     }
 
-    /// Adds sample `sample` of every pixel to `accum` (CPU) or to the device's accumulator
+    /// The pixels rendered: the crop asked for, or the whole image.
+    pub fn crop(&self) -> Crop {
+        self.crop
+    }
+
+    /// Adds sample `sample` of every pixel of the crop to `accum` (CPU) or to the device's accumulator
     /// (GPU) and returns the milliseconds it took. For benches; [`Renderer::render`] runs
     /// the whole loop.
     pub fn add_sample(
@@ -196,7 +221,7 @@ impl<'a> Renderer<'a> {
             }
             None => {
                 let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), robustness);
-                cpu.accumulate(fx, seed, accum, sample, 1);
+                cpu.accumulate(fx, seed, self.crop, accum, sample, 1);
             }
         }
         Ok(start.elapsed().as_secs_f64() * 1e3)
@@ -212,7 +237,8 @@ impl<'a> Renderer<'a> {
         let fx = options.effects.unwrap_or_else(|| EffectSet::of(self.scene));
         let rob = options.robustness;
         let (w, h) = (self.scene.camera.width, self.scene.camera.height);
-        let pixels = w as usize * h as usize;
+        let crop = self.crop;
+        let pixels = crop.pixels();
         let mut accum = vec![Vec3::ZERO; if self.gpu.is_some() { 0 } else { pixels }];
         if let Some(g) = &mut self.gpu {
             g.clear()?;
@@ -265,7 +291,7 @@ impl<'a> Renderer<'a> {
                 );
                 let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), rob);
                 for &i in &redo {
-                    let (x, y) = (i as u32 % w, i as u32 / w);
+                    let (x, y) = crop.pixel(i);
                     accum[i] = (0..done).fold(Vec3::ZERO, |a, s| a + cpu.sample(fx, seed, x, y, s));
                 }
             }
@@ -274,9 +300,14 @@ impl<'a> Renderer<'a> {
         let inv = 1.0 / done as f32;
         Ok(Rendered {
             image: Image {
-                width: w,
-                height: h,
+                width: crop.width(),
+                height: crop.height(),
                 pixels: accum.iter().map(|c| *c * inv).collect(),
+                tile: (crop != Crop::full(w, h)).then_some(Tile {
+                    bounds: crop,
+                    full_width: w,
+                    full_height: h,
+                }),
             },
             samples: done,
             requested: spp,
