@@ -5,9 +5,11 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lancer::accel::bvh::BvhStats;
 use lancer::mesh::FileKind;
 use lancer::render::{image_kind, Crop, EffectSet, Progress, RenderOptions, Renderer, Stop};
 use lancer::{Error, RenderScene, Result};
+use serde::Serialize;
 
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
@@ -50,9 +52,12 @@ pub struct RenderCmd {
     /// Compile every effect in, whatever the scene calls for (for comparisons).
     #[arg(long)]
     all_effects: bool,
-    /// Print build time, BVH statistics, effects, device and speed.
+    /// Print build time, BVH statistics, effects, device, compile time and speed.
     #[arg(long)]
     stats: bool,
+    /// With --stats: print them as one JSON object on stdout (the summary goes to stderr).
+    #[arg(long, requires = "stats")]
+    json: bool,
     #[command(flatten)]
     build: BuildArgs,
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH render on the CPU).
@@ -60,6 +65,55 @@ pub struct RenderCmd {
     accel: AccelArg,
     #[command(flatten)]
     robustness: RobustnessArgs,
+}
+
+/// `render --stats --json`: one object on stdout. Times in milliseconds unless named
+/// seconds; null where a key does not apply.
+#[derive(Serialize)]
+struct RenderStats {
+    /// The image written.
+    output: String,
+    /// Its size in pixels (the tile's with --crop).
+    width: u32,
+    height: u32,
+    /// The full image's size.
+    full_width: u32,
+    full_height: u32,
+    /// [x0, y0, x1, y1] with --crop.
+    crop: Option<[u32; 4]>,
+    /// Samples per pixel taken and asked for.
+    samples: u32,
+    requested: u32,
+    /// "complete", "time-limit" or "cancelled".
+    stop: &'static str,
+    /// The device, in words.
+    device: String,
+    /// bvh, kdtree, octree, bih, grid, grid2 or hashgrid.
+    structure: &'static str,
+    /// The BVH's flattened layout (a BVH only).
+    layout: Option<&'static str>,
+    /// triangles, nodes, leaves, max_depth, sah_cost (a BVH only).
+    bvh: Option<BvhStats>,
+    /// The effects simulated, space-separated.
+    effects: String,
+    /// GPU: textures or buffers.
+    bvh_memory: Option<String>,
+    /// Building (and flattening) the structure.
+    build_ms: f64,
+    /// GPU: uploading the structure and scene, creating the shader module (0 on the CPU).
+    upload_ms: f64,
+    /// GPU: the driver compiling the pipeline before the first sample (0 on the CPU).
+    compile_ms: f64,
+    /// The first sample, compilation excluded.
+    first_sample_ms: f64,
+    /// Mean per sample per pixel.
+    ms_per_spp: f64,
+    /// All samples.
+    seconds: f64,
+    /// Camera rays (one per pixel per sample) per second.
+    camera_rays_per_s: f64,
+    /// GPU: pixels whose samples the driver cut short, rendered again on the CPU.
+    cpu_pixels: usize,
 }
 
 /// Loads a scene with the command line's overrides applied.
@@ -190,35 +244,85 @@ impl RenderCmd {
             Stop::TimeLimit => " (time limit)",
             Stop::Complete => "",
         };
-        println!(
+        // With --json the JSON object is stdout's only line; people read the rest on stderr.
+        let say = |line: String| {
+            if self.json {
+                eprintln!("{line}");
+            } else {
+                println!("{line}");
+            }
+        };
+        say(format!(
             "{w}x{h}{tile} {}/{} spp -> {} ({device}, {:.2} s){why}",
             done.samples,
             done.requested,
             self.out.display(),
             done.seconds
-        );
+        ));
         if self.stats {
-            println!(
+            let rays_per_s = done.samples as f64 * (w as f64 * h as f64) / done.seconds;
+            let ms_per_spp = done.seconds * 1e3 / done.samples as f64;
+            say(format!(
                 "structure: {}  build {:.1} ms",
                 renderer.structure(),
                 renderer.build_ms()
-            );
+            ));
             if let Some(s) = renderer.bvh_stats() {
-                println!(
+                say(format!(
                     "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}",
                     s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost,
-                );
-                println!("layout: {}", self.build.layout);
+                ));
+                say(format!("layout: {}", self.build.layout));
             }
-            println!("effects: {}", done.effects);
+            say(format!("effects: {}", done.effects));
             if !device.is_cpu() {
-                println!("BVH memory: {}", spelled(self.device.bvh_memory));
+                say(format!("BVH memory: {}", spelled(self.device.bvh_memory)));
+                say(format!(
+                    "upload + shader module {:.1} ms, pipeline compile {:.1} ms",
+                    renderer.upload_ms(),
+                    done.compile_ms
+                ));
             }
-            println!(
-                "{:.2} M camera rays/s, {:.1} ms per spp",
-                done.samples as f64 * (w * h) as f64 / done.seconds * 1e-6,
-                done.seconds * 1e3 / done.samples as f64,
-            );
+            say(format!(
+                "first sample {:.1} ms; {:.2} M camera rays/s, {ms_per_spp:.1} ms per spp",
+                done.first_sample_ms,
+                rays_per_s * 1e-6,
+            ));
+            if self.json {
+                let stats = RenderStats {
+                    output: self.out.display().to_string(),
+                    width: w,
+                    height: h,
+                    full_width: scene.camera.width,
+                    full_height: scene.camera.height,
+                    crop: crop.map(|c| [c.x0, c.y0, c.x1, c.y1]),
+                    samples: done.samples,
+                    requested: done.requested,
+                    stop: match done.stop {
+                        Stop::Complete => "complete",
+                        Stop::TimeLimit => "time-limit",
+                        Stop::Cancelled => "cancelled",
+                    },
+                    device: device.to_string(),
+                    structure: renderer.structure().name(),
+                    layout: renderer.bvh_stats().map(|_| self.build.layout.name()),
+                    bvh: renderer.bvh_stats().copied(),
+                    effects: done.effects.to_string(),
+                    bvh_memory: (!device.is_cpu()).then(|| spelled(self.device.bvh_memory)),
+                    build_ms: renderer.build_ms(),
+                    upload_ms: renderer.upload_ms(),
+                    compile_ms: done.compile_ms,
+                    first_sample_ms: done.first_sample_ms,
+                    ms_per_spp,
+                    seconds: done.seconds,
+                    camera_rays_per_s: rays_per_s,
+                    cpu_pixels: done.cpu_pixels,
+                };
+                println!(
+                    "{}",
+                    serde_json::to_string(&stats).map_err(|e| Error::Usage(e.to_string()))?
+                );
+            }
         }
         if done.stop == Stop::Cancelled {
             return Err(Error::Cancelled(format!(

@@ -90,8 +90,13 @@ pub struct Rendered {
     pub stop: Stop,
     /// The effects simulated.
     pub effects: EffectSet,
-    /// Seconds spent sampling.
+    /// Seconds spent sampling (pipeline compilation excluded).
     pub seconds: f64,
+    /// GPU: milliseconds compiling the kernel's pipeline for the effects before the first
+    /// sample (0 on the CPU, or when this renderer had compiled it already).
+    pub compile_ms: f64,
+    /// Milliseconds the first sample took (after compilation).
+    pub first_sample_ms: f64,
     /// Pixels whose GPU samples the driver cut short (a loop-iteration cap, see
     /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), rendered again on the CPU: they are the CPU
     /// reference's, bit for bit.
@@ -106,6 +111,7 @@ pub struct Renderer<'a> {
     accel: Arc<dyn Accel>,
     stats: Option<BvhStats>,
     build_ms: f64,
+    upload_ms: f64,
     crop: Crop,
     gpu: Option<GpuRenderer<'a>>,
 }
@@ -157,6 +163,7 @@ impl<'a> Renderer<'a> {
         };
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
         let stats = stats.map(|tree| BvhStats::of(&tree, &options.build));
+        let start = Instant::now();
         let gpu = match (device.gpu_context(), &gpu_form) {
             (Some(ctx), Some(flat)) => Some(GpuRenderer::new(
                 ctx,
@@ -167,12 +174,14 @@ impl<'a> Renderer<'a> {
             )?),
             _ => None,
         };
+        let upload_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(Renderer {
             scene,
             kind,
             accel,
             stats,
             build_ms,
+            upload_ms,
             crop,
             gpu,
         })
@@ -186,6 +195,13 @@ impl<'a> Renderer<'a> {
     /// Milliseconds spent building (and flattening) the structure.
     pub fn build_ms(&self) -> f64 {
         self.build_ms
+    }
+
+    /// GPU: milliseconds spent uploading the structure and the scene and creating the shader
+    /// module (parsed and validated; the driver compiles it per effect set, see
+    /// [`Rendered::compile_ms`]). 0 on the CPU.
+    pub fn upload_ms(&self) -> f64 {
+        self.upload_ms
     }
 
     /// The structure rendered through.
@@ -240,9 +256,12 @@ impl<'a> Renderer<'a> {
         let crop = self.crop;
         let pixels = crop.pixels();
         let mut accum = vec![Vec3::ZERO; if self.gpu.is_some() { 0 } else { pixels }];
+        let mut compile_ms = 0.0;
         if let Some(g) = &mut self.gpu {
             g.clear()?;
+            compile_ms = g.prepare(fx, rob)?;
         }
+        let mut first_sample_ms = 0.0;
         let cancelled = || (options.cancel.as_ref()).is_some_and(|c| c.load(Ordering::SeqCst));
         let start = Instant::now();
         let mut done = 0u32;
@@ -260,7 +279,10 @@ impl<'a> Renderer<'a> {
                     break;
                 }
             }
-            self.add_sample(fx, rob, seed, done, &mut accum)?;
+            let ms = self.add_sample(fx, rob, seed, done, &mut accum)?;
+            if done == 0 {
+                first_sample_ms = ms;
+            }
             done += 1;
             if let Some(p) = &options.progress {
                 let elapsed = start.elapsed();
@@ -314,6 +336,8 @@ impl<'a> Renderer<'a> {
             stop,
             effects: fx,
             seconds,
+            compile_ms,
+            first_sample_ms,
             cpu_pixels,
         })
     }
