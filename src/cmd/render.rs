@@ -7,7 +7,9 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::BvhStats;
 use lancer::mesh::FileKind;
-use lancer::render::{image_kind, Crop, EffectSet, Progress, RenderOptions, Renderer, Stop};
+use lancer::render::{
+    image_kind, AovSet, Crop, EffectSet, ImageKind, Progress, RenderOptions, Renderer, Stop,
+};
 use lancer::{Error, RenderScene, Result};
 use serde::Serialize;
 
@@ -52,6 +54,14 @@ pub struct RenderCmd {
     /// Compile every effect in, whatever the scene calls for (for comparisons).
     #[arg(long)]
     all_effects: bool,
+    /// PNG bits per channel (sRGB): 8 or 16.
+    #[arg(long, default_value_t = 8, value_parser = png_bits)]
+    png_bits: u8,
+    /// EXR only: extra channels from the first hit of each pixel's first camera ray, for
+    /// denoisers: depth (depth.Z, distance; inf for a miss), normal (normal.X/Y/Z, facing
+    /// the camera), albedo (albedo.R/G/B). Comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = ["depth", "normal", "albedo"])]
+    aov: Vec<String>,
     /// Print build time, BVH statistics, effects, device, compile time and speed.
     #[arg(long)]
     stats: bool,
@@ -116,6 +126,15 @@ struct RenderStats {
     cpu_pixels: usize,
 }
 
+/// 8 or 16.
+fn png_bits(s: &str) -> std::result::Result<u8, String> {
+    match s {
+        "8" => Ok(8),
+        "16" => Ok(16),
+        _ => Err(format!("{s}: PNG bits are 8 or 16")),
+    }
+}
+
 /// Loads a scene with the command line's overrides applied.
 pub fn load_scene(
     path: &std::path::Path,
@@ -175,7 +194,24 @@ fn image_size(
 
 impl RenderCmd {
     pub fn run(self) -> Result<()> {
-        image_kind(&self.out)?;
+        let kind = image_kind(&self.out)?;
+        let aovs = AovSet {
+            depth: self.aov.iter().any(|a| a == "depth"),
+            normal: self.aov.iter().any(|a| a == "normal"),
+            albedo: self.aov.iter().any(|a| a == "albedo"),
+        };
+        if aovs.any() && kind != ImageKind::Exr {
+            return Err(Error::Usage(format!(
+                "--aov writes extra EXR channels: give an .exr output, not {}",
+                self.out.display()
+            )));
+        }
+        if self.png_bits != 8 && kind != ImageKind::Png {
+            return Err(Error::Usage(format!(
+                "--png-bits is for PNG outputs, not {}",
+                self.out.display()
+            )));
+        }
         let time_limit = match self.time_limit {
             Some(t) if !(t.is_finite() && t > 0.0) => {
                 return Err(Error::Usage(format!(
@@ -225,12 +261,21 @@ impl RenderCmd {
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
             crop,
+            aovs: aovs.any(),
         };
         let mut renderer = Renderer::new(&scene, &device, &options)?;
         let done = renderer.render(&options);
         bar.finish_and_clear();
         let done = done?;
-        done.image.save(&self.out)?;
+        match (kind, &done.aovs) {
+            (ImageKind::Png, _) if self.png_bits == 16 => done.image.save_png16(&self.out)?,
+            (ImageKind::Exr, Some(a)) => {
+                let mut exr = done.image.to_exr();
+                exr.channels.extend(a.channels(aovs));
+                exr.write(&self.out)?;
+            }
+            _ => done.image.save(&self.out)?,
+        }
         let (w, h) = (done.image.width, done.image.height);
         let tile = match crop {
             Some(c) => format!(

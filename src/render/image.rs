@@ -1,4 +1,5 @@
-//! Writing renders: PNG (sRGB, 8-bit) or OpenEXR (linear, float), by the file extension.
+//! Writing renders: PNG (sRGB, 8- or 16-bit) or OpenEXR (linear, float), by the file
+//! extension.
 //! A tile's EXR records where the tile sits in the full image (see [`ExrImage`]).
 
 use std::path::Path;
@@ -9,14 +10,31 @@ use super::crop::{Crop, Tile};
 use super::exr::ExrImage;
 use crate::error::{Error, Result};
 
-fn srgb(x: f32) -> u8 {
+/// Linear → sRGB-encoded, in [0, 1] (values clipped, NaN as 0).
+fn srgb_encoded(x: f32) -> f32 {
     let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
-    let s = if x <= 0.003_130_8 {
+    if x <= 0.003_130_8 {
         12.92 * x
     } else {
         1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
+    }
+}
+
+fn srgb(x: f32) -> u8 {
+    (srgb_encoded(x) * 255.0).round() as u8
+}
+
+/// Linear radiance → a 16-bit sRGB image (values clipped to [0, 1]).
+pub fn to_rgb16(
+    px: &[Vec3],
+    width: u32,
+    height: u32,
+) -> image::ImageBuffer<image::Rgb<u16>, Vec<u16>> {
+    let q = |x: f32| (srgb_encoded(x) * 65535.0).round() as u16;
+    image::ImageBuffer::from_fn(width, height, |x, y| {
+        let c = px[(y * width + x) as usize];
+        image::Rgb([q(c.x), q(c.y), q(c.z)])
+    })
 }
 
 /// Linear radiance → an 8-bit sRGB image (values clipped to [0, 1]).
@@ -92,6 +110,15 @@ impl Image {
             ImageKind::Png => save_image(path, &self.pixels, self.width, self.height),
             ImageKind::Exr => self.to_exr().write(path),
         }
+    }
+
+    /// Saves the image as a 16-bit sRGB PNG, written atomically.
+    pub fn save_png16(&self, path: &Path) -> Result<()> {
+        let png = to_rgb16(&self.pixels, self.width, self.height);
+        crate::output::write_atomic(path, |w| {
+            png.write_to(w, image::ImageFormat::Png)
+                .map_err(std::io::Error::other)
+        })
     }
 
     /// The image as EXR channels R, G, B, placed as its tile says.

@@ -2,6 +2,7 @@
 //! reference renderer and the GPU renderer (one WGSL source specialised per effect set),
 //! behind one [`Renderer`].
 
+mod aov;
 mod cpu;
 mod crop;
 mod effects;
@@ -14,6 +15,7 @@ mod renderer;
 pub(crate) mod sampling;
 mod scene;
 
+pub use aov::{AovSet, Aovs, FirstHit};
 pub use cpu::{sample_texture, CpuRenderer};
 pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
@@ -21,7 +23,7 @@ pub use exr::ExrImage;
 pub use gpu::{
     GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED, MAT_TWO_SIDED,
 };
-pub use image::{heat_ramp, image_kind, save_image, to_rgb8, Image, ImageKind};
+pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};
 pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};

@@ -7,7 +7,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
+use rayon::prelude::*;
 
+use super::aov::{Aovs, FirstHit};
 use super::cpu::CpuRenderer;
 use super::crop::{Crop, Tile};
 use super::effects::EffectSet;
@@ -64,6 +66,9 @@ pub struct RenderOptions {
     /// Render only these pixels of the image, with the full image's random numbers (used
     /// by [`Renderer::new`]; None: the whole image).
     pub crop: Option<Crop>,
+    /// Compute the AOVs (first-hit depth, normal, albedo of sample 0's camera rays; used by
+    /// [`Renderer::new`]).
+    pub aovs: bool,
 }
 
 /// Why a render stopped.
@@ -97,6 +102,8 @@ pub struct Rendered {
     pub compile_ms: f64,
     /// Milliseconds the first sample took (after compilation).
     pub first_sample_ms: f64,
+    /// The AOVs, when asked for ([`RenderOptions::aovs`]).
+    pub aovs: Option<Aovs>,
     /// Pixels whose GPU samples the driver cut short (a loop-iteration cap, see
     /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), rendered again on the CPU: they are the CPU
     /// reference's, bit for bit.
@@ -113,6 +120,7 @@ pub struct Renderer<'a> {
     build_ms: f64,
     upload_ms: f64,
     crop: Crop,
+    aovs: bool,
     gpu: Option<GpuRenderer<'a>>,
 }
 
@@ -171,6 +179,7 @@ impl<'a> Renderer<'a> {
                 flat.as_ref(),
                 options.memory,
                 crop,
+                options.aovs,
             )?),
             _ => None,
         };
@@ -183,6 +192,7 @@ impl<'a> Renderer<'a> {
             build_ms,
             upload_ms,
             crop,
+            aovs: options.aovs,
             gpu,
         })
     }
@@ -301,9 +311,26 @@ impl<'a> Renderer<'a> {
             ));
         }
         let mut cpu_pixels = 0;
+        let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), rob);
+        let mut aovs = None;
+        if self.aovs && self.gpu.is_none() {
+            let hits: Vec<FirstHit> = (0..pixels)
+                .into_par_iter()
+                .map(|i| {
+                    let (x, y) = crop.pixel(i);
+                    cpu.first_hit(fx, seed, x, y)
+                })
+                .collect();
+            aovs = Some(Aovs::of(&hits));
+        }
         if let Some(g) = &self.gpu {
             let (sums, cut) = g.read_accum()?;
             accum = sums;
+            let mut hits = if self.aovs {
+                g.read_aovs()?
+            } else {
+                Vec::new()
+            };
             let redo: Vec<usize> = (0..cut.len()).filter(|&i| cut[i] > 0).collect();
             if !redo.is_empty() {
                 log::warn!(
@@ -311,13 +338,18 @@ impl<'a> Renderer<'a> {
                      rendered them again on the CPU",
                     redo.len()
                 );
-                let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), rob);
                 for &i in &redo {
                     let (x, y) = crop.pixel(i);
                     accum[i] = (0..done).fold(Vec3::ZERO, |a, s| a + cpu.sample(fx, seed, x, y, s));
+                    if let Some(h) = hits.get_mut(i) {
+                        *h = cpu.first_hit(fx, seed, x, y);
+                    }
                 }
             }
             cpu_pixels = redo.len();
+            if self.aovs {
+                aovs = Some(Aovs::of(&hits));
+            }
         }
         let inv = 1.0 / done as f32;
         Ok(Rendered {
@@ -338,6 +370,7 @@ impl<'a> Renderer<'a> {
             seconds,
             compile_ms,
             first_sample_ms,
+            aovs,
             cpu_pixels,
         })
     }
