@@ -62,7 +62,20 @@ impl ExrImage {
     /// coordinates, a display window not at the origin, non-float channels.
     pub fn read(path: &Path) -> Result<ExrImage> {
         let bad = |msg: String| Error::input(path, None, msg);
-        let file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
+        let open = || std::fs::File::open(path).map_err(|e| Error::read(path, e));
+        // Sizes from the header first: a hostile header must not size an allocation.
+        let meta = exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(open()?), false)
+            .map_err(|e| bad(format!("not a readable OpenEXR image: {e}")))?;
+        for h in meta.headers.iter() {
+            let (w, hh) = (h.layer_size.0, h.layer_size.1);
+            let bytes = w as u128 * hh as u128 * 4 * h.channels.list.len().max(1) as u128;
+            crate::limits::check_memory(
+                &format!("{}: a {w}×{hh} OpenEXR part", path.display()),
+                bytes,
+                "not an image this machine can read",
+            )?;
+        }
+        let file = open()?;
         let image = exr::prelude::read()
             .no_deep_data()
             .largest_resolution_level()
