@@ -407,7 +407,9 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pixel = params.offset + gid.x;
     aov_slot = pixel;
     sample_incomplete = false;
-    let c = radiance(params.crop_x0 + pixel % params.crop_width, params.crop_y0 + pixel / params.crop_width);
+    let x = params.crop_x0 + pixel % params.crop_width;
+    let y = params.crop_y0 + pixel / params.crop_width;
+    let c = radiance(x, y);
     // w counts the samples of this pixel that a driver cut short.
     accum[pixel] += vec4<f32>(c, select(0.0, 1.0, sample_incomplete));
 }

@@ -460,8 +460,9 @@ impl<'a> GpuRenderer<'a> {
             .collect())
     }
 
-    /// The accumulated sums, one per pixel of the crop, row-major, and for each pixel the number of its
-    /// samples in which the driver cut a traversal short (those sums are wrong).
+    /// The accumulated sums, one per pixel of the crop, row-major, and for each pixel the
+    /// number of its samples in which the driver cut a traversal short (those sums are
+    /// wrong).
     pub fn read_accum(&self) -> Result<(Vec<Vec3>, Vec<u32>)> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let size = self.chunks.items as u64 * 16;

@@ -1,6 +1,6 @@
-//! One renderer API for both devices: build the scene's acceleration structure once, then render with a number
-//! of samples, a time limit, a cancel flag and a progress callback. The progressive loop and
-//! the division by the sample count live here, not in callers.
+//! One renderer API for both devices: build the scene's acceleration structure once, then
+//! render with a number of samples, a time limit, a cancel flag and a progress callback. The
+//! progressive loop and the division by the sample count live here, not in callers.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -229,9 +229,9 @@ impl<'a> Renderer<'a> {
         self.crop
     }
 
-    /// Adds sample `sample` of every pixel of the crop to `accum` (CPU) or to the device's accumulator
-    /// (GPU) and returns the milliseconds it took. For benches; [`Renderer::render`] runs
-    /// the whole loop.
+    /// Adds sample `sample` of every pixel of the crop to `accum` (CPU) or to the device's
+    /// accumulator (GPU) and returns the milliseconds it took. For benches;
+    /// [`Renderer::render`] runs the whole loop.
     pub fn add_sample(
         &mut self,
         fx: EffectSet,
