@@ -10,6 +10,9 @@ override INDIRECT: bool = true;
 override TEXTURES: bool = true;
 override AO: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
+// AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
+// accumulator; false compiles that code out.
+override AOVS: bool = false;
 
 // PI_INV, KIND_*, INTEGRATOR_*, LIGHT_* and PRIMARY_TMAX come from the generated prelude.
 
@@ -70,8 +73,12 @@ struct Params {
     emit_total: f32,
     ao_distance: f32,
     fixed_offset: f32,
-    pad1: u32,
+    crop_x0: u32,
+    crop_y0: u32,
+    crop_width: u32,
+    aov_base: u32,
     pad2: u32,
+    pad3: u32,
 }
 
 @group(0) @binding(BINDING_RENDER_SHADES) var<storage, read> shades: array<Shade>;
@@ -215,6 +222,26 @@ fn sample_texture(m: Material, uv: vec2<f32>) -> vec3<f32> {
     return top + (bottom - top) * fy;
 }
 
+// CpuRenderer::albedo
+fn surface_albedo(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
+    if TEXTURES && (mat.flags & MAT_TEXTURED) != 0u {
+        return sample_texture(mat, s.uv0 * w + s.uv1 * u + s.uv2 * v);
+    }
+    return mat.albedo;
+}
+
+// The tile pixel whose AOVs this invocation writes (sample 0 only).
+var<private> aov_slot: u32;
+
+// CpuRenderer::first_hit, written after the accumulator as two vec4s: (depth, normal) and
+// (albedo, 0); a miss writes depth −1 (the host reads it as +∞: WGSL has no runtime ∞).
+fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>) {
+    if AOVS && params.sample == 0u {
+        accum[params.aov_base + 2u * aov_slot] = vec4<f32>(depth, n);
+        accum[params.aov_base + 2u * aov_slot + 1u] = vec4<f32>(albedo, 0.0);
+    }
+}
+
 // CpuRenderer::direct
 fn direct(p: vec3<f32>, p_err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let o = offset_origin(p, p_err, n);
@@ -294,6 +321,9 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
         let hit = traverse(ray, false);
         sample_incomplete = sample_incomplete || !traversal_done;
         if hit.prim == MISS {
+            if bounce == 0u {
+                write_aovs(-1.0, vec3<f32>(0.0), vec3<f32>(0.0));
+            }
             rad += beta * params.background;
             break;
         }
@@ -305,6 +335,9 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
         let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
         let front = dot3(ng, ray.dir) < 0.0;
         let n = select(-ng, ng, front);
+        if bounce == 0u {
+            write_aovs(hit.t, n, surface_albedo(mat, s, w, hit.u, hit.v));
+        }
         if mat.kind == KIND_EMISSIVE {
             if count_emission && (front || (mat.flags & MAT_TWO_SIDED) != 0u) {
                 rad += beta * mat.emission;
@@ -352,11 +385,7 @@ fn radiance(x: u32, y: u32) -> vec3<f32> {
             }
             continue;
         }
-        var albedo = mat.albedo;
-        if TEXTURES && (mat.flags & MAT_TEXTURED) != 0u {
-            let uv = s.uv0 * w + s.uv1 * hit.u + s.uv2 * hit.v;
-            albedo = sample_texture(mat, uv);
-        }
+        let albedo = surface_albedo(mat, s, w, hit.u, hit.v);
         rad += beta * albedo * PI_INV * direct(p, p_err, n);
         if !(INDIRECT && params.integrator == INTEGRATOR_PATH) || last {
             break;
@@ -374,9 +403,13 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.count {
         return;
     }
+    // The accumulator holds the crop's pixels; the random numbers are the full image's.
     let pixel = params.offset + gid.x;
+    aov_slot = pixel;
     sample_incomplete = false;
-    let c = radiance(pixel % params.width, pixel / params.width);
+    let x = params.crop_x0 + pixel % params.crop_width;
+    let y = params.crop_y0 + pixel / params.crop_width;
+    let c = radiance(x, y);
     // w counts the samples of this pixel that a driver cut short.
     accum[pixel] += vec4<f32>(c, select(0.0, 1.0, sample_incomplete));
 }

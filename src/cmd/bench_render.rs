@@ -89,7 +89,7 @@ impl BenchRender {
         let cpu = Device::cpu();
         let options = RenderOptions {
             build: self.build.options(),
-            layout: self.build.layout,
+            accel: lancer::AccelKind::Bvh(self.build.layout),
             ..RenderOptions::default()
         };
         let specialised = EffectSet::of(&scene);
@@ -111,7 +111,7 @@ impl BenchRender {
         let mut triangles = 0;
         for (dev_name, dev) in devices {
             let mut renderer = Renderer::new(&scene, dev, &options)?;
-            triangles = renderer.bvh_stats().triangles;
+            triangles = renderer.bvh_stats().map_or(0, |s| s.triangles);
             for (name, fx) in kernels {
                 bar.set_message(format!("{dev_name}, {name}"));
                 // Sample 0 compiles the pipeline (GPU) and warms caches, outside the timing.

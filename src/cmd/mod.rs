@@ -12,6 +12,7 @@ mod check;
 mod compare;
 mod heatmap;
 mod input;
+mod merge;
 mod out;
 mod rays;
 mod render;
@@ -65,6 +66,8 @@ enum Cmd {
     Compare(compare::CompareCmd),
     /// List every GPU adapter: type, backend, driver, limits and features.
     Adapters(adapters::AdaptersCmd),
+    /// Join EXR tiles (`render --crop`) into the full image.
+    Merge(merge::MergeCmd),
 }
 
 /// BVH builder options shared by the subcommands that build one.
@@ -312,5 +315,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Cmd::Check(c) => c.run(),
         Cmd::Compare(c) => c.run(),
         Cmd::Adapters(c) => c.run(),
+        Cmd::Merge(c) => c.run(),
     }
 }

@@ -5,11 +5,15 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lancer::accel::bvh::BvhStats;
 use lancer::mesh::FileKind;
-use lancer::render::{image_kind, EffectSet, Progress, RenderOptions, Renderer, Stop};
+use lancer::render::{
+    image_kind, AovSet, Crop, EffectSet, ImageKind, Progress, RenderOptions, Renderer, Stop,
+};
 use lancer::{Error, RenderScene, Result};
+use serde::Serialize;
 
-use super::{spelled, BuildArgs, DeviceArgs, RobustnessArgs};
+use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -40,18 +44,95 @@ pub struct RenderCmd {
     /// Stop after the last sample that fits in this many seconds (at least one sample).
     #[arg(long)]
     time_limit: Option<f64>,
+    /// Render only the tile of columns X0..X1 and rows Y0..Y1 of the image (half-open pixel
+    /// bounds), with the full image's random numbers; an EXR tile records where it sits, and
+    /// `lancer merge` joins the tiles into the full image.
+    #[arg(long, num_args = 4, value_names = ["X0", "Y0", "X1", "Y1"])]
+    crop: Option<Vec<u32>>,
     #[command(flatten)]
     device: DeviceArgs,
     /// Compile every effect in, whatever the scene calls for (for comparisons).
     #[arg(long)]
     all_effects: bool,
-    /// Print build time, BVH statistics, effects, device and speed.
+    /// PNG bits per channel (sRGB): 8 or 16.
+    #[arg(long, default_value_t = 8, value_parser = png_bits)]
+    png_bits: u8,
+    /// EXR only: extra channels from the first hit of each pixel's first camera ray, for
+    /// denoisers: depth (depth.Z, distance; inf for a miss), normal (normal.X/Y/Z, facing
+    /// the camera), albedo (albedo.R/G/B). Comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = ["depth", "normal", "albedo"])]
+    aov: Vec<String>,
+    /// Print build time, BVH statistics, effects, device, compile time and speed.
     #[arg(long)]
     stats: bool,
+    /// With --stats: print them as one JSON object on stdout (the summary goes to stderr).
+    #[arg(long, requires = "stats")]
+    json: bool,
     #[command(flatten)]
     build: BuildArgs,
+    /// Acceleration structure (all but the BVH, the kd-tree and the BIH render on the CPU).
+    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
+    accel: AccelArg,
     #[command(flatten)]
     robustness: RobustnessArgs,
+}
+
+/// `render --stats --json`: one object on stdout. Times in milliseconds unless named
+/// seconds; null where a key does not apply.
+#[derive(Serialize)]
+struct RenderStats {
+    /// The image written.
+    output: String,
+    /// Its size in pixels (the tile's with --crop).
+    width: u32,
+    height: u32,
+    /// The full image's size.
+    full_width: u32,
+    full_height: u32,
+    /// [x0, y0, x1, y1] with --crop.
+    crop: Option<[u32; 4]>,
+    /// Samples per pixel taken and asked for.
+    samples: u32,
+    requested: u32,
+    /// "complete", "time-limit" or "cancelled".
+    stop: &'static str,
+    /// The device, in words.
+    device: String,
+    /// bvh, kdtree, octree, bih, grid, grid2 or hashgrid.
+    structure: &'static str,
+    /// The BVH's flattened layout (a BVH only).
+    layout: Option<&'static str>,
+    /// triangles, nodes, leaves, max_depth, sah_cost (a BVH only).
+    bvh: Option<BvhStats>,
+    /// The effects simulated, space-separated.
+    effects: String,
+    /// GPU: textures or buffers.
+    bvh_memory: Option<String>,
+    /// Building (and flattening) the structure.
+    build_ms: f64,
+    /// GPU: uploading the structure and scene, creating the shader module (0 on the CPU).
+    upload_ms: f64,
+    /// GPU: the driver compiling the pipeline before the first sample (0 on the CPU).
+    compile_ms: f64,
+    /// The first sample, compilation excluded.
+    first_sample_ms: f64,
+    /// Mean per sample per pixel.
+    ms_per_spp: f64,
+    /// All samples.
+    seconds: f64,
+    /// Camera rays (one per pixel per sample) per second.
+    camera_rays_per_s: f64,
+    /// GPU: pixels whose samples the driver cut short, rendered again on the CPU.
+    cpu_pixels: usize,
+}
+
+/// 8 or 16.
+fn png_bits(s: &str) -> std::result::Result<u8, String> {
+    match s {
+        "8" => Ok(8),
+        "16" => Ok(16),
+        _ => Err(format!("{s}: PNG bits are 8 or 16")),
+    }
 }
 
 /// Loads a scene with the command line's overrides applied.
@@ -113,7 +194,24 @@ fn image_size(
 
 impl RenderCmd {
     pub fn run(self) -> Result<()> {
-        image_kind(&self.out)?;
+        let kind = image_kind(&self.out)?;
+        let aovs = AovSet {
+            depth: self.aov.iter().any(|a| a == "depth"),
+            normal: self.aov.iter().any(|a| a == "normal"),
+            albedo: self.aov.iter().any(|a| a == "albedo"),
+        };
+        if aovs.any() && kind != ImageKind::Exr {
+            return Err(Error::Usage(format!(
+                "--aov writes extra EXR channels: give an .exr output, not {}",
+                self.out.display()
+            )));
+        }
+        if self.png_bits != 8 && kind != ImageKind::Png {
+            return Err(Error::Usage(format!(
+                "--png-bits is for PNG outputs, not {}",
+                self.out.display()
+            )));
+        }
         let time_limit = match self.time_limit {
             Some(t) if !(t.is_finite() && t > 0.0) => {
                 return Err(Error::Usage(format!(
@@ -124,7 +222,14 @@ impl RenderCmd {
         };
         let scene = load_scene_scaled(&self.scene, self.width, self.height, self.scale)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
-        let device = self.device.open()?;
+        let crop = match self.crop.as_deref() {
+            Some(&[x0, y0, x1, y1]) => Some(Crop { x0, y0, x1, y1 }),
+            _ => None,
+        };
+        if let Some(c) = crop {
+            c.check(scene.camera.width, scene.camera.height)?;
+        }
+        let device = self.accel.open(&self.device)?;
         let cancel = Arc::new(AtomicBool::new(false));
         {
             let cancel = cancel.clone();
@@ -152,49 +257,117 @@ impl RenderCmd {
             cancel: Some(cancel),
             progress: Some(progress),
             build: self.build.options(),
-            layout: self.build.layout,
+            accel: self.accel.kind(self.build.layout),
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
+            crop,
+            aovs: aovs.any(),
         };
         let mut renderer = Renderer::new(&scene, &device, &options)?;
         let done = renderer.render(&options);
         bar.finish_and_clear();
         let done = done?;
-        done.image.save(&self.out)?;
-        let (w, h) = (scene.camera.width, scene.camera.height);
+        match (kind, &done.aovs) {
+            (ImageKind::Png, _) if self.png_bits == 16 => done.image.save_png16(&self.out)?,
+            (ImageKind::Exr, Some(a)) => {
+                let mut exr = done.image.to_exr();
+                exr.channels.extend(a.channels(aovs));
+                exr.write(&self.out)?;
+            }
+            _ => done.image.save(&self.out)?,
+        }
+        let (w, h) = (done.image.width, done.image.height);
+        let tile = match crop {
+            Some(c) => format!(
+                " tile {} {} {} {} of {}x{}",
+                c.x0, c.y0, c.x1, c.y1, scene.camera.width, scene.camera.height
+            ),
+            None => String::new(),
+        };
         let why = match done.stop {
             Stop::Cancelled => " (interrupted: saved what had accumulated)",
             Stop::TimeLimit => " (time limit)",
             Stop::Complete => "",
         };
-        println!(
-            "{w}x{h} {}/{} spp -> {} ({device}, {:.2} s){why}",
+        // With --json the JSON object is stdout's only line; people read the rest on stderr.
+        let say = |line: String| {
+            if self.json {
+                eprintln!("{line}");
+            } else {
+                println!("{line}");
+            }
+        };
+        say(format!(
+            "{w}x{h}{tile} {}/{} spp -> {} ({device}, {:.2} s){why}",
             done.samples,
             done.requested,
             self.out.display(),
             done.seconds
-        );
+        ));
         if self.stats {
-            let s = renderer.bvh_stats();
-            println!(
-                "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}  build {:.1} ms",
-                s.triangles,
-                s.nodes,
-                s.leaves,
-                s.max_depth,
-                s.sah_cost,
+            let rays_per_s = done.samples as f64 * (w as f64 * h as f64) / done.seconds;
+            let ms_per_spp = done.seconds * 1e3 / done.samples as f64;
+            say(format!(
+                "structure: {}  build {:.1} ms",
+                renderer.structure(),
                 renderer.build_ms()
-            );
-            println!("effects: {}", done.effects);
-            println!("layout: {}", self.build.layout);
-            if !device.is_cpu() {
-                println!("BVH memory: {}", spelled(self.device.bvh_memory));
+            ));
+            if let Some(s) = renderer.bvh_stats() {
+                say(format!(
+                    "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}",
+                    s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost,
+                ));
+                say(format!("layout: {}", self.build.layout));
             }
-            println!(
-                "{:.2} M camera rays/s, {:.1} ms per spp",
-                done.samples as f64 * (w * h) as f64 / done.seconds * 1e-6,
-                done.seconds * 1e3 / done.samples as f64,
-            );
+            say(format!("effects: {}", done.effects));
+            if !device.is_cpu() {
+                say(format!("BVH memory: {}", spelled(self.device.bvh_memory)));
+                say(format!(
+                    "upload + shader module {:.1} ms, pipeline compile {:.1} ms",
+                    renderer.upload_ms(),
+                    done.compile_ms
+                ));
+            }
+            say(format!(
+                "first sample {:.1} ms; {:.2} M camera rays/s, {ms_per_spp:.1} ms per spp",
+                done.first_sample_ms,
+                rays_per_s * 1e-6,
+            ));
+            if self.json {
+                let stats = RenderStats {
+                    output: self.out.display().to_string(),
+                    width: w,
+                    height: h,
+                    full_width: scene.camera.width,
+                    full_height: scene.camera.height,
+                    crop: crop.map(|c| [c.x0, c.y0, c.x1, c.y1]),
+                    samples: done.samples,
+                    requested: done.requested,
+                    stop: match done.stop {
+                        Stop::Complete => "complete",
+                        Stop::TimeLimit => "time-limit",
+                        Stop::Cancelled => "cancelled",
+                    },
+                    device: device.to_string(),
+                    structure: renderer.structure().name(),
+                    layout: renderer.bvh_stats().map(|_| self.build.layout.name()),
+                    bvh: renderer.bvh_stats().copied(),
+                    effects: done.effects.to_string(),
+                    bvh_memory: (!device.is_cpu()).then(|| spelled(self.device.bvh_memory)),
+                    build_ms: renderer.build_ms(),
+                    upload_ms: renderer.upload_ms(),
+                    compile_ms: done.compile_ms,
+                    first_sample_ms: done.first_sample_ms,
+                    ms_per_spp,
+                    seconds: done.seconds,
+                    camera_rays_per_s: rays_per_s,
+                    cpu_pixels: done.cpu_pixels,
+                };
+                println!(
+                    "{}",
+                    serde_json::to_string(&stats).map_err(|e| Error::Usage(e.to_string()))?
+                );
+            }
         }
         if done.stop == Stop::Cancelled {
             return Err(Error::Cancelled(format!(

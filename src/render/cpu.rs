@@ -7,6 +7,8 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use super::aov::FirstHit;
+use super::crop::Crop;
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, point_error, Rng};
 use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
@@ -33,6 +35,14 @@ pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
         lerp(at(ix0, iy1), at(ix1, iy1), fx),
         fy,
     )
+}
+
+/// Whether a ray along `dir` meets the triangle's front (its winding's side), and the
+/// triangle's unit normal turned toward where the ray comes from.
+fn facing(v: &[Vec3; 3], dir: Vec3) -> (bool, Vec3) {
+    let ng = normalize(cross(v[1] - v[0], v[2] - v[0]));
+    let front = dot(ng, dir) < 0.0;
+    (front, if front { ng } else { -ng })
 }
 
 /// The CPU renderer of one scene over one acceleration structure.
@@ -161,14 +171,50 @@ impl<'a> CpuRenderer<'a> {
         sum
     }
 
+    /// The camera ray of sample `sample` of pixel (x, y) and the random numbers that follow
+    /// its jitter.
+    fn camera_ray(&self, seed: u32, x: u32, y: u32, sample: u32) -> (Ray, Rng) {
+        let pixel = y * self.scene.camera.width + x;
+        let mut rng = Rng::new(seed, pixel, sample);
+        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+        (self.frame.ray(x, y, jx, jy), rng)
+    }
+
+    /// The reflectance at a hit: the material's texture there (when textures are
+    /// simulated), else its albedo.
+    fn albedo(&self, fx: EffectSet, hit: &Hit) -> Vec3 {
+        let prim = hit.prim as usize;
+        let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+        match mat.texture {
+            Some(t) if fx.textures => {
+                let uv = self.scene.uvs[prim];
+                let uv = uv[0] * (1.0 - hit.u - hit.v) + uv[1] * hit.u + uv[2] * hit.v;
+                sample_texture(&self.scene.textures[t], uv)
+            }
+            _ => mat.albedo,
+        }
+    }
+
+    /// The AOVs of pixel (x, y): the first hit of its camera ray in sample 0.
+    pub fn first_hit(&self, fx: EffectSet, seed: u32, x: u32, y: u32) -> FirstHit {
+        let (ray, _) = self.camera_ray(seed, x, y, 0);
+        let hit = self.closest(&ray);
+        if !hit.is_hit() {
+            return FirstHit::MISS;
+        }
+        let tri = &self.scene.mesh.triangles[hit.prim as usize];
+        FirstHit {
+            depth: hit.t,
+            normal: facing(&tri.v, ray.dir).1,
+            albedo: self.albedo(fx, &hit),
+        }
+    }
+
     /// One sample of the radiance along the camera ray of a pixel, simulating `fx`, with
     /// the random numbers of (seed, pixel, sample).
     pub fn sample(&self, fx: EffectSet, seed: u32, x: u32, y: u32, sample: u32) -> Vec3 {
         let s = &self.scene.settings;
-        let pixel = y * self.scene.camera.width + x;
-        let mut rng = Rng::new(seed, pixel, sample);
-        let (jx, jy) = (rng.next_f32(), rng.next_f32());
-        let mut ray = self.frame.ray(x, y, jx, jy);
+        let (mut ray, mut rng) = self.camera_ray(seed, x, y, sample);
         let mut radiance = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut count_emission = true;
@@ -185,9 +231,7 @@ impl<'a> CpuRenderer<'a> {
             let w = 1.0 - hit.u - hit.v;
             let p = tri.v[0] * w + tri.v[1] * hit.u + tri.v[2] * hit.v;
             let p_err = point_error(&tri.v, w, hit.u, hit.v);
-            let ng = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
-            let front = dot(ng, ray.dir) < 0.0;
-            let n = if front { ng } else { -ng };
+            let (front, n) = facing(&tri.v, ray.dir);
             if mat.kind == MaterialKind::Emissive {
                 if count_emission && (front || mat.two_sided) {
                     radiance += beta * mat.emission;
@@ -236,14 +280,7 @@ impl<'a> CpuRenderer<'a> {
                 continue;
             }
             // Diffuse.
-            let albedo = match mat.texture {
-                Some(t) if fx.textures => {
-                    let uv = self.scene.uvs[prim];
-                    let uv = uv[0] * w + uv[1] * hit.u + uv[2] * hit.v;
-                    sample_texture(&self.scene.textures[t], uv)
-                }
-                _ => mat.albedo,
-            };
+            let albedo = self.albedo(fx, &hit);
             radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, p_err, n, &mut rng);
             if !(fx.indirect && s.integrator == Integrator::Path) || last {
                 break;
@@ -256,11 +293,19 @@ impl<'a> CpuRenderer<'a> {
         radiance
     }
 
-    /// Adds samples [first, first + count) of every pixel to `accum` (row-major).
-    pub fn accumulate(&self, fx: EffectSet, seed: u32, accum: &mut [Vec3], first: u32, count: u32) {
-        let w = self.scene.camera.width;
+    /// Adds samples [first, first + count) of every pixel of `crop` to `accum` (row-major
+    /// in the crop), with the full image's random numbers.
+    pub fn accumulate(
+        &self,
+        fx: EffectSet,
+        seed: u32,
+        crop: Crop,
+        accum: &mut [Vec3],
+        first: u32,
+        count: u32,
+    ) {
         accum.par_iter_mut().enumerate().for_each(|(i, a)| {
-            let (x, y) = (i as u32 % w, i as u32 / w);
+            let (x, y) = crop.pixel(i);
             for s in first..first + count {
                 *a += self.sample(fx, seed, x, y, s);
             }

@@ -5,6 +5,8 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
+use super::aov::FirstHit;
+use super::crop::Crop;
 use super::effects::EffectSet;
 use super::scene::{Light, LightKind, RenderScene};
 use crate::error::Result;
@@ -139,10 +141,18 @@ pub struct RenderParams {
     pub ao_distance: f32,
     /// The epsilon of the fixed ray offset (RayOffset::Fixed), scene units.
     pub fixed_offset: f32,
-    /// Padding (zero).
-    pub _pad1: u32,
+    /// First column of the crop rendered (0: the whole image).
+    pub crop_x0: u32,
+    /// First row of the crop rendered.
+    pub crop_y0: u32,
+    /// Columns in the crop: the accumulator is the crop's pixels, row-major.
+    pub crop_width: u32,
+    /// With AOVs: the accumulator entry where they start (two per pixel, after the sums).
+    pub aov_base: u32,
     /// Padding (zero).
     pub _pad2: u32,
+    /// Padding (zero).
+    pub _pad3: u32,
 }
 
 /// The scene and a layout on the device, the render kernel compiled for them, and the
@@ -156,21 +166,26 @@ pub struct GpuRenderer<'a> {
     accum: wgpu::Buffer,
     params: wgpu::Buffer,
     pipelines: HashMap<(EffectSet, Robustness), wgpu::ComputePipeline>,
+    aovs: bool,
     base: RenderParams,
     chunks: Chunks,
 }
 
 impl<'a> GpuRenderer<'a> {
     /// Validates and uploads the layout (in `memory`) and the scene, and compiles the
-    /// kernel; the accumulator starts at zero.
+    /// kernel that renders the pixels of `crop` (checked against the image by the caller),
+    /// writing their AOVs in sample 0 when `aovs`; the accumulator starts at zero.
     pub fn new(
         ctx: &'a GpuContext,
         scene: &RenderScene,
         layout: &dyn Layout,
         memory: BvhMemory,
+        crop: Crop,
+        aovs: bool,
     ) -> Result<Self> {
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
-        let pixels = scene.camera.width * scene.camera.height;
+        // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
+        let pixels = crop.pixels() as u32;
         let shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
             .map(|(i, t)| {
                 let uv = scene.uvs[i];
@@ -245,7 +260,8 @@ impl<'a> GpuRenderer<'a> {
         let n_emitters = emitters.len() as u32;
         emitters.push([0; 2]);
 
-        let accum_bytes = pixels as u64 * 16;
+        // The sums, then (with AOVs) two entries a pixel.
+        let accum_bytes = pixels as u64 * 16 * if aovs { 3 } else { 1 };
         let sized: [(u32, &str, &[u8]); 5] = [
             (
                 bindings::RENDER_SHADES,
@@ -332,6 +348,10 @@ impl<'a> GpuRenderer<'a> {
             emit_total: scene.emitter_cdf.last().copied().unwrap_or(0.0),
             ao_distance: s.ao_distance,
             fixed_offset: scene.fixed_offset(),
+            crop_x0: crop.x0,
+            crop_y0: crop.y0,
+            crop_width: crop.width(),
+            aov_base: pixels,
             ..RenderParams::default()
         };
         Ok(GpuRenderer {
@@ -345,6 +365,7 @@ impl<'a> GpuRenderer<'a> {
             pipelines: HashMap::new(),
             base,
             chunks,
+            aovs,
         })
     }
 
@@ -356,12 +377,26 @@ impl<'a> GpuRenderer<'a> {
             .map(|&(name, on)| (name, if on { 1.0 } else { 0.0 }))
             .collect();
         constants.push(("WORKGROUP_SIZE", WORKGROUP as f64));
+        constants.push(("AOVS", if self.aovs { 1.0 } else { 0.0 }));
         constants.push(self.bvh.override_constant());
         constants.extend(rob.overrides());
         constants.extend(self.layout_constants.iter().copied());
         let p = (self.kernel).pipeline(self.ctx, &constants, !rob.checked_module)?;
         self.pipelines.insert((fx, rob), p.clone());
         Ok(p)
+    }
+
+    /// Compiles the pipeline for `fx` and `rob` unless it is already (the driver's shader
+    /// compilation, kept out of the first sample's time); returns the milliseconds it took
+    /// (0 when it was compiled already).
+    pub fn prepare(&mut self, fx: EffectSet, rob: Robustness) -> Result<f64> {
+        rob.check_gpu()?;
+        if self.pipelines.contains_key(&(fx, rob)) {
+            return Ok(0.0);
+        }
+        let start = std::time::Instant::now();
+        self.pipeline(fx, rob)?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
     /// Sets the accumulator to zero.
@@ -402,8 +437,32 @@ impl<'a> GpuRenderer<'a> {
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
-    /// The accumulated sums, one per pixel, row-major, and for each pixel the number of its
-    /// samples in which the driver cut a traversal short (those sums are wrong).
+    /// The AOVs sample 0 wrote (the renderer was made with `aovs`), one per pixel of the
+    /// crop, row-major. Pixels the driver cut short hold wrong values (see
+    /// [`GpuRenderer::read_accum`]).
+    pub fn read_aovs(&self) -> Result<Vec<FirstHit>> {
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let n = self.chunks.items as u64;
+        let readback = Readback::record(self.ctx, &mut enc, &[(&self.accum, n * 48)]);
+        self.ctx.queue.submit([enc.finish()]);
+        let bytes = readback.read(self.ctx)?;
+        let px: Vec<[f32; 8]> = bytemuck::pod_collect_to_vec(&bytes[0][n as usize * 16..]);
+        Ok(px
+            .iter()
+            .map(|p| match p[0] < 0.0 {
+                true => FirstHit::MISS,
+                false => FirstHit {
+                    depth: p[0],
+                    normal: Vec3::new(p[1], p[2], p[3]),
+                    albedo: Vec3::new(p[4], p[5], p[6]),
+                },
+            })
+            .collect())
+    }
+
+    /// The accumulated sums, one per pixel of the crop, row-major, and for each pixel the
+    /// number of its samples in which the driver cut a traversal short (those sums are
+    /// wrong).
     pub fn read_accum(&self) -> Result<(Vec<Vec3>, Vec<u32>)> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let size = self.chunks.items as u64 * 16;

@@ -1,19 +1,40 @@
-//! Writing renders: PNG (sRGB, 8-bit) or OpenEXR (linear, float), by the file extension.
+//! Writing renders: PNG (sRGB, 8- or 16-bit) or OpenEXR (linear, float), by the file
+//! extension.
+//! A tile's EXR records where the tile sits in the full image (see [`ExrImage`]).
 
 use std::path::Path;
 
 use glam::Vec3;
 
+use super::crop::{Crop, Tile};
+use super::exr::ExrImage;
 use crate::error::{Error, Result};
 
-fn srgb(x: f32) -> u8 {
+/// Linear → sRGB-encoded, in [0, 1] (values clipped, NaN as 0).
+fn srgb_encoded(x: f32) -> f32 {
     let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
-    let s = if x <= 0.003_130_8 {
+    if x <= 0.003_130_8 {
         12.92 * x
     } else {
         1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
+    }
+}
+
+fn srgb(x: f32) -> u8 {
+    (srgb_encoded(x) * 255.0).round() as u8
+}
+
+/// Linear radiance → a 16-bit sRGB image (values clipped to [0, 1]).
+pub fn to_rgb16(
+    px: &[Vec3],
+    width: u32,
+    height: u32,
+) -> image::ImageBuffer<image::Rgb<u16>, Vec<u16>> {
+    let q = |x: f32| (srgb_encoded(x) * 65535.0).round() as u16;
+    image::ImageBuffer::from_fn(width, height, |x, y| {
+        let c = px[(y * width + x) as usize];
+        image::Rgb([q(c.x), q(c.y), q(c.z)])
+    })
 }
 
 /// Linear radiance → an 8-bit sRGB image (values clipped to [0, 1]).
@@ -75,13 +96,47 @@ pub struct Image {
     pub height: u32,
     /// `width × height` linear RGB values.
     pub pixels: Vec<Vec3>,
+    /// For a tile of a larger image (a render with a crop): where it sits. None: the
+    /// whole image.
+    pub tile: Option<Tile>,
 }
 
 impl Image {
     /// Saves the image as PNG (sRGB 8-bit) or EXR (linear float), chosen by the extension,
-    /// written atomically.
+    /// written atomically. A tile's EXR has its bounds as data window and the full image as
+    /// display window; a tile's PNG holds the tile's pixels only.
     pub fn save(&self, path: &Path) -> Result<()> {
-        save_image(path, &self.pixels, self.width, self.height)
+        match image_kind(path)? {
+            ImageKind::Png => save_image(path, &self.pixels, self.width, self.height),
+            ImageKind::Exr => self.to_exr().write(path),
+        }
+    }
+
+    /// Saves the image as a 16-bit sRGB PNG, written atomically.
+    pub fn save_png16(&self, path: &Path) -> Result<()> {
+        let png = to_rgb16(&self.pixels, self.width, self.height);
+        crate::output::write_atomic(path, |w| {
+            png.write_to(w, image::ImageFormat::Png)
+                .map_err(std::io::Error::other)
+        })
+    }
+
+    /// The image as EXR channels R, G, B, placed as its tile says.
+    pub fn to_exr(&self) -> ExrImage {
+        let tile = self.tile.unwrap_or(Tile {
+            bounds: Crop::full(self.width, self.height),
+            full_width: self.width,
+            full_height: self.height,
+        });
+        let channel = |k: usize| self.pixels.iter().map(|c| c[k]).collect();
+        ExrImage {
+            tile,
+            channels: vec![
+                ("B".into(), channel(2)),
+                ("G".into(), channel(1)),
+                ("R".into(), channel(0)),
+            ],
+        }
     }
 
     /// The image as 8-bit sRGB (values clipped to [0, 1]).

@@ -69,6 +69,7 @@ pub fn load_image(path: &Path) -> Result<Image> {
         pixels: (rgb.pixels())
             .map(|p| Vec3::from_array(p.0.map(linear)))
             .collect(),
+        tile: None,
     })
 }
 

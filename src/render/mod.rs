@@ -2,22 +2,30 @@
 //! reference renderer and the GPU renderer (one WGSL source specialised per effect set),
 //! behind one [`Renderer`].
 
+mod aov;
 mod cpu;
+mod crop;
 mod effects;
+mod exr;
 mod gpu;
 mod image;
 mod image_compare;
+mod merge;
 mod renderer;
 pub(crate) mod sampling;
 mod scene;
 
+pub use aov::{AovSet, Aovs, FirstHit};
 pub use cpu::{sample_texture, CpuRenderer};
+pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
+pub use exr::ExrImage;
 pub use gpu::{
     GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED, MAT_TWO_SIDED,
 };
-pub use image::{heat_ramp, image_kind, save_image, to_rgb8, Image, ImageKind};
+pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};
+pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
 pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::{

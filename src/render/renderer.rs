@@ -1,24 +1,28 @@
-//! One renderer API for both devices: build the scene's BVH once, then render with a number
-//! of samples, a time limit, a cancel flag and a progress callback. The progressive loop and
-//! the division by the sample count live here, not in callers.
+//! One renderer API for both devices: build the scene's acceleration structure once, then
+//! render with a number of samples, a time limit, a cancel flag and a progress callback. The
+//! progressive loop and the division by the sample count live here, not in callers.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
+use rayon::prelude::*;
 
+use super::aov::{Aovs, FirstHit};
 use super::cpu::CpuRenderer;
+use super::crop::{Crop, Tile};
 use super::effects::EffectSet;
 use super::gpu::GpuRenderer;
 use super::image::Image;
 use super::scene::RenderScene;
 use crate::accel::bvh::{self, BuildOptions, BvhStats};
+use crate::accel::{self, Accel, AccelKind};
 use crate::device::Device;
 use crate::error::{Error, Result};
 use crate::geometry::Robustness;
 use crate::gpu::BvhMemory;
-use crate::layout::{self, Layout, LayoutKind};
+use crate::layout::{self, Layout};
 
 /// Where a render stands, for a progress callback.
 #[derive(Clone, Copy, Debug)]
@@ -53,12 +57,18 @@ pub struct RenderOptions {
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called after every sample.
     pub progress: Option<ProgressFn>,
-    /// BVH builder (used by [`Renderer::new`]).
+    /// BVH builder (used by [`Renderer::new`] for a BVH).
     pub build: BuildOptions,
-    /// Flattened layout (used by [`Renderer::new`]).
-    pub layout: LayoutKind,
+    /// Acceleration structure, a BVH with its flattened layout (used by [`Renderer::new`]).
+    pub accel: AccelKind,
     /// GPU: where the kernel reads the BVH from (used by [`Renderer::new`]).
     pub memory: BvhMemory,
+    /// Render only these pixels of the image, with the full image's random numbers (used
+    /// by [`Renderer::new`]; None: the whole image).
+    pub crop: Option<Crop>,
+    /// Compute the AOVs (first-hit depth, normal, albedo of sample 0's camera rays; used by
+    /// [`Renderer::new`]).
+    pub aovs: bool,
 }
 
 /// Why a render stopped.
@@ -85,76 +95,143 @@ pub struct Rendered {
     pub stop: Stop,
     /// The effects simulated.
     pub effects: EffectSet,
-    /// Seconds spent sampling.
+    /// Seconds spent sampling (pipeline compilation excluded).
     pub seconds: f64,
+    /// GPU: milliseconds compiling the kernel's pipeline for the effects before the first
+    /// sample (0 on the CPU, or when this renderer had compiled it already).
+    pub compile_ms: f64,
+    /// Milliseconds the first sample took (after compilation).
+    pub first_sample_ms: f64,
+    /// The AOVs, when asked for ([`RenderOptions::aovs`]).
+    pub aovs: Option<Aovs>,
     /// Pixels whose GPU samples the driver cut short (a loop-iteration cap, see
     /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), rendered again on the CPU: they are the CPU
     /// reference's, bit for bit.
     pub cpu_pixels: usize,
 }
 
-/// A scene's BVH built, flattened and (on a GPU) uploaded with the render kernel.
+/// A scene's acceleration structure built and (on a GPU) uploaded with the render kernel.
 pub struct Renderer<'a> {
     scene: &'a RenderScene,
-    layout: Box<dyn Layout>,
-    stats: BvhStats,
+    kind: AccelKind,
+    /// What the CPU traces: the structure, or the GPU form's twin.
+    accel: Arc<dyn Accel>,
+    stats: Option<BvhStats>,
     build_ms: f64,
+    upload_ms: f64,
+    crop: Crop,
+    aovs: bool,
     gpu: Option<GpuRenderer<'a>>,
 }
 
 impl<'a> Renderer<'a> {
-    /// Builds the scene's BVH with `options.build`, flattens it in `options.layout`, and on
-    /// a GPU uploads it (in `options.memory`) with the scene.
+    /// Builds the scene's structure `options.accel` (a BVH with `options.build`, flattened
+    /// in its layout), and on a GPU its GPU form, uploaded (in `options.memory`) with the
+    /// scene. A structure without a GPU kernel on a GPU device, and a crop that is empty or
+    /// reaches outside the image, are [`Error::Usage`]s.
     pub fn new(
         scene: &'a RenderScene,
         device: &'a Device,
         options: &RenderOptions,
     ) -> Result<Self> {
-        // Accumulator, image and encoding: about 48 bytes a pixel on either device.
         let (w, h) = (scene.camera.width, scene.camera.height);
-        crate::limits::check_image(w, h, 48, "use a smaller --width/--height")?;
+        // Pixel indices of the full image seed the random numbers: they must fit a u32.
+        crate::limits::check_image(w, h, 0, "use a smaller --width/--height")?;
+        let crop = options.crop.unwrap_or(Crop::full(w, h));
+        crop.check(w, h)?;
+        // Accumulator, image and encoding: about 48 bytes a pixel on either device.
+        crate::limits::check_image(
+            crop.width(),
+            crop.height(),
+            48,
+            "use a smaller --width/--height or render tiles (--crop)",
+        )?;
+        let kind = options.accel;
         let start = Instant::now();
-        let tree = bvh::build(&scene.mesh, &options.build);
-        let layout = layout::flatten(options.layout, &tree, &scene.mesh);
+        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn Layout>>, _) = match kind {
+            AccelKind::Bvh(layout_kind) => {
+                let tree = bvh::build(&scene.mesh, &options.build);
+                let flat: Arc<dyn Layout> = layout::flatten(layout_kind, &tree, &scene.mesh).into();
+                (flat.clone(), Some(flat), Some(tree))
+            }
+            _ if device.is_cpu() => (
+                accel::build(kind, &scene.mesh, &options.build)?.into(),
+                None,
+                None,
+            ),
+            _ => match accel::build_gpu(kind, &scene.mesh, &options.build)? {
+                Some(flat) => (flat.clone(), Some(flat), None),
+                None => {
+                    return Err(Error::Usage(format!(
+                        "the {kind} structure runs on the CPU only (only the BVH, the kd-tree \
+                         and the BIH have GPU kernels): use --device cpu"
+                    )))
+                }
+            },
+        };
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
-        let stats = BvhStats::of(&tree, &options.build);
-        drop(tree);
-        let gpu = match device.gpu_context() {
-            Some(ctx) => Some(GpuRenderer::new(
+        let stats = stats.map(|tree| BvhStats::of(&tree, &options.build));
+        let start = Instant::now();
+        let gpu = match (device.gpu_context(), &gpu_form) {
+            (Some(ctx), Some(flat)) => Some(GpuRenderer::new(
                 ctx,
                 scene,
-                layout.as_ref(),
+                flat.as_ref(),
                 options.memory,
+                crop,
+                options.aovs,
             )?),
-            None => None,
+            _ => None,
         };
+        let upload_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(Renderer {
             scene,
-            layout,
+            kind,
+            accel,
             stats,
             build_ms,
+            upload_ms,
+            crop,
+            aovs: options.aovs,
             gpu,
         })
     }
 
-    /// The BVH's shape and cost.
-    pub fn bvh_stats(&self) -> &BvhStats {
-        &self.stats
+    /// The BVH's shape and cost (None for the other structures).
+    pub fn bvh_stats(&self) -> Option<&BvhStats> {
+        self.stats.as_ref()
     }
 
-    /// Milliseconds spent building and flattening the BVH.
+    /// Milliseconds spent building (and flattening) the structure.
     pub fn build_ms(&self) -> f64 {
         self.build_ms
     }
 
-    /// The flattened layout (on the CPU, the structure traced).
-    pub fn layout(&self) -> &dyn Layout {
-        self.layout.as_ref()
+    /// GPU: milliseconds spent uploading the structure and the scene and creating the shader
+    /// module (parsed and validated; the driver compiles it per effect set, see
+    /// [`Rendered::compile_ms`]). 0 on the CPU.
+    pub fn upload_ms(&self) -> f64 {
+        self.upload_ms
     }
 
-    /// Adds sample `sample` of every pixel to `accum` (CPU) or to the device's accumulator
-    /// (GPU) and returns the milliseconds it took. For benches; [`Renderer::render`] runs
-    /// the whole loop.
+    /// The structure rendered through.
+    pub fn structure(&self) -> AccelKind {
+        self.kind
+    }
+
+    /// The structure the CPU traces (on a GPU, the twin of the GPU kernel's).
+    pub fn accel(&self) -> &dyn Accel {
+        self.accel.as_ref()
+    }
+
+    /// The pixels rendered: the crop asked for, or the whole image.
+    pub fn crop(&self) -> Crop {
+        self.crop
+    }
+
+    /// Adds sample `sample` of every pixel of the crop to `accum` (CPU) or to the device's
+    /// accumulator (GPU) and returns the milliseconds it took. For benches;
+    /// [`Renderer::render`] runs the whole loop.
     pub fn add_sample(
         &mut self,
         fx: EffectSet,
@@ -169,8 +246,8 @@ impl<'a> Renderer<'a> {
                 g.add_sample(fx, robustness, seed, sample)?;
             }
             None => {
-                let cpu = CpuRenderer::new(self.scene, self.layout.as_ref(), robustness);
-                cpu.accumulate(fx, seed, accum, sample, 1);
+                let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), robustness);
+                cpu.accumulate(fx, seed, self.crop, accum, sample, 1);
             }
         }
         Ok(start.elapsed().as_secs_f64() * 1e3)
@@ -186,11 +263,15 @@ impl<'a> Renderer<'a> {
         let fx = options.effects.unwrap_or_else(|| EffectSet::of(self.scene));
         let rob = options.robustness;
         let (w, h) = (self.scene.camera.width, self.scene.camera.height);
-        let pixels = w as usize * h as usize;
+        let crop = self.crop;
+        let pixels = crop.pixels();
         let mut accum = vec![Vec3::ZERO; if self.gpu.is_some() { 0 } else { pixels }];
+        let mut compile_ms = 0.0;
         if let Some(g) = &mut self.gpu {
             g.clear()?;
+            compile_ms = g.prepare(fx, rob)?;
         }
+        let mut first_sample_ms = 0.0;
         let cancelled = || (options.cancel.as_ref()).is_some_and(|c| c.load(Ordering::SeqCst));
         let start = Instant::now();
         let mut done = 0u32;
@@ -208,7 +289,10 @@ impl<'a> Renderer<'a> {
                     break;
                 }
             }
-            self.add_sample(fx, rob, seed, done, &mut accum)?;
+            let ms = self.add_sample(fx, rob, seed, done, &mut accum)?;
+            if done == 0 {
+                first_sample_ms = ms;
+            }
             done += 1;
             if let Some(p) = &options.progress {
                 let elapsed = start.elapsed();
@@ -227,9 +311,26 @@ impl<'a> Renderer<'a> {
             ));
         }
         let mut cpu_pixels = 0;
+        let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), rob);
+        let mut aovs = None;
+        if self.aovs && self.gpu.is_none() {
+            let hits: Vec<FirstHit> = (0..pixels)
+                .into_par_iter()
+                .map(|i| {
+                    let (x, y) = crop.pixel(i);
+                    cpu.first_hit(fx, seed, x, y)
+                })
+                .collect();
+            aovs = Some(Aovs::of(&hits));
+        }
         if let Some(g) = &self.gpu {
             let (sums, cut) = g.read_accum()?;
             accum = sums;
+            let mut hits = if self.aovs {
+                g.read_aovs()?
+            } else {
+                Vec::new()
+            };
             let redo: Vec<usize> = (0..cut.len()).filter(|&i| cut[i] > 0).collect();
             if !redo.is_empty() {
                 log::warn!(
@@ -237,32 +338,45 @@ impl<'a> Renderer<'a> {
                      rendered them again on the CPU",
                     redo.len()
                 );
-                let cpu = CpuRenderer::new(self.scene, self.layout.as_ref(), rob);
                 for &i in &redo {
-                    let (x, y) = (i as u32 % w, i as u32 / w);
+                    let (x, y) = crop.pixel(i);
                     accum[i] = (0..done).fold(Vec3::ZERO, |a, s| a + cpu.sample(fx, seed, x, y, s));
+                    if let Some(h) = hits.get_mut(i) {
+                        *h = cpu.first_hit(fx, seed, x, y);
+                    }
                 }
             }
             cpu_pixels = redo.len();
+            if self.aovs {
+                aovs = Some(Aovs::of(&hits));
+            }
         }
         let inv = 1.0 / done as f32;
         Ok(Rendered {
             image: Image {
-                width: w,
-                height: h,
+                width: crop.width(),
+                height: crop.height(),
                 pixels: accum.iter().map(|c| *c * inv).collect(),
+                tile: (crop != Crop::full(w, h)).then_some(Tile {
+                    bounds: crop,
+                    full_width: w,
+                    full_height: h,
+                }),
             },
             samples: done,
             requested: spp,
             stop,
             effects: fx,
             seconds,
+            compile_ms,
+            first_sample_ms,
+            aovs,
             cpu_pixels,
         })
     }
 }
 
-/// Builds the scene's BVH on `device` and renders it: [`Renderer::new`] then
+/// Builds the scene's structure on `device` and renders it: [`Renderer::new`] then
 /// [`Renderer::render`].
 pub fn render(scene: &RenderScene, device: &Device, options: &RenderOptions) -> Result<Rendered> {
     Renderer::new(scene, device, options)?.render(options)

@@ -1,0 +1,44 @@
+use std::path::PathBuf;
+
+use clap::Args;
+use lancer::render::{image_kind, merge_tiles, ExrImage, ImageKind};
+use lancer::{Error, Result};
+
+#[derive(Args)]
+pub struct MergeCmd {
+    /// EXR tiles of one render (`lancer render --crop … -o tile.exr`), in any order.
+    #[arg(required = true)]
+    tiles: Vec<PathBuf>,
+    /// The full image (.exr); never one of the tiles.
+    #[arg(short, long)]
+    out: PathBuf,
+}
+
+impl MergeCmd {
+    pub fn run(self) -> Result<()> {
+        if image_kind(&self.out)? != ImageKind::Exr {
+            return Err(Error::input(
+                &self.out,
+                None,
+                "merge writes OpenEXR: use a .exr file name",
+            ));
+        }
+        lancer::output::check_output(&self.out, &self.tiles)?;
+        let tiles = (self.tiles.iter())
+            .map(|p| Ok((p.clone(), ExrImage::read(p)?)))
+            .collect::<Result<Vec<_>>>()?;
+        let full = merge_tiles(&tiles)?;
+        full.write(&self.out)?;
+        println!(
+            "{} tiles -> {} ({}x{}, channels {})",
+            tiles.len(),
+            self.out.display(),
+            full.tile.full_width,
+            full.tile.full_height,
+            (full.channels.iter().map(|c| c.0.as_str()))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+        Ok(())
+    }
+}
