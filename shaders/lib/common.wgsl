@@ -110,9 +110,9 @@ fn watertight_setup(dir: vec3<f32>) -> Watertight {
     return Watertight(kx, ky, kz, vec3<f32>(dir[kx] * sz, dir[ky] * sz, sz));
 }
 
-// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2), t's error bound
-// as the quotient num / det, and whether a hit whose bound reaches back past the origin is
-// proven in front of it all the same (geometry::TriHit).
+// Result of a triangle test: ok, t, u (weight of v1), v (weight of v2), and t's error bound
+// as the quotient num / det (geometry::TriHit; its in_front is computed by
+// maybe_behind_origin, only where it is needed).
 struct TriHit {
     ok: bool,
     t: f32,
@@ -120,12 +120,28 @@ struct TriHit {
     v: f32,
     num: f32,
     det: f32,
-    in_front: bool,
 }
 
-// TriHit::maybe_behind_origin
-fn maybe_behind_origin(h: TriHit) -> bool {
-    return abs(h.t) * h.det <= h.num && !h.in_front;
+// TriHit::maybe_behind_origin for hit h of triangle (v0, v1, v2). The Rust test computes
+// in_front (geometry::grazing_in_front) inside the watertight test; here it is computed
+// from the same values, in the same operations, only for the rare hit that needs it, so
+// that kernels without the near-hit rule, and every other hit, don't carry it.
+fn maybe_behind_origin(h: TriHit, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
+                       w: Watertight) -> bool {
+    if !(abs(h.t) * h.det <= h.num) {
+        return false;
+    }
+    if MOLLER_TRUMBORE {
+        return true;
+    }
+    let a = v0 - origin;
+    let b = v1 - origin;
+    let c = v2 - origin;
+    let sa = vec3<f32>(a[w.kx] - w.s.x * a[w.kz], a[w.ky] - w.s.y * a[w.kz], a[w.kz]);
+    let sb = vec3<f32>(b[w.kx] - w.s.x * b[w.kz], b[w.ky] - w.s.y * b[w.kz], b[w.kz]);
+    let sc = vec3<f32>(c[w.kx] - w.s.x * c[w.kz], c[w.ky] - w.s.y * c[w.kz], c[w.kz]);
+    let mzu = max(max(abs(a[w.kz]), abs(b[w.kz])), abs(c[w.kz]));
+    return !grazing_in_front(sa, sb, sc, w.s.z, h.t, mzu);
 }
 
 // geometry::grazing_in_front
@@ -166,7 +182,7 @@ fn hit_prune(h: TriHit) -> f32 {
 
 // intersect_watertight (Woop, Benthin & Wald 2013)
 fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>, w: Watertight, tmin: f32, tmax: f32) -> TriHit {
-    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0, false);
+    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
     let a = v0 - origin;
     let b = v1 - origin;
     let c = v2 - origin;
@@ -197,20 +213,14 @@ fn intersect_watertight(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec
         let mz = max(max(abs(az), abs(bz)), abs(cz));
         let mzu = max(max(abs(a[w.kz]), abs(b[w.kz])), abs(c[w.kz]));
         let me = max(max(abs(u), abs(v)), abs(ww));
-        let num = t_error_numerator(mx, my, mz, mzu, me);
-        var in_front = false;
-        if abs(t) * abs(det) <= num {
-            in_front = grazing_in_front(vec3<f32>(ax, ay, a[w.kz]), vec3<f32>(bx, by, b[w.kz]),
-                                        vec3<f32>(cx, cy, c[w.kz]), w.s.z, t, mzu);
-        }
-        res = TriHit(true, t, v / det, ww / det, num, abs(det), in_front);
+        res = TriHit(true, t, v / det, ww / det, t_error_numerator(mx, my, mz, mzu, me), abs(det));
     }
     return res;
 }
 
 // intersect_moller_trumbore
 fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray, tmin: f32, tmax: f32) -> TriHit {
-    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0, false);
+    var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
     let e1 = v1 - v0;
     let e2 = v2 - v0;
     let p = cross(r.dir, e2);
@@ -231,7 +241,7 @@ fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray
     }
     let t = dot(e2, q) * inv;
     if t >= tmin && t <= tmax {
-        res = TriHit(true, t, u, v, 0.0, 1.0, false);
+        res = TriHit(true, t, u, v, 0.0, 1.0);
     }
     return res;
 }
@@ -278,7 +288,7 @@ fn t_error_bound(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
     let v = sx[0] * sy[2] - sy[0] * sx[2];
     let ww = sx[1] * sy[0] - sy[1] * sx[0];
     let me = max(max(abs(u), abs(v)), abs(ww));
-    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, mzu, me), abs(u + v + ww), false));
+    return t_error(TriHit(true, 0.0, 0.0, 0.0, t_error_numerator(mx, my, mz, mzu, me), abs(u + v + ww)));
 }
 
 // t_error_numerator
