@@ -33,9 +33,11 @@ impl AdaptersCmd {
                 None => "no".into(),
             };
             println!(
-                "   features          subgroups {subgroups}, timestamps {}, shader f64 {}",
+                "   features          subgroups {subgroups}, timestamps {}, shader f64 {}, \
+                 ray queries {}",
                 yes(a.timestamps),
-                yes(a.shader_f64)
+                yes(a.shader_f64),
+                yes(a.ray_query)
             );
             if a.device_type == "Cpu" {
                 println!("   (a software driver: it runs on the CPU)");

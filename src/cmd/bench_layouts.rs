@@ -9,7 +9,7 @@ use std::time::Instant;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::build;
-use lancer::gpu::BvhMemory;
+use lancer::gpu::{BvhMemory, DriverTracer};
 use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
 use lancer::mesh::load_mesh;
 use lancer::{
@@ -58,27 +58,26 @@ pub struct BenchLayouts {
 }
 
 /// One layout × mode × ray set (a JSON `runs` entry).
-#[derive(Serialize)]
+#[derive(Clone, Serialize)]
 struct Row {
-    /// `--layout` name.
-    #[serde(serialize_with = "layout_name")]
-    layout: LayoutKind,
-    /// Traversal mode: per-ray or subgroup.
-    #[serde(serialize_with = "mode_name")]
-    mode: TraversalMode,
+    /// `--layout` name, or "driver" (the driver's own traversal through ray queries).
+    layout: &'static str,
+    /// Traversal mode: per-ray or subgroup ("ray-query" on the driver row).
+    mode: &'static str,
     /// primary (closest hit), shadow (any hit) or bounce (closest hit).
     rays: String,
     /// Rays in the set.
     count: usize,
-    /// Mean nodes visited per ray (subgroup rows: loaded by the ray's subgroup).
+    /// Mean nodes visited per ray (subgroup rows: loaded by the ray's subgroup); null on
+    /// the driver row (the driver does not say).
     #[serde(rename = "nodes_per_ray")]
-    nodes: f64,
-    /// Mean triangles tested per ray.
+    nodes: Option<f64>,
+    /// Mean triangles tested per ray (null on the driver row).
     #[serde(rename = "triangles_per_ray")]
-    tris: f64,
-    /// Nodes × node size + triangles × 48 bytes.
+    tris: Option<f64>,
+    /// Nodes × node size + triangles × 48 bytes (null on the driver row).
     #[serde(rename = "bytes_loaded_per_ray")]
-    bytes_loaded: f64,
+    bytes_loaded: Option<f64>,
     /// CPU twin, median of --repeat runs; null on subgroup rows (the twin traces per ray).
     #[serde(rename = "cpu_mrays_per_s")]
     cpu_mrays: Option<f64>,
@@ -122,16 +121,15 @@ struct Report<'a> {
     cpu_threads: usize,
     /// One object per layout.
     layouts: &'a [Size],
+    /// Wall time of the driver's build of its own acceleration structure (the driver rows);
+    /// null where the adapter has no ray queries or one layout was asked for.
+    driver_build_ms: Option<f64>,
     /// One object per layout, mode and ray set.
     runs: &'a [Row],
 }
 
 fn layout_name<S: Serializer>(k: &LayoutKind, s: S) -> std::result::Result<S::Ok, S::Error> {
     s.serialize_str(k.name())
-}
-
-fn mode_name<S: Serializer>(m: &TraversalMode, s: S) -> std::result::Result<S::Ok, S::Error> {
-    s.serialize_str(m.name())
 }
 
 /// GPU Mrays/s of `tracer` (statistics off): the median of `repeat` timed runs, after an
@@ -156,7 +154,55 @@ fn time_gpu(
     Ok(rays.len() as f64 / median(times) / 1e6)
 }
 
+/// The driver row's layout and mode names.
+const DRIVER: &str = "driver";
+const RAY_QUERY: &str = "ray-query";
+
 impl BenchLayouts {
+    /// The driver's own traversal on each ray set, where the adapter offers ray queries and
+    /// every layout is measured: its build time (ms) and one row per set.
+    fn time_driver(
+        &self,
+        device: &Device,
+        leaf_order: &dyn Layout,
+        sets: &[(String, Query, Vec<Ray>)],
+        bar: &ProgressBar,
+    ) -> Result<Option<(f64, Vec<Row>)>> {
+        let Some(ctx) = device.gpu_context().filter(|c| c.ray_query) else {
+            return Ok(None);
+        };
+        if !matches!(self.layouts, LayoutChoice::All) {
+            return Ok(None);
+        }
+        let repeat = self.repeat as usize;
+        bar.inc_length((sets.len() * repeat) as u64);
+        bar.set_message(DRIVER);
+        let mut driver = DriverTracer::new(ctx, leaf_order)?;
+        let mut rows = Vec::new();
+        for (name, query, rays) in sets {
+            // An untimed run compiles the pipeline.
+            driver.trace(&rays[..rays.len().min(1024)], *query)?;
+            let mut times = Vec::new();
+            for _ in 0..repeat {
+                let t = driver.trace(rays, *query)?.1;
+                times.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
+                bar.inc(1);
+            }
+            rows.push(Row {
+                layout: DRIVER,
+                mode: RAY_QUERY,
+                rays: name.clone(),
+                count: rays.len(),
+                nodes: None,
+                tris: None,
+                bytes_loaded: None,
+                cpu_mrays: None,
+                gpu_mrays: Some(rays.len() as f64 / median(times) / 1e6),
+            });
+        }
+        Ok(Some((driver.build_ms(), rows)))
+    }
+
     pub fn run(self) -> Result<()> {
         let say = self.json.say();
         self.json.check(std::slice::from_ref(&self.mesh))?;
@@ -237,13 +283,13 @@ impl BenchLayouts {
                         + tris * std::mem::size_of::<LeafTri>() as f64
                 };
                 rows.push(Row {
-                    layout: kind,
-                    mode: TraversalMode::PerRay,
+                    layout: kind.name(),
+                    mode: TraversalMode::PerRay.name(),
                     rays: name.clone(),
                     count: rays.len(),
-                    nodes,
-                    tris,
-                    bytes_loaded: bytes_loaded(nodes, tris),
+                    nodes: Some(nodes),
+                    tris: Some(tris),
+                    bytes_loaded: Some(bytes_loaded(nodes, tris)),
                     cpu_mrays: Some(n / median(times) / 1e6),
                     gpu_mrays,
                 });
@@ -253,18 +299,22 @@ impl BenchLayouts {
                     let (nodes, tris) = RayStats::means(&stats);
                     let mrays = time_gpu(g, rays, *query, repeat, &bar)?;
                     rows.push(Row {
-                        layout: kind,
-                        mode: TraversalMode::Subgroup,
+                        layout: kind.name(),
+                        mode: TraversalMode::Subgroup.name(),
                         rays: name.clone(),
                         count: rays.len(),
-                        nodes,
-                        tris,
-                        bytes_loaded: bytes_loaded(nodes, tris),
+                        nodes: Some(nodes),
+                        tris: Some(tris),
+                        bytes_loaded: Some(bytes_loaded(nodes, tris)),
                         cpu_mrays: None,
                         gpu_mrays: Some(mrays),
                     });
                 }
             }
+        }
+        let driver = self.time_driver(&device, reference.as_ref(), &sets, &bar)?;
+        if let Some((_, driver_rows)) = &driver {
+            rows.extend(driver_rows.iter().cloned());
         }
         bar.finish_and_clear();
         let adapter = device
@@ -301,23 +351,43 @@ impl BenchLayouts {
         say!(say);
         say!(say, "| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |");
         say!(say, "|---|---|---|---|---|---|---|---|---|");
-        let or_dash = |x: Option<f64>| x.map_or("–".to_string(), |g| format!("{g:.2}"));
+        let or_dash = |x: Option<f64>, digits: usize| {
+            x.map_or("–".to_string(), |g| format!("{g:.digits$}"))
+        };
         for r in &rows {
             say!(
                 say,
-                "| {} | {} | {} | {} | {:.1} | {:.1} | {:.0} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 r.layout,
                 r.mode,
                 r.rays,
                 r.count,
-                r.nodes,
-                r.tris,
-                r.bytes_loaded,
-                or_dash(r.cpu_mrays),
-                or_dash(r.gpu_mrays)
+                or_dash(r.nodes, 1),
+                or_dash(r.tris, 1),
+                or_dash(r.bytes_loaded, 0),
+                or_dash(r.cpu_mrays, 2),
+                or_dash(r.gpu_mrays, 2)
             );
         }
-        if rows.iter().any(|r| r.mode == TraversalMode::Subgroup) {
+        match (&driver, device.gpu_context()) {
+            (Some((build_ms, _)), _) => say!(
+                say,
+                "\ndriver rows: the driver's own traversal through ray queries, its acceleration \
+                 structure built by the driver in {build_ms:.1} ms over the {} leaf triangles \
+                 (in their order); it reports no work counts.",
+                LayoutKind::default()
+            ),
+            (None, Some(c)) if !c.ray_query => say!(
+                say,
+                "\nno driver rows: {} offers no ray queries (lavapipe from Mesa 25 does)",
+                c.adapter
+            ),
+            _ => {}
+        }
+        if rows
+            .iter()
+            .any(|r| r.mode == TraversalMode::Subgroup.name())
+        {
             say!(say);
             say!(
                 say,
@@ -334,12 +404,13 @@ impl BenchLayouts {
                     categories.push(format!("{name} GPU"));
                 }
             }
-            // One series per layout and mode (subgroup rows have no CPU bar).
+            // One series per layout and mode (subgroup and driver rows have no CPU bar).
             let mut series: Vec<(String, Vec<f64>)> = Vec::new();
             for &kind in &kinds {
                 for &mode in TraversalMode::ALL {
                     let mut values = Vec::new();
-                    for r in rows.iter().filter(|r| r.layout == kind && r.mode == mode) {
+                    let same = |r: &&Row| r.layout == kind.name() && r.mode == mode.name();
+                    for r in rows.iter().filter(same) {
                         values.push(r.cpu_mrays.unwrap_or(f64::NAN));
                         if !device.is_cpu() {
                             values.push(r.gpu_mrays.unwrap_or(f64::NAN));
@@ -349,6 +420,13 @@ impl BenchLayouts {
                         series.push((format!("{kind} ({mode})"), values));
                     }
                 }
+            }
+            if let Some((_, driver_rows)) = &driver {
+                let values = driver_rows
+                    .iter()
+                    .flat_map(|r| [f64::NAN, r.gpu_mrays.unwrap_or(f64::NAN)])
+                    .collect();
+                series.push((format!("{DRIVER} ({RAY_QUERY})"), values));
             }
             let gpu_name = device
                 .gpu_context()
@@ -372,6 +450,7 @@ impl BenchLayouts {
             bvh_memory: spelled(self.bvh_memory),
             cpu_threads: rayon::current_num_threads(),
             layouts: &sizes,
+            driver_build_ms: driver.as_ref().map(|d| d.0),
             runs: &rows,
         };
         self.json.write(&report, say)?;

@@ -8,9 +8,10 @@ use std::sync::Arc;
 
 use clap::Args;
 use lancer::accel::bvh::build;
+use lancer::gpu::DriverTracer;
 use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
-use lancer::trace::compare::compare_hits;
+use lancer::trace::compare::{compare_hits, compare_hits_independent};
 use lancer::trace::files::read_rays;
 use lancer::{Device, Error, Query, Ray, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
@@ -54,6 +55,14 @@ struct CheckRow {
     genuine_ties: usize,
     /// Wrong answers.
     disagree: usize,
+}
+
+/// A query as the JSON names it.
+fn query_name(query: Query) -> &'static str {
+    match query {
+        Query::Closest => "closest",
+        Query::Any => "any",
+    }
 }
 
 /// A layout, or all of them.
@@ -233,10 +242,7 @@ impl CheckCmd {
                         layout: kind.name(),
                         mode: mode.name(),
                         rays: name.clone(),
-                        query: match query {
-                            Query::Closest => "closest",
-                            Query::Any => "any",
-                        },
+                        query: query_name(*query),
                         ran: true,
                         count: rays.len(),
                         identical: cmp.identical,
@@ -262,6 +268,52 @@ impl CheckCmd {
                     bad += cmp.disagree.len();
                 }
             }
+        }
+        // The driver's own traversal, an independent oracle where the adapter has ray
+        // queries: against the default layout's CPU twin.
+        if ctx.ray_query {
+            let reference: Arc<dyn Layout> = flatten(LayoutKind::default(), &tree, &mesh).into();
+            let mut twin = Tracer::with_layout(&cpu, reference.clone(), &TracerOptions::default())?;
+            let mut driver = DriverTracer::new(ctx, reference.as_ref())?;
+            for (name, query, rays) in &sets {
+                let c = twin.trace(rays, *query)?.hits;
+                let d = driver.trace(rays, *query)?.0;
+                let cmp = compare_hits_independent(&mesh, rays, *query, &c, &d);
+                say!(
+                    say,
+                    "| driver | ray-query | {name} | {query:?} | {} | {} | {} | {} | {} |",
+                    rays.len(),
+                    cmp.identical,
+                    cmp.agree,
+                    cmp.ties,
+                    cmp.disagree.len()
+                );
+                for x in cmp.disagree.iter().take(3) {
+                    eprintln!(
+                        "  driver {name} ray {}: CPU {:?}, driver {:?}: {}",
+                        x.ray, x.reference, x.other, x.why
+                    );
+                }
+                bad += cmp.disagree.len();
+                rows.push(CheckRow {
+                    layout: "driver",
+                    mode: "ray-query",
+                    rays: name.clone(),
+                    query: query_name(*query),
+                    ran: true,
+                    count: rays.len(),
+                    identical: cmp.identical,
+                    agree: cmp.agree,
+                    genuine_ties: cmp.ties,
+                    disagree: cmp.disagree.len(),
+                });
+            }
+        } else {
+            say!(
+                say,
+                "(no driver rows: {} offers no ray queries; lavapipe from Mesa 25 does)",
+                ctx.adapter.name
+            );
         }
         if self.json {
             print_json(&CheckReport {

@@ -24,6 +24,9 @@ pub struct AdapterSummary {
     pub subgroups: Option<(u32, u32)>,
     /// Timestamp queries (GPU times in the benches).
     pub timestamps: bool,
+    /// The driver's own ray queries (wgpu's experimental feature): the `driver` reference
+    /// row of `bench layouts` and `check`.
+    pub ray_query: bool,
     /// f64 in shaders (lancer's kernels do not use it; reported for comparison).
     pub shader_f64: bool,
 }
@@ -50,6 +53,7 @@ pub fn adapters() -> Result<Vec<AdapterSummary>> {
                     .contains(wgpu::Features::SUBGROUP)
                     .then_some((info.subgroup_min_size, info.subgroup_max_size)),
                 timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+                ray_query: features.contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY),
                 shader_f64: features.contains(wgpu::Features::SHADER_F64),
             }
         })

@@ -19,6 +19,9 @@ pub const TRACE_STATS: u32 = 4;
 /// Trace kernel: the dispatch's uniform.
 pub const TRACE_PARAMS: u32 = 5;
 
+/// Driver trace kernel: the driver's acceleration structure.
+pub const DRIVER_SCENE: u32 = 12;
+
 /// Render kernel: shading triangles.
 pub const RENDER_SHADES: u32 = 2;
 /// Render kernel: materials.
@@ -44,6 +47,7 @@ pub const ALL: &[(&str, u32)] = &[
     ("BINDING_TRACE_HITS", TRACE_HITS),
     ("BINDING_TRACE_STATS", TRACE_STATS),
     ("BINDING_TRACE_PARAMS", TRACE_PARAMS),
+    ("BINDING_DRIVER_SCENE", DRIVER_SCENE),
     ("BINDING_RENDER_SHADES", RENDER_SHADES),
     ("BINDING_RENDER_MATERIALS", RENDER_MATERIALS),
     ("BINDING_RENDER_LIGHTS", RENDER_LIGHTS),

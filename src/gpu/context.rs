@@ -40,6 +40,11 @@ pub struct GpuContext {
     /// Subgroup operations are enabled (the adapter has `Features::SUBGROUP`), with the
     /// adapter's range of subgroup sizes; None without them.
     pub subgroups: Option<SubgroupSizes>,
+    /// The driver's own ray queries are enabled (the adapter has wgpu's
+    /// `Features::EXPERIMENTAL_RAY_QUERY`): the reference row [`DriverTracer`] runs.
+    ///
+    /// [`DriverTracer`]: super::DriverTracer
+    pub ray_query: bool,
 }
 
 /// The smallest and largest subgroup (SIMD width) the adapter may run a kernel with.
@@ -103,12 +108,27 @@ impl GpuContext {
         if subgroups.is_some() {
             features |= wgpu::Features::SUBGROUP;
         }
+        // Ray queries only where the adapter reports them: the driver row is optional, and
+        // wgpu guards the feature behind an explicit opt-in.
+        let ray_query = adapter
+            .features()
+            .contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY);
+        let mut experimental_features = wgpu::ExperimentalFeatures::disabled();
+        if ray_query {
+            features |= wgpu::Features::EXPERIMENTAL_RAY_QUERY;
+            // SAFETY: wgpu asks callers to acknowledge that its experimental ray-query API
+            // may still have bugs. lancer uses it only for the driver's reference traversal
+            // (gpu::driver), never for its own kernels, and checks its answers with the
+            // f64 oracle (`lancer check`, tests/driver.rs).
+            experimental_features = unsafe { wgpu::ExperimentalFeatures::enabled() };
+        }
         let limits = adapter.limits();
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("lancer"),
                 required_features: features,
                 required_limits: limits.clone(),
+                experimental_features,
                 ..Default::default()
             })
             .await
@@ -122,6 +142,7 @@ impl GpuContext {
             limits,
             timestamps,
             subgroups,
+            ray_query,
         })
     }
 

@@ -18,6 +18,8 @@ pub const COMMON: &str = include_str!("../../shaders/lib/common.wgsl");
 pub const TRAVERSAL: &str = include_str!("../../shaders/lib/traversal.wgsl");
 /// The trace kernel (closest / any hit, one ray per invocation).
 pub const TRACE: &str = include_str!("../../shaders/kernels/trace.wgsl");
+/// The driver trace kernel (the driver's ray queries, one ray per invocation).
+pub const DRIVER_TRACE: &str = include_str!("../../shaders/kernels/driver_trace.wgsl");
 /// The render kernel (one sample of one pixel per invocation).
 pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
 
@@ -103,6 +105,15 @@ pub fn trace_subgroup_source(layout: &dyn Layout) -> Option<String> {
         "{}\n{COMMON}\n{TRAVERSAL}\n{traversal}\n{TRACE}",
         prelude()
     ))
+}
+
+/// The driver trace kernel's full source. The module needs the device's
+/// `Features::EXPERIMENTAL_RAY_QUERY`; the `enable` directive must come before anything else.
+pub fn driver_trace_source() -> String {
+    format!(
+        "enable wgpu_ray_query;\n{}\n{COMMON}\n{DRIVER_TRACE}",
+        prelude()
+    )
 }
 
 /// The render kernel's full source for a layout.

@@ -22,9 +22,15 @@ use crate::trace::TraversalMode;
 pub const INCOMPLETE: u32 = u32::MAX - 1;
 
 /// Rays per dispatch: ~10–20 ms on lavapipe, far less on a real GPU.
-const CHUNK: u32 = 1 << 18;
+pub(super) const CHUNK: u32 = 1 << 18;
 /// Rays per batch at most (further bounded by the storage binding limit).
 const MAX_BATCH: usize = 1 << 22;
+
+/// Rays per batch: at most [`MAX_BATCH`] and what one storage binding holds (32 bytes a ray).
+pub(super) fn batch_len(ctx: &GpuContext, rays: usize) -> usize {
+    let limit = (ctx.limits.max_storage_buffer_binding_size).min(ctx.limits.max_buffer_size);
+    rays.clamp(1, MAX_BATCH.min((limit / 32) as usize))
+}
 
 /// Which specialisation of the trace kernel to run (all from one WGSL source).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -222,12 +228,7 @@ impl<'a> GpuTracer<'a> {
             }
         }
         let start = Instant::now();
-        let limit = self
-            .ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(self.ctx.limits.max_buffer_size);
-        let batch = rays.len().clamp(1, MAX_BATCH.min((limit / 32) as usize));
+        let batch = batch_len(self.ctx, rays.len());
         let mut hits = Vec::with_capacity(rays.len());
         let mut stats = kernel.stats.then(|| Vec::with_capacity(rays.len()));
         let mut gpu_ns = Some(0.0f64);
