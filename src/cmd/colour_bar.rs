@@ -77,7 +77,7 @@ pub fn with_colour_bar(path: &Path, map: &RgbImage, bar: &ColourBar) -> Result<R
         }
     }
     for v in ticks(bar.max) {
-        let x = tick_x(v, bar.max, ramp) as u32;
+        let x = tick_x(v, bar.max, ramp);
         for y in top + RAMP_Y + RAMP_H..top + RAMP_Y + RAMP_H + TICK_H {
             img.put_pixel(x, y, Rgb([0, 0, 0]));
         }
