@@ -848,6 +848,7 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
         d.path("b.hits"),
         d.path("h.png"),
     );
+    let heat = d.path("heat.png");
     lancer_ok(&[
         "rays",
         s(&quad),
@@ -891,6 +892,27 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
             "64 rays",
         ),
         (vec!["compare", s(&png), s(&png), "--json"], 0, "0 pixels"),
+        (
+            vec![
+                "heatmap",
+                s(&quad),
+                "-o",
+                s(&heat),
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--device",
+                "cpu",
+                "--rays",
+                "shadow",
+                "--max",
+                "4",
+                "--json",
+            ],
+            0,
+            "pixels saturated",
+        ),
         (
             vec!["bench", "trace", s(&quad), "--device", "cpu", "--json"],
             0,

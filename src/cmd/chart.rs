@@ -18,7 +18,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 /// DejaVu Sans (Bitstream Vera licence: assets/fonts/LICENSE-DejaVu.txt).
 const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 /// The family plotters asks for by default; the embedded font is registered under it.
-const FAMILY: &str = "sans-serif";
+pub const FAMILY: &str = "sans-serif";
 /// Plot area size in pixels (the legend panel is added to the width).
 const PLOT: (u32, u32) = (900, 600);
 /// Width given to each category of a bar chart, so its name fits under its bars.
@@ -402,7 +402,7 @@ fn tick(v: f64) -> String {
 }
 
 /// Registers the embedded font under [`FAMILY`], once.
-fn register_font() -> std::result::Result<(), String> {
+pub fn register_font() -> std::result::Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED
         .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
@@ -414,7 +414,7 @@ fn register_font() -> std::result::Result<(), String> {
 }
 
 /// A chart that could not be drawn or written: an I/O error naming the file.
-fn chart_error(path: &Path, why: impl std::fmt::Display) -> Error {
+pub fn chart_error(path: &Path, why: impl std::fmt::Display) -> Error {
     Error::io(path, std::io::Error::other(format!("chart: {why}")))
 }
 

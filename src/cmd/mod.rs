@@ -9,6 +9,7 @@ mod bench_structures;
 mod build;
 mod chart;
 mod check;
+mod colour_bar;
 mod compare;
 mod heatmap;
 mod input;
@@ -54,7 +55,8 @@ enum Cmd {
     Trace(trace::TraceCmd),
     /// Write the primary rays of a mesh's default view.
     Rays(rays::RaysCmd),
-    /// Render nodes visited per pixel of the default view as a PNG.
+    /// Render nodes visited (or triangles tested) per pixel of the default view, primary or
+    /// shadow rays, as a PNG with a colour bar.
     Heatmap(heatmap::HeatmapCmd),
     /// Measure speed.
     Bench(bench::BenchCmd),
