@@ -143,10 +143,8 @@ fn probe(
         wgpu::BufferUsages::STORAGE,
     );
     let source = format!(
-        "{}\n{}\n{}\n{PROBE}",
-        shaders::prelude(),
-        shaders::COMMON,
-        shaders::TRAVERSAL
+        "{}\n{PROBE}",
+        shaders::library_source(shaders::LaneVote::Alone)
     );
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),

@@ -50,7 +50,7 @@ fn all_shaders_validate() {
 #[test]
 fn gpu_structs_match_rust() {
     let layout = &layouts()[0];
-    let src = shaders::trace_source(layout.as_ref());
+    let src = shaders::trace_source(layout.as_ref(), shaders::LaneVote::Alone);
     check(
         &src,
         "Tri",
@@ -102,7 +102,7 @@ fn gpu_structs_match_rust() {
 fn render_structs_match_rust() {
     use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
     let layout = &layouts()[0];
-    let src = shaders::render_source(layout.as_ref());
+    let src = shaders::render_source(layout.as_ref(), shaders::LaneVote::Alone);
     let m = &src;
     macro_rules! fields {
         ($t:ty; $($w:literal => $f:ident),*) => {
