@@ -29,6 +29,10 @@ pub struct HeatmapCmd {
     /// counts its nodes or cells visited.
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
+    /// Map the BVH in this file (`build --out`) instead of building one (--accel, --layout
+    /// and the builder options are refused with it); MESH must be the one it was built from.
+    #[arg(long, value_name = "FILE", conflicts_with_all = super::BVH_CONFLICTS)]
+    bvh: Option<PathBuf>,
 }
 
 impl HeatmapCmd {
@@ -45,7 +49,10 @@ impl HeatmapCmd {
             ));
         }
         let mesh = load_geometry(&self.mesh)?;
-        lancer::output::check_output(&self.out, &mesh.sources)?;
+        lancer::output::check_output(
+            &self.out,
+            &[&mesh.sources[..], self.bvh.as_slice()].concat(),
+        )?;
         let (w, h) = (self.width, self.height);
         // Rays, hits, statistics and the image: about 80 bytes a pixel.
         lancer::limits::check_image(w, h, 80, "use a smaller --width/--height")?;
@@ -59,7 +66,13 @@ impl HeatmapCmd {
             ..TracerOptions::default()
         };
         let kind = self.accel.kind(self.build.layout);
-        let mut tracer = Tracer::with_structure(&device, &mesh, kind, &options)?;
+        let mut tracer = match &self.bvh {
+            Some(path) => {
+                let file = super::input::load_bvh(path, &mesh)?;
+                Tracer::with_layout(&device, file.layout, &options)?
+            }
+            None => Tracer::with_structure(&device, &mesh, kind, &options)?,
+        };
         let stats = tracer
             .trace(&rays, Query::Closest)?
             .stats
