@@ -228,6 +228,50 @@ fn every_corruption_is_refused_with_its_own_message() {
 }
 
 #[test]
+fn mutated_files_with_valid_checksums_are_refused_or_trace_without_a_panic() {
+    let (mesh, rays) = scene();
+    let rays = &rays[..200];
+    let tree = bvh::build(&mesh, &Default::default());
+    let mut rng = Rng::new(5);
+    let (mut accepted, mut refused) = (0, 0);
+    for &kind in LayoutKind::ALL {
+        let good = bvh_file::encode(flatten(kind, &tree, &mesh).as_ref(), mesh.len()).unwrap();
+        let mut on_gpu = 0;
+        for _ in 0..300 {
+            let mut b = good.clone();
+            // One to three words of the payload (nodes mostly: they come first) set to a
+            // random value, or a small one (indices, counts, tags).
+            for _ in 0..1 + rng.u64() % 3 {
+                let words = (b.len() - HEADER_BYTES) / 4;
+                let at = HEADER_BYTES + 4 * (rng.u64() as usize % (words / 2 + 1));
+                let v = match rng.u64() % 3 {
+                    0 => rng.u64() as u32,
+                    1 => (rng.u64() % 64) as u32,
+                    _ => {
+                        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+                            ^ 1 << (rng.u64() % 32)
+                    }
+                };
+                b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+            }
+            reseal(&mut b);
+            let Ok(file) = bvh_file::decode(Path::new("m.bvh"), &b) else {
+                refused += 1;
+                continue;
+            };
+            accepted += 1;
+            hits(&Device::cpu(), file.layout.clone(), rays);
+            if on_gpu < 3 {
+                on_gpu += 1;
+                hits(gpu_device(), file.layout, rays);
+            }
+        }
+    }
+    println!("{accepted} mutated files accepted and traced, {refused} refused");
+    assert!(accepted > 0 && refused > 0);
+}
+
+#[test]
 fn a_file_is_refused_with_a_mesh_it_was_not_built_from_and_on_disk_before_reading() {
     let (mesh, _) = scene();
     let layout = flatten(
