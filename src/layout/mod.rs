@@ -26,7 +26,7 @@
 //!    run over every entry of [`LayoutKind::ALL`]).
 //! 4. `impl Layout`: name, arrays, WGSL source, overrides, validation; and
 //!    `from_arrays(LayoutArrays) -> Result<Self, String>`, which rebuilds it from its arrays
-//!    (with [`records`]) and runs `validate` (a [BVH file](bvh_file) is read through it).
+//!    (with `records`) and runs `validate` (a [BVH file](bvh_file) is read through it).
 //! 5. Register it: a variant of [`LayoutKind`] and its arms in [`flatten`] and
 //!    [`from_arrays`].
 //!
