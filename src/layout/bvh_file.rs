@@ -31,12 +31,10 @@
 //! cannot make the CPU twin or a GPU kernel read out of bounds or loop.
 
 use std::io::{Read, Write};
-
 use std::path::Path;
 use std::sync::Arc;
 
 use crate::error::{Error, Result};
-use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
 use super::{Layout, LayoutArrays, LayoutKind, LeafTri};
@@ -191,7 +189,10 @@ fn header_of(layout: &dyn Layout, mesh_triangles: usize) -> Result<Header> {
     let kind = kind_of(layout)?;
     let a = layout.arrays();
     let mut name = [0u8; NAME_BYTES];
-    name[..kind.name().len()].copy_from_slice(kind.name().as_bytes());
+    // Every name fits (the round-trip test reads each back).
+    for (d, c) in name.iter_mut().zip(kind.name().bytes()) {
+        *d = c;
+    }
     let b = layout.bounds();
     let mut header = Header {
         record_bytes: layout.node_bytes() as u32,
@@ -381,10 +382,5 @@ impl BvhFile {
             }
         }
         Ok(())
-    }
-
-    /// The root box of the layout.
-    pub fn bounds(&self) -> Aabb {
-        self.layout.bounds()
     }
 }
