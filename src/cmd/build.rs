@@ -47,7 +47,8 @@ struct BuildReport {
     build_ms: f64,
     /// Bytes of the flattened layout (what the GPU holds).
     bytes: usize,
-    /// The BVH file written (`--out`; null without).
+    /// The BVH file written (`--out`; absent without).
+    #[serde(skip_serializing_if = "Option::is_none")]
     out: Option<String>,
 }
 
