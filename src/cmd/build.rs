@@ -3,7 +3,7 @@ use std::time::Instant;
 
 use clap::Args;
 use lancer::accel::bvh::{build, BvhStats};
-use lancer::layout::flatten;
+use lancer::layout::{bvh_file, flatten};
 use lancer::Result;
 use serde::Serialize;
 
@@ -17,6 +17,10 @@ pub struct BuildCmd {
     mesh: PathBuf,
     #[command(flatten)]
     build: BuildArgs,
+    /// Also write the flattened layout to this BVH file (the README's "File formats"), for
+    /// `trace`, `check` and `heatmap --bvh`.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
     /// Print one JSON object instead of text (keys: the README's "JSON output").
     #[arg(long)]
     json: bool,
@@ -43,17 +47,27 @@ struct BuildReport {
     build_ms: f64,
     /// Bytes of the flattened layout (what the GPU holds).
     bytes: usize,
+    /// The BVH file written (`--out`; absent without).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    out: Option<String>,
 }
 
 impl BuildCmd {
     pub fn run(self) -> Result<()> {
         let mesh = load_geometry(&self.mesh)?;
+        if let Some(out) = &self.out {
+            lancer::output::check_output(out, &mesh.sources)?;
+        }
         let opts = self.build.options();
         let t0 = Instant::now();
         let bvh = build(&mesh, &opts);
         let layout = flatten(self.build.layout, &bvh, &mesh);
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let s = BvhStats::of(&bvh, &opts);
+        if let Some(out) = &self.out {
+            bvh_file::write(out, layout.as_ref(), mesh.len())?;
+        }
+        let out = self.out.as_ref().map(|p| p.display().to_string());
         if self.json {
             print_json(&BuildReport {
                 builder: spelled(opts.builder),
@@ -65,6 +79,7 @@ impl BuildCmd {
                 sah_cost: s.sah_cost,
                 build_ms: ms,
                 bytes: layout.bytes(),
+                out,
             })?;
         } else {
             println!("builder     {}", spelled(opts.builder));
@@ -76,6 +91,9 @@ impl BuildCmd {
             println!("SAH cost    {:.3}", s.sah_cost);
             println!("build ms    {ms:.2}");
             println!("GPU bytes   {}", layout.bytes());
+            if let Some(out) = out {
+                println!("written to  {out}");
+            }
         }
         Ok(())
     }

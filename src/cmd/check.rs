@@ -16,8 +16,9 @@ use lancer::trace::files::read_rays;
 use lancer::{Device, Error, Query, Ray, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
 
+use super::input::load_bvh;
 use super::out::{print_json, say, Say};
-use super::{view_ray_sets, BuilderArgs, DeviceArgs, RobustnessArgs};
+use super::{view_ray_sets, BuilderArgs, DeviceArgs, RobustnessArgs, BUILDER_IDS};
 
 /// `check --json`: one object a run.
 #[derive(Serialize)]
@@ -151,6 +152,11 @@ pub struct CheckCmd {
     robustness: RobustnessArgs,
     #[command(flatten)]
     build: BuilderArgs,
+    /// Check the BVH in this file (`build --out`; the README's "File formats") instead of
+    /// building one: only its layout is checked (--layout and the builder options are
+    /// refused with it), and MESH must be the mesh it was built from.
+    #[arg(long, value_name = "FILE", conflicts_with_all = BUILDER_IDS, conflicts_with = "layouts")]
+    bvh: Option<PathBuf>,
     /// Print the results as one JSON object on stdout, the table on stderr (keys: the
     /// README's "JSON output").
     #[arg(long)]
@@ -170,7 +176,24 @@ impl CheckCmd {
                     .into(),
             ));
         };
-        let tree = build(&mesh, &self.build.options());
+        let bvh = (self.bvh.as_ref())
+            .map(|p| load_bvh(p, &mesh))
+            .transpose()?;
+        // Built when a layout is flattened here, not for a file's.
+        let mut tree = None;
+        let mut layout_of = |kind: LayoutKind| -> Arc<dyn Layout> {
+            match &bvh {
+                Some(file) => file.layout.clone(),
+                None => {
+                    let tree = tree.get_or_insert_with(|| build(&mesh, &self.build.options()));
+                    flatten(kind, tree, &mesh).into()
+                }
+            }
+        };
+        let kinds = match &bvh {
+            Some(file) => vec![file.kind],
+            None => self.layouts.kinds(),
+        };
         let sets: Vec<(String, Query, Vec<Ray>)> = match &self.rays {
             Some(path) => {
                 let rays = read_rays(path)?;
@@ -181,7 +204,7 @@ impl CheckCmd {
                 ]
             }
             None => {
-                let reference = flatten(LayoutKind::default(), &tree, &mesh);
+                let reference = layout_of(LayoutKind::default());
                 let rob = self.robustness.robustness();
                 view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?
             }
@@ -196,8 +219,8 @@ impl CheckCmd {
         let cpu = Device::cpu();
         let mut bad = 0usize;
         let mut not_run = Vec::new();
-        for kind in self.layouts.kinds() {
-            let layout: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+        for kind in kinds {
+            let layout = layout_of(kind);
             let options = TracerOptions {
                 layout: kind,
                 memory: self.device.bvh_memory(),
@@ -270,9 +293,9 @@ impl CheckCmd {
             }
         }
         // The driver's own traversal, an independent oracle where the adapter has ray
-        // queries: against the default layout's CPU twin.
+        // queries: against the default layout's CPU twin (the file's with --bvh).
         if ctx.ray_query {
-            let reference: Arc<dyn Layout> = flatten(LayoutKind::default(), &tree, &mesh).into();
+            let reference = layout_of(LayoutKind::default());
             let mut twin = Tracer::with_layout(&cpu, reference.clone(), &TracerOptions::default())?;
             let mut driver = DriverTracer::new(ctx, reference.as_ref())?;
             for (name, query, rays) in &sets {

@@ -61,6 +61,10 @@ pub struct HeatmapCmd {
     /// described in the README's "JSON output".
     #[arg(long)]
     json: bool,
+    /// Map the BVH in this file (`build --out`) instead of building one (--accel, --layout
+    /// and the builder options are refused with it); MESH must be the one it was built from.
+    #[arg(long, value_name = "FILE", conflicts_with_all = super::BVH_CONFLICTS)]
+    bvh: Option<PathBuf>,
 }
 
 /// What a heatmap pixel counts.
@@ -182,7 +186,10 @@ impl HeatmapCmd {
         }
         let say = Say::new(self.json);
         let mesh = load_geometry(&self.mesh)?;
-        lancer::output::check_output(&self.out, &mesh.sources)?;
+        lancer::output::check_output(
+            &self.out,
+            &[&mesh.sources[..], self.bvh.as_slice()].concat(),
+        )?;
         let (w, h) = (self.width, self.height);
         // Rays (primary and shadow), hits, statistics and the image: about 120 bytes a pixel.
         lancer::limits::check_image(w, h, 120, "use a smaller --width/--height")?;
@@ -197,7 +204,13 @@ impl HeatmapCmd {
             ..TracerOptions::default()
         };
         let kind = self.accel.kind(self.build.layout);
-        let mut tracer = Tracer::with_structure(&device, &mesh, kind, &options)?;
+        let mut tracer = match &self.bvh {
+            Some(path) => {
+                let file = super::input::load_bvh(path, &mesh)?;
+                Tracer::with_layout(&device, file.layout, &options)?
+            }
+            None => Tracer::with_structure(&device, &mesh, kind, &options)?,
+        };
         let light = default_light(&mesh.bounds());
         let (stats, mode) = pixel_stats(&mut tracer, &rays, self.rays, light)?;
         let counts: Vec<Option<u32>> = (stats.iter())

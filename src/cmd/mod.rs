@@ -107,6 +107,22 @@ impl BuilderArgs {
     }
 }
 
+/// The builder options `--bvh FILE` is refused with (by their argument ids): the file holds
+/// the structure, built already.
+pub const BUILDER_IDS: [&str; 5] = ["builder", "bins", "max_leaf", "t_cube", "t_obj"];
+
+/// The options `--bvh FILE` is refused with where a command has `--accel` and `--layout`:
+/// the file holds the structure, its layout and how it was built.
+pub const BVH_CONFLICTS: [&str; 7] = [
+    "accel",
+    "layout",
+    BUILDER_IDS[0],
+    BUILDER_IDS[1],
+    BUILDER_IDS[2],
+    BUILDER_IDS[3],
+    BUILDER_IDS[4],
+];
+
 /// BVH builder options and the flattened layout.
 #[derive(Args, Clone, Debug)]
 pub struct BuildArgs {

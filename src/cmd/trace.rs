@@ -5,9 +5,9 @@ use lancer::trace::files::{decode_rays, encode_hits};
 use lancer::{Error, Query, RayStats, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
 
-use super::input::load_geometry;
+use super::input::{load_bvh, load_geometry};
 use super::out::{check_output, is_std, print_json, read_input, say, write_output, Say};
-use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
+use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
 
 #[derive(Args)]
 pub struct TraceCmd {
@@ -45,6 +45,11 @@ pub struct TraceCmd {
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH run on the CPU).
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
+    /// Trace the BVH in this file (`build --out`; the README's "File formats") instead of
+    /// building one: its layout is the file's (--accel, --layout and the builder options are
+    /// refused with it), and MESH must be the mesh it was built from.
+    #[arg(long, value_name = "FILE", conflicts_with_all = BVH_CONFLICTS)]
+    bvh: Option<PathBuf>,
 }
 
 /// `trace --json`: one object a run.
@@ -100,16 +105,21 @@ impl TraceCmd {
         let mesh = load_geometry(&self.mesh)?;
         let mut inputs = mesh.sources.clone();
         inputs.push(self.rays.clone());
+        inputs.extend(self.bvh.clone());
         check_output(&self.out, &inputs)?;
         let rays_name = match is_std(&self.rays) {
             true => PathBuf::from("<stdin>"),
             false => self.rays.clone(),
         };
         let rays = decode_rays(&rays_name, &read_input(&self.rays)?)?;
+        let bvh = (self.bvh.as_ref())
+            .map(|p| load_bvh(p, &mesh))
+            .transpose()?;
+        let layout = bvh.as_ref().map_or(self.build.layout, |f| f.kind);
         let device = self.accel.open(&self.device)?;
         let options = TracerOptions {
             build: self.build.options(),
-            layout: self.build.layout,
+            layout,
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
             workgroup_size: self.workgroup_size,
@@ -121,15 +131,19 @@ impl TraceCmd {
         } else {
             Query::Closest
         };
-        let kind = self.accel.kind(self.build.layout);
-        let result = Tracer::with_structure(&device, &mesh, kind, &options)?.trace(&rays, query)?;
+        let kind = self.accel.kind(layout);
+        let mut tracer = match &bvh {
+            Some(file) => Tracer::with_layout(&device, file.layout.clone(), &options)?,
+            None => Tracer::with_structure(&device, &mesh, kind, &options)?,
+        };
+        let result = tracer.trace(&rays, query)?;
         let means = (result.stats.as_ref())
             .filter(|s| !s.is_empty())
             .map(|s| RayStats::means(s));
         if self.stats {
             say!(say, "device    {device}");
             say!(say, "structure {kind}");
-            say!(say, "layout    {}", self.build.layout);
+            say!(say, "layout    {layout}");
             if result.mode == self.mode {
                 say!(say, "mode      {}", result.mode);
             } else {
@@ -175,7 +189,7 @@ impl TraceCmd {
                     adapter: gpu.map(|c| c.adapter.to_string()),
                     cpu_threads: rayon::current_num_threads(),
                     structure: kind.to_string(),
-                    layout: self.build.layout.name().to_string(),
+                    layout: layout.name().to_string(),
                     mode: result.mode.name().to_string(),
                     bvh_memory: gpu.map(|_| spelled(self.device.bvh_memory)),
                     gpu_ms: result.timings.gpu_ms,

@@ -24,8 +24,11 @@
 //!    child order, same stack discipline, same tests in the same operation order — so the
 //!    GPU and the twin agree bit for bit (the equivalence tests in `tests/gpu_vs_cpu.rs`
 //!    run over every entry of [`LayoutKind::ALL`]).
-//! 4. `impl Layout`: name, arrays, WGSL source, overrides, validation.
-//! 5. Register it: a variant of [`LayoutKind`] and its arm in [`flatten`].
+//! 4. `impl Layout`: name, arrays, WGSL source, overrides, validation; and
+//!    `from_arrays(LayoutArrays) -> Result<Self, String>`, which rebuilds it from its arrays
+//!    (with `records`) and runs `validate` (a [BVH file](bvh_file) is read through it).
+//! 5. Register it: a variant of [`LayoutKind`] and its arms in [`flatten`] and
+//!    [`from_arrays`].
 //!
 //! Stack depth: the builders cap depth at [`MAX_DEPTH`](crate::accel::bvh::MAX_DEPTH),
 //! the kernels' stack size; a layout whose traversal needs more entries per level must
@@ -33,6 +36,7 @@
 
 mod bvh2_wide_node;
 mod bvh4;
+pub mod bvh_file;
 mod cwbvh;
 mod dfs_distance;
 mod dfs_sign;
@@ -146,6 +150,11 @@ impl LayoutKind {
         LayoutKind::Bvh4,
     ];
 
+    /// The layout of this [name](LayoutKind::name), if any.
+    pub fn from_name(name: &str) -> Option<LayoutKind> {
+        LayoutKind::ALL.iter().copied().find(|k| k.name() == name)
+    }
+
     /// The name the command line and benches use.
     pub fn name(self) -> &'static str {
         match self {
@@ -173,4 +182,40 @@ pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
         LayoutKind::Cwbvh => Box::new(Cwbvh::flatten(bvh, mesh)),
         LayoutKind::Bvh4 => Box::new(Bvh4::flatten(bvh, mesh)),
     }
+}
+
+/// Rebuilds a layout of kind `kind` from its arrays (as [`Layout::arrays`] gives them);
+/// refused, naming the first fault, unless they are whole records that pass
+/// [`Layout::validate`].
+pub fn from_arrays(kind: LayoutKind, arrays: LayoutArrays<'_>) -> Result<Box<dyn Layout>, String> {
+    Ok(match kind {
+        LayoutKind::DfsSign => Box::new(DfsSign::from_arrays(arrays)?),
+        LayoutKind::DfsDistance => Box::new(DfsDistance::from_arrays(arrays)?),
+        LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::from_arrays(arrays)?),
+        LayoutKind::Cwbvh => Box::new(Cwbvh::from_arrays(arrays)?),
+        LayoutKind::Bvh4 => Box::new(Bvh4::from_arrays(arrays)?),
+    })
+}
+
+/// A layout's arrays as records of node type `N` and [`LeafTri`]s (copied: the bytes need
+/// not be aligned); refused unless both are whole records.
+pub(crate) fn records<N: bytemuck::Pod>(
+    arrays: LayoutArrays<'_>,
+) -> Result<(Vec<N>, Vec<LeafTri>), String> {
+    let whole = |what: &str, bytes: &[u8], size: usize| {
+        if bytes.len().is_multiple_of(size) {
+            Ok(())
+        } else {
+            Err(format!(
+                "{what} array of {} bytes is not whole {size}-byte records",
+                bytes.len()
+            ))
+        }
+    };
+    whole("node", arrays.nodes, std::mem::size_of::<N>())?;
+    whole("triangle", arrays.tris, std::mem::size_of::<LeafTri>())?;
+    Ok((
+        bytemuck::pod_collect_to_vec(arrays.nodes),
+        bytemuck::pod_collect_to_vec(arrays.tris),
+    ))
 }

@@ -111,6 +111,15 @@ impl Bvh2WideNode {
         }
         Bvh2WideNode { nodes, tris }
     }
+
+    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::Layout::validate).
+    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Bvh2WideNode, String> {
+        let (nodes, tris) = super::records(arrays)?;
+        let layout = Bvh2WideNode { nodes, tris };
+        super::Layout::validate(&layout)?;
+        Ok(layout)
+    }
 }
 
 /// Inner records of `node`'s subtree (a full binary tree: inner nodes = (nodes − 1) / 2).

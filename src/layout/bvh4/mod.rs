@@ -115,6 +115,15 @@ impl Bvh4 {
         emit(&bvh.root, 0, 0, &mut nodes);
         Bvh4 { nodes, tris }
     }
+
+    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::Layout::validate).
+    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Bvh4, String> {
+        let (nodes, tris) = super::records(arrays)?;
+        let layout = Bvh4 { nodes, tris };
+        super::Layout::validate(&layout)?;
+        Ok(layout)
+    }
 }
 
 /// The binary nodes that become the children of `node`'s 4-wide node, left to right, each

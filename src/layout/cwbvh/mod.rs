@@ -148,20 +148,7 @@ impl Cwbvh {
     /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
     /// unless they are whole records and pass [`validate`](super::Layout::validate).
     pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Cwbvh, String> {
-        if !arrays.nodes.len().is_multiple_of(NODE_BYTES) {
-            return Err(format!(
-                "node array of {} bytes is not whole {NODE_BYTES}-byte nodes",
-                arrays.nodes.len()
-            ));
-        }
-        let nodes: Vec<CwNode> = bytemuck::pod_collect_to_vec(arrays.nodes);
-        if !(arrays.tris.len()).is_multiple_of(std::mem::size_of::<LeafTri>()) {
-            return Err(format!(
-                "triangle array of {} bytes is not whole triangles",
-                arrays.tris.len()
-            ));
-        }
-        let tris: Vec<LeafTri> = bytemuck::pod_collect_to_vec(arrays.tris);
+        let (nodes, tris) = super::records::<CwNode>(arrays)?;
         let bounds = (tris.iter()).fold(Aabb::EMPTY, |b, t| b.union(t.triangle().bbox()));
         let layout = Cwbvh {
             nodes,

@@ -28,6 +28,12 @@ impl DfsDistance {
         }
     }
 
+    /// A layout from raw arrays (the dfs-sign arrays), refused unless they are whole
+    /// records and pass [`validate`](super::Layout::validate).
+    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<DfsDistance, String> {
+        DfsSign::from_arrays(arrays).map(|flat| DfsDistance { flat })
+    }
+
     fn nodes(&self) -> &[DfsNode] {
         &self.flat.nodes
     }

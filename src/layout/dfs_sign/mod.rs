@@ -71,6 +71,15 @@ impl DfsSign {
         write(&bvh.root, &mut nodes, 0);
         DfsSign { nodes, tris }
     }
+
+    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::Layout::validate).
+    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<DfsSign, String> {
+        let (nodes, tris) = super::records(arrays)?;
+        let layout = DfsSign { nodes, tris };
+        super::Layout::validate(&layout)?;
+        Ok(layout)
+    }
 }
 
 impl super::Layout for DfsSign {

@@ -1,0 +1,389 @@
+//! BVH files (`lancer::layout::bvh_file`, `build --out`, `--bvh`): every layout survives a
+//! round trip byte for byte and traces bit for bit as the freshly flattened layout, on the
+//! CPU twin and on the GPU; every corruption is refused with its own message, never a
+//! panic; the CLI traces a file as it traces the mesh.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+use std::sync::Arc;
+
+use common::{gpu_device, random_rays, soup, Rng};
+use lancer::accel::bvh;
+use lancer::layout::bvh_file::{self, HEADER_BYTES};
+use lancer::layout::{flatten, Layout, LayoutKind};
+use lancer::mesh::Mesh;
+use lancer::{Device, Hit, Query, Ray, Tracer, TracerOptions};
+
+fn bits(hits: &[Hit]) -> Vec<[u32; 4]> {
+    hits.iter()
+        .map(|h| [h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()])
+        .collect()
+}
+
+/// Hits of `layout` on `device`, closest then any.
+fn hits(device: &Device, layout: Arc<dyn Layout>, rays: &[Ray]) -> Vec<Vec<[u32; 4]>> {
+    let mut t = Tracer::with_layout(device, layout, &TracerOptions::default()).unwrap();
+    [Query::Closest, Query::Any]
+        .into_iter()
+        .map(|q| bits(&t.trace(rays, q).unwrap().hits))
+        .collect()
+}
+
+fn scene() -> (Mesh, Vec<Ray>) {
+    let mut rng = Rng::new(71);
+    let mesh = soup(&mut rng, 2000, 0.1);
+    let rays = random_rays(&mut rng, 1500, &mesh);
+    (mesh, rays)
+}
+
+#[test]
+fn every_layout_round_trips_and_traces_bit_for_bit_on_the_cpu_and_the_gpu() {
+    let (mesh, rays) = scene();
+    let tree = bvh::build(&mesh, &Default::default());
+    let gpu = gpu_device();
+    let dir = tempfile::tempdir().unwrap();
+    for &kind in LayoutKind::ALL {
+        let fresh: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+        let bytes = bvh_file::encode(fresh.as_ref(), mesh.len()).unwrap();
+        let path = dir.path().join(format!("{kind}.bvh"));
+        bvh_file::write(&path, fresh.as_ref(), mesh.len()).unwrap();
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            bytes,
+            "{kind}: write = encode"
+        );
+        let file = bvh_file::read(&path).unwrap();
+        assert_eq!(file.kind, kind);
+        assert_eq!(file.mesh_triangles, mesh.len() as u64);
+        file.check_mesh(&path, &mesh).unwrap();
+        let again = bvh_file::encode(file.layout.as_ref(), mesh.len()).unwrap();
+        assert!(again == bytes, "{kind}: the round trip changed the bytes");
+        assert_eq!(file.layout.bounds(), fresh.bounds(), "{kind}");
+        assert_eq!(file.layout.name(), kind.name());
+        for device in [&Device::cpu(), gpu] {
+            let want = hits(device, fresh.clone(), &rays);
+            let got = hits(device, file.layout.clone(), &rays);
+            assert!(want[0].iter().any(|h| h[1] != u32::MAX), "{kind}: no hits");
+            assert!(
+                want == got,
+                "{kind} on {device}: the file traces differently"
+            );
+        }
+    }
+}
+
+/// Recomputes the checksum after an edit, so the edit reaches the check it targets.
+fn reseal(bytes: &mut [u8]) {
+    let mut h = crc32fast::Hasher::new();
+    h.update(&bytes[..80]);
+    h.update(&bytes[HEADER_BYTES..]);
+    let crc = h.finalize();
+    bytes[80..84].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// The error decoding `bytes` gives; it must name the file, contain `want` and be exit
+/// code 2.
+fn refused(what: &str, bytes: &[u8], want: &str) {
+    let name = Path::new("corrupt.bvh");
+    let e = match bvh_file::decode(name, bytes) {
+        Ok(_) => panic!("{what}: accepted"),
+        Err(e) => e,
+    };
+    let msg = e.to_string();
+    assert!(msg.starts_with("corrupt.bvh: "), "{what}: {msg}");
+    assert!(msg.contains(want), "{what}: {msg}");
+    assert_eq!(e.exit_code(), 2, "{what}");
+    println!("{what}: {msg}");
+}
+
+/// Offset in the payload of a child index of the root node, per layout (dfs-sign: the
+/// second child; bvh2-wide-node: the header's root reference; cwbvh: child_base; bvh4:
+/// slot 0's child).
+fn root_child_index(kind: LayoutKind) -> usize {
+    match kind {
+        LayoutKind::DfsSign | LayoutKind::DfsDistance | LayoutKind::Bvh2WideNode => 12,
+        LayoutKind::Cwbvh => 16,
+        LayoutKind::Bvh4 => 96,
+    }
+}
+
+#[test]
+fn every_corruption_is_refused_with_its_own_message() {
+    let (mesh, _) = scene();
+    let tree = bvh::build(&mesh, &Default::default());
+    for &kind in LayoutKind::ALL {
+        let layout = flatten(kind, &tree, &mesh);
+        let good = bvh_file::encode(layout.as_ref(), mesh.len()).unwrap();
+        bvh_file::decode(Path::new("good.bvh"), &good).unwrap();
+        let len = good.len();
+        let nodes = layout.arrays().nodes.len();
+        let edit = |f: &dyn Fn(&mut Vec<u8>), seal: bool| {
+            let mut b = good.clone();
+            f(&mut b);
+            if seal {
+                reseal(&mut b);
+            }
+            b
+        };
+        for cut in [
+            0,
+            7,
+            40,
+            HEADER_BYTES - 1,
+            HEADER_BYTES,
+            HEADER_BYTES + nodes,
+            len - 1,
+        ] {
+            refused(&format!("{kind} cut at {cut}"), &good[..cut], "truncated");
+        }
+        refused(
+            &format!("{kind} one byte more"),
+            &[&good[..], &[0]].concat(),
+            "1 bytes follow",
+        );
+        for at in [HEADER_BYTES, HEADER_BYTES + nodes / 2, len - 1] {
+            let b = edit(&|b| b[at] ^= 0x10, false);
+            refused(&format!("{kind} byte {at} flipped"), &b, "checksum");
+        }
+        refused(
+            &format!("{kind} a count flipped"),
+            &edit(&|b| b[40] ^= 1, false),
+            "its header says",
+        );
+        refused(
+            &format!("{kind} magic"),
+            &edit(&|b| b[0] = b'X', false),
+            "not a lancer BVH file",
+        );
+        refused(
+            &format!("{kind} version"),
+            &edit(&|b| b[8] = 2, false),
+            "version 2",
+        );
+        refused(
+            &format!("{kind} layout"),
+            &edit(
+                &|b| b[16..32].copy_from_slice(b"bvh16\0\0\0\0\0\0\0\0\0\0\0"),
+                true,
+            ),
+            "unknown layout \"bvh16\"",
+        );
+        refused(
+            &format!("{kind} counts that overflow"),
+            &edit(
+                &|b| b[32..40].copy_from_slice(&u64::MAX.to_le_bytes()),
+                true,
+            ),
+            "overflow",
+        );
+        // Counts that agree with the length but split the arrays elsewhere.
+        let shifted = edit(
+            &|b| {
+                let n = (nodes + 48) as u64;
+                b[32..40].copy_from_slice(&n.to_le_bytes());
+                let t = (len - HEADER_BYTES - nodes - 48) as u64 / 48;
+                b[40..48].copy_from_slice(&t.to_le_bytes());
+            },
+            true,
+        );
+        refused(
+            &format!("{kind} arrays split elsewhere"),
+            &shifted,
+            "invalid",
+        );
+        let at = HEADER_BYTES + root_child_index(kind);
+        let bad_index = edit(
+            &|b| b[at..at + 4].copy_from_slice(&0x7fff_0000u32.to_le_bytes()),
+            true,
+        );
+        refused(
+            &format!("{kind} a node index out of range"),
+            &bad_index,
+            &format!("invalid {kind} arrays"),
+        );
+        let bad_prim = edit(
+            &|b| {
+                let p = HEADER_BYTES + nodes + 12;
+                b[p..p + 4].copy_from_slice(&(mesh.len() as u32).to_le_bytes());
+            },
+            true,
+        );
+        refused(&format!("{kind} a triangle index"), &bad_prim, "index 2000");
+        refused(
+            &format!("{kind} record size"),
+            &edit(&|b| b[12] ^= 0x40, true),
+            "nodes are",
+        );
+        refused(
+            &format!("{kind} root box"),
+            &edit(
+                &|b| b[56..60].copy_from_slice(&(-1e9f32).to_le_bytes()),
+                true,
+            ),
+            "root box",
+        );
+    }
+}
+
+#[test]
+fn mutated_files_with_valid_checksums_are_refused_or_trace_without_a_panic() {
+    let (mesh, rays) = scene();
+    let rays = &rays[..200];
+    let tree = bvh::build(&mesh, &Default::default());
+    let mut rng = Rng::new(5);
+    let (mut accepted, mut refused) = (0, 0);
+    for &kind in LayoutKind::ALL {
+        let good = bvh_file::encode(flatten(kind, &tree, &mesh).as_ref(), mesh.len()).unwrap();
+        let mut on_gpu = 0;
+        for _ in 0..300 {
+            let mut b = good.clone();
+            // One to three words of the payload (nodes mostly: they come first) set to a
+            // random value, or a small one (indices, counts, tags).
+            for _ in 0..1 + rng.u64() % 3 {
+                let words = (b.len() - HEADER_BYTES) / 4;
+                let at = HEADER_BYTES + 4 * (rng.u64() as usize % (words / 2 + 1));
+                let v = match rng.u64() % 3 {
+                    0 => rng.u64() as u32,
+                    1 => (rng.u64() % 64) as u32,
+                    _ => {
+                        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+                            ^ 1 << (rng.u64() % 32)
+                    }
+                };
+                b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+            }
+            reseal(&mut b);
+            let Ok(file) = bvh_file::decode(Path::new("m.bvh"), &b) else {
+                refused += 1;
+                continue;
+            };
+            accepted += 1;
+            hits(&Device::cpu(), file.layout.clone(), rays);
+            if on_gpu < 3 {
+                on_gpu += 1;
+                hits(gpu_device(), file.layout, rays);
+            }
+        }
+    }
+    println!("{accepted} mutated files accepted and traced, {refused} refused");
+    assert!(accepted > 0 && refused > 0);
+}
+
+#[test]
+fn a_file_is_refused_with_a_mesh_it_was_not_built_from_and_on_disk_before_reading() {
+    let (mesh, _) = scene();
+    let layout = flatten(
+        LayoutKind::DfsSign,
+        &bvh::build(&mesh, &Default::default()),
+        &mesh,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.bvh");
+    bvh_file::write(&path, layout.as_ref(), mesh.len()).unwrap();
+    let file = bvh_file::read(&path).unwrap();
+    let mut other = mesh.clone();
+    other.triangles[5].v[1].x += 0.25;
+    let e = file.check_mesh(&path, &other).unwrap_err().to_string();
+    assert!(e.contains("not the mesh's triangle 5"), "{e}");
+    other.triangles.pop();
+    let e = file.check_mesh(&path, &other).unwrap_err().to_string();
+    assert!(e.contains("built from a mesh of 2000 triangles"), "{e}");
+    // A file whose header claims more than is there: refused from its length, unread.
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    let e = bvh_file::read(&path).err().unwrap().to_string();
+    assert!(e.contains("truncated"), "{e}");
+    std::fs::write(&path, &bytes[..20]).unwrap();
+    let e = bvh_file::read(&path).err().unwrap().to_string();
+    assert!(e.contains("truncated: 20 bytes"), "{e}");
+}
+
+fn lancer(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = lancer(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{args:?}: {err}");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn the_cli_traces_a_bvh_file_as_it_traces_the_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let (rays, bvh, hits) = (p("r.rays"), p("m.bvh"), p("c.hits"));
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-box.obj");
+    ok(&["rays", mesh, "-o", &rays, "--width", "24", "--height", "24"]);
+    let trace = |extra: &[&str]| {
+        let args = [
+            "trace", mesh, "--rays", &rays, "-o", &hits, "--device", "cpu",
+        ];
+        lancer(&[&args[..], extra].concat())
+    };
+    for layout in ["dfs-sign", "cwbvh"] {
+        let json = ok(&[
+            "build",
+            mesh,
+            "--layout",
+            layout,
+            "--max-leaf",
+            "2",
+            "--out",
+            &bvh,
+            "--json",
+        ]);
+        assert!(json.contains(&format!("\"out\":{bvh:?}")), "{json}");
+        let built = trace(&["--layout", layout, "--max-leaf", "2"]);
+        assert!(built.status.success(), "{built:?}");
+        let a = std::fs::read(&hits).unwrap();
+        let read = trace(&["--bvh", &bvh, "--stats"]);
+        assert!(read.status.success(), "{read:?}");
+        let b = std::fs::read(&hits).unwrap();
+        let said = String::from_utf8_lossy(&read.stdout);
+        assert!(said.contains(&format!("layout    {layout}")), "{said}");
+        assert!(
+            a.len() == 24 * 24 * 16 && a == b,
+            "{layout}: the hits differ"
+        );
+    }
+    // Options the file contradicts.
+    for extra in [
+        ["--layout", "cwbvh"],
+        ["--accel", "kdtree"],
+        ["--max-leaf", "4"],
+    ] {
+        let out = trace(&[&["--bvh", &bvh][..], &extra].concat());
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+    }
+    // A truncated file, and a file of another mesh.
+    let bytes = std::fs::read(&bvh).unwrap();
+    let cut = p("t.bvh");
+    std::fs::write(&cut, &bytes[..bytes.len() - 1]).unwrap();
+    let out = trace(&["--bvh", &cut]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"));
+    let one = p("one.obj");
+    std::fs::write(&one, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let out = lancer(&["heatmap", &one, "-o", &p("h.png"), "--bvh", &bvh]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("built from a mesh of"));
+    // heatmap and check take the file too (check on the GPU: lavapipe or any adapter).
+    let small = ["--width", "8", "--height", "8", "--bvh", &bvh];
+    ok(&[
+        &["heatmap", mesh, "-o", &p("h.png"), "--device", "cpu"][..],
+        &small,
+    ]
+    .concat());
+    let check = ok(&[&["check", mesh, "--device", "gpu"][..], &small].concat());
+    assert!(
+        check.contains("| cwbvh |") && !check.contains("| dfs-sign |"),
+        "{check}"
+    );
+}
