@@ -49,6 +49,8 @@ pub mod accel;
 pub mod accuracy;
 pub mod camera;
 pub mod device;
+#[cfg(feature = "embree")]
+pub mod embree;
 pub mod error;
 pub mod geometry;
 pub mod gpu;

@@ -331,7 +331,11 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
                 .iter()
                 .filter(|r| r["layout"] == layout.name() && r["mode"] == mode.name())
                 .collect();
-            assert_eq!(mine.len(), 3, "primary, shadow, bounce for {layout} {mode}");
+            assert_eq!(
+                mine.len(),
+                4,
+                "primary, shadow, bounce, random for {layout} {mode}"
+            );
             for r in mine {
                 // Work was counted: every ray visits the root at least.
                 assert!(r["nodes_per_ray"].as_f64().unwrap() >= 1.0, "{r}");
@@ -346,6 +350,21 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
                 }
             }
         }
+    }
+    // Embree's rows: with the `embree` feature one per ray set, CPU speed only; else none.
+    let embree: Vec<_> = runs.iter().filter(|r| r["layout"] == "embree").collect();
+    if cfg!(feature = "embree") {
+        assert_eq!(embree.len(), 4, "{v}");
+        for r in embree {
+            assert_eq!(r["mode"], "single-ray", "{r}");
+            assert!(r["cpu_mrays_per_s"].as_f64().unwrap() > 0.0, "{r}");
+            assert!(r["gpu_mrays_per_s"].is_null(), "{r}");
+        }
+        assert!(v["embree_build_ms"].as_f64().unwrap() >= 0.0, "{v}");
+        assert!(text.contains("embree rows: Embree 3."), "{text}");
+    } else {
+        assert!(embree.is_empty(), "{v}");
+        assert!(v["embree_build_ms"].is_null(), "{v}");
     }
 }
 

@@ -1,6 +1,7 @@
 //! `lancer bench layouts`: every flattened layout on one mesh, side by side in one run:
 //! flatten time, bytes, work per ray (nodes, triangles, bytes loaded), and speed of the CPU
-//! twin and of the GPU kernel for primary, shadow and diffuse bounce rays.
+//! twin and of the GPU kernel for primary, shadow, diffuse bounce and random rays; with the
+//! `embree` feature, Embree 3 on the same rays as the reference CPU tracer.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -20,6 +21,7 @@ use lancer::{
 use serde::{Serialize, Serializer};
 
 use super::bench::{median, JsonArg};
+use super::bench_structures::random_rays;
 use super::check::{layout_choice, LayoutChoice};
 use super::out::{check_output, say};
 use super::{open_bench_device, spelled, view_ray_sets, BuilderArgs};
@@ -59,32 +61,35 @@ pub struct BenchLayouts {
 
 /// One layout × mode × ray set (a JSON `runs` entry).
 #[derive(Clone, Serialize)]
-struct Row {
-    /// `--layout` name, or "driver" (the driver's own traversal through ray queries).
-    layout: &'static str,
-    /// Traversal mode: per-ray or subgroup ("ray-query" on the driver row).
-    mode: &'static str,
-    /// primary (closest hit), shadow (any hit) or bounce (closest hit).
-    rays: String,
+pub(super) struct Row {
+    /// `--layout` name, "driver" (the driver's own traversal through ray queries) or
+    /// "embree" (Embree 3, the `embree` feature).
+    pub(super) layout: &'static str,
+    /// Traversal mode: per-ray or subgroup ("ray-query" on the driver row, "single-ray" on
+    /// the embree row).
+    pub(super) mode: &'static str,
+    /// primary (closest hit), shadow (any hit), bounce (closest hit) or random (closest hit).
+    pub(super) rays: String,
     /// Rays in the set.
-    count: usize,
+    pub(super) count: usize,
     /// Mean nodes visited per ray (subgroup rows: loaded by the ray's subgroup); null on
-    /// the driver row (the driver does not say).
+    /// the driver and embree rows (they do not say).
     #[serde(rename = "nodes_per_ray")]
-    nodes: Option<f64>,
-    /// Mean triangles tested per ray (null on the driver row).
+    pub(super) nodes: Option<f64>,
+    /// Mean triangles tested per ray (null on the driver and embree rows).
     #[serde(rename = "triangles_per_ray")]
-    tris: Option<f64>,
-    /// Nodes × node size + triangles × 48 bytes (null on the driver row).
+    pub(super) tris: Option<f64>,
+    /// Nodes × node size + triangles × 48 bytes (null on the driver and embree rows).
     #[serde(rename = "bytes_loaded_per_ray")]
-    bytes_loaded: Option<f64>,
-    /// CPU twin, median of --repeat runs; null on subgroup rows (the twin traces per ray).
+    pub(super) bytes_loaded: Option<f64>,
+    /// CPU twin (or Embree), median of --repeat runs; null on subgroup rows (the twin traces
+    /// per ray) and driver rows.
     #[serde(rename = "cpu_mrays_per_s")]
-    cpu_mrays: Option<f64>,
+    pub(super) cpu_mrays: Option<f64>,
     /// GPU kernel, median of --repeat runs (GPU time where the adapter reports it); null
-    /// without a GPU.
+    /// without a GPU and on embree rows.
     #[serde(rename = "gpu_mrays_per_s")]
-    gpu_mrays: Option<f64>,
+    pub(super) gpu_mrays: Option<f64>,
 }
 
 /// One layout's size (a JSON `layouts` entry).
@@ -124,6 +129,11 @@ struct Report<'a> {
     /// Wall time of the driver's build of its own acceleration structure (the driver rows);
     /// null where the adapter has no ray queries or one layout was asked for.
     driver_build_ms: Option<f64>,
+    /// Wall time of Embree's scene build (the embree rows); null without the `embree`
+    /// feature.
+    embree_build_ms: Option<f64>,
+    /// Embree's version ("3.13.5"); null without the `embree` feature.
+    embree_version: Option<String>,
     /// One object per layout, mode and ray set.
     runs: &'a [Row],
 }
@@ -157,6 +167,10 @@ fn time_gpu(
 /// The driver row's layout and mode names.
 const DRIVER: &str = "driver";
 const RAY_QUERY: &str = "ray-query";
+
+/// The Embree rows' layout and mode names (the `embree` feature).
+pub(super) const EMBREE: &str = "embree";
+pub(super) const SINGLE_RAY: &str = "single-ray";
 
 impl BenchLayouts {
     /// The driver's own traversal on each ray set, where the adapter offers ray queries and
@@ -203,6 +217,29 @@ impl BenchLayouts {
         Ok(Some((driver.build_ms(), rows)))
     }
 
+    /// Embree's rows on each ray set (the `embree` feature): its build time (ms), version and
+    /// one row per set.
+    #[cfg(feature = "embree")]
+    fn time_embree(
+        &self,
+        mesh: &lancer::Mesh,
+        sets: &[(String, Query, Vec<Ray>)],
+        bar: &ProgressBar,
+    ) -> Result<Option<(f64, String, Vec<Row>)>> {
+        super::embree_row::embree_rows(mesh, sets, self.repeat as usize, bar).map(Some)
+    }
+
+    /// Without the `embree` feature: no Embree rows.
+    #[cfg(not(feature = "embree"))]
+    fn time_embree(
+        &self,
+        _: &lancer::Mesh,
+        _: &[(String, Query, Vec<Ray>)],
+        _: &ProgressBar,
+    ) -> Result<Option<(f64, String, Vec<Row>)>> {
+        Ok(None)
+    }
+
     pub fn run(self) -> Result<()> {
         let say = self.json.say();
         self.json.check(std::slice::from_ref(&self.mesh))?;
@@ -213,7 +250,14 @@ impl BenchLayouts {
         let tree = build(&mesh, &self.build.options());
         let reference = flatten(LayoutKind::default(), &tree, &mesh);
         let rob = Robustness::default();
-        let sets = view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?;
+        let mut sets = view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?;
+        // Incoherent rays, as many as primary rays (view_ray_sets checked the count).
+        let n_random = sets.first().map_or(0, |s| s.2.len()) as u32;
+        sets.push((
+            "random".into(),
+            Query::Closest,
+            random_rays(&mesh, n_random),
+        ));
         let device = open_bench_device(self.device)?;
         let kinds = self.layouts.kinds();
         let repeat = self.repeat as usize;
@@ -316,6 +360,10 @@ impl BenchLayouts {
         if let Some((_, driver_rows)) = &driver {
             rows.extend(driver_rows.iter().cloned());
         }
+        let embree = self.time_embree(&mesh, &sets, &bar)?;
+        if let Some((_, _, embree_rows)) = &embree {
+            rows.extend(embree_rows.iter().cloned());
+        }
         bar.finish_and_clear();
         let adapter = device
             .gpu_context()
@@ -384,6 +432,16 @@ impl BenchLayouts {
             ),
             _ => {}
         }
+        if let Some((build_ms, version, _)) = &embree {
+            say!(
+                say,
+                "\nembree rows: Embree {version}, its scene (build quality medium, Embree's \
+                 default) built in {build_ms:.1} ms over the mesh's triangles on {} threads; \
+                 one ray per call (rtcIntersect1 for closest hits, rtcOccluded1 for any hit) \
+                 on the CPU twin's threads; it reports no work counts.",
+                rayon::current_num_threads()
+            );
+        }
         if rows
             .iter()
             .any(|r| r.mode == TraversalMode::Subgroup.name())
@@ -428,6 +486,16 @@ impl BenchLayouts {
                     .collect();
                 series.push((format!("{DRIVER} ({RAY_QUERY})"), values));
             }
+            if let Some((_, _, embree_rows)) = &embree {
+                let mut values = Vec::new();
+                for r in embree_rows {
+                    values.push(r.cpu_mrays.unwrap_or(f64::NAN));
+                    if !device.is_cpu() {
+                        values.push(f64::NAN);
+                    }
+                }
+                series.push((format!("{EMBREE} ({SINGLE_RAY})"), values));
+            }
             let gpu_name = device
                 .gpu_context()
                 .map_or("none".into(), |c| c.adapter.driver.clone());
@@ -451,6 +519,8 @@ impl BenchLayouts {
             cpu_threads: rayon::current_num_threads(),
             layouts: &sizes,
             driver_build_ms: driver.as_ref().map(|d| d.0),
+            embree_build_ms: embree.as_ref().map(|e| e.0),
+            embree_version: embree.as_ref().map(|e| e.1.clone()),
             runs: &rows,
         };
         self.json.write(&report, say)?;

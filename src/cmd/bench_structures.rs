@@ -230,7 +230,7 @@ fn load(path: &Path, width: u32, height: u32) -> Result<(Mesh, Camera)> {
 
 /// `n` rays from origins uniform in the mesh's bounds, directions uniform on the sphere
 /// (the same rays every run).
-fn random_rays(mesh: &Mesh, n: u32) -> Vec<Ray> {
+pub fn random_rays(mesh: &Mesh, n: u32) -> Vec<Ray> {
     let b = mesh.bounds();
     (0..n)
         .map(|i| {

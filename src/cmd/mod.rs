@@ -11,6 +11,8 @@ mod chart;
 mod check;
 mod colour_bar;
 mod compare;
+#[cfg(feature = "embree")]
+mod embree_row;
 mod heatmap;
 mod input;
 mod merge;
