@@ -165,9 +165,9 @@ fn degenerate_input_gives_the_same_answers_on_cpu_gpu_and_the_oracle() {
     let meshes = [
         ("one triangle", one, 2000),
         (
-            "10^5 triangles, one centroid",
-            one_centroid(100_000, &mut rng),
-            300,
+            "10^6 triangles, one centroid",
+            one_centroid(1_000_000, &mut rng),
+            100,
         ),
         (
             "zero-area, collinear and needle triangles",

@@ -198,6 +198,29 @@ fn bindings_are_the_rust_numbers() {
             }
         }
     }
-    // The four BVH bindings in both kernels, plus 3 trace and 2 render bindings.
-    assert_eq!(seen, 4 * 2 + 3 + 2);
+    // The four BVH bindings in both kernels, plus 3 trace and 2 render bindings, per vote.
+    assert_eq!(seen, (4 * 2 + 3 + 2) * shaders::LaneVote::ALL.len());
+    // The driver's kernel: its acceleration structure and the trace bindings it shares.
+    let src = shaders::driver_trace_source();
+    let m = module(&src);
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&m)
+    .unwrap_or_else(|e| panic!("driver trace: {}", e.emit_to_string(&src)));
+    let driver: Vec<(String, u32)> = (m.global_variables.iter())
+        .filter_map(|(_, g)| Some((g.name.clone()?, g.binding.as_ref()?.binding)))
+        .collect();
+    for want in [
+        ("scene", bindings::DRIVER_SCENE),
+        ("tri_words", bindings::TRI_WORDS),
+        ("rays", bindings::TRACE_RAYS),
+        ("hits", bindings::TRACE_HITS),
+    ] {
+        assert!(
+            driver.contains(&(want.0.to_string(), want.1)),
+            "{want:?} in {driver:?}"
+        );
+    }
 }

@@ -12,7 +12,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::build;
 use lancer::gpu::{BvhMemory, DriverTracer};
 use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
-use lancer::mesh::load_mesh;
 use lancer::{
     Device, DeviceChoice, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
     TraversalMode,
@@ -23,12 +22,13 @@ use serde::{Serialize, Serializer};
 use super::bench::{median, JsonArg};
 use super::bench_structures::random_rays;
 use super::check::{layout_choice, LayoutChoice};
+use super::input::load_geometry;
 use super::out::{check_output, say};
 use super::{open_bench_device, spelled, view_ray_sets, BuilderArgs};
 
 #[derive(Args)]
 pub struct BenchLayouts {
-    /// Mesh (.obj, .ply, .gltf, .glb).
+    /// Mesh (.obj, .ply, .gltf, .glb) or scene (.toml: its assembled mesh).
     mesh: PathBuf,
     /// Width of the default view (primary rays; shadow and bounce rays start at their hits).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
@@ -246,7 +246,7 @@ impl BenchLayouts {
         if let Some(chart) = &self.chart {
             check_output(chart, std::slice::from_ref(&self.mesh))?;
         }
-        let mesh = load_mesh(&self.mesh)?;
+        let mesh = load_geometry(&self.mesh)?;
         let tree = build(&mesh, &self.build.options());
         let reference = flatten(LayoutKind::default(), &tree, &mesh);
         let rob = Robustness::default();

@@ -156,8 +156,11 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
         tol(p, t) / (dl * cos.max(1e-12))
     };
     let near_edge = |p: u32, t: f64| edge_distance(&tri(p), o, d) <= tol(p, t);
+    // A hit whose point lies within `tol` of where the interval starts or ends, measured
+    // across its plane as every other tolerance here is: the f32 test cannot tell which side
+    // of the bound it is on (a ray starting that close to a surface).
     let near_bound = |p: u32, t: f64| {
-        let tt = tol(p, t) / dl;
+        let tt = tol_t(p, t);
         (t - ray.tmin as f64).abs() <= tt || (t - ray.tmax as f64).abs() <= tt
     };
     if got.prim != MISS && got.prim as usize >= mesh.len() {
@@ -234,7 +237,13 @@ pub fn judge_any(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
             .map(|&q| (q - o).abs().max_element())
             .fold(t.abs() * dl, f64::max);
         let tol = TIE_REL * scale.max(f64::MIN_POSITIVE);
-        let near_bound = |b: f32| (t - b as f64).abs() * dl <= tol;
+        // Across the plane, as in `judge`: a point within tol of the interval's end.
+        let cos = (v[1] - v[0])
+            .cross(v[2] - v[0])
+            .normalize()
+            .dot(d / dl)
+            .abs();
+        let near_bound = |b: f32| (t - b as f64).abs() * dl * cos.max(1e-12) <= tol;
         edge_distance(&v, o, d) <= tol || near_bound(ray.tmin) || near_bound(ray.tmax)
     };
     if got.prim == MISS {
