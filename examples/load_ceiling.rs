@@ -142,10 +142,7 @@ fn probe(
         &vec![0u8; rays.len() * 16],
         wgpu::BufferUsages::STORAGE,
     );
-    let source = format!(
-        "{}\n{PROBE}",
-        shaders::library_source(shaders::LaneVote::Alone)
-    );
+    let source = format!("{}\n{PROBE}", shaders::library_source());
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),
         source: wgpu::ShaderSource::Wgsl(source.into()),

@@ -50,7 +50,7 @@ fn all_shaders_validate() {
 #[test]
 fn gpu_structs_match_rust() {
     let layout = &layouts()[0];
-    let src = shaders::trace_source(layout.as_ref(), shaders::LaneVote::Alone);
+    let src = shaders::trace_source(layout.as_ref());
     check(
         &src,
         "Tri",
@@ -102,7 +102,7 @@ fn gpu_structs_match_rust() {
 fn render_structs_match_rust() {
     use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
     let layout = &layouts()[0];
-    let src = shaders::render_source(layout.as_ref(), shaders::LaneVote::Alone);
+    let src = shaders::render_source(layout.as_ref());
     let m = &src;
     macro_rules! fields {
         ($t:ty; $($w:literal => $f:ident),*) => {
@@ -198,8 +198,8 @@ fn bindings_are_the_rust_numbers() {
             }
         }
     }
-    // The four BVH bindings in both kernels, plus 3 trace and 2 render bindings, per vote.
-    assert_eq!(seen, (4 * 2 + 3 + 2) * shaders::LaneVote::ALL.len());
+    // The four BVH bindings in both kernels, plus 3 trace and 2 render bindings.
+    assert_eq!(seen, 4 * 2 + 3 + 2);
     // The driver's kernel: its acceleration structure and the trace bindings it shares.
     let src = shaders::driver_trace_source();
     let m = module(&src);

@@ -128,10 +128,7 @@ struct TriHit {
 // that kernels without the near-hit rule, and every other hit, don't carry it.
 fn maybe_behind_origin(h: TriHit, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
                        w: Watertight) -> bool {
-    // any_lane (gpu::shaders::LaneVote): where the subgroup votes, the proof below is a
-    // uniform branch, skipped unless one of the lanes needs it.
-    let needed = abs(h.t) * h.det <= h.num;
-    if !any_lane(needed) || !needed {
+    if !(abs(h.t) * h.det <= h.num) {
         return false;
     }
     if MOLLER_TRUMBORE {

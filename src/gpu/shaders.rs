@@ -91,51 +91,15 @@ pub fn prelude() -> String {
     s
 }
 
-/// How the kernels' `any_lane(c)` is defined: the gate in front of rare work
-/// (`maybe_behind_origin` in shaders/lib/common.wgsl), a vote of the lanes that run together.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum LaneVote {
-    /// Each invocation alone: `any_lane(c)` is `c`. Any adapter.
-    Alone,
-    /// The subgroup votes: `any_lane(c)` is `subgroupAny(c)`, the same for all its lanes, so
-    /// the branch behind it is uniform: a driver that runs a subgroup as one SIMD program
-    /// (lavapipe) skips the rare work unless a lane needs it, instead of running it masked
-    /// on every call. Needs the device's `Features::SUBGROUP`. Same answers as [`Alone`]:
-    /// a lane that does not need the work still returns what it would have.
-    ///
-    /// [`Alone`]: LaneVote::Alone
-    Subgroup,
-}
-
-impl LaneVote {
-    /// The vote a device can run: the subgroup's where it has subgroup operations.
-    pub fn of(ctx: &super::GpuContext) -> LaneVote {
-        match ctx.subgroups {
-            Some(_) => LaneVote::Subgroup,
-            None => LaneVote::Alone,
-        }
-    }
-
-    /// Both votes, for validation.
-    pub const ALL: [LaneVote; 2] = [LaneVote::Alone, LaneVote::Subgroup];
-
-    fn wgsl(self) -> &'static str {
-        match self {
-            LaneVote::Alone => "fn any_lane(c: bool) -> bool { return c; }\n",
-            LaneVote::Subgroup => "fn any_lane(c: bool) -> bool { return subgroupAny(c); }\n",
-        }
-    }
-}
-
-/// What every layout's traversal builds on: the prelude, `any_lane` for the vote, the shared
-/// tests (`COMMON`) and the BVH memory, leaf triangles and counters (`TRAVERSAL`).
-pub fn library_source(vote: LaneVote) -> String {
-    format!("{}\n{}\n{COMMON}\n{TRAVERSAL}", prelude(), vote.wgsl())
+/// What every layout's traversal builds on: the prelude, the shared tests (`COMMON`) and the
+/// BVH memory, leaf triangles and counters (`TRAVERSAL`).
+pub fn library_source() -> String {
+    format!("{}\n{COMMON}\n{TRAVERSAL}", prelude())
 }
 
 /// The trace kernel's full source for a layout.
-pub fn trace_source(layout: &dyn Layout, vote: LaneVote) -> String {
-    kernel_source(layout, TRACE, vote)
+pub fn trace_source(layout: &dyn Layout) -> String {
+    kernel_source(layout, TRACE)
 }
 
 /// The trace kernel's source for a layout's subgroup traversal
@@ -143,40 +107,33 @@ pub fn trace_source(layout: &dyn Layout, vote: LaneVote) -> String {
 /// device's `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
 pub fn trace_subgroup_source(layout: &dyn Layout) -> Option<String> {
     let traversal = layout.subgroup_wgsl()?;
-    Some(format!(
-        "{}\n{traversal}\n{TRACE}",
-        library_source(LaneVote::Subgroup)
-    ))
+    Some(format!("{}\n{traversal}\n{TRACE}", library_source()))
 }
 
 /// The driver trace kernel's full source. The module needs the device's
 /// `Features::EXPERIMENTAL_RAY_QUERY`; the `enable` directive must come before anything else.
 pub fn driver_trace_source() -> String {
     format!(
-        "enable wgpu_ray_query;\n{}\n{}\n{COMMON}\n{DRIVER_TRACE}",
-        prelude(),
-        LaneVote::Alone.wgsl()
+        "enable wgpu_ray_query;\n{}\n{COMMON}\n{DRIVER_TRACE}",
+        prelude()
     )
 }
 
 /// The render kernel's full source for a layout.
-pub fn render_source(layout: &dyn Layout, vote: LaneVote) -> String {
-    kernel_source(layout, RENDER, vote)
+pub fn render_source(layout: &dyn Layout) -> String {
+    kernel_source(layout, RENDER)
 }
 
-fn kernel_source(layout: &dyn Layout, kernel: &str, vote: LaneVote) -> String {
-    format!("{}\n{}\n{kernel}", library_source(vote), layout.wgsl())
+fn kernel_source(layout: &dyn Layout, kernel: &str) -> String {
+    format!("{}\n{}\n{kernel}", library_source(), layout.wgsl())
 }
 
-/// Every kernel's full source for a layout with each [`LaneVote`], by name (for validation
-/// and layout tests).
-pub fn all(layout: &dyn Layout) -> Vec<(String, String)> {
-    let mut v = Vec::new();
-    for vote in LaneVote::ALL {
-        v.push((format!("trace ({vote:?})"), trace_source(layout, vote)));
-        v.push((format!("render ({vote:?})"), render_source(layout, vote)));
-    }
-    v
+/// Every kernel's full source for a layout, by name (for validation and layout tests).
+pub fn all(layout: &dyn Layout) -> Vec<(&'static str, String)> {
+    vec![
+        ("trace", trace_source(layout)),
+        ("render", render_source(layout)),
+    ]
 }
 
 /// Checks that the WGSL struct `name` in `source` has the given size and (member, offset)

@@ -114,7 +114,7 @@ impl<'a> GpuTracer<'a> {
             ctx,
             "trace",
             "trace",
-            &shaders::trace_source(layout, shaders::LaneVote::of(ctx)),
+            &shaders::trace_source(layout),
             &entries,
             true,
         )?;

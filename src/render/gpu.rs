@@ -312,7 +312,7 @@ impl<'a> GpuRenderer<'a> {
             ctx,
             "render",
             "render",
-            &shaders::render_source(layout, shaders::LaneVote::of(ctx)),
+            &shaders::render_source(layout),
             &entries,
             // Trusted modules are offered: the layout was validated by GpuBvh::upload, the
             // scene's indices (materials, emitters, texels) are built here in range, and

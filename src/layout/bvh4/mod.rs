@@ -333,7 +333,7 @@ mod tests {
             glam::Vec3::Y,
         )]);
         let layout = layout(&mesh);
-        let src = shaders::trace_source(&layout, shaders::LaneVote::Alone);
+        let src = shaders::trace_source(&layout);
         let fields = [
             ("lo_x", offset_of!(Bvh4Node, lo_x)),
             ("lo_y", offset_of!(Bvh4Node, lo_y)),

@@ -209,7 +209,7 @@ mod tests {
             glam::Vec3::Y,
         )]);
         let layout = DfsSign::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
-        let src = shaders::trace_source(&layout, shaders::LaneVote::Alone);
+        let src = shaders::trace_source(&layout);
         let fields = [
             ("lo", offset_of!(DfsNode, lo)),
             ("a", offset_of!(DfsNode, a)),
