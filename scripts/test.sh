@@ -38,6 +38,14 @@ cargo test --release "$@"
 # lavapipe (Mesa 22.3) has none; Mesa 25's, in the bookworm-backports suite, has. Where apt can
 # reach that suite, its lavapipe is unpacked beside the system's (target/mesa25; the system
 # driver stays what it is) and tests/driver.rs runs again on it, where a missing feature fails.
+# Whether apt offers mesa-vulkan-drivers from bookworm-backports (no pipe into grep -q: under
+# pipefail its early exit would fail the pipeline).
+has_backports() {
+  local policy
+  policy=$(apt-cache policy mesa-vulkan-drivers 2>/dev/null) || return 1
+  [[ $policy == *bookworm-backports* ]]
+}
+
 ray_query_lavapipe() {
   local dir=target/mesa25 lib=usr/lib/x86_64-linux-gnu
   if [ -f "$dir/lvp_icd.json" ]; then return 0; fi
@@ -50,11 +58,15 @@ ray_query_lavapipe() {
     SUDO="sudo"
   fi
   local src=/etc/apt/sources.list.d/debian.sources
-  if ! apt-cache policy mesa-vulkan-drivers 2>/dev/null | grep -q bookworm-backports; then
+  if ! has_backports; then
     # Enable the suite on the machine's own apt source (its Suites line), never a new address.
-    [ -f "$src" ] && grep -q '^Suites: bookworm bookworm-updates$' "$src" || return 1
-    $SUDO sed -i 's/^Suites: bookworm bookworm-updates$/& bookworm-backports/' "$src"
-    $SUDO apt-get update -qq
+    [ -f "$src" ] || return 1
+    if ! grep -q '^Suites:.*bookworm-backports' "$src"; then
+      grep -q '^Suites: bookworm bookworm-updates$' "$src" || return 1
+      $SUDO sed -i 's/^Suites: bookworm bookworm-updates$/& bookworm-backports/' "$src"
+    fi
+    $SUDO apt-get update -qq || return 1
+    has_backports || return 1
   fi
   rm -rf "$dir.tmp" && mkdir -p "$dir.tmp/debs"
   (cd "$dir.tmp/debs" && apt-get download -qq mesa-vulkan-drivers/bookworm-backports \
