@@ -11,7 +11,7 @@ use lancer::accel::bvh::build;
 use lancer::gpu::DriverTracer;
 use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
-use lancer::trace::compare::{compare_hits, compare_hits_independent};
+use lancer::trace::compare::{compare_hits, compare_hits_independent, Comparison};
 use lancer::trace::files::read_rays;
 use lancer::{Device, Error, Query, Ray, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
@@ -56,6 +56,53 @@ struct CheckRow {
     genuine_ties: usize,
     /// Wrong answers.
     disagree: usize,
+}
+
+impl CheckRow {
+    /// The row of a ray set that was traced and compared.
+    fn ran(
+        layout: &'static str,
+        mode: &'static str,
+        rays: &str,
+        query: Query,
+        count: usize,
+        cmp: &Comparison,
+    ) -> CheckRow {
+        CheckRow {
+            layout,
+            mode,
+            rays: rays.to_string(),
+            query: query_name(query),
+            ran: true,
+            count,
+            identical: cmp.identical,
+            agree: cmp.agree,
+            genuine_ties: cmp.ties,
+            disagree: cmp.disagree.len(),
+        }
+    }
+
+    /// Prints the row and its first disagreements (`other` names the side compared with the
+    /// CPU twin); returns how many answers disagree.
+    fn report(&self, say: &Say, query: Query, other: &str, cmp: &Comparison) -> usize {
+        let (layout, mode, name) = (self.layout, self.mode, &self.rays);
+        say!(
+            say,
+            "| {layout} | {mode} | {name} | {query:?} | {} | {} | {} | {} | {} |",
+            self.count,
+            self.identical,
+            self.agree,
+            self.genuine_ties,
+            self.disagree
+        );
+        for d in cmp.disagree.iter().take(3) {
+            eprintln!(
+                "  {layout} {mode} {name} ray {}: CPU {:?}, {other} {:?}: {}",
+                d.ray, d.reference, d.other, d.why
+            );
+        }
+        self.disagree
+    }
 }
 
 /// A query as the JSON names it.
@@ -261,34 +308,10 @@ impl CheckCmd {
                 for ((name, query, rays), c) in sets.iter().zip(&twin_hits) {
                     let g = gpu.trace(rays, *query)?.hits;
                     let cmp = compare_hits(&mesh, rays, *query, c, &g);
-                    rows.push(CheckRow {
-                        layout: kind.name(),
-                        mode: mode.name(),
-                        rays: name.clone(),
-                        query: query_name(*query),
-                        ran: true,
-                        count: rays.len(),
-                        identical: cmp.identical,
-                        agree: cmp.agree,
-                        genuine_ties: cmp.ties,
-                        disagree: cmp.disagree.len(),
-                    });
-                    say!(
-                        say,
-                        "| {kind} | {mode} | {name} | {query:?} | {} | {} | {} | {} | {} |",
-                        rays.len(),
-                        cmp.identical,
-                        cmp.agree,
-                        cmp.ties,
-                        cmp.disagree.len()
-                    );
-                    for d in cmp.disagree.iter().take(3) {
-                        eprintln!(
-                            "  {kind} {mode} {name} ray {}: CPU {:?}, GPU {:?}: {}",
-                            d.ray, d.reference, d.other, d.why
-                        );
-                    }
-                    bad += cmp.disagree.len();
+                    let row =
+                        CheckRow::ran(kind.name(), mode.name(), name, *query, rays.len(), &cmp);
+                    bad += row.report(&say, *query, "GPU", &cmp);
+                    rows.push(row);
                 }
             }
         }
@@ -302,34 +325,9 @@ impl CheckCmd {
                 let c = twin.trace(rays, *query)?.hits;
                 let d = driver.trace(rays, *query)?.0;
                 let cmp = compare_hits_independent(&mesh, rays, *query, &c, &d);
-                say!(
-                    say,
-                    "| driver | ray-query | {name} | {query:?} | {} | {} | {} | {} | {} |",
-                    rays.len(),
-                    cmp.identical,
-                    cmp.agree,
-                    cmp.ties,
-                    cmp.disagree.len()
-                );
-                for x in cmp.disagree.iter().take(3) {
-                    eprintln!(
-                        "  driver {name} ray {}: CPU {:?}, driver {:?}: {}",
-                        x.ray, x.reference, x.other, x.why
-                    );
-                }
-                bad += cmp.disagree.len();
-                rows.push(CheckRow {
-                    layout: "driver",
-                    mode: "ray-query",
-                    rays: name.clone(),
-                    query: query_name(*query),
-                    ran: true,
-                    count: rays.len(),
-                    identical: cmp.identical,
-                    agree: cmp.agree,
-                    genuine_ties: cmp.ties,
-                    disagree: cmp.disagree.len(),
-                });
+                let row = CheckRow::ran("driver", "ray-query", name, *query, rays.len(), &cmp);
+                bad += row.report(&say, *query, "driver", &cmp);
+                rows.push(row);
             }
         } else {
             say!(
