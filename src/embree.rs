@@ -15,8 +15,9 @@ use crate::geometry::{Hit, Ray};
 use crate::mesh::Mesh;
 use crate::{Error, Result};
 
-/// Rays one rayon task traces with one intersection context.
-const CHUNK: usize = 1024;
+/// Rays one rayon task traces with one intersection context: the CPU twins' chunk, so
+/// both rows are driven alike.
+const CHUNK: usize = crate::accel::RAY_CHUNK;
 
 /// Bytes per triangle the scene may take, for the memory check up front: the vertex (36) and
 /// index (12) buffers Embree copies plus its BVH (a medium-quality BVH4 over triangle4 leaves

@@ -30,6 +30,14 @@ fn check(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>,
     let mut closest = None;
     for query in [Query::Closest, Query::Any] {
         let (hits, stats) = bvh4.trace_batch(rays, query, &rob);
+        // The batch without work records (what the tracer runs without --stats) is the
+        // same traversal.
+        assert!(
+            hits.iter()
+                .zip(bvh4.trace_hits(rays, query, &rob))
+                .all(|(a, b)| *a == b),
+            "{name}: trace_hits differs from trace_batch"
+        );
         let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
         for (r, h) in rays.iter().zip(&hits) {
             let v = match query {

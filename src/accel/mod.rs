@@ -24,6 +24,10 @@ use crate::mesh::Mesh;
 
 pub use query::{Query, RayStats};
 
+/// Rays a CPU thread takes at a time in a batch ([`Accel::trace_hits`]): enough to make
+/// the hand-over cost nothing, few enough to balance two threads on a small batch.
+pub const RAY_CHUNK: usize = 1024;
+
 /// A CPU acceleration structure over a mesh's triangles.
 ///
 /// Hits report original (file-order) triangle indices; ties at equal t go to the smaller
@@ -41,6 +45,22 @@ pub trait Accel: Send + Sync {
         robustness: &Robustness,
         stats: &mut RayStats,
     ) -> Hit;
+
+    /// Traces a batch of rays on all threads; returns the hits alone, without recording
+    /// per-ray work (what [`Tracer`](crate::Tracer) runs when no statistics are asked for;
+    /// rays go to the threads in chunks of [`RAY_CHUNK`], as the Embree row's do).
+    fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
+        let mut hits = vec![Hit::miss(0.0); rays.len()];
+        hits.par_chunks_mut(RAY_CHUNK)
+            .zip(rays.par_chunks(RAY_CHUNK))
+            .for_each(|(hits, rays)| {
+                let mut stats = RayStats::default();
+                for (h, r) in hits.iter_mut().zip(rays) {
+                    *h = self.intersect(r, query, robustness, &mut stats);
+                }
+            });
+        hits
+    }
 
     /// Traces a batch of rays on all threads; returns hits and per-ray work.
     fn trace_batch(

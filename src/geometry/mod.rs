@@ -5,6 +5,7 @@ mod aabb;
 mod hit;
 mod ray;
 mod robustness;
+mod slab4;
 mod triangle;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
@@ -13,6 +14,7 @@ pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{
     prune_bound, Precision, RayOffset, Robustness, SlabTest, FIXED_OFFSET, TIE_SLACK,
 };
+pub use slab4::SlabRay4;
 pub(crate) use triangle::gamma;
 pub use triangle::{
     grazing_in_front, intersect_moller_trumbore, intersect_triangle, intersect_triangle_bounded,

@@ -245,10 +245,16 @@ impl<'d> Tracer<'d> {
             }
             None => {
                 let start = Instant::now();
-                let (hits, stats) = self.cpu.trace_batch(rays, query, &o.robustness);
+                let (hits, stats) = match o.stats {
+                    true => {
+                        let (hits, stats) = self.cpu.trace_batch(rays, query, &o.robustness);
+                        (hits, Some(stats))
+                    }
+                    false => (self.cpu.trace_hits(rays, query, &o.robustness), None),
+                };
                 Ok(TraceResult {
                     hits,
-                    stats: o.stats.then_some(stats),
+                    stats,
                     timings: Timings {
                         gpu_ms: None,
                         wall_ms: start.elapsed().as_secs_f64() * 1e3,

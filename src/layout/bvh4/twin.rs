@@ -1,13 +1,16 @@
 //! The CPU twin of `bvh4.wgsl`, step for step: the used slots' boxes through the shared slab
-//! test (`Aabb::slab_interval`), the same child order (entry distance, then slot), the same
-//! stack of (node and slot, entry) entries popped only while their entry is within the
-//! prune bound, and the shared leaf step (`LeafRay::test_leaf`: triangle test, tie rule).
+//! test (`Aabb::slab_interval`; for a ray with no parallel axis all four at once in SIMD
+//! lanes, `SlabRay4`, which equals it), the same child order (entry distance, then slot),
+//! the same stack of (node and slot, entry) entries popped only while their entry is within
+//! the prune bound, and the shared leaf step (`LeafRay::test_leaf`: triangle test, tie rule).
 
-use glam::{Vec3, Vec3A};
+use std::mem::MaybeUninit;
+
+use glam::{Vec3, Vec4};
 
 use super::{Bvh4, Bvh4Node, INNER, SLOT_BITS, SLOT_MASK, STACK_SIZE, WIDTH};
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
 use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 /// A pushed child: its node and slot (`node << SLOT_BITS | slot`), and the entry distance its box
@@ -73,25 +76,38 @@ impl Bvh4 {
         let leaf = LeafRay::new(ray, robustness);
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
-        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
-        // The shared slab test on slot k's box: the scalar one (parallel-axis rule) for a
-        // ray parallel to an axis, else its SIMD form, which equals it on such rays.
-        let interval = |node: &Bvh4Node, k: usize, tmax: f32| {
-            let b = node.bbox(k);
-            if parallel {
-                b.slab_interval(ray.origin, inv, ray.tmin, tmax, widen)
-            } else {
-                let (lo, hi) = (Vec3A::from(b.lo), Vec3A::from(b.hi));
-                Aabb::slab_interval_nonparallel(lo, hi, origin_a, inv_a, ray.tmin, tmax, widen)
+        // The shared slab test: the scalar one (parallel-axis rule) for a ray parallel to
+        // an axis, one slot at a time; else all four slots in SIMD lanes, which equal it.
+        let slab4 = (!parallel).then(|| SlabRay4::new(ray.origin, inv, ray.tmin, widen));
+        let intervals = |node: &Bvh4Node, tmax: f32| -> (u32, [f32; WIDTH]) {
+            let used = (0..WIDTH).fold(0u32, |m, k| m | ((node.kind[k] != 0) as u32) << k);
+            match &slab4 {
+                Some(s) => {
+                    let lo = [node.lo_x, node.lo_y, node.lo_z].map(Vec4::from_array);
+                    let hi = [node.hi_x, node.hi_y, node.hi_z].map(Vec4::from_array);
+                    let (e, x) = s.intervals(lo, hi, tmax);
+                    (e.cmple(x).bitmask() & used, e.to_array())
+                }
+                None => {
+                    let (mut hit, mut enter) = (0u32, [0.0f32; WIDTH]);
+                    for (k, slot_enter) in enter.iter_mut().enumerate() {
+                        if used >> k & 1 != 0 {
+                            let b = node.bbox(k);
+                            let (e, x) = b.slab_interval(ray.origin, inv, ray.tmin, tmax, widen);
+                            *slot_enter = e;
+                            hit |= ((e <= x) as u32) << k;
+                        }
+                    }
+                    (hit, enter)
+                }
             }
         };
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
-        let mut stack = [Entry {
-            slot: 0,
-            enter: 0.0,
-        }; STACK_SIZE];
+        // Not zeroed (768 bytes per ray, a twentieth of a primary ray's time): an entry is
+        // read only below `sp`, where it was written.
+        let mut stack = [MaybeUninit::<Entry>::uninit(); STACK_SIZE];
         let mut sp = 0usize;
         let (mut child, mut kind) = (0u32, INNER);
         'walk: loop {
@@ -101,20 +117,24 @@ impl Bvh4 {
                 let node: &Bvh4Node = &self.nodes[index as usize];
                 stats.nodes += 1;
                 // Used slots whose boxes the ray enters before the prune bound.
-                let (mut hit, mut enter) = (0u32, [0.0f32; WIDTH]);
-                for (k, slot_enter) in enter.iter_mut().enumerate() {
-                    if node.kind[k] != 0 {
-                        let (e, x) = interval(node, k, prune);
-                        *slot_enter = e;
-                        hit |= ((e <= x) as u32) << k;
-                    }
-                }
+                let (hit, enter) = intervals(node, prune);
                 if hit != 0 {
                     descended = true;
                     let n = hit.count_ones();
                     if n == 1 {
                         let k = hit.trailing_zeros() as usize;
                         (child, kind) = (node.child[k], node.kind[k]);
+                    } else if n == 2 {
+                        // The common case of the rank order below, without the ranks.
+                        let a = hit.trailing_zeros() as usize;
+                        let b = (31 - hit.leading_zeros()) as usize;
+                        let (near, far) = if enter[b] < enter[a] { (b, a) } else { (a, b) };
+                        (child, kind) = (node.child[near], node.kind[near]);
+                        stack[sp].write(Entry {
+                            slot: index << SLOT_BITS | far as u32,
+                            enter: enter[far],
+                        });
+                        sp += 1;
                     } else {
                         // The nearest is visited next; the others pushed farthest first.
                         let rank = ranks(hit, enter);
@@ -125,10 +145,10 @@ impl Bvh4 {
                             if r == 0 {
                                 (child, kind) = (node.child[k], node.kind[k]);
                             } else {
-                                stack[sp + (n - 1 - r) as usize] = Entry {
+                                stack[sp + (n - 1 - r) as usize].write(Entry {
                                     slot: index << SLOT_BITS | k as u32,
                                     enter: e,
-                                };
+                                });
                             }
                         }
                         sp += (n - 1) as usize;
@@ -149,7 +169,8 @@ impl Bvh4 {
                         break 'walk;
                     }
                     sp -= 1;
-                    let e = stack[sp];
+                    // SAFETY: every entry below the stack pointer was written by a push.
+                    let e = unsafe { stack[sp].assume_init() };
                     if e.enter <= prune {
                         let node = &self.nodes[(e.slot >> SLOT_BITS) as usize];
                         let k = (e.slot & SLOT_MASK) as usize;
