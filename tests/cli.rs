@@ -757,7 +757,7 @@ fn threads_sets_the_cpu_pool_and_is_validated() {
 }
 
 #[test]
-fn rays_pipe_into_trace_and_hits_come_out_on_stdout() {
+fn rays_pipe_into_trace_and_check_and_hits_come_out_on_stdout() {
     let dir = Scratch::new();
     let quad = dir.quad();
     let (rays, hits) = (dir.path("p.rays"), dir.path("p.hits"));
@@ -825,6 +825,27 @@ fn rays_pipe_into_trace_and_hits_come_out_on_stdout() {
     assert_eq!(out.status.code(), Some(2));
     assert!(out.stdout.is_empty());
     assert!(String::from_utf8_lossy(&out.stderr).contains("<stdin>"));
+    // check --rays - reads the same stream: every layout's rows name it.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args(["check", s(&quad), "--rays", "-", "--layout", "dfs-sign"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(&std::fs::read(&rays).unwrap())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("| dfs-sign | per-ray | <stdin> | Closest | 63 |"),
+        "{text}"
+    );
 }
 
 /// Runs lancer expecting `code`; stdout must be exactly one line holding one JSON object.

@@ -12,12 +12,12 @@ use lancer::gpu::DriverTracer;
 use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::trace::compare::{compare_hits, compare_hits_independent, Comparison};
-use lancer::trace::files::read_rays;
+use lancer::trace::files::decode_rays;
 use lancer::{Device, Error, Query, Ray, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
 
 use super::input::load_bvh;
-use super::out::{print_json, say, Say};
+use super::out::{is_std, print_json, read_input, say, Say};
 use super::{view_ray_sets, BuilderArgs, DeviceArgs, RobustnessArgs, BUILDER_IDS};
 
 /// `check --json`: one object a run.
@@ -176,7 +176,7 @@ impl LayoutChoice {
 pub struct CheckCmd {
     /// Mesh (.obj, .ply, .gltf, .glb).
     mesh: PathBuf,
-    /// Ray file (32 bytes a ray); by default the primary rays of the default view
+    /// Ray file (32 bytes a ray), or - for stdin; by default the primary rays of the default view
     /// (--width × --height) and the shadow and diffuse bounce rays from their hits.
     #[arg(long)]
     rays: Option<PathBuf>,
@@ -243,8 +243,12 @@ impl CheckCmd {
         };
         let sets: Vec<(String, Query, Vec<Ray>)> = match &self.rays {
             Some(path) => {
-                let rays = read_rays(path)?;
-                let name = path.display().to_string();
+                let name = match is_std(path) {
+                    true => PathBuf::from("<stdin>"),
+                    false => path.clone(),
+                };
+                let rays = decode_rays(&name, &read_input(path)?)?;
+                let name = name.display().to_string();
                 vec![
                     (name.clone(), Query::Closest, rays.clone()),
                     (name, Query::Any, rays),

@@ -22,7 +22,7 @@
 //!
 //! Stack: a traversal holds at most three entries per 4-wide node on its current path.
 //! Binary inner nodes lie at depth ≤ [`MAX_DEPTH`] − 1 = 63, so 4-wide nodes at depth
-//! ≤ 31, and [`STACK_SIZE`] = 3 · 32 = 96 entries hold any traversal; `validate` checks
+//! ≤ 31, and `STACK_SIZE` = 3 · 32 = 96 entries hold any traversal; `validate` checks
 //! every node's depth against it. An entry is 8 bytes (node and slot, entry distance), the
 //! stack 768 bytes; the kernel keeps it in a `var<private>`, zeroed once per invocation,
 //! not per `traverse` call. (On lavapipe, a function-local stack of 192 12-byte entries
