@@ -1,14 +1,16 @@
 //! The CPU twin of `cwbvh.wgsl`, step for step: the same group stack (a node's remaining
 //! hit children pushed before descending into the one with the highest hit-mask bit), the
 //! same octant order, child boxes dequantised with the same f32 arithmetic and tested with
-//! the shared slab test against the same bound, a node's leaf triangles tested lowest bit
+//! the shared slab test against the same bound (four slots at a time in SIMD lanes for a ray
+//! with no parallel axis, equal to it lane for lane), a node's leaf triangles tested lowest bit
 //! first right after the node, and the same tie rule, all in f32.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
+use super::quantise::step;
 use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
 use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 /// Hit-mask bits of internal children.
@@ -40,41 +42,63 @@ impl Accel for Cwbvh {
 struct RayBox {
     origin: Vec3,
     inv: Vec3,
-    origin_a: Vec3A,
-    inv_a: Vec3A,
     tmin: f32,
-    parallel: bool,
     widen: f32,
+    /// For a ray with no parallel axis: its lanes for four boxes at a time.
+    slab4: Option<SlabRay4>,
     /// 7 ^ octant: XORed into an internal child's slot to give its traversal rank.
     oct_inv: u32,
 }
 
 impl RayBox {
-    /// The hit mask of `node`'s children whose boxes the ray enters before `prune`:
-    /// internal children at bit TRI_BITS + (slot ^ oct_inv), leaf triangles at their offsets.
+    /// Bit s set: slot s's box (used or not) is entered before `prune`.
     #[inline(always)]
-    fn child_hits(&self, node: &CwNode, prune: f32) -> u32 {
-        let mut hits = 0;
-        for s in 0..WIDTH {
-            let m = node.child_meta[s] as u32;
-            if m == 0 {
-                continue;
+    fn entered(&self, node: &CwNode, prune: f32) -> u32 {
+        let p = Vec3A::from_array(node.p);
+        let step = step(node.e);
+        match &self.slab4 {
+            // Slots 0–3 and 4–7 in SIMD lanes: per lane the dequantisation p + q · step of
+            // `CwNode::child_box` and the slab test of `SlabRay4`, which equal the scalar ones.
+            Some(s) => {
+                let mut bits = 0;
+                for half in 0..2 {
+                    let lanes = |q: &[[u8; WIDTH]; 3], axis: usize| {
+                        let b = &q[axis][4 * half..4 * half + 4];
+                        let q = Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32);
+                        Vec4::splat(p[axis]) + q * Vec4::splat(step[axis])
+                    };
+                    let lo = [0, 1, 2].map(|a| lanes(&node.q_lo, a));
+                    let hi = [0, 1, 2].map(|a| lanes(&node.q_hi, a));
+                    let (enter, exit) = s.intervals(lo, hi, prune);
+                    bits |= enter.cmple(exit).bitmask() << (4 * half);
+                }
+                bits
             }
-            let (lo, hi) = node.child_box(s);
-            let enter = if self.parallel {
+            None => (0..WIDTH).fold(0, |bits, s| {
+                let (lo, hi) = node.child_box(s);
                 let b = Aabb {
                     lo: lo.into(),
                     hi: hi.into(),
                 };
-                b.slab_hit(self.origin, self.inv, self.tmin, prune, self.widen)
-            } else {
-                let (o, inv) = (self.origin_a, self.inv_a);
-                Aabb::slab_hit_nonparallel(lo, hi, o, inv, self.tmin, prune, self.widen)
-            };
-            if enter {
-                let inner = (node.imask as u32 >> s) & 1;
-                hits |= (m >> COUNT_SHIFT) << ((m & INDEX_MASK) ^ (self.oct_inv * inner));
-            }
+                let hit = b.slab_hit(self.origin, self.inv, self.tmin, prune, self.widen);
+                bits | (hit as u32) << s
+            }),
+        }
+    }
+
+    /// The hit mask of `node`'s children whose boxes the ray enters before `prune`:
+    /// internal children at bit TRI_BITS + (slot ^ oct_inv), leaf triangles at their offsets.
+    #[inline(always)]
+    fn child_hits(&self, node: &CwNode, prune: f32) -> u32 {
+        let mut entered = self.entered(node, prune);
+        let mut hits = 0;
+        while entered != 0 {
+            let s = entered.trailing_zeros() as usize;
+            entered &= entered - 1;
+            // An empty slot (meta 0) adds nothing.
+            let m = node.child_meta[s] as u32;
+            let inner = (node.imask as u32 >> s) & 1;
+            hits |= (m >> COUNT_SHIFT) << ((m & INDEX_MASK) ^ (self.oct_inv * inner));
         }
         hits
     }
@@ -99,14 +123,14 @@ impl Cwbvh {
         let octant = (ray.dir.x < 0.0) as u32
             | ((ray.dir.y < 0.0) as u32) << 1
             | ((ray.dir.z < 0.0) as u32) << 2;
+        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        let widen = robustness.far_widen();
         let rb = RayBox {
             origin: ray.origin,
             inv,
-            origin_a: Vec3A::from(ray.origin),
-            inv_a: Vec3A::from(inv),
             tmin: ray.tmin,
-            parallel: inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any(),
-            widen: robustness.far_widen(),
+            widen,
+            slab4: (!parallel).then(|| SlabRay4::new(ray.origin, inv, ray.tmin, widen)),
             oct_inv: (WIDTH as u32 - 1) ^ octant,
         };
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
