@@ -5,19 +5,14 @@
 
 use std::time::Instant;
 
+use crate::accel::trace_in_chunks;
+use crate::geometry::{Hit, Ray};
+use crate::mesh::Mesh;
+use crate::{Error, Result};
 use embree3::{
     BufferUsage, BuildQuality, Config, Device, DeviceProperty, Format, GeometryKind,
     IntersectContext, RayHit, Scene, INVALID_ID,
 };
-use rayon::prelude::*;
-
-use crate::geometry::{Hit, Ray};
-use crate::mesh::Mesh;
-use crate::{Error, Result};
-
-/// Rays one rayon task traces with one intersection context: the CPU twins' chunk, so
-/// both rows are driven alike.
-const CHUNK: usize = crate::accel::RAY_CHUNK;
 
 /// Bytes per triangle the scene may take, for the memory check up front: the vertex (36) and
 /// index (12) buffers Embree copies plus its BVH (a medium-quality BVH4 over triangle4 leaves
@@ -122,47 +117,39 @@ impl EmbreeTracer {
     /// Closest hits (`rtcIntersect1`), one ray at a time on rayon's threads: original triangle
     /// indices, Embree's t and barycentrics; [`Hit::miss`] on a miss or an invalid ray.
     pub fn closest(&self, rays: &[Ray]) -> Vec<Hit> {
-        let mut hits = vec![Hit::miss(0.0); rays.len()];
-        hits.par_chunks_mut(CHUNK)
-            .zip(rays.par_chunks(CHUNK))
-            .for_each(|(hits, rays)| {
-                let mut ctx = IntersectContext::incoherent();
-                for (h, r) in hits.iter_mut().zip(rays) {
-                    *h = Hit::miss(r.tmax);
-                    if !r.is_valid() {
-                        continue;
-                    }
-                    let mut rh = RayHit::from(embree_ray(r));
-                    self.scene.intersect(&mut ctx, &mut rh);
-                    if rh.hit.geomID != INVALID_ID {
-                        if let Some(&prim) = self.prims.get(rh.hit.primID as usize) {
-                            *h = Hit {
-                                t: rh.ray.tfar,
-                                prim,
-                                u: rh.hit.u,
-                                v: rh.hit.v,
-                            };
-                        }
-                    }
+        trace_in_chunks(
+            rays,
+            Hit::miss(0.0),
+            IntersectContext::incoherent,
+            |ctx, r| {
+                let miss = Hit::miss(r.tmax);
+                if !r.is_valid() {
+                    return miss;
                 }
-            });
-        hits
+                let mut rh = RayHit::from(embree_ray(r));
+                self.scene.intersect(ctx, &mut rh);
+                if rh.hit.geomID == INVALID_ID {
+                    return miss;
+                }
+                match self.prims.get(rh.hit.primID as usize) {
+                    Some(&prim) => Hit {
+                        t: rh.ray.tfar,
+                        prim,
+                        u: rh.hit.u,
+                        v: rh.hit.v,
+                    },
+                    None => miss,
+                }
+            },
+        )
     }
 
     /// Whether each ray is blocked (`rtcOccluded1`), one ray at a time on rayon's threads;
     /// false for an invalid ray. Embree's any-hit names no triangle.
     pub fn occluded(&self, rays: &[Ray]) -> Vec<bool> {
-        let mut blocked = vec![false; rays.len()];
-        blocked
-            .par_chunks_mut(CHUNK)
-            .zip(rays.par_chunks(CHUNK))
-            .for_each(|(blocked, rays)| {
-                let mut ctx = IntersectContext::incoherent();
-                for (b, r) in blocked.iter_mut().zip(rays) {
-                    *b = r.is_valid() && self.scene.occluded(&mut ctx, &mut embree_ray(r));
-                }
-            });
-        blocked
+        trace_in_chunks(rays, false, IntersectContext::incoherent, |ctx, r| {
+            r.is_valid() && self.scene.occluded(ctx, &mut embree_ray(r))
+        })
     }
 }
 

@@ -28,6 +28,31 @@ pub use query::{Query, RayStats};
 /// the hand-over cost nothing, few enough to balance two threads on a small batch.
 pub const RAY_CHUNK: usize = 1024;
 
+/// How CPU tracers drive a batch (the twins' [`Accel::trace_hits`] and the Embree row
+/// alike): rayon's threads take [`RAY_CHUNK`] rays at a time, each chunk with its own
+/// `scratch()` (work counters, an Embree context), and `trace` answers one ray, written in
+/// place into an output filled with `empty`; the answers are in ray order.
+pub(crate) fn trace_in_chunks<T, S>(
+    rays: &[Ray],
+    empty: T,
+    scratch: impl Fn() -> S + Sync,
+    trace: impl Fn(&mut S, &Ray) -> T + Sync,
+) -> Vec<T>
+where
+    T: Clone + Send + Sync,
+{
+    let mut out = vec![empty; rays.len()];
+    out.par_chunks_mut(RAY_CHUNK)
+        .zip(rays.par_chunks(RAY_CHUNK))
+        .for_each(|(out, rays)| {
+            let mut s = scratch();
+            for (o, r) in out.iter_mut().zip(rays) {
+                *o = trace(&mut s, r);
+            }
+        });
+    out
+}
+
 /// A CPU acceleration structure over a mesh's triangles.
 ///
 /// Hits report original (file-order) triangle indices; ties at equal t go to the smaller
@@ -50,16 +75,9 @@ pub trait Accel: Send + Sync {
     /// per-ray work (what [`Tracer`](crate::Tracer) runs when no statistics are asked for;
     /// rays go to the threads in chunks of [`RAY_CHUNK`], as the Embree row's do).
     fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
-        let mut hits = vec![Hit::miss(0.0); rays.len()];
-        hits.par_chunks_mut(RAY_CHUNK)
-            .zip(rays.par_chunks(RAY_CHUNK))
-            .for_each(|(hits, rays)| {
-                let mut stats = RayStats::default();
-                for (h, r) in hits.iter_mut().zip(rays) {
-                    *h = self.intersect(r, query, robustness, &mut stats);
-                }
-            });
-        hits
+        trace_in_chunks(rays, Hit::miss(0.0), RayStats::default, |stats, r| {
+            self.intersect(r, query, robustness, stats)
+        })
     }
 
     /// Traces a batch of rays on all threads; returns hits and per-ray work.

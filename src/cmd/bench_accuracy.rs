@@ -103,6 +103,13 @@ struct Setting {
 
 fn settings() -> Vec<Setting> {
     let d = Robustness::default();
+    // The three accuracy knobs at their fast settings.
+    let fast = Robustness {
+        triangle_test: TriangleTest::MollerTrumbore,
+        slab_test: SlabTest::Plain,
+        ray_offset: RayOffset::None,
+        ..d
+    };
     let rob = |knob, name: &str, rob: Robustness, cpu, gpu| Setting {
         knob,
         name: name.into(),
@@ -187,27 +194,13 @@ fn settings() -> Vec<Setting> {
             true,
             false,
         ),
-        rob(
-            "fastest",
-            FAST_ACCURACY,
-            Robustness {
-                triangle_test: TriangleTest::MollerTrumbore,
-                slab_test: SlabTest::Plain,
-                ray_offset: RayOffset::None,
-                ..d
-            },
-            true,
-            true,
-        ),
+        rob("fastest", FAST_ACCURACY, fast, true, true),
         rob(
             "fastest",
             FASTEST,
             Robustness {
-                triangle_test: TriangleTest::MollerTrumbore,
-                slab_test: SlabTest::Plain,
-                ray_offset: RayOffset::None,
                 checked_module: false,
-                precision: Precision::F32,
+                ..fast
             },
             true,
             true,

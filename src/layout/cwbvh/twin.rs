@@ -54,12 +54,11 @@ impl RayBox {
     /// Bit s set: slot s's box (used or not) is entered before `prune`.
     #[inline(always)]
     fn entered(&self, node: &CwNode, prune: f32) -> u32 {
-        let p = Vec3A::from_array(node.p);
-        let step = step(node.e);
         match &self.slab4 {
             // Slots 0–3 and 4–7 in SIMD lanes: per lane the dequantisation p + q · step of
             // `CwNode::child_box` and the slab test of `SlabRay4`, which equal the scalar ones.
             Some(s) => {
+                let (p, step) = (Vec3A::from_array(node.p), step(node.e));
                 let mut bits = 0;
                 for half in 0..2 {
                     let lanes = |q: &[[u8; WIDTH]; 3], axis: usize| {
