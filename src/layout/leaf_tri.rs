@@ -1,12 +1,14 @@
 //! The triangle array every layout shares: triangles in leaf order, each with its original
 //! index (WGSL `Tri` and `load_tri` in `shaders/lib/traversal.wgsl`).
 
+use glam::{Mat4, Vec4};
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
 use crate::accel::RayStats;
 use crate::geometry::{
     intersect_triangle_bounded, Hit, Ray, Robustness, Triangle, TriangleTest, WatertightRay,
+    WatertightRay4,
 };
 use crate::mesh::Mesh;
 use crate::trace::oracle;
@@ -100,17 +102,39 @@ pub(crate) struct LeafRay<'a> {
     pub ray: &'a Ray,
     /// Its watertight set-up.
     pub wr: WatertightRay,
+    /// The same, in four lanes (the watertight test's verdict for four triangles at once).
+    pub wr4: WatertightRay4,
     /// Whether a hit that may lie behind the origin is dropped.
     pub reject_near: bool,
+}
+
+/// Triangles tested at once by the watertight verdict in lanes.
+const LANES: usize = 4;
+
+/// Up to four triangles' vertices in lanes (`v[i][axis]`, lane k = `tris[k]`; lanes past
+/// the end repeat the last triangle): each vertex row loaded whole and transposed.
+#[inline(always)]
+fn lanes(tris: &[LeafTri]) -> [[Vec4; 3]; 3] {
+    let last = tris.len() - 1;
+    let rows = [0, 1, 2, 3].map(|k| {
+        let t: [[f32; 4]; 3] = bytemuck::cast(tris[k.min(last)]);
+        t.map(Vec4::from_array)
+    });
+    [0, 1, 2].map(|i| {
+        let m = Mat4::from_cols(rows[0][i], rows[1][i], rows[2][i], rows[3][i]).transpose();
+        [m.x_axis, m.y_axis, m.z_axis]
+    })
 }
 
 impl<'a> LeafRay<'a> {
     /// The set-up for `ray` under `robustness`.
     #[inline(always)]
     pub fn new(ray: &'a Ray, robustness: &Robustness) -> Self {
+        let wr = WatertightRay::new(ray.dir);
         LeafRay {
             ray,
-            wr: WatertightRay::new(ray.dir),
+            wr,
+            wr4: WatertightRay4::new(ray.origin, &wr, ray.tmin),
             reject_near: robustness.rejects_near_hits(),
         }
     }
@@ -119,6 +143,11 @@ impl<'a> LeafRay<'a> {
     /// tests `tris` in order with the test `TEST` ([`leaf_test`]); a hit
     /// that beats `best` by the tie rule replaces it and moves `prune`. Returns true when an
     /// any-hit query is answered (the traversal ends).
+    ///
+    /// The watertight test first takes its verdict on four triangles at once
+    /// ([`WatertightRay4`], lane for lane the single test's) against the best t on entry,
+    /// then runs in order for those that may hit: a triangle it rules out would miss
+    /// against the smaller best t of the sequential loop too, so the result is the loop's.
     #[inline(always)]
     pub fn test_leaf<const TEST: u8>(
         &self,
@@ -128,39 +157,67 @@ impl<'a> LeafRay<'a> {
         prune: &mut f32,
         stats: &mut RayStats,
     ) -> bool {
+        if TEST != leaf_test::WATERTIGHT {
+            for lt in tris {
+                stats.tris += 1;
+                if self.test_one::<TEST>(lt, any_hit, best, prune) {
+                    return true;
+                }
+            }
+            return false;
+        }
+        for four in tris.chunks(LANES) {
+            let all = (1u32 << four.len()) - 1;
+            let mut may = self.wr4.may_hit(&lanes(four), best.t) & all;
+            while may != 0 {
+                let k = may.trailing_zeros() as usize;
+                may &= may - 1;
+                if self.test_one::<TEST>(&four[k], any_hit, best, prune) {
+                    stats.tris += k as u32 + 1;
+                    return true;
+                }
+            }
+            stats.tris += four.len() as u32;
+        }
+        false
+    }
+
+    /// One triangle of the leaf step; true when an any-hit query is answered.
+    #[inline(always)]
+    fn test_one<const TEST: u8>(
+        &self,
+        lt: &LeafTri,
+        any_hit: bool,
+        best: &mut Hit,
+        prune: &mut f32,
+    ) -> bool {
         let test = if TEST == leaf_test::MOLLER_TRUMBORE {
             TriangleTest::MollerTrumbore
         } else {
             TriangleTest::Watertight
         };
         let ray = self.ray;
-        for lt in tris {
-            stats.tris += 1;
-            let tri = lt.triangle();
-            let h = if TEST == leaf_test::F64 {
-                oracle::triangle_hit(&tri, ray, ray.tmin, best.t)
-            } else {
-                intersect_triangle_bounded(test, &tri, ray, &self.wr, ray.tmin, best.t)
-            };
-            let Some(h) = h else {
-                continue;
-            };
-            if !Hit::beats(h.t, lt.prim, best.t, best.prim)
-                || (self.reject_near && h.maybe_behind_origin())
-            {
-                continue;
-            }
-            *best = Hit {
-                t: h.t,
-                prim: lt.prim,
-                u: h.u,
-                v: h.v,
-            };
-            *prune = h.prune();
-            if any_hit {
-                return true;
-            }
+        let tri = lt.triangle();
+        let h = if TEST == leaf_test::F64 {
+            oracle::triangle_hit(&tri, ray, ray.tmin, best.t)
+        } else {
+            intersect_triangle_bounded(test, &tri, ray, &self.wr, ray.tmin, best.t)
+        };
+        let Some(h) = h else {
+            return false;
+        };
+        if !Hit::beats(h.t, lt.prim, best.t, best.prim)
+            || (self.reject_near && h.maybe_behind_origin())
+        {
+            return false;
         }
-        false
+        *best = Hit {
+            t: h.t,
+            prim: lt.prim,
+            u: h.u,
+            v: h.v,
+        };
+        *prune = h.prune();
+        any_hit
     }
 }

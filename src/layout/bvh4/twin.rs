@@ -6,7 +6,7 @@
 
 use std::mem::MaybeUninit;
 
-use glam::{Vec3, Vec4};
+use glam::{UVec4, Vec3, Vec4};
 
 use super::{Bvh4, Bvh4Node, INNER, SLOT_BITS, SLOT_MASK, STACK_SIZE, WIDTH};
 use crate::accel::{Accel, Query, RayStats};
@@ -68,38 +68,51 @@ impl Bvh4 {
         robustness: &Robustness,
         stats: &mut RayStats,
     ) -> Hit {
-        let mut best = Hit::miss(ray.tmax);
         if !ray.is_valid() {
-            return best;
+            return Hit::miss(ray.tmax);
         }
+        // The shared slab test: the scalar one (parallel-axis rule) for a ray parallel to
+        // an axis, one slot at a time; else all four slots in SIMD lanes, which equal it.
+        // Two loops, so that the common one has no choice to make per node.
+        let parallel = ray.inv_dir().abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        match parallel {
+            true => self.walk_in::<TEST, true>(ray, query, robustness, stats),
+            false => self.walk_in::<TEST, false>(ray, query, robustness, stats),
+        }
+    }
+
+    /// [`Bvh4::walk`] for a valid ray, parallel to an axis or not (`PARALLEL`).
+    #[inline(always)]
+    fn walk_in<const TEST: u8, const PARALLEL: bool>(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        let mut best = Hit::miss(ray.tmax);
         let widen = robustness.far_widen();
         let leaf = LeafRay::new(ray, robustness);
         let inv = ray.inv_dir();
-        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
-        // The shared slab test: the scalar one (parallel-axis rule) for a ray parallel to
-        // an axis, one slot at a time; else all four slots in SIMD lanes, which equal it.
-        let slab4 = (!parallel).then(|| SlabRay4::new(ray.origin, inv, ray.tmin, widen));
+        let slab4 = SlabRay4::new(ray.origin, inv, ray.tmin, widen);
         let intervals = |node: &Bvh4Node, tmax: f32| -> (u32, [f32; WIDTH]) {
-            let used = (0..WIDTH).fold(0u32, |m, k| m | ((node.kind[k] != 0) as u32) << k);
-            match &slab4 {
-                Some(s) => {
-                    let lo = [node.lo_x, node.lo_y, node.lo_z].map(Vec4::from_array);
-                    let hi = [node.hi_x, node.hi_y, node.hi_z].map(Vec4::from_array);
-                    let (e, x) = s.intervals(lo, hi, tmax);
-                    (e.cmple(x).bitmask() & used, e.to_array())
-                }
-                None => {
-                    let (mut hit, mut enter) = (0u32, [0.0f32; WIDTH]);
-                    for (k, slot_enter) in enter.iter_mut().enumerate() {
-                        if used >> k & 1 != 0 {
-                            let b = node.bbox(k);
-                            let (e, x) = b.slab_interval(ray.origin, inv, ray.tmin, tmax, widen);
-                            *slot_enter = e;
-                            hit |= ((e <= x) as u32) << k;
-                        }
+            let used = UVec4::from_array(node.kind).cmpne(UVec4::ZERO).bitmask();
+            if PARALLEL {
+                let (mut hit, mut enter) = (0u32, [0.0f32; WIDTH]);
+                for (k, slot_enter) in enter.iter_mut().enumerate() {
+                    if used >> k & 1 != 0 {
+                        let b = node.bbox(k);
+                        let (e, x) = b.slab_interval(ray.origin, inv, ray.tmin, tmax, widen);
+                        *slot_enter = e;
+                        hit |= ((e <= x) as u32) << k;
                     }
-                    (hit, enter)
                 }
+                (hit, enter)
+            } else {
+                let lo = [node.lo_x, node.lo_y, node.lo_z].map(Vec4::from_array);
+                let hi = [node.hi_x, node.hi_y, node.hi_z].map(Vec4::from_array);
+                let (e, x) = slab4.intervals(lo, hi, tmax);
+                (e.cmple(x).bitmask() & used, e.to_array())
             }
         };
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
@@ -120,11 +133,12 @@ impl Bvh4 {
                 let (hit, enter) = intervals(node, prune);
                 if hit != 0 {
                     descended = true;
-                    let n = hit.count_ones();
-                    if n == 1 {
+                    // One or two children without counting bits (no popcnt in baseline x86-64).
+                    let rest = hit & (hit - 1);
+                    if rest == 0 {
                         let k = hit.trailing_zeros() as usize;
                         (child, kind) = (node.child[k], node.kind[k]);
-                    } else if n == 2 {
+                    } else if rest & (rest - 1) == 0 {
                         // The common case of the rank order below, without the ranks.
                         let a = hit.trailing_zeros() as usize;
                         let b = (31 - hit.leading_zeros()) as usize;
@@ -137,6 +151,7 @@ impl Bvh4 {
                         sp += 1;
                     } else {
                         // The nearest is visited next; the others pushed farthest first.
+                        let n = hit.count_ones();
                         let rank = ranks(hit, enter);
                         for (k, (&r, &e)) in rank.iter().zip(&enter).enumerate() {
                             if hit >> k & 1 == 0 {

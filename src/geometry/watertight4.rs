@@ -1,0 +1,227 @@
+//! The watertight test's decision for four triangles at once, for the CPU twins' leaves: one
+//! SIMD lane per triangle. Lane k does what [`intersect_watertight_bounded`] does for
+//! triangle k up to its verdict (the same operations on the same operands in the same order,
+//! none fused), so its "may hit" is exactly the single test's `Some`. The twins run the
+//! single test again for the few lanes that pass, in order, for the hit itself and its error
+//! bound: the result is the sequential loop's, bit for bit, at a fraction of its cost.
+
+use glam::{Vec3, Vec4};
+
+#[cfg(doc)]
+use super::intersect_watertight_bounded;
+use super::WatertightRay;
+
+/// A ray's watertight set-up splatted across four lanes once per ray.
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay4 {
+    origin: [Vec4; 3],
+    /// The shear `(s.x, s.y, s.z)` of [`WatertightRay`].
+    shear: [Vec4; 3],
+    tmin: Vec4,
+    /// Which of the six axis permutations the ray takes (an index into `PERMUTATIONS`).
+    perm: u8,
+}
+
+/// The axis permutations `[kx, ky, kz]` [`WatertightRay::new`] can choose (the order
+/// [`WatertightRay4::new`] indexes them in; `may_hit` names each as constants).
+const PERMUTATIONS: [[usize; 3]; 6] = [
+    [1, 2, 0],
+    [2, 1, 0],
+    [2, 0, 1],
+    [0, 2, 1],
+    [0, 1, 2],
+    [1, 0, 2],
+];
+
+impl WatertightRay4 {
+    /// The lanes for a ray from `origin` with set-up `wr`, whose hits must lie at or after
+    /// `tmin`.
+    #[inline(always)]
+    pub fn new(origin: Vec3, wr: &WatertightRay, tmin: f32) -> WatertightRay4 {
+        // PERMUTATIONS' order: two per dominant axis kz, the second with kx, ky swapped.
+        let [kx, ky, kz] = wr.k;
+        let perm = (2 * kz + (ky != (kx + 1) % 3) as usize) as u8;
+        debug_assert_eq!(PERMUTATIONS[perm as usize], wr.k);
+        WatertightRay4 {
+            origin: [origin.x, origin.y, origin.z].map(Vec4::splat),
+            shear: [wr.s.x, wr.s.y, wr.s.z].map(Vec4::splat),
+            tmin: Vec4::splat(tmin),
+            perm,
+        }
+    }
+
+    /// The lanes whose triangle the single test hits within [tmin, `tmax`], as a bit set.
+    /// `v[i][axis]` holds vertex i's coordinate on `axis` of the four triangles.
+    #[inline(always)]
+    pub fn may_hit(&self, v: &[[Vec4; 3]; 3], tmax: f32) -> u32 {
+        // The permutation as constants: a branch per call that a ray always takes the same
+        // way, and no shuffling of coordinates per triangle.
+        match self.perm {
+            0 => self.may_hit_in::<1, 2, 0>(v, tmax),
+            1 => self.may_hit_in::<2, 1, 0>(v, tmax),
+            2 => self.may_hit_in::<2, 0, 1>(v, tmax),
+            3 => self.may_hit_in::<0, 2, 1>(v, tmax),
+            4 => self.may_hit_in::<0, 1, 2>(v, tmax),
+            _ => self.may_hit_in::<1, 0, 2>(v, tmax),
+        }
+    }
+
+    #[inline(always)]
+    fn may_hit_in<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        v: &[[Vec4; 3]; 3],
+        tmax: f32,
+    ) -> u32 {
+        let [sx, sy, sz] = self.shear;
+        // Vertex i relative to the origin, permuted, sheared: (x, y) and the unscaled z.
+        let rel = |i: usize| {
+            let p = [0, 1, 2].map(|axis| v[i][axis] - self.origin[axis]);
+            (p[KX] - sx * p[KZ], p[KY] - sy * p[KZ], p[KZ])
+        };
+        let (ax, ay, a2) = rel(0);
+        let (bx, by, b2) = rel(1);
+        let (cx, cy, c2) = rel(2);
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let zero = Vec4::ZERO;
+        let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+        let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let det = u + v + w;
+        let t = (u * (sz * a2) + v * (sz * b2) + w * (sz * c2)) / det;
+        let inside = !(negative & positive) & det.cmpne(zero);
+        // Written so that a NaN t fails, as in the single test.
+        let in_range = t.cmpge(self.tmin) & t.cmple(Vec4::splat(tmax));
+        (inside & in_range).bitmask()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{intersect_watertight_bounded, Triangle};
+
+    /// Four triangles' vertices in lanes.
+    fn lanes(tris: &[Triangle; 4]) -> [[Vec4; 3]; 3] {
+        [0, 1, 2].map(|i| [0, 1, 2].map(|axis| Vec4::from_array(tris.map(|t| t.v[i][axis]))))
+    }
+
+    #[test]
+    fn permutation_index_names_the_ray_s_permutation() {
+        for d in [
+            Vec3::X,
+            Vec3::NEG_X,
+            Vec3::Y,
+            Vec3::NEG_Y,
+            Vec3::Z,
+            Vec3::NEG_Z,
+        ] {
+            let wr = WatertightRay::new(d);
+            let w4 = WatertightRay4::new(Vec3::ZERO, &wr, 0.0);
+            assert_eq!(PERMUTATIONS[w4.perm as usize], wr.k, "direction {d}");
+        }
+    }
+
+    #[test]
+    fn lanes_equal_the_single_test_for_every_permutation() {
+        // Hits, misses, an edge and a vertex hit exactly, a degenerate and a parallel
+        // triangle, one behind and one past tmax, in every lane position.
+        let tris = [
+            Triangle::new(
+                Vec3::new(-1.0, -1.0, 5.0),
+                Vec3::new(1.0, -1.0, 5.0),
+                Vec3::new(0.0, 1.0, 5.0),
+            ),
+            Triangle::new(
+                Vec3::new(0.0, 0.0, 3.0),
+                Vec3::new(1.0, 0.0, 3.0),
+                Vec3::new(0.0, 1.0, 3.0),
+            ),
+            Triangle::new(
+                Vec3::new(2.0, 2.0, 1.0),
+                Vec3::new(3.0, 2.0, 1.0),
+                Vec3::new(2.0, 3.0, 1.0),
+            ),
+            Triangle::new(
+                Vec3::new(-1.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(3.0, 0.0, 0.0),
+            ),
+            Triangle::new(
+                Vec3::new(-1.0, -1.0, -4.0),
+                Vec3::new(1.0, -1.0, -4.0),
+                Vec3::new(0.0, 1.0, -4.0),
+            ),
+            Triangle::new(
+                Vec3::new(-1.0, -1.0, 90.0),
+                Vec3::new(1.0, -1.0, 90.0),
+                Vec3::new(0.0, 1.0, 90.0),
+            ),
+            Triangle::new(
+                Vec3::new(0.0, -1.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+                Vec3::new(0.0, 0.0, 9.0),
+            ),
+            Triangle::new(
+                Vec3::new(0.1, 0.2, 7.0),
+                Vec3::new(-3.0, 0.5, 6.0),
+                Vec3::new(0.4, -2.0, 8.0),
+            ),
+        ];
+        let dirs = [
+            Vec3::Z,
+            Vec3::NEG_Z,
+            Vec3::new(0.1, 0.05, 1.0),
+            Vec3::new(1.0, 0.2, 0.3),
+            Vec3::new(-1.0, 0.2, 0.3),
+            Vec3::new(0.2, 1.0, -0.3),
+            Vec3::new(0.2, -1.0, -0.3),
+            Vec3::new(f32::NAN, 0.0, 1.0),
+        ];
+        let origins = [
+            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, -2.0),
+            Vec3::new(0.3, -0.1, 0.5),
+        ];
+        for o in origins {
+            for d in dirs {
+                let wr = WatertightRay::new(d);
+                let w4 = WatertightRay4::new(o, &wr, 0.0);
+                for start in 0..tris.len() {
+                    let four = [0, 1, 2, 3].map(|k| tris[(start + k) % tris.len()]);
+                    for tmax in [50.0, f32::INFINITY] {
+                        let got = w4.may_hit(&lanes(&four), tmax);
+                        for (k, t) in four.iter().enumerate() {
+                            let one = intersect_watertight_bounded(t, o, &wr, 0.0, tmax).is_some();
+                            assert_eq!(got >> k & 1 != 0, one, "lane {k}, origin {o}, dir {d}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Random triangles around a random ray (about half of them hit): lane k's verdict
+        /// is the single test's, wherever the triangle sits among the four.
+        #[test]
+        fn random_lanes_equal_the_single_test(
+            o in proptest::array::uniform3(-2.0f32..2.0),
+            d in proptest::array::uniform3(-1.0f32..1.0),
+            v in proptest::array::uniform4(proptest::array::uniform3(proptest::array::uniform3(-3.0f32..3.0))),
+            tmax in 0.5f32..8.0,
+        ) {
+            let (o, d) = (Vec3::from(o), Vec3::from(d));
+            proptest::prop_assume!(d != Vec3::ZERO);
+            let wr = WatertightRay::new(d);
+            // Triangles around the point 2 units along the ray.
+            let at = o + 2.0 * d;
+            let four = v.map(|t| Triangle::new(at + Vec3::from(t[0]), at + Vec3::from(t[1]), at + Vec3::from(t[2])));
+            let got = WatertightRay4::new(o, &wr, 0.0).may_hit(&lanes(&four), tmax);
+            for (k, t) in four.iter().enumerate() {
+                let one = intersect_watertight_bounded(t, o, &wr, 0.0, tmax).is_some();
+                proptest::prop_assert_eq!(got >> k & 1 != 0, one, "lane {}", k);
+            }
+        }
+    }
+}
