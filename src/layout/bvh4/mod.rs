@@ -217,7 +217,7 @@ impl super::Layout for Bvh4 {
     }
 
     /// Every node reached once from the root through forward child indices, at a depth whose
-    /// three pushes per level fit [`STACK_SIZE`]; used slots have finite boxes holding their
+    /// three pushes per level fit `STACK_SIZE`; used slots have finite boxes holding their
     /// leaves' triangles; leaf ranges tile the triangle array.
     fn validate(&self) -> Result<(), String> {
         if self.nodes.is_empty() {
