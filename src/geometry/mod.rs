@@ -7,7 +7,7 @@ mod ray;
 mod robustness;
 mod slab4;
 mod triangle;
-mod watertight4;
+mod triangle4;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use hit::{Hit, MISS};
@@ -22,4 +22,4 @@ pub use triangle::{
     intersect_watertight, intersect_watertight_bounded, t_error_bound, TriHit, Triangle,
     TriangleTest, WatertightRay, NEAR_HIT_PLANE_REL,
 };
-pub use watertight4::WatertightRay4;
+pub use triangle4::TriangleRay4;

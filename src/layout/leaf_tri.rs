@@ -7,8 +7,8 @@ use rayon::prelude::*;
 use crate::accel::bvh::Bvh;
 use crate::accel::RayStats;
 use crate::geometry::{
-    intersect_triangle_bounded, Hit, Ray, Robustness, Triangle, TriangleTest, WatertightRay,
-    WatertightRay4,
+    intersect_triangle_bounded, Hit, Ray, Robustness, Triangle, TriangleRay4, TriangleTest,
+    WatertightRay,
 };
 use crate::mesh::Mesh;
 use crate::trace::oracle;
@@ -102,8 +102,9 @@ pub(crate) struct LeafRay<'a> {
     pub ray: &'a Ray,
     /// Its watertight set-up.
     pub wr: WatertightRay,
-    /// The same, in four lanes (the watertight test's verdict for four triangles at once).
-    pub wr4: WatertightRay4,
+    /// The ray and its set-up in four lanes (the triangle tests' verdict for four triangles
+    /// at once).
+    pub ray4: TriangleRay4,
     /// Whether a hit that may lie behind the origin is dropped.
     pub reject_near: bool,
 }
@@ -134,7 +135,7 @@ impl<'a> LeafRay<'a> {
         LeafRay {
             ray,
             wr,
-            wr4: WatertightRay4::new(ray.origin, &wr, ray.tmin),
+            ray4: TriangleRay4::new(ray.origin, ray.dir, &wr, ray.tmin),
             reject_near: robustness.rejects_near_hits(),
         }
     }
@@ -144,8 +145,8 @@ impl<'a> LeafRay<'a> {
     /// that beats `best` by the tie rule replaces it and moves `prune`. Returns true when an
     /// any-hit query is answered (the traversal ends).
     ///
-    /// The watertight test first takes its verdict on four triangles at once
-    /// ([`WatertightRay4`], lane for lane the single test's) against the best t on entry,
+    /// The f32 triangle tests first take their verdict on four triangles at once
+    /// ([`TriangleRay4`], lane for lane the single test's) against the best t on entry,
     /// then runs in order for those that may hit: a triangle it rules out would miss
     /// against the smaller best t of the sequential loop too, so the result is the loop's.
     #[inline(always)]
@@ -157,7 +158,7 @@ impl<'a> LeafRay<'a> {
         prune: &mut f32,
         stats: &mut RayStats,
     ) -> bool {
-        if TEST != leaf_test::WATERTIGHT {
+        if TEST == leaf_test::F64 {
             for lt in tris {
                 stats.tris += 1;
                 if self.test_one::<TEST>(lt, any_hit, best, prune) {
@@ -168,7 +169,12 @@ impl<'a> LeafRay<'a> {
         }
         for four in tris.chunks(LANES) {
             let all = (1u32 << four.len()) - 1;
-            let mut may = self.wr4.may_hit(&lanes(four), best.t) & all;
+            let v = lanes(four);
+            let mut may = all
+                & match TEST {
+                    leaf_test::WATERTIGHT => self.ray4.watertight(&v, best.t),
+                    _ => self.ray4.moller_trumbore(&v, best.t),
+                };
             while may != 0 {
                 let k = may.trailing_zeros() as usize;
                 may &= may - 1;

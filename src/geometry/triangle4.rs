@@ -1,20 +1,23 @@
-//! The watertight test's decision for four triangles at once, for the CPU twins' leaves: one
-//! SIMD lane per triangle. Lane k does what [`intersect_watertight_bounded`] does for
-//! triangle k up to its verdict (the same operations on the same operands in the same order,
-//! none fused), so its "may hit" is exactly the single test's `Some`. The twins run the
-//! single test again for the few lanes that pass, in order, for the hit itself and its error
-//! bound: the result is the sequential loop's, bit for bit, at a fraction of its cost.
+//! The triangle tests' decision for four triangles at once, for the CPU twins' leaves: one
+//! SIMD lane per triangle. Lane k does what [`intersect_watertight_bounded`] (or
+//! [`intersect_moller_trumbore`]) does for triangle k up to its verdict (the same operations
+//! on the same operands in the same order, none fused), so its "may hit" is exactly the
+//! single test's `Some`. The twins run the single test again for the few lanes that pass, in
+//! order, for the hit itself and its error bound: the result is the sequential loop's, bit
+//! for bit, at a fraction of its cost. Both tests have it, so that `bench accuracy` prices
+//! them alike.
 
 use glam::{Vec3, Vec4};
 
-#[cfg(doc)]
-use super::intersect_watertight_bounded;
 use super::WatertightRay;
+#[cfg(doc)]
+use super::{intersect_moller_trumbore, intersect_watertight_bounded};
 
-/// A ray's watertight set-up splatted across four lanes once per ray.
+/// A ray and its watertight set-up splatted across four lanes once per ray.
 #[derive(Clone, Copy, Debug)]
-pub struct WatertightRay4 {
+pub struct TriangleRay4 {
     origin: [Vec4; 3],
+    dir: [Vec4; 3],
     /// The shear `(s.x, s.y, s.z)` of [`WatertightRay`].
     shear: [Vec4; 3],
     tmin: Vec4,
@@ -23,7 +26,7 @@ pub struct WatertightRay4 {
 }
 
 /// The axis permutations `[kx, ky, kz]` [`WatertightRay::new`] can choose (the order
-/// [`WatertightRay4::new`] indexes them in; `may_hit` names each as constants).
+/// [`TriangleRay4::new`] indexes them in; `may_hit` names each as constants).
 const PERMUTATIONS: [[usize; 3]; 6] = [
     [1, 2, 0],
     [2, 1, 0],
@@ -33,27 +36,28 @@ const PERMUTATIONS: [[usize; 3]; 6] = [
     [1, 0, 2],
 ];
 
-impl WatertightRay4 {
-    /// The lanes for a ray from `origin` with set-up `wr`, whose hits must lie at or after
-    /// `tmin`.
+impl TriangleRay4 {
+    /// The lanes for a ray from `origin` along `dir` with watertight set-up `wr`, whose hits
+    /// must lie at or after `tmin`.
     #[inline(always)]
-    pub fn new(origin: Vec3, wr: &WatertightRay, tmin: f32) -> WatertightRay4 {
+    pub fn new(origin: Vec3, dir: Vec3, wr: &WatertightRay, tmin: f32) -> TriangleRay4 {
         // PERMUTATIONS' order: two per dominant axis kz, the second with kx, ky swapped.
         let [kx, ky, kz] = wr.k;
         let perm = (2 * kz + (ky != (kx + 1) % 3) as usize) as u8;
         debug_assert_eq!(PERMUTATIONS[perm as usize], wr.k);
-        WatertightRay4 {
+        TriangleRay4 {
             origin: [origin.x, origin.y, origin.z].map(Vec4::splat),
+            dir: [dir.x, dir.y, dir.z].map(Vec4::splat),
             shear: [wr.s.x, wr.s.y, wr.s.z].map(Vec4::splat),
             tmin: Vec4::splat(tmin),
             perm,
         }
     }
 
-    /// The lanes whose triangle the single test hits within [tmin, `tmax`], as a bit set.
-    /// `v[i][axis]` holds vertex i's coordinate on `axis` of the four triangles.
+    /// The lanes whose triangle the single watertight test hits within [tmin, `tmax`], as a
+    /// bit set. `v[i][axis]` holds vertex i's coordinate on `axis` of the four triangles.
     #[inline(always)]
-    pub fn may_hit(&self, v: &[[Vec4; 3]; 3], tmax: f32) -> u32 {
+    pub fn watertight(&self, v: &[[Vec4; 3]; 3], tmax: f32) -> u32 {
         // The permutation as constants: a branch per call that a ray always takes the same
         // way, and no shuffling of coordinates per triangle.
         match self.perm {
@@ -94,12 +98,47 @@ impl WatertightRay4 {
         let in_range = t.cmpge(self.tmin) & t.cmple(Vec4::splat(tmax));
         (inside & in_range).bitmask()
     }
+
+    /// The lanes whose triangle the single Möller–Trumbore test hits within [tmin, `tmax`],
+    /// as a bit set (`v` as for [`TriangleRay4::watertight`]).
+    #[inline(always)]
+    pub fn moller_trumbore(&self, v: &[[Vec4; 3]; 3], tmax: f32) -> u32 {
+        // glam's cross and dot, operation for operation.
+        let cross = |a: [Vec4; 3], b: [Vec4; 3]| {
+            [
+                a[1] * b[2] - b[1] * a[2],
+                a[2] * b[0] - b[2] * a[0],
+                a[0] * b[1] - b[0] * a[1],
+            ]
+        };
+        let dot = |a: [Vec4; 3], b: [Vec4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let e1 = [0, 1, 2].map(|axis| v[1][axis] - v[0][axis]);
+        let e2 = [0, 1, 2].map(|axis| v[2][axis] - v[0][axis]);
+        let p = cross(self.dir, e2);
+        let det = dot(e1, p);
+        let inv = Vec4::ONE / det;
+        let s = [0, 1, 2].map(|axis| self.origin[axis] - v[0][axis]);
+        let u = dot(s, p) * inv;
+        let q = cross(s, e1);
+        let w = dot(self.dir, q) * inv;
+        let t = dot(e2, q) * inv;
+        let (zero, one) = (Vec4::ZERO, Vec4::ONE);
+        // The single test's rejections, NaN handling included: u must be in [0, 1]; v is
+        // rejected only when below 0 or past 1 − u; t must be in [tmin, tmax].
+        let pass = det.cmpne(zero)
+            & u.cmpge(zero)
+            & u.cmple(one)
+            & !(w.cmplt(zero) | (u + w).cmpgt(one))
+            & t.cmpge(self.tmin)
+            & t.cmple(Vec4::splat(tmax));
+        pass.bitmask()
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{intersect_watertight_bounded, Triangle};
+    use crate::geometry::{intersect_moller_trumbore, intersect_watertight_bounded, Ray, Triangle};
 
     /// Four triangles' vertices in lanes.
     fn lanes(tris: &[Triangle; 4]) -> [[Vec4; 3]; 3] {
@@ -117,7 +156,7 @@ mod tests {
             Vec3::NEG_Z,
         ] {
             let wr = WatertightRay::new(d);
-            let w4 = WatertightRay4::new(Vec3::ZERO, &wr, 0.0);
+            let w4 = TriangleRay4::new(Vec3::ZERO, d, &wr, 0.0);
             assert_eq!(PERMUTATIONS[w4.perm as usize], wr.k, "direction {d}");
         }
     }
@@ -186,14 +225,18 @@ mod tests {
         for o in origins {
             for d in dirs {
                 let wr = WatertightRay::new(d);
-                let w4 = WatertightRay4::new(o, &wr, 0.0);
+                let w4 = TriangleRay4::new(o, d, &wr, 0.0);
+                let ray = Ray::new(o, d, 0.0, f32::INFINITY);
                 for start in 0..tris.len() {
                     let four = [0, 1, 2, 3].map(|k| tris[(start + k) % tris.len()]);
                     for tmax in [50.0, f32::INFINITY] {
-                        let got = w4.may_hit(&lanes(&four), tmax);
+                        let got = w4.watertight(&lanes(&four), tmax);
+                        let mt = w4.moller_trumbore(&lanes(&four), tmax);
                         for (k, t) in four.iter().enumerate() {
                             let one = intersect_watertight_bounded(t, o, &wr, 0.0, tmax).is_some();
                             assert_eq!(got >> k & 1 != 0, one, "lane {k}, origin {o}, dir {d}");
+                            let one = intersect_moller_trumbore(t, &ray, 0.0, tmax).is_some();
+                            assert_eq!(mt >> k & 1 != 0, one, "MT lane {k}, origin {o}, dir {d}");
                         }
                     }
                 }
@@ -217,10 +260,15 @@ mod tests {
             // Triangles around the point 2 units along the ray.
             let at = o + 2.0 * d;
             let four = v.map(|t| Triangle::new(at + Vec3::from(t[0]), at + Vec3::from(t[1]), at + Vec3::from(t[2])));
-            let got = WatertightRay4::new(o, &wr, 0.0).may_hit(&lanes(&four), tmax);
+            let r4 = TriangleRay4::new(o, d, &wr, 0.0);
+            let got = r4.watertight(&lanes(&four), tmax);
+            let mt = r4.moller_trumbore(&lanes(&four), tmax);
+            let ray = Ray::new(o, d, 0.0, f32::INFINITY);
             for (k, t) in four.iter().enumerate() {
                 let one = intersect_watertight_bounded(t, o, &wr, 0.0, tmax).is_some();
                 proptest::prop_assert_eq!(got >> k & 1 != 0, one, "lane {}", k);
+                let one = intersect_moller_trumbore(t, &ray, 0.0, tmax).is_some();
+                proptest::prop_assert_eq!(mt >> k & 1 != 0, one, "MT lane {}", k);
             }
         }
     }
