@@ -109,11 +109,12 @@ pub(crate) struct LeafRay<'a> {
     pub reject_near: bool,
 }
 
-/// Triangles tested at once by the watertight verdict in lanes.
+/// Triangles tested at once by the four-lane verdicts ([`TriangleRay4`]).
 const LANES: usize = 4;
 
-/// Up to four triangles' vertices in lanes (`v[i][axis]`, lane k = `tris[k]`; lanes past
-/// the end repeat the last triangle): each vertex row loaded whole and transposed.
+/// One to four triangles' vertices in lanes (`v[i][axis]`, lane k = `tris[k]`; lanes past
+/// the end repeat the last triangle): each vertex row loaded whole and transposed. `tris`
+/// is a chunk of a leaf (`chunks` yields no empty one).
 #[inline(always)]
 fn lanes(tris: &[LeafTri]) -> [[Vec4; 3]; 3] {
     let last = tris.len() - 1;

@@ -74,18 +74,21 @@ impl Bvh4 {
         // The shared slab test: the scalar one (parallel-axis rule) for a ray parallel to
         // an axis, one slot at a time; else all four slots in SIMD lanes, which equal it.
         // Two loops, so that the common one has no choice to make per node.
-        let parallel = ray.inv_dir().abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        let inv = ray.inv_dir();
+        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         match parallel {
-            true => self.walk_in::<TEST, true>(ray, query, robustness, stats),
-            false => self.walk_in::<TEST, false>(ray, query, robustness, stats),
+            true => self.walk_in::<TEST, true>(ray, inv, query, robustness, stats),
+            false => self.walk_in::<TEST, false>(ray, inv, query, robustness, stats),
         }
     }
 
-    /// [`Bvh4::walk`] for a valid ray, parallel to an axis or not (`PARALLEL`).
+    /// [`Bvh4::walk`] for a valid ray with reciprocal direction `inv`, parallel to an axis
+    /// or not (`PARALLEL`).
     #[inline(always)]
     fn walk_in<const TEST: u8, const PARALLEL: bool>(
         &self,
         ray: &Ray,
+        inv: Vec3,
         query: Query,
         robustness: &Robustness,
         stats: &mut RayStats,
@@ -93,7 +96,6 @@ impl Bvh4 {
         let mut best = Hit::miss(ray.tmax);
         let widen = robustness.far_widen();
         let leaf = LeafRay::new(ray, robustness);
-        let inv = ray.inv_dir();
         let slab4 = SlabRay4::new(ray.origin, inv, ray.tmin, widen);
         let intervals = |node: &Bvh4Node, tmax: f32| -> (u32, [f32; WIDTH]) {
             let used = UVec4::from_array(node.kind).cmpne(UVec4::ZERO).bitmask();
