@@ -220,29 +220,49 @@ fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
     assert!(!jpg.exists());
 }
 
-#[test]
-fn bench_render_prints_both_kernels() {
-    let out = lancer_ok(&[
+/// `bench render` of the textured scene at 16×12, 3 timed samples, on `device`: its stdout.
+fn bench_render_small(device: &str) -> String {
+    let textured = scene("textured.toml");
+    let args = [
         "bench",
         "render",
-        s(&scene("textured.toml")),
+        s(&textured),
         "--width",
         "16",
         "--height",
         "12",
-        "--spp",
-        "3",
-        "--device",
-        "cpu",
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("| cpu | specialised |"), "{text}");
-    assert!(text.contains("| cpu | all effects |"), "{text}");
+    ];
+    let out = lancer_ok(&[&args[..], &["--spp", "3", "--device", device]].concat());
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn bench_render_prints_both_kernels() {
+    let text = bench_render_small("cpu");
+    assert!(text.contains("| cpu | – | specialised |"), "{text}");
+    assert!(text.contains("| cpu | – | all effects |"), "{text}");
     assert!(text.contains("effects: shadows textures"), "{text}");
     assert!(text.contains("median of 3"), "{text}");
     // A median needs samples to choose from: fewer than 3 is a usage error.
     let out = lancer(&["bench", "render", s(&scene("textured.toml")), "--spp", "2"]);
     assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn bench_render_prices_both_gpu_modes() {
+    // lavapipe has subgroups: the GPU rows come in both traversal modes, with their ratio.
+    let text = bench_render_small("gpu");
+    for row in [
+        "| gpu | per-ray | specialised |",
+        "| gpu | per-ray | all effects |",
+        "| gpu | subgroup | specialised |",
+        "| gpu | subgroup | all effects |",
+        "| cpu | – | specialised |",
+        "gpu: subgroup traversal takes",
+    ] {
+        assert!(text.contains(row), "{row}: {text}");
+    }
+    assert!(!text.contains("not run"), "{text}");
 }
 
 /// The traversal modes a layout runs in on this adapter: per-ray, and subgroup where both
@@ -970,7 +990,7 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
                 "--json",
             ],
             0,
-            "| cpu | specialised",
+            "| cpu | – | specialised",
         ),
         (
             vec![

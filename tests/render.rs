@@ -1,6 +1,7 @@
 //! The renderer: GPU (lavapipe in CI) against the CPU reference on every scene in scenes/,
 //! effect specialisation (a specialised kernel renders what the all-effects kernel does;
-//! switching an effect the scene uses off changes the image), and scene-file errors.
+//! switching an effect the scene uses off changes the image), the subgroup traversal mode
+//! (the per-ray kernel's image, bit for bit, or a fallback to per ray), and scene-file errors.
 
 mod common;
 
@@ -8,9 +9,12 @@ use std::path::PathBuf;
 
 use common::gpu_device;
 use glam::Vec3;
+use lancer::accel::AccelKind;
 use lancer::gpu::BvhMemory;
+use lancer::layout::LayoutKind;
 use lancer::render::{render, to_rgb8, EffectSet, RenderOptions, RenderScene};
-use lancer::Device;
+use lancer::render::{Crop, Rendered};
+use lancer::{Device, TraversalMode};
 
 fn scenes_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
@@ -152,6 +156,73 @@ fn both_bvh_memories_render_the_same_image() {
         );
         println!("{name}: buffers ≡ textures");
     }
+}
+
+/// A GPU render of `s` (one sample) traversing in `mode` through `layout`, cropped where
+/// `crop` says.
+fn gpu_render_in_mode(
+    s: &RenderScene,
+    layout: LayoutKind,
+    mode: TraversalMode,
+    crop: Option<Crop>,
+) -> Rendered {
+    let options = RenderOptions {
+        spp: Some(1),
+        accel: AccelKind::Bvh(layout),
+        crop,
+        mode,
+        ..RenderOptions::default()
+    };
+    render(s, gpu_device(), &options).unwrap()
+}
+
+#[test]
+fn subgroup_renders_are_the_per_ray_renders_bit_for_bit() {
+    // Each lane does the per-ray kernel's operations in its order, only the rays of a
+    // subgroup are traced together: the same image, bit for bit, on every scene (path,
+    // AO, mirrors, glass, textures, soft shadows). lavapipe has subgroups, so the mode must
+    // run, not fall back.
+    for (name, s) in scenes() {
+        let per_ray = gpu_render_in_mode(&s, LayoutKind::DfsSign, TraversalMode::PerRay, None);
+        let together = gpu_render_in_mode(&s, LayoutKind::DfsSign, TraversalMode::Subgroup, None);
+        assert_eq!(per_ray.mode, TraversalMode::PerRay, "{name}");
+        assert_eq!(together.mode, TraversalMode::Subgroup, "{name}: fell back");
+        assert_eq!(together.cpu_pixels, 0, "{name}: pixels retraced on the CPU");
+        let differ = (per_ray.image.pixels.iter())
+            .zip(&together.image.pixels)
+            .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
+            .count();
+        println!("{name}: subgroup ≡ per-ray ({differ} pixels differ)");
+        assert_eq!(differ, 0, "{name}: subgroup and per-ray images differ");
+    }
+    // A crop of 23×17 pixels: its last subgroup has lanes with no pixel, which go along
+    // with no ray.
+    let (name, s) = scenes().into_iter().find(|(n, _)| n == "cornell").unwrap();
+    let crop = Some(Crop {
+        x0: 5,
+        y0: 7,
+        x1: 28,
+        y1: 24,
+    });
+    let per_ray = gpu_render_in_mode(&s, LayoutKind::DfsSign, TraversalMode::PerRay, crop);
+    let together = gpu_render_in_mode(&s, LayoutKind::DfsSign, TraversalMode::Subgroup, crop);
+    assert_eq!(together.mode, TraversalMode::Subgroup);
+    assert_eq!(per_ray.image.pixels.len(), 23 * 17, "{name}");
+    assert_eq!(
+        together.image.pixels, per_ray.image.pixels,
+        "{name} cropped"
+    );
+}
+
+#[test]
+fn a_layout_without_subgroup_traversal_renders_per_ray() {
+    // bvh4 has no subgroup traversal: asked for one, the renderer says it runs per ray and
+    // renders that layout's per-ray image.
+    let (name, s) = scenes().into_iter().find(|(n, _)| n == "cornell").unwrap();
+    let asked = gpu_render_in_mode(&s, LayoutKind::Bvh4, TraversalMode::Subgroup, None);
+    let per_ray = gpu_render_in_mode(&s, LayoutKind::Bvh4, TraversalMode::PerRay, None);
+    assert_eq!(asked.mode, TraversalMode::PerRay, "{name}");
+    assert_eq!(asked.image.pixels, per_ray.image.pixels, "{name}");
 }
 
 #[test]

@@ -42,7 +42,7 @@ fn compilation_is_timed_before_the_first_sample_and_once() {
     assert!(cpu.first_sample_ms > 0.0);
 }
 
-const KEYS: [&str; 23] = [
+const KEYS: [&str; 24] = [
     "output",
     "width",
     "height",
@@ -55,6 +55,7 @@ const KEYS: [&str; 23] = [
     "device",
     "structure",
     "layout",
+    "mode",
     "bvh",
     "effects",
     "bvh_memory",
@@ -119,6 +120,9 @@ fn stats_json_is_one_object_on_stdout() {
         );
         assert_eq!(j["layout"].is_string(), bvh);
         assert_eq!(j["bvh_memory"].is_string(), device == "gpu");
+        // The mode that ran: per-ray, the default, on the GPU; none on the CPU.
+        let mode = (device == "gpu").then_some("per-ray");
+        assert_eq!(j["mode"].as_str(), mode, "{device}: mode");
         let compile = j["compile_ms"].as_f64().unwrap();
         assert_eq!(
             compile > 0.0,
@@ -133,6 +137,42 @@ fn stats_json_is_one_object_on_stdout() {
         );
         if device == "gpu" {
             assert!(stderr.contains("pipeline compile"), "{stderr}");
+        }
+    }
+}
+
+#[test]
+fn stats_say_which_traversal_mode_ran() {
+    // dfs-sign runs in subgroup mode on lavapipe; bvh4 has no subgroup traversal, so the
+    // render falls back to per-ray and says so, on stderr and in the JSON.
+    let dir = tempfile::tempdir().unwrap();
+    for (layout, ran, note) in [
+        ("dfs-sign", "subgroup", "mode: subgroup\n"),
+        (
+            "bvh4",
+            "per-ray",
+            "mode: per-ray (subgroup asked for, see the warning)",
+        ),
+    ] {
+        let out = dir.path().join(format!("{layout}.png"));
+        let run = Command::new(env!("CARGO_BIN_EXE_lancer"))
+            .args(["render", cornell().to_str().unwrap(), "-o"])
+            .arg(&out)
+            .args([
+                "--width", "8", "--height", "8", "--spp", "1", "--device", "gpu",
+            ])
+            .args([
+                "--layout", layout, "--mode", "subgroup", "--stats", "--json",
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{layout}: {stderr}");
+        let j: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        assert_eq!(j["mode"], ran, "{layout}");
+        assert!(stderr.contains(note), "{layout}: {stderr}");
+        if ran == "per-ray" {
+            assert!(stderr.contains("no subgroup traversal"), "{stderr}");
         }
     }
 }

@@ -187,12 +187,6 @@ fn offset_origin(p: vec3<f32>, err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // host renders those pixels again on the CPU.
 var<private> sample_incomplete: bool;
 
-fn occluded(origin: vec3<f32>, dir: vec3<f32>, tmax: f32) -> bool {
-    let h = traverse(Ray(origin, 0.0, dir, tmax), true);
-    sample_incomplete = sample_incomplete || !traversal_done;
-    return h.prim != MISS;
-}
-
 fn texel(m: Material, x: i32, y: i32) -> vec3<f32> {
     return texels[m.tex_offset + u32(y * i32(m.tex_width) + x)].xyz;
 }
@@ -242,27 +236,187 @@ fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>) {
     }
 }
 
-// CpuRenderer::direct
-fn direct(p: vec3<f32>, p_err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    let o = offset_origin(p, p_err, n);
-    var sum = vec3<f32>(0.0);
-    for (var i = 0u; i < params.n_lights; i += 1u) {
-        let l = lights[i];
+// The integrator is resumable, so that every lane calls traverse() at the same time (a
+// subgroup traversal walks with all the lanes of its subgroup): it runs CpuRenderer::sample
+// up to the next ray that function traces, leaves that ray in `query` and where to go on in
+// `step`, and resume() goes on from there with the ray's hit. Each lane does the CPU's
+// operations in the CPU's order, so the sample is the same bit for bit.
+const STEP_PATH: u32 = 0u;     // query: this bounce's path ray (closest hit)
+const STEP_AO: u32 = 1u;       // query: the ambient-occlusion ray
+const STEP_LIGHT: u32 = 2u;    // query: the shadow ray to lights[light_i]
+const STEP_EMITTER: u32 = 3u;  // query: the shadow ray to the point sampled on an emitter
+const STEP_DONE: u32 = 4u;     // the sample is finished
+// Steps with no ray in flight: where to go on after a ray's hit.
+const STEP_LIGHTS: u32 = 5u;   // next: the lights from lights[light_i] on
+const STEP_EMITTER_SAMPLE: u32 = 6u;  // next: the emitter sample
+const STEP_END_DIRECT: u32 = 7u;      // next: the bounce after direct()
+
+var<private> step: u32;
+var<private> query: Ray;
+// CpuRenderer::sample's path state.
+var<private> rad: vec3<f32>;
+var<private> beta: vec3<f32>;
+var<private> count_emission: bool;
+var<private> bounce: u32;
+// CpuRenderer::direct's state at a diffuse hit: the point, its error bound, the normal, the
+// albedo, the shadow rays' origin, the light summed so far, and what the light of the
+// shadow ray in flight adds if nothing blocks it.
+var<private> at_p: vec3<f32>;
+var<private> at_err: vec3<f32>;
+var<private> at_n: vec3<f32>;
+var<private> at_albedo: vec3<f32>;
+var<private> at_o: vec3<f32>;
+var<private> light_sum: vec3<f32>;
+var<private> light_i: u32;
+var<private> pending: vec3<f32>;
+
+// CpuRenderer::camera_ray and the start of CpuRenderer::sample.
+fn start_sample(x: u32, y: u32) {
+    let pixel = y * params.width + x;
+    rng_state = pcg(params.seed ^ pcg(pixel ^ pcg(params.sample)));
+    let jx = next_f32();
+    let jy = next_f32();
+    // CameraFrame::ray
+    let sx = (f32(x) + jx) * params.inv_w2 - 1.0;
+    let sy = 1.0 - (f32(y) + jy) * params.inv_h2;
+    rad = vec3<f32>(0.0);
+    beta = vec3<f32>(1.0);
+    count_emission = true;
+    bounce = 0u;
+    query = Ray(params.eye, 0.0, normalize3(params.fwd + params.right * sx + params.up * sy), PRIMARY_TMAX);
+    step = STEP_PATH;
+}
+
+// The next bounce's path ray (sample's loop never passes max_bounces here: its callers
+// stop at the last bounce).
+fn next_bounce(r: Ray) {
+    bounce += 1u;
+    query = r;
+    step = STEP_PATH;
+}
+
+// CpuRenderer::sample's bounce after the path ray's hit.
+fn path_hit(hit: Hit) {
+    let ray = query;
+    if hit.prim == MISS {
+        if bounce == 0u {
+            write_aovs(-1.0, vec3<f32>(0.0), vec3<f32>(0.0));
+        }
+        rad += beta * params.background;
+        step = STEP_DONE;
+        return;
+    }
+    let s = shades[hit.prim];
+    let mat = materials[s.material];
+    let w = 1.0 - hit.u - hit.v;
+    let p = s.v0 * w + s.v1 * hit.u + s.v2 * hit.v;
+    let p_err = point_error(s.v0, s.v1, s.v2, w, hit.u, hit.v);
+    let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
+    let front = dot3(ng, ray.dir) < 0.0;
+    let n = select(-ng, ng, front);
+    if bounce == 0u {
+        write_aovs(hit.t, n, surface_albedo(mat, s, w, hit.u, hit.v));
+    }
+    if mat.kind == KIND_EMISSIVE {
+        if count_emission && (front || (mat.flags & MAT_TWO_SIDED) != 0u) {
+            rad += beta * mat.emission;
+        }
+        step = STEP_DONE;
+        return;
+    }
+    if AO && params.integrator == INTEGRATOR_AO {
+        let d = cosine_direction(n);
+        query = Ray(offset_origin(p, p_err, n), 0.0, d, params.ao_distance);
+        step = STEP_AO;
+        return;
+    }
+    let last = bounce == params.max_bounces;
+    let mirror = MIRROR && mat.kind == KIND_MIRROR;
+    let glass = REFRACTION && mat.kind == KIND_GLASS;
+    let d = ray.dir;
+    let reflected = d - n * (2.0 * dot3(d, n));
+    if (mirror || glass) && last {
+        step = STEP_DONE;
+        return;
+    }
+    if mirror {
+        beta *= mat.albedo;
+        count_emission = true;
+        next_bounce(Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX));
+        return;
+    }
+    if glass {
+        let cos_i = -dot3(d, n);
+        let eta = select(mat.ior, 1.0 / mat.ior, front);
+        let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+        var r0 = (1.0 - mat.ior) / (1.0 + mat.ior);
+        r0 = r0 * r0;
+        let m = 1.0 - cos_i;
+        let fresnel = r0 + (1.0 - r0) * (m * m * m * m * m);
+        let u = next_f32();
+        beta *= mat.albedo;
+        count_emission = true;
+        if sin2_t >= 1.0 || u < fresnel {
+            next_bounce(Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX));
+        } else {
+            let cos_t = sqrt(1.0 - sin2_t);
+            let t = d * eta + n * (eta * cos_i - cos_t);
+            next_bounce(Ray(offset_origin(p, p_err, -n), 0.0, t, PRIMARY_TMAX));
+        }
+        return;
+    }
+    // Diffuse: CpuRenderer::direct, from its first light.
+    at_p = p;
+    at_err = p_err;
+    at_n = n;
+    at_albedo = surface_albedo(mat, s, w, hit.u, hit.v);
+    at_o = offset_origin(p, p_err, n);
+    light_sum = vec3<f32>(0.0);
+    light_i = 0u;
+    step = STEP_LIGHTS;
+}
+
+// CpuRenderer::direct's loop over the lights, from lights[light_i] to its next shadow ray.
+fn light_rays() {
+    let p = at_p;
+    let n = at_n;
+    let o = at_o;
+    for (; light_i < params.n_lights; light_i += 1u) {
+        let l = lights[light_i];
         if l.kind == LIGHT_POINT {
             let d = l.v - p;
             let d2 = dot3(d, d);
             let c = dot3(n, d) / sqrt(d2);
-            if c > 0.0 && !(SHADOWS && occluded(o, l.v - o, 1.0)) {
-                sum += l.power * (c / d2);
+            if c > 0.0 {
+                pending = l.power * (c / d2);
+                if SHADOWS {
+                    query = Ray(o, 0.0, l.v - o, 1.0);
+                    step = STEP_LIGHT;
+                    return;
+                }
+                light_sum += pending;
             }
         } else {
             let c = -dot3(n, l.v);
-            if c > 0.0 && !(SHADOWS && occluded(o, -l.v, PRIMARY_TMAX)) {
-                sum += l.power * c;
+            if c > 0.0 {
+                pending = l.power * c;
+                if SHADOWS {
+                    query = Ray(o, 0.0, -l.v, PRIMARY_TMAX);
+                    step = STEP_LIGHT;
+                    return;
+                }
+                light_sum += pending;
             }
         }
     }
+    step = STEP_EMITTER_SAMPLE;
+}
+
+// CpuRenderer::direct's emitter sample, up to its shadow ray.
+fn emitter_ray() {
     if SOFT_SHADOWS && params.n_emitters > 0u {
+        let p = at_p;
+        let n = at_n;
         let target_area = next_f32() * params.emit_total;
         var lo = 0u;
         var hi = params.n_emitters - 1u;
@@ -295,121 +449,156 @@ fn direct(p: vec3<f32>, p_err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         if cs > 0.0 && cl > 0.0 {
             let toward = select(nl, -nl, dot3(nl, d) > 0.0);
             let qt = offset_origin(q, q_err, toward);
-            if !(SHADOWS && occluded(o, qt - o, 1.0)) {
-                sum += lm.emission * (cs * cl / d2 * params.emit_total);
+            pending = lm.emission * (cs * cl / d2 * params.emit_total);
+            if SHADOWS {
+                query = Ray(at_o, 0.0, qt - at_o, 1.0);
+                step = STEP_EMITTER;
+                return;
             }
+            light_sum += pending;
         }
     }
-    return sum;
+    step = STEP_END_DIRECT;
 }
 
-// CpuRenderer::sample
-fn radiance(x: u32, y: u32) -> vec3<f32> {
-    let pixel = y * params.width + x;
-    rng_state = pcg(params.seed ^ pcg(pixel ^ pcg(params.sample)));
-    let jx = next_f32();
-    let jy = next_f32();
-    // CameraFrame::ray
-    let sx = (f32(x) + jx) * params.inv_w2 - 1.0;
-    let sy = 1.0 - (f32(y) + jy) * params.inv_h2;
-    var ray = Ray(params.eye, 0.0, normalize3(params.fwd + params.right * sx + params.up * sy), PRIMARY_TMAX);
-    var rad = vec3<f32>(0.0);
-    var beta = vec3<f32>(1.0);
-    var count_emission = true;
-    let nee = SOFT_SHADOWS && params.n_emitters > 0u;
-    for (var bounce = 0u; bounce <= params.max_bounces; bounce += 1u) {
-        let hit = traverse(ray, false);
-        sample_incomplete = sample_incomplete || !traversal_done;
-        if hit.prim == MISS {
-            if bounce == 0u {
-                write_aovs(-1.0, vec3<f32>(0.0), vec3<f32>(0.0));
-            }
-            rad += beta * params.background;
-            break;
-        }
-        let s = shades[hit.prim];
-        let mat = materials[s.material];
-        let w = 1.0 - hit.u - hit.v;
-        let p = s.v0 * w + s.v1 * hit.u + s.v2 * hit.v;
-        let p_err = point_error(s.v0, s.v1, s.v2, w, hit.u, hit.v);
-        let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
-        let front = dot3(ng, ray.dir) < 0.0;
-        let n = select(-ng, ng, front);
-        if bounce == 0u {
-            write_aovs(hit.t, n, surface_albedo(mat, s, w, hit.u, hit.v));
-        }
-        if mat.kind == KIND_EMISSIVE {
-            if count_emission && (front || (mat.flags & MAT_TWO_SIDED) != 0u) {
-                rad += beta * mat.emission;
-            }
-            break;
-        }
-        if AO && params.integrator == INTEGRATOR_AO {
-            let d = cosine_direction(n);
-            if !occluded(offset_origin(p, p_err, n), d, params.ao_distance) {
-                rad += beta;
-            }
-            break;
-        }
-        let last = bounce == params.max_bounces;
-        let mirror = MIRROR && mat.kind == KIND_MIRROR;
-        let glass = REFRACTION && mat.kind == KIND_GLASS;
-        let d = ray.dir;
-        let reflected = d - n * (2.0 * dot3(d, n));
-        if (mirror || glass) && last {
-            break;
-        }
-        if mirror {
-            beta *= mat.albedo;
-            ray = Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX);
-            count_emission = true;
-            continue;
-        }
-        if glass {
-            let cos_i = -dot3(d, n);
-            let eta = select(mat.ior, 1.0 / mat.ior, front);
-            let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
-            var r0 = (1.0 - mat.ior) / (1.0 + mat.ior);
-            r0 = r0 * r0;
-            let m = 1.0 - cos_i;
-            let fresnel = r0 + (1.0 - r0) * (m * m * m * m * m);
-            let u = next_f32();
-            beta *= mat.albedo;
-            count_emission = true;
-            if sin2_t >= 1.0 || u < fresnel {
-                ray = Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX);
-            } else {
-                let cos_t = sqrt(1.0 - sin2_t);
-                let t = d * eta + n * (eta * cos_i - cos_t);
-                ray = Ray(offset_origin(p, p_err, -n), 0.0, t, PRIMARY_TMAX);
-            }
-            continue;
-        }
-        let albedo = surface_albedo(mat, s, w, hit.u, hit.v);
-        rad += beta * albedo * PI_INV * direct(p, p_err, n);
-        if !(INDIRECT && params.integrator == INTEGRATOR_PATH) || last {
-            break;
-        }
-        beta *= albedo;
-        let dir = cosine_direction(n);
-        ray = Ray(offset_origin(p, p_err, n), 0.0, dir, PRIMARY_TMAX);
-        count_emission = !nee;
+// CpuRenderer::sample's diffuse bounce after direct().
+fn end_direct() {
+    rad += beta * at_albedo * PI_INV * light_sum;
+    let last = bounce == params.max_bounces;
+    if !(INDIRECT && params.integrator == INTEGRATOR_PATH) || last {
+        step = STEP_DONE;
+        return;
     }
-    return rad;
+    beta *= at_albedo;
+    let dir = cosine_direction(at_n);
+    count_emission = !(SOFT_SHADOWS && params.n_emitters > 0u);
+    // at_o is the CPU's second leave(p, p_err, n): the same origin.
+    next_bounce(Ray(at_o, 0.0, dir, PRIMARY_TMAX));
+}
+
+// What the hit of the ray in `query` does, by the step that traced it.
+fn ao_hit(hit: Hit) {
+    if hit.prim == MISS {
+        rad += beta;
+    }
+    step = STEP_DONE;
+}
+
+fn light_hit(hit: Hit) {
+    if hit.prim == MISS {
+        light_sum += pending;
+    }
+    light_i += 1u;
+    step = STEP_LIGHTS;
+}
+
+fn emitter_hit(hit: Hit) {
+    if hit.prim == MISS {
+        light_sum += pending;
+    }
+    step = STEP_END_DIRECT;
+}
+
+// Traces `query`, noting a traversal the driver cut short.
+fn trace_query(any_hit: bool) -> Hit {
+    let hit = traverse(query, any_hit);
+    sample_incomplete = sample_incomplete || !traversal_done;
+    return hit;
+}
+
+// Each lane on its own: CpuRenderer::sample's loops, each ray traced where the CPU traces
+// it. (lavapipe runs every branch that any of its SIMD lanes takes, so this costs less
+// than going round all the steps once a ray.)
+fn sample_alone() {
+    loop {
+        if step == STEP_DONE {
+            break;
+        }
+        // The path ray, or the AO ray after it.
+        let hit = trace_query(step == STEP_AO);
+        if step == STEP_AO {
+            ao_hit(hit);
+            break;
+        }
+        path_hit(hit);
+        if step != STEP_LIGHTS {
+            continue;
+        }
+        loop {
+            light_rays();
+            if step != STEP_LIGHT {
+                break;
+            }
+            light_hit(trace_query(true));
+        }
+        emitter_ray();
+        if step == STEP_EMITTER {
+            emitter_hit(trace_query(true));
+        }
+        end_direct();
+    }
+}
+
+// The lanes that traverse together (lanes_any) trace one ray each a round, until none has
+// one left; a finished lane traverses an invalid ray (a miss at once). A step's code runs
+// only in rounds where some lane is at it, and each function is inlined once.
+fn sample_together() {
+    loop {
+        let has_ray = step != STEP_DONE;
+        if !lanes_any(has_ray) {
+            break;
+        }
+        var r = Ray(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);  // zero direction: invalid
+        if has_ray {
+            r = query;
+        }
+        let hit = traverse(r, step != STEP_PATH);
+        sample_incomplete = sample_incomplete || (has_ray && !traversal_done);
+        let traced = step;
+        if lanes_any(traced == STEP_PATH) && traced == STEP_PATH {
+            path_hit(hit);
+        }
+        if lanes_any(traced == STEP_AO) && traced == STEP_AO {
+            ao_hit(hit);
+        }
+        if lanes_any(traced == STEP_LIGHT) && traced == STEP_LIGHT {
+            light_hit(hit);
+        }
+        if lanes_any(traced == STEP_EMITTER) && traced == STEP_EMITTER {
+            emitter_hit(hit);
+        }
+        if lanes_any(step == STEP_LIGHTS) && step == STEP_LIGHTS {
+            light_rays();
+        }
+        if lanes_any(step == STEP_EMITTER_SAMPLE) && step == STEP_EMITTER_SAMPLE {
+            emitter_ray();
+        }
+        if lanes_any(step == STEP_END_DIRECT) && step == STEP_END_DIRECT {
+            end_direct();
+        }
+    }
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.count {
-        return;
-    }
+    // Invocations past the last pixel go along with no ray, so that a subgroup traversal
+    // keeps all its lanes.
+    let live = gid.x < params.count;
     // The accumulator holds the crop's pixels; the random numbers are the full image's.
     let pixel = params.offset + gid.x;
     aov_slot = pixel;
     sample_incomplete = false;
-    let x = params.crop_x0 + pixel % params.crop_width;
-    let y = params.crop_y0 + pixel / params.crop_width;
-    let c = radiance(x, y);
-    // w counts the samples of this pixel that a driver cut short.
-    accum[pixel] += vec4<f32>(c, select(0.0, 1.0, sample_incomplete));
+    step = STEP_DONE;
+    if live {
+        start_sample(params.crop_x0 + pixel % params.crop_width, params.crop_y0 + pixel / params.crop_width);
+    }
+    if LANES_TOGETHER {
+        sample_together();
+    } else {
+        sample_alone();
+    }
+    if live {
+        // w counts the samples of this pixel that a driver cut short.
+        accum[pixel] += vec4<f32>(rad, select(0.0, 1.0, sample_incomplete));
+    }
 }

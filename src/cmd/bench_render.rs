@@ -1,12 +1,13 @@
-//! `lancer bench render`: milliseconds per sample per pixel on the GPU and the CPU, with
-//! the kernel specialised to the scene's effects and with every effect compiled in.
+//! `lancer bench render`: milliseconds per sample per pixel on the GPU (per-ray, and with
+//! subgroup traversal where it runs) and the CPU, with the kernel specialised to the scene's
+//! effects and with every effect compiled in.
 
 use std::path::PathBuf;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::render::{EffectSet, RenderOptions, Renderer};
-use lancer::{Device, DeviceChoice, Result, Robustness, Vec3};
+use lancer::{Device, DeviceChoice, Result, Robustness, TraversalMode, Vec3};
 
 use serde::Serialize;
 
@@ -68,6 +69,8 @@ struct BenchRenderReport {
 struct BenchRenderRun {
     /// "gpu" or "cpu".
     device: &'static str,
+    /// GPU: the traversal mode, "per-ray" or "subgroup" (null on the CPU).
+    mode: Option<&'static str>,
     /// "specialised" (the scene's effects) or "all effects".
     kernel: &'static str,
     /// Median milliseconds per sample per pixel.
@@ -97,11 +100,13 @@ impl BenchRender {
             ("specialised", specialised),
             ("all effects", EffectSet::ALL),
         ];
-        let mut devices = vec![("cpu", &cpu)];
+        // (device, mode): the GPU in both modes (subgroup where it runs), then the CPU.
+        let mut configs = vec![("cpu", &cpu, None)];
         if !device.is_cpu() {
-            devices.insert(0, ("gpu", &device));
+            configs.insert(0, ("gpu", &device, Some(TraversalMode::PerRay)));
+            configs.insert(1, ("gpu", &device, Some(TraversalMode::Subgroup)));
         }
-        let bar = ProgressBar::new((devices.len() * 2 * (self.spp as usize + 1)) as u64);
+        let bar = ProgressBar::new((configs.len() * 2 * (self.spp as usize + 1)) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} samples {msg}").unwrap());
         let seed = scene.settings.seed;
         let rob = Robustness::default();
@@ -109,11 +114,23 @@ impl BenchRender {
         let mut rows = Vec::new();
         let pixels = (scene.camera.width * scene.camera.height) as f64;
         let mut triangles = 0;
-        for (dev_name, dev) in devices {
+        let mut not_run = None;
+        for (dev_name, dev, mode) in configs {
+            let options = RenderOptions {
+                mode: mode.unwrap_or_default(),
+                ..options.clone()
+            };
             let mut renderer = Renderer::new(&scene, dev, &options)?;
+            if mode.is_some_and(|m| m != renderer.mode()) {
+                // Its fallback is the per-ray row already measured (the warning says why).
+                not_run = mode;
+                bar.inc(2 * (self.spp as u64 + 1));
+                continue;
+            }
             triangles = renderer.bvh_stats().map_or(0, |s| s.triangles);
             for (name, fx) in kernels {
-                bar.set_message(format!("{dev_name}, {name}"));
+                let mode_name = mode.map(TraversalMode::name);
+                bar.set_message(format!("{dev_name} {}, {name}", mode_name.unwrap_or("")));
                 // Sample 0 compiles the pipeline (GPU) and warms caches, outside the timing.
                 renderer.add_sample(fx, rob, seed, 0, &mut accum)?;
                 bar.inc(1);
@@ -125,6 +142,7 @@ impl BenchRender {
                 let ms_per_spp = median(ms.clone());
                 rows.push(BenchRenderRun {
                     device: dev_name,
+                    mode: mode_name,
                     kernel: name,
                     ms_per_spp,
                     ms_min: ms.iter().copied().fold(f64::INFINITY, f64::min),
@@ -144,17 +162,21 @@ impl BenchRender {
         if let Some(ctx) = device.gpu_context() {
             say!(say, "adapter {}", ctx.adapter);
         }
+        if let Some(mode) = not_run {
+            say!(say, "gpu {mode}: not run (see the warning)");
+        }
         say!(
             say,
-            "| device | kernel | ms per spp (median of {}) | fastest – slowest ms | M camera rays/s |",
+            "| device | mode | kernel | ms per spp (median of {}) | fastest – slowest ms | M camera rays/s |",
             self.spp
         );
-        say!(say, "|---|---|---|---|---|");
+        say!(say, "|---|---|---|---|---|---|");
         for r in &rows {
             say!(
                 say,
-                "| {} | {} | {:.1} | {:.1} – {:.1} | {:.2} |",
+                "| {} | {} | {} | {:.1} | {:.1} – {:.1} | {:.2} |",
                 r.device,
+                r.mode.unwrap_or("–"),
                 r.kernel,
                 r.ms_per_spp,
                 r.ms_min,
@@ -162,19 +184,36 @@ impl BenchRender {
                 r.mrays_per_s
             );
         }
-        for dev in ["gpu", "cpu"] {
+        for (dev, mode) in [
+            ("gpu", Some("per-ray")),
+            ("gpu", Some("subgroup")),
+            ("cpu", None),
+        ] {
             let of = |k: &str| {
                 (rows.iter())
-                    .find(|r| r.device == dev && r.kernel == k)
+                    .find(|r| r.device == dev && r.mode == mode && r.kernel == k)
                     .map(|r| r.ms_per_spp)
             };
             if let (Some(s), Some(a)) = (of("specialised"), of("all effects")) {
                 say!(
                     say,
-                    "{dev}: specialisation saves {:.1}% ({a:.1} → {s:.1} ms per spp)",
+                    "{dev}{}: specialisation saves {:.1}% ({a:.1} → {s:.1} ms per spp)",
+                    mode.map(|m| format!(" {m}")).unwrap_or_default(),
                     100.0 * (a - s) / a
                 );
             }
+        }
+        let of = |m: &str| {
+            (rows.iter())
+                .find(|r| r.mode == Some(m) && r.kernel == "specialised")
+                .map(|r| r.ms_per_spp)
+        };
+        if let (Some(p), Some(g)) = (of("per-ray"), of("subgroup")) {
+            say!(
+                say,
+                "gpu: subgroup traversal takes {:.2}× per-ray's time per spp ({p:.1} → {g:.1} ms)",
+                g / p
+            );
         }
         let report = BenchRenderReport {
             scene: self.scene.display().to_string(),

@@ -10,7 +10,7 @@ use lancer::mesh::FileKind;
 use lancer::render::{
     image_kind, AovSet, Crop, EffectSet, ImageKind, Progress, RenderOptions, Renderer, Stop,
 };
-use lancer::{Error, RenderScene, Result};
+use lancer::{Error, RenderScene, Result, TraversalMode};
 use serde::Serialize;
 
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
@@ -73,6 +73,11 @@ pub struct RenderCmd {
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH render on the CPU).
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
+    /// GPU traversal: one ray per invocation, or the lanes of a subgroup together (falls
+    /// back to per-ray, with a warning, where the adapter or layout has no subgroup mode);
+    /// the image is the same.
+    #[arg(long, value_enum, default_value_t = TraversalMode::PerRay)]
+    mode: TraversalMode,
     #[command(flatten)]
     robustness: RobustnessArgs,
 }
@@ -108,6 +113,8 @@ struct RenderStats {
     effects: String,
     /// GPU: textures or buffers.
     bvh_memory: Option<String>,
+    /// GPU: the traversal mode that ran, per-ray or subgroup.
+    mode: Option<&'static str>,
     /// Building (and flattening) the structure.
     build_ms: f64,
     /// GPU: uploading the structure and scene, creating the shader module (0 on the CPU).
@@ -262,6 +269,7 @@ impl RenderCmd {
             robustness: self.robustness.robustness(),
             crop,
             aovs: aovs.any(),
+            mode: self.mode,
         };
         let mut renderer = Renderer::new(&scene, &device, &options)?;
         let done = renderer.render(&options);
@@ -322,6 +330,14 @@ impl RenderCmd {
             say(format!("effects: {}", done.effects));
             if !device.is_cpu() {
                 say(format!("BVH memory: {}", spelled(self.device.bvh_memory)));
+                if done.mode == self.mode {
+                    say(format!("mode: {}", done.mode));
+                } else {
+                    say(format!(
+                        "mode: {} ({} asked for, see the warning)",
+                        done.mode, self.mode
+                    ));
+                }
                 say(format!(
                     "upload + shader module {:.1} ms, pipeline compile {:.1} ms",
                     renderer.upload_ms(),
@@ -354,6 +370,7 @@ impl RenderCmd {
                     bvh: renderer.bvh_stats().copied(),
                     effects: done.effects.to_string(),
                     bvh_memory: (!device.is_cpu()).then(|| spelled(self.device.bvh_memory)),
+                    mode: (!device.is_cpu()).then(|| done.mode.name()),
                     build_ms: renderer.build_ms(),
                     upload_ms: renderer.upload_ms(),
                     compile_ms: done.compile_ms,

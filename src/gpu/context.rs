@@ -146,6 +146,34 @@ impl GpuContext {
         })
     }
 
+    /// Why a kernel of `layout` (a subgroup traversal when `layout_has_one`) cannot walk
+    /// subgroup by subgroup here in workgroups of `workgroup_size`: the adapter has no
+    /// subgroup operations, the layout no subgroup traversal, or the workgroup is not a
+    /// whole number of the adapter's largest subgroups. None when it can.
+    pub fn subgroup_unavailable(
+        &self,
+        layout: &str,
+        layout_has_one: bool,
+        workgroup_size: u32,
+    ) -> Option<String> {
+        let adapter = &self.adapter.name;
+        let Some(sizes) = self.subgroups else {
+            return Some(format!("{adapter} has no subgroup operations"));
+        };
+        if !layout_has_one {
+            return Some(format!("the {layout} layout has no subgroup traversal"));
+        }
+        // Full subgroups: the traversal spreads its work over every lane.
+        if !workgroup_size.is_multiple_of(sizes.max) {
+            return Some(format!(
+                "workgroup size {workgroup_size} is not a multiple of {adapter}'s largest \
+                 subgroup ({} lanes)",
+                sizes.max
+            ));
+        }
+        None
+    }
+
     /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM).
     pub fn buffer_with(
         &self,

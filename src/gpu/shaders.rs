@@ -119,21 +119,48 @@ pub fn driver_trace_source() -> String {
     )
 }
 
+/// The render kernel where each lane traverses alone: it traces each ray where the CPU
+/// does (`lanes_any(b)`, unused there, is the lane's own `b`).
+const LANES_PER_RAY: &str = "const LANES_TOGETHER = false;\n\
+                             fn lanes_any(b: bool) -> bool { return b; }\n";
+/// The render kernel where the lanes of a subgroup traverse together: every lane traces
+/// one ray a round, and `lanes_any(b)` is any lane's `b`.
+const LANES_SUBGROUP: &str = "const LANES_TOGETHER = true;\n\
+                              fn lanes_any(b: bool) -> bool { return subgroupAny(b); }\n";
+
 /// The render kernel's full source for a layout.
 pub fn render_source(layout: &dyn Layout) -> String {
-    kernel_source(layout, RENDER)
+    format!(
+        "{}\n{}\n{LANES_PER_RAY}\n{RENDER}",
+        library_source(),
+        layout.wgsl()
+    )
+}
+
+/// The render kernel's source for a layout's subgroup traversal, or None when the layout
+/// has none; like [`trace_subgroup_source`], it needs the device's `Features::SUBGROUP`.
+pub fn render_subgroup_source(layout: &dyn Layout) -> Option<String> {
+    let traversal = layout.subgroup_wgsl()?;
+    Some(format!(
+        "{}\n{traversal}\n{LANES_SUBGROUP}\n{RENDER}",
+        library_source()
+    ))
 }
 
 fn kernel_source(layout: &dyn Layout, kernel: &str) -> String {
     format!("{}\n{}\n{kernel}", library_source(), layout.wgsl())
 }
 
-/// Every kernel's full source for a layout, by name (for validation and layout tests).
+/// Every kernel's full source for a layout, by name (for validation and layout tests),
+/// the subgroup kernels included where the layout has a subgroup traversal.
 pub fn all(layout: &dyn Layout) -> Vec<(&'static str, String)> {
-    vec![
+    let mut v = vec![
         ("trace", trace_source(layout)),
         ("render", render_source(layout)),
-    ]
+    ];
+    v.extend(trace_subgroup_source(layout).map(|s| ("trace-subgroup", s)));
+    v.extend(render_subgroup_source(layout).map(|s| ("render-subgroup", s)));
+    v
 }
 
 /// Checks that the WGSL struct `name` in `source` has the given size and (member, offset)

@@ -135,25 +135,9 @@ impl<'a> GpuTracer<'a> {
     /// subgroup operations, the layout no subgroup traversal, or the workgroup is not a
     /// whole number of the adapter's largest subgroups), or None when it can.
     pub fn subgroup_unavailable(&self, workgroup_size: u32) -> Option<String> {
-        let adapter = &self.ctx.adapter.name;
-        let Some(sizes) = self.ctx.subgroups else {
-            return Some(format!("{adapter} has no subgroup operations"));
-        };
-        if self.subgroup_source.is_none() {
-            return Some(format!(
-                "the {} layout has no subgroup traversal",
-                self.layout
-            ));
-        }
-        // Full subgroups: the traversal spreads its stack over every lane.
-        if !workgroup_size.is_multiple_of(sizes.max) {
-            return Some(format!(
-                "workgroup size {workgroup_size} is not a multiple of {adapter}'s largest \
-                 subgroup ({} lanes)",
-                sizes.max
-            ));
-        }
-        None
+        // Without subgroups there is no source either; the context names the adapter first.
+        let has_one = self.subgroup_source.is_some();
+        (self.ctx).subgroup_unavailable(self.layout, has_one, workgroup_size)
     }
 
     /// The compiled kernel of a mode (compiled on first use).

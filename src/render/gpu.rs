@@ -17,6 +17,7 @@ use crate::gpu::plumbing::{
 };
 use crate::gpu::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
 use crate::layout::Layout;
+use crate::trace::TraversalMode;
 
 /// Pixels per dispatch: keeps every dispatch short on a software rasteriser.
 const CHUNK: u32 = 1 << 16;
@@ -169,12 +170,15 @@ pub struct GpuRenderer<'a> {
     aovs: bool,
     base: RenderParams,
     chunks: Chunks,
+    mode: TraversalMode,
 }
 
 impl<'a> GpuRenderer<'a> {
     /// Validates and uploads the layout (in `memory`) and the scene, and compiles the
     /// kernel that renders the pixels of `crop` (checked against the image by the caller),
-    /// writing their AOVs in sample 0 when `aovs`; the accumulator starts at zero.
+    /// writing their AOVs in sample 0 when `aovs`, traversing in `mode` (per ray, with a
+    /// warning, where that mode cannot run: see [`GpuRenderer::mode`]); the accumulator
+    /// starts at zero.
     pub fn new(
         ctx: &'a GpuContext,
         scene: &RenderScene,
@@ -182,6 +186,7 @@ impl<'a> GpuRenderer<'a> {
         memory: BvhMemory,
         crop: Crop,
         aovs: bool,
+        mode: TraversalMode,
     ) -> Result<Self> {
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
         // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
@@ -308,12 +313,24 @@ impl<'a> GpuRenderer<'a> {
         entries.extend(sized.iter().map(|&(b, _, _)| storage_entry(b, true)));
         entries.push(storage_entry(bindings::RENDER_ACCUM, false));
         entries.push(dynamic_uniform_entry(bindings::RENDER_PARAMS, PARAMS_SIZE));
+        let subgroup_source = match mode {
+            TraversalMode::PerRay => None,
+            TraversalMode::Subgroup => {
+                let source = shaders::render_subgroup_source(layout);
+                let why = ctx.subgroup_unavailable(layout.name(), source.is_some(), WORKGROUP);
+                if let Some(why) = &why {
+                    log::warn!("no {mode} traversal ({why}): rendering per ray");
+                }
+                source.filter(|_| why.is_none())
+            }
+        };
+        let mode = match subgroup_source {
+            Some(_) => TraversalMode::Subgroup,
+            None => TraversalMode::PerRay,
+        };
+        let source = subgroup_source.unwrap_or_else(|| shaders::render_source(layout));
         let kernel = Kernel::new(
-            ctx,
-            "render",
-            "render",
-            &shaders::render_source(layout),
-            &entries,
+            ctx, "render", "render", &source, &entries,
             // Trusted modules are offered: the layout was validated by GpuBvh::upload, the
             // scene's indices (materials, emitters, texels) are built here in range, and
             // every pixel index is guarded by params.count.
@@ -366,7 +383,13 @@ impl<'a> GpuRenderer<'a> {
             base,
             chunks,
             aovs,
+            mode,
         })
+    }
+
+    /// The traversal mode the kernel runs: the one asked for, or per ray where it could not.
+    pub fn mode(&self) -> TraversalMode {
+        self.mode
     }
 
     fn pipeline(&mut self, fx: EffectSet, rob: Robustness) -> Result<wgpu::ComputePipeline> {

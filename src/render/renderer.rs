@@ -23,6 +23,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Robustness;
 use crate::gpu::BvhMemory;
 use crate::layout::{self, Layout};
+use crate::trace::TraversalMode;
 
 /// Where a render stands, for a progress callback.
 #[derive(Clone, Copy, Debug)]
@@ -69,6 +70,10 @@ pub struct RenderOptions {
     /// Compute the AOVs (first-hit depth, normal, albedo of sample 0's camera rays; used by
     /// [`Renderer::new`]).
     pub aovs: bool,
+    /// GPU: how the render kernel walks the BVH (used by [`Renderer::new`]); a mode that
+    /// cannot run falls back to per ray with a warning ([`Renderer::mode`]). The image is
+    /// the same in every mode.
+    pub mode: TraversalMode,
 }
 
 /// Why a render stopped.
@@ -104,6 +109,8 @@ pub struct Rendered {
     pub first_sample_ms: f64,
     /// The AOVs, when asked for ([`RenderOptions::aovs`]).
     pub aovs: Option<Aovs>,
+    /// The traversal mode the GPU kernel ran (per ray on the CPU).
+    pub mode: TraversalMode,
     /// Pixels whose GPU samples the driver cut short (a loop-iteration cap, see
     /// [`INCOMPLETE`](crate::gpu::INCOMPLETE)), rendered again on the CPU: they are the CPU
     /// reference's, bit for bit.
@@ -180,9 +187,16 @@ impl<'a> Renderer<'a> {
                 options.memory,
                 crop,
                 options.aovs,
+                options.mode,
             )?),
             _ => None,
         };
+        if gpu.is_none() && options.mode != TraversalMode::PerRay {
+            log::warn!(
+                "no {} traversal (the CPU traces one ray at a time): rendering per ray",
+                options.mode
+            );
+        }
         let upload_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(Renderer {
             scene,
@@ -212,6 +226,14 @@ impl<'a> Renderer<'a> {
     /// [`Rendered::compile_ms`]). 0 on the CPU.
     pub fn upload_ms(&self) -> f64 {
         self.upload_ms
+    }
+
+    /// The traversal mode the GPU kernel runs: the one asked for, or per ray where it
+    /// cannot run (and always on the CPU, which traces one ray at a time).
+    pub fn mode(&self) -> TraversalMode {
+        self.gpu
+            .as_ref()
+            .map_or(TraversalMode::PerRay, GpuRenderer::mode)
     }
 
     /// The structure rendered through.
@@ -371,6 +393,7 @@ impl<'a> Renderer<'a> {
             compile_ms,
             first_sample_ms,
             aovs,
+            mode: self.mode(),
             cpu_pixels,
         })
     }

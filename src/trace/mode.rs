@@ -1,10 +1,11 @@
 //! How a GPU kernel walks the BVH: one ray per invocation, or the lanes of a subgroup
 //! together.
 
-/// The traversal mode of the GPU trace kernel (the CPU twin always traces one ray at a
-/// time). A mode a layout, adapter or workgroup size cannot run falls back to
+/// The traversal mode of the GPU trace and render kernels (the CPU twin always traces one
+/// ray at a time). A mode a layout, adapter or workgroup size cannot run falls back to
 /// [`TraversalMode::PerRay`], with a warning; [`TraceResult::mode`](super::TraceResult)
-/// says which ran.
+/// and [`Rendered::mode`](crate::render::Rendered) say which ran. A render is the same
+/// image in every mode.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum TraversalMode {

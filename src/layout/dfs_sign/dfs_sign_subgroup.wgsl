@@ -11,7 +11,7 @@
 // next). Each lane keeps its own best hit with the per-ray tests, tie rule and pruning
 // (prune_bound / hit_prune), so closest hits equal the per-ray kernel's bit for bit: the
 // closest hit under the tie rule does not depend on the visiting order. An any-hit lane stops
-// at its first hit; the subgroup stops when every lane has.
+// at its first hit; the subgroup stops when every lane has. Lanes may differ in any_hit.
 //
 // Why this shape: lavapipe (Mesa 22.3) runs both sides of every branch and turns each load
 // instruction into a loop over the lanes, so a step costs all of its code every time; a step
@@ -117,7 +117,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 t1 = 0u;
                 e1 = 0u;
             }
-            if any_hit && !subgroupAny(live) {
+            // Asked of every lane (any_hit may differ between lanes: the render kernel's
+            // path and shadow rays); a closest-hit lane's valid ray stays live.
+            if !subgroupAny(live) {
                 traversal_done = true;
                 break;
             }
