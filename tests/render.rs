@@ -117,31 +117,48 @@ const PIXEL_TOL: f32 = 2.0 / 255.0;
 const MAX_OUTLIER_SHARE: f64 = 0.02;
 const MAX_MEAN: f64 = 0.004;
 
+/// Asserts that the GPU image of `s` is the CPU's within the tolerance, printing the
+/// differences (and writing PNGs of both on failure).
+fn assert_gpu_matches_cpu(name: &str, s: &RenderScene, gpu: &[Vec3], cpu: &[Vec3]) {
+    let fx = EffectSet::of(s);
+    let d = diffs(gpu, cpu);
+    let max = d.iter().cloned().fold(0.0, f32::max);
+    let mean = d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64;
+    let outliers = d.iter().filter(|&&x| x > PIXEL_TOL).count();
+    println!(
+        "{name}: effects [{fx}]  max diff {max:.4}  mean {mean:.6}  pixels over {PIXEL_TOL:.4}: {outliers}/{}",
+        d.len()
+    );
+    let ok = (outliers as f64) <= MAX_OUTLIER_SHARE * d.len() as f64 && mean <= MAX_MEAN;
+    if !ok {
+        write_failure(name, s, gpu, cpu);
+    }
+    assert!(ok, "{name}: GPU and CPU images differ beyond the tolerance");
+    // Not a black or constant image: the comparison means something.
+    let lum: Vec<f32> = cpu.iter().map(|c| c.x + c.y + c.z).collect();
+    let spread =
+        lum.iter().cloned().fold(0.0, f32::max) - lum.iter().cloned().fold(f32::MAX, f32::min);
+    assert!(spread > 0.1, "{name}: the reference image is flat");
+}
+
 #[test]
 fn gpu_renders_match_the_cpu_reference() {
     for (name, s) in scenes() {
         let fx = EffectSet::of(&s);
         let cpu = cpu_image(&s, fx, 2);
         let gpu = gpu_image(&s, fx, 2);
-        let d = diffs(&gpu, &cpu);
-        let max = d.iter().cloned().fold(0.0, f32::max);
-        let mean = d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64;
-        let outliers = d.iter().filter(|&&x| x > PIXEL_TOL).count();
-        println!(
-            "{name}: effects [{fx}]  max diff {max:.4}  mean {mean:.6}  pixels over {PIXEL_TOL:.4}: {outliers}/{}",
-            d.len()
-        );
-        let ok = (outliers as f64) <= MAX_OUTLIER_SHARE * d.len() as f64 && mean <= MAX_MEAN;
-        if !ok {
-            write_failure(&name, &s, &gpu, &cpu);
-        }
-        assert!(ok, "{name}: GPU and CPU images differ beyond the tolerance");
-        // Not a black or constant image: the comparison means something.
-        let lum: Vec<f32> = cpu.iter().map(|c| c.x + c.y + c.z).collect();
-        let spread =
-            lum.iter().cloned().fold(0.0, f32::max) - lum.iter().cloned().fold(f32::MAX, f32::min);
-        assert!(spread > 0.1, "{name}: the reference image is flat");
+        assert_gpu_matches_cpu(&name, &s, &gpu, &cpu);
     }
+}
+
+#[test]
+fn a_render_of_several_dispatches_matches_the_cpu() {
+    // 300×220 = 66,000 pixels: two dispatches of the render kernel (at most 65,536 pixels
+    // each), the second reading its parameters at a dynamic offset.
+    let (name, mut s) = scenes().into_iter().find(|(n, _)| n == "cornell").unwrap();
+    (s.camera.width, s.camera.height) = (300, 220);
+    let fx = EffectSet::of(&s);
+    assert_gpu_matches_cpu(&name, &s, &gpu_image(&s, fx, 1), &cpu_image(&s, fx, 1));
 }
 
 #[test]

@@ -202,10 +202,10 @@ pub struct Chunks {
 impl Chunks {
     /// Splits `items` into chunks of at most `chunk`, with uniforms `align`-ed.
     pub fn new(ctx: &GpuContext, items: u32, chunk: u32, uniform_size: u32) -> Chunks {
-        let align = ctx
-            .limits
-            .min_uniform_buffer_offset_alignment
-            .max(uniform_size);
+        // Each chunk's uniforms start at a multiple of the device's dynamic-offset alignment
+        // (a power of two) and do not overlap the next chunk's.
+        let align =
+            uniform_size.next_multiple_of(ctx.limits.min_uniform_buffer_offset_alignment.max(1));
         Chunks {
             chunk,
             items,
