@@ -1,6 +1,6 @@
 //! One place that opens a headless GPU device.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use wgpu::util::DeviceExt;
 
@@ -25,7 +25,8 @@ impl std::fmt::Display for AdapterReport {
     }
 }
 
-/// A headless device and queue.
+/// A headless device and queue (a clone shares them).
+#[derive(Clone)]
 pub struct GpuContext {
     /// The wgpu device.
     pub device: wgpu::Device,
@@ -45,6 +46,11 @@ pub struct GpuContext {
     ///
     /// [`DriverTracer`]: super::DriverTracer
     pub ray_query: bool,
+    /// Errors the device reported outside an error scope since the last [`wait`], which
+    /// returns the first of them (so no GPU error passes silently).
+    ///
+    /// [`wait`]: super::plumbing::wait
+    pub(crate) uncaptured: Arc<Mutex<Vec<String>>>,
 }
 
 /// The smallest and largest subgroup (SIMD width) the adapter may run a kernel with.
@@ -133,8 +139,16 @@ impl GpuContext {
             })
             .await
             .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?;
-        // Errors outside an error scope (gpu::plumbing::scoped) are logged, never a panic.
-        device.on_uncaptured_error(Arc::new(|e| log::error!("GPU error: {e}")));
+        // Errors outside an error scope (gpu::plumbing::scoped) are logged and kept for the
+        // next wait to return, never a panic.
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let sink = Arc::clone(&uncaptured);
+        device.on_uncaptured_error(Arc::new(move |e| {
+            log::error!("GPU error: {e}");
+            if let Ok(mut errors) = sink.lock() {
+                errors.push(e.to_string());
+            }
+        }));
         Ok(GpuContext {
             device,
             queue,
@@ -143,6 +157,7 @@ impl GpuContext {
             timestamps,
             subgroups,
             ray_query,
+            uncaptured,
         })
     }
 

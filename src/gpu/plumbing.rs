@@ -371,12 +371,20 @@ impl Readback {
     }
 }
 
-/// Waits until the device has finished all submitted work.
+/// Waits until the device has finished all submitted work; an error the device reported
+/// outside an error scope since the last wait is returned here.
 pub fn wait(ctx: &GpuContext) -> Result<()> {
     ctx.device
         .poll(wgpu::PollType::wait_indefinitely())
-        .map(|_| ())
-        .map_err(|e| Error::Gpu(format!("GPU did not finish: {e}")))
+        .map_err(|e| Error::Gpu(format!("GPU did not finish: {e}")))?;
+    let first = match ctx.uncaptured.lock() {
+        Ok(mut errors) => errors.drain(..).next(),
+        Err(_) => Some("an error handler panicked".to_string()),
+    };
+    match first {
+        Some(e) => Err(Error::Gpu(e)),
+        None => Ok(()),
+    }
 }
 
 /// A storage buffer (zeroed by wgpu) that kernels write, the host reads back and may clear.
