@@ -410,15 +410,36 @@ impl<'a> GpuRenderer<'a> {
     }
 
     /// Compiles the pipeline for `fx` and `rob` unless it is already (the driver's shader
-    /// compilation, kept out of the first sample's time); returns the milliseconds it took
-    /// (0 when it was compiled already).
+    /// compilation, kept out of the first sample's time: a dispatch with no pixel follows,
+    /// for drivers that compile at the first dispatch); returns the milliseconds it took (0
+    /// when it was compiled already).
     pub fn prepare(&mut self, fx: EffectSet, rob: Robustness) -> Result<f64> {
         rob.check_gpu()?;
         if self.pipelines.contains_key(&(fx, rob)) {
             return Ok(0.0);
         }
         let start = std::time::Instant::now();
-        self.pipeline(fx, rob)?;
+        let pipeline = self.pipeline(fx, rob)?;
+        // A driver may compile at the first dispatch (lavapipe does): one workgroup with no
+        // pixel (count 0, so every invocation returns at once) does that here.
+        let base = self.base;
+        let bytes = self.chunks.uniforms(|offset, _| RenderParams {
+            offset,
+            count: 0,
+            ..base
+        });
+        self.ctx.queue.write_buffer(&self.params, 0, &bytes);
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &self.bind, &[0]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        scoped(self.ctx, "compiling the render kernel", || {
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        wait(self.ctx)?;
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
