@@ -211,6 +211,11 @@ impl<'a> GpuTracer<'a> {
                 return Err(Error::Usage(format!("no subgroup traversal: {why}")));
             }
         }
+        if !self.pipelines.contains_key(&kernel) {
+            // A driver may compile at the first dispatch (lavapipe does): an empty batch,
+            // one workgroup with no ray, does that before the timings start.
+            self.trace_batch(&[], kernel)?;
+        }
         let start = Instant::now();
         let batch = batch_len(self.ctx, rays.len());
         let mut hits = Vec::with_capacity(rays.len());
