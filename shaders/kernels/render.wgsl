@@ -239,8 +239,9 @@ fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>) {
 // The integrator is resumable, so that every lane calls traverse() at the same time (a
 // subgroup traversal walks with all the lanes of its subgroup): it runs CpuRenderer::sample
 // up to the next ray that function traces, leaves that ray in `query` and where to go on in
-// `step`, and resume() goes on from there with the ray's hit. Each lane does the CPU's
-// operations in the CPU's order, so the sample is the same bit for bit.
+// `step`, and the step functions below go on from there with the ray's hit (sample_alone
+// and sample_together call them). Each lane does the CPU's operations in the CPU's order,
+// so the sample is the same bit for bit.
 const STEP_PATH: u32 = 0u;     // query: this bounce's path ray (closest hit)
 const STEP_AO: u32 = 1u;       // query: the ambient-occlusion ray
 const STEP_LIGHT: u32 = 2u;    // query: the shadow ray to lights[light_i]
@@ -258,11 +259,10 @@ var<private> rad: vec3<f32>;
 var<private> beta: vec3<f32>;
 var<private> count_emission: bool;
 var<private> bounce: u32;
-// CpuRenderer::direct's state at a diffuse hit: the point, its error bound, the normal, the
-// albedo, the shadow rays' origin, the light summed so far, and what the light of the
+// CpuRenderer::direct's state at a diffuse hit: the point, the normal, the albedo, the
+// shadow rays' origin, the light summed so far, and what the light of the
 // shadow ray in flight adds if nothing blocks it.
 var<private> at_p: vec3<f32>;
-var<private> at_err: vec3<f32>;
 var<private> at_n: vec3<f32>;
 var<private> at_albedo: vec3<f32>;
 var<private> at_o: vec3<f32>;
@@ -367,7 +367,6 @@ fn path_hit(hit: Hit) {
     }
     // Diffuse: CpuRenderer::direct, from its first light.
     at_p = p;
-    at_err = p_err;
     at_n = n;
     at_albedo = surface_albedo(mat, s, w, hit.u, hit.v);
     at_o = offset_origin(p, p_err, n);

@@ -10,8 +10,8 @@
 use std::time::Instant;
 
 use super::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, scoped, storage_entry, uniform_binding,
-    wait, Chunks, Kernel, Readback, Timer,
+    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
+    Chunks, Kernel, Readback, Timer,
 };
 use super::trace::{batch_len, CHUNK};
 use super::{bindings, shaders, GpuContext, Timings, TraceParams};
@@ -242,9 +242,7 @@ impl<'a> DriverTracer<'a> {
                 from.push((t.buffer(), t.buffer().size()));
             }
             let readback = Readback::record(ctx, &mut enc, &from);
-            scoped(ctx, "tracing a batch of rays through the driver", || {
-                ctx.queue.submit([enc.finish()]);
-            })?;
+            ctx.queue.submit([enc.finish()]);
             let parts = readback.read(ctx)?;
             hits.extend(bytemuck::pod_collect_to_vec::<u8, Hit>(&parts[0]));
             let ns = timer.map(|_| Timer::nanoseconds(ctx, &parts[1]));

@@ -5,8 +5,8 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use super::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, scoped, storage_entry, uniform_binding,
-    Chunks, Kernel, Readback, Timer,
+    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, Chunks,
+    Kernel, Readback, Timer,
 };
 use super::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
 use crate::accel::{Query, RayStats};
@@ -286,9 +286,7 @@ impl<'a> GpuTracer<'a> {
             from.push((t.buffer(), t.buffer().size()));
         }
         let readback = Readback::record(ctx, &mut enc, &from);
-        scoped(ctx, "tracing a batch of rays", || {
-            ctx.queue.submit([enc.finish()]);
-        })?;
+        ctx.queue.submit([enc.finish()]);
         let parts = readback.read(ctx)?;
         let hits: Vec<Hit> = bytemuck::pod_collect_to_vec(&parts[0]);
         let stats = kernel

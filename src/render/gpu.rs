@@ -12,8 +12,8 @@ use super::scene::{Light, LightKind, RenderScene};
 use crate::error::Result;
 use crate::geometry::Robustness;
 use crate::gpu::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, scoped, storage_entry, uniform_binding,
-    wait, Chunks, Kernel, Readback,
+    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
+    Chunks, Kernel, Readback,
 };
 use crate::gpu::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
 use crate::layout::Layout;
@@ -436,9 +436,7 @@ impl<'a> GpuRenderer<'a> {
             pass.set_bind_group(0, &self.bind, &[0]);
             pass.dispatch_workgroups(1, 1, 1);
         }
-        scoped(self.ctx, "compiling the render kernel", || {
-            self.ctx.queue.submit([enc.finish()]);
-        })?;
+        self.ctx.queue.submit([enc.finish()]);
         wait(self.ctx)?;
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
@@ -476,9 +474,7 @@ impl<'a> GpuRenderer<'a> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         self.chunks
             .record(&mut enc, &pipeline, &self.bind, WORKGROUP, None);
-        scoped(self.ctx, "rendering a sample", || {
-            self.ctx.queue.submit([enc.finish()]);
-        })?;
+        self.ctx.queue.submit([enc.finish()]);
         wait(self.ctx)?;
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
