@@ -99,11 +99,14 @@ fn refused(what: &str, bytes: &[u8], want: &str) {
 }
 
 /// Offset in the payload of a child index of the root node, per layout (dfs-sign: the
-/// second child; bvh2-wide-node: the header's root reference; cwbvh: child_base; bvh4:
+/// second child; threaded: the root's skip index; bvh2-wide-node: the header's root reference; cwbvh: child_base; bvh4:
 /// slot 0's child).
 fn root_child_index(kind: LayoutKind) -> usize {
     match kind {
-        LayoutKind::DfsSign | LayoutKind::DfsDistance | LayoutKind::Bvh2WideNode => 12,
+        LayoutKind::DfsSign
+        | LayoutKind::DfsDistance
+        | LayoutKind::Bvh2WideNode
+        | LayoutKind::Threaded => 12,
         LayoutKind::Cwbvh => 16,
         LayoutKind::Bvh4 => 96,
     }

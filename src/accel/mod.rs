@@ -165,7 +165,7 @@ pub fn build(
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
-            layout::flatten(layout, &tree, mesh)
+            layout::try_flatten(layout, &tree, mesh)?
         }
         AccelKind::KdTree => Box::new(kdtree::KdTree::build(mesh, &Default::default())?),
         AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
@@ -186,7 +186,7 @@ pub fn build_gpu(
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
-            Some(layout::flatten(layout, &tree, mesh).into())
+            Some(layout::try_flatten(layout, &tree, mesh)?.into())
         }
         AccelKind::KdTree => Some(Arc::new(kdtree::KdTree::build(mesh, &Default::default())?)),
         AccelKind::Bih => Some(Arc::new(bih::Bih::build(mesh, &Default::default())?)),

@@ -14,7 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats};
 use lancer::accuracy::{cases, closed, false_misses, secondary};
 use lancer::geometry::{Precision, RayOffset, SlabTest, TriangleTest};
-use lancer::layout::{flatten, Layout};
+use lancer::layout::{flatten, try_flatten, Layout};
 use lancer::mesh::Mesh;
 use lancer::render::Rng;
 use lancer::trace::files::{default_light, shadow_rays};
@@ -341,7 +341,7 @@ impl<'d> Tracers<'d> {
         };
         let tree = build(&work.mesh, build_opts);
         let sah = BvhStats::of(&tree, build_opts).sah_cost;
-        let layout: Arc<dyn Layout> = flatten(opts.layout, &tree, &work.mesh).into();
+        let layout: Arc<dyn Layout> = try_flatten(opts.layout, &tree, &work.mesh)?.into();
         let scene = Tracer::with_layout(device, layout, &opts)?;
         let mut tracers = Vec::new();
         if judged {

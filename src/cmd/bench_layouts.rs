@@ -11,7 +11,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::build;
 use lancer::gpu::{BvhMemory, DriverTracer};
-use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
+use lancer::layout::{flatten, try_flatten, Layout, LayoutKind, LeafTri};
 use lancer::{
     Device, DeviceChoice, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
     TraversalMode,
@@ -272,7 +272,7 @@ impl BenchLayouts {
         for &kind in &kinds {
             bar.set_message(kind.name());
             let start = Instant::now();
-            let layout: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+            let layout: Arc<dyn Layout> = try_flatten(kind, &tree, &mesh)?.into();
             let flatten_ms = start.elapsed().as_secs_f64() * 1e3;
             sizes.push(Size {
                 layout: kind,

@@ -18,7 +18,7 @@ use lancer::accel::octree::Octree;
 use lancer::accuracy::random_dir;
 use lancer::camera::Camera;
 use lancer::gpu::BvhMemory;
-use lancer::layout::{flatten, LayoutKind};
+use lancer::layout::{flatten, try_flatten, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::render::{RenderScene, Rng};
 use lancer::trace::files::{default_light, shadow_rays};
@@ -147,7 +147,7 @@ fn build_one(kind: AccelKind, mesh: &Mesh) -> Result<Built> {
             let opts = BuildOptions::default();
             let tree = build(mesh, &opts);
             let depth = BvhStats::of(&tree, &opts).max_depth;
-            let flat: Arc<dyn Layout> = flatten(layout, &tree, mesh).into();
+            let flat: Arc<dyn Layout> = try_flatten(layout, &tree, mesh)?.into();
             let info = (flat.bytes() as u64, 0, Some(depth));
             (flat.clone(), Some(flat), info)
         }

@@ -3,7 +3,7 @@ use std::time::Instant;
 
 use clap::Args;
 use lancer::accel::bvh::{build, BvhStats};
-use lancer::layout::{bvh_file, flatten};
+use lancer::layout::{bvh_file, try_flatten};
 use lancer::Result;
 use serde::Serialize;
 
@@ -61,7 +61,7 @@ impl BuildCmd {
         let opts = self.build.options();
         let t0 = Instant::now();
         let bvh = build(&mesh, &opts);
-        let layout = flatten(self.build.layout, &bvh, &mesh);
+        let layout = try_flatten(self.build.layout, &bvh, &mesh)?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let s = BvhStats::of(&bvh, &opts);
         if let Some(out) = &self.out {

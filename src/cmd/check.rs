@@ -9,7 +9,7 @@ use std::sync::Arc;
 use clap::Args;
 use lancer::accel::bvh::build;
 use lancer::gpu::DriverTracer;
-use lancer::layout::{flatten, Layout, LayoutKind};
+use lancer::layout::{try_flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::trace::compare::{compare_hits, compare_hits_independent, Comparison};
 use lancer::trace::files::decode_rays;
@@ -228,14 +228,14 @@ impl CheckCmd {
             .transpose()?;
         // Built when a layout is flattened here, not for a file's.
         let mut tree = None;
-        let mut layout_of = |kind: LayoutKind| -> Arc<dyn Layout> {
-            match &bvh {
+        let mut layout_of = |kind: LayoutKind| -> lancer::Result<Arc<dyn Layout>> {
+            Ok(match &bvh {
                 Some(file) => file.layout.clone(),
                 None => {
                     let tree = tree.get_or_insert_with(|| build(&mesh, &self.build.options()));
-                    flatten(kind, tree, &mesh).into()
+                    try_flatten(kind, tree, &mesh)?.into()
                 }
-            }
+            })
         };
         let kinds = match &bvh {
             Some(file) => vec![file.kind],
@@ -255,7 +255,7 @@ impl CheckCmd {
                 ]
             }
             None => {
-                let reference = layout_of(LayoutKind::default());
+                let reference = layout_of(LayoutKind::default())?;
                 let rob = self.robustness.robustness();
                 view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?
             }
@@ -271,7 +271,7 @@ impl CheckCmd {
         let mut bad = 0usize;
         let mut not_run = Vec::new();
         for kind in kinds {
-            let layout = layout_of(kind);
+            let layout = layout_of(kind)?;
             let options = TracerOptions {
                 layout: kind,
                 memory: self.device.bvh_memory(),
@@ -322,7 +322,7 @@ impl CheckCmd {
         // The driver's own traversal, an independent oracle where the adapter has ray
         // queries: against the default layout's CPU twin (the file's with --bvh).
         if ctx.ray_query {
-            let reference = layout_of(LayoutKind::default());
+            let reference = layout_of(LayoutKind::default())?;
             let mut twin = Tracer::with_layout(&cpu, reference.clone(), &TracerOptions::default())?;
             let mut driver = DriverTracer::new(ctx, reference.as_ref())?;
             for (name, query, rays) in &sets {

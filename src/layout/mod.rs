@@ -41,6 +41,7 @@ mod cwbvh;
 mod dfs_distance;
 mod dfs_sign;
 pub(crate) mod leaf_tri;
+mod threaded;
 
 use crate::accel::bvh::Bvh;
 use crate::accel::Accel;
@@ -52,6 +53,7 @@ pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub use leaf_tri::LeafTri;
+pub use threaded::Threaded;
 
 /// The byte arrays a layout uploads: nodes and leaf triangles, each a whole number of
 /// 16-byte words (the GPU reads them as `vec4<u32>`).
@@ -138,6 +140,9 @@ pub enum LayoutKind {
     /// 128-byte 4-wide nodes collapsed from the binary tree by SAH: the four children's boxes
     /// tested per visit, the hit ones visited nearest first.
     Bvh4,
+    /// The dfs-sign tree in eight copies, one per ray octant, each in the order dfs-sign
+    /// visits it for that octant's rays; skip indices instead of a stack.
+    Threaded,
 }
 
 impl LayoutKind {
@@ -148,6 +153,7 @@ impl LayoutKind {
         LayoutKind::Bvh2WideNode,
         LayoutKind::Cwbvh,
         LayoutKind::Bvh4,
+        LayoutKind::Threaded,
     ];
 
     /// The layout of this [name](LayoutKind::name), if any.
@@ -163,6 +169,7 @@ impl LayoutKind {
             LayoutKind::Bvh2WideNode => "bvh2-wide-node",
             LayoutKind::Cwbvh => "cwbvh",
             LayoutKind::Bvh4 => "bvh4",
+            LayoutKind::Threaded => "threaded",
         }
     }
 }
@@ -173,7 +180,22 @@ impl std::fmt::Display for LayoutKind {
     }
 }
 
-/// Flattens a built tree into the chosen layout.
+/// Flattens a built tree into the chosen layout, after checking that its arrays fit in the
+/// memory available (the `threaded` layout holds eight copies of the tree's nodes): the
+/// library's and the command line's way in, for trees built from input.
+pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Box<dyn Layout>> {
+    if kind == LayoutKind::Threaded {
+        crate::limits::check_memory(
+            "the threaded layout",
+            Threaded::node_array_bytes(bvh.root.nodes() as u64),
+            "choose another --layout (dfs-sign holds one copy of the nodes)",
+        )?;
+    }
+    Ok(flatten(kind, bvh, mesh))
+}
+
+/// Flattens a built tree into the chosen layout, unchecked: for trees known to fit (tests,
+/// benches); input goes through [`try_flatten`].
 pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
@@ -181,6 +203,7 @@ pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
         LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::flatten(bvh, mesh)),
         LayoutKind::Cwbvh => Box::new(Cwbvh::flatten(bvh, mesh)),
         LayoutKind::Bvh4 => Box::new(Bvh4::flatten(bvh, mesh)),
+        LayoutKind::Threaded => Box::new(Threaded::flatten(bvh, mesh)),
     }
 }
 
@@ -194,6 +217,7 @@ pub fn from_arrays(kind: LayoutKind, arrays: LayoutArrays<'_>) -> Result<Box<dyn
         LayoutKind::Bvh2WideNode => Box::new(Bvh2WideNode::from_arrays(arrays)?),
         LayoutKind::Cwbvh => Box::new(Cwbvh::from_arrays(arrays)?),
         LayoutKind::Bvh4 => Box::new(Bvh4::from_arrays(arrays)?),
+        LayoutKind::Threaded => Box::new(Threaded::from_arrays(arrays)?),
     })
 }
 

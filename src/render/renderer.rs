@@ -158,7 +158,8 @@ impl<'a> Renderer<'a> {
         let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn Layout>>, _) = match kind {
             AccelKind::Bvh(layout_kind) => {
                 let tree = bvh::build(&scene.mesh, &options.build);
-                let flat: Arc<dyn Layout> = layout::flatten(layout_kind, &tree, &scene.mesh).into();
+                let flat: Arc<dyn Layout> =
+                    layout::try_flatten(layout_kind, &tree, &scene.mesh)?.into();
                 (flat.clone(), Some(flat), Some(tree))
             }
             _ if device.is_cpu() => (

@@ -85,7 +85,7 @@ impl<'d> Tracer<'d> {
     /// the device is a GPU.
     pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
         let tree = bvh::build(mesh, &options.build);
-        let layout: Arc<dyn Layout> = layout::flatten(options.layout, &tree, mesh).into();
+        let layout: Arc<dyn Layout> = layout::try_flatten(options.layout, &tree, mesh)?.into();
         Self::with_layout(device, layout, options)
     }
 

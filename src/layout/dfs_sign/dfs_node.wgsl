@@ -1,7 +1,7 @@
 // The 32-byte dfs node (mod.rs DfsNode) and its loader, shared by the traversals of the
-// dfs-sign and dfs-distance layouts. DFS_LEAF_TAG comes from mod.rs's LEAF_TAG.
+// dfs-sign, dfs-distance and threaded layouts. DFS_LEAF_TAG comes from mod.rs's LEAF_TAG.
 
-// DfsNode. Inner: a = second child, b = axis. Leaf: a = first tri, b = count<<2 | DFS_LEAF_TAG.
+// DfsNode. Inner: a = second child (threaded: the skip index), b = axis. Leaf: a = first tri, b = count<<2 | DFS_LEAF_TAG.
 struct DfsNode {
     lo: vec3<f32>,
     a: u32,

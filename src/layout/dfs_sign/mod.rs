@@ -15,8 +15,9 @@ use super::{LayoutArrays, LayoutKind, LeafTri};
 /// (generated into the WGSL prelude as `DFS_LEAF_TAG`).
 pub(crate) const LEAF_TAG: u32 = 3;
 
-/// One node, 32 bytes (WGSL `DfsNode` in dfs_sign.wgsl).
-/// Inner: `a` = second child index, `b` = split axis (0..=2).
+/// One node, 32 bytes (WGSL `DfsNode` in dfs_node.wgsl), shared by dfs-sign, dfs-distance
+/// and threaded. Inner: `a` = second child index (threaded: the skip index, the node after
+/// the subtree), `b` = split axis (0..=2).
 /// Leaf: `a` = first triangle, `b` = count << 2 | LEAF_TAG.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]

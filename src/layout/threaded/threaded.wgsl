@@ -1,0 +1,54 @@
+// threaded: eight copies of the dfs-sign tree in dfs_node.wgsl's 32-byte nodes, one per
+// ray octant, each in the order dfs-sign visits it for that octant's rays; an inner node's
+// `a` is its skip index (the node after its subtree). No stack: a hit inner node or any leaf
+// goes on to the next node, a missed inner node to its skip index. The CPU twin is twin.rs,
+// step for step (mod.rs: octant()).
+
+// Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
+// An invalid ray (NaN, zero direction, empty interval) is a miss.
+fn traverse(r: Ray, any_hit: bool) -> Hit {
+    var best = Hit(r.tmax, MISS, 0.0, 0.0);
+    traversal_done = !ray_is_valid(r);
+    if COUNT_STATS {
+        n_nodes = 0u;
+        n_tris = 0u;
+    }
+    if ray_is_valid(r) {
+        let inv = safe_recip3(r.dir);
+        let w = watertight_setup(r.dir);
+        // Boxes are cut against the best t plus a few ulps (prune_bound, as the twin does).
+        var prune = prune_bound(best.t);
+        // A copy's length: copy 0's root skips to the end of copy 0 (a leaf root: 1 node).
+        let root = dfs_load_node(0u);
+        var n = 1u;
+        if (root.b & 3u) != DFS_LEAF_TAG {
+            n = root.a;
+        }
+        let octant = select(0u, 1u, r.dir.x < 0.0) | select(0u, 2u, r.dir.y < 0.0)
+            | select(0u, 4u, r.dir.z < 0.0);
+        var idx = octant * n;
+        let end = idx + n;
+        loop {
+            if idx >= end {
+                traversal_done = true;
+                break;
+            }
+            let node = dfs_load_node(idx);
+            if COUNT_STATS {
+                n_nodes += 1u;
+            }
+            let leaf = (node.b & 3u) == DFS_LEAF_TAG;
+            var next = idx + 1u;
+            if slab_hit(node.lo, node.hi, r.origin, inv, r.tmin, prune) {
+                if leaf && test_leaf(node.a, node.b >> 2u, r, w, any_hit, &best, &prune) {
+                    // Answered: the traversal ends.
+                    next = end;
+                }
+            } else if !leaf {
+                next = node.a;
+            }
+            idx = next;
+        }
+    }
+    return best;
+}

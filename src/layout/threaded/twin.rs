@@ -1,0 +1,101 @@
+//! The CPU twin of `threaded.wgsl`, step for step: the copy of the ray's octant, walked in
+//! array order (a missed inner node jumps to its skip index), the same slab and triangle
+//! tests in the same operation order, and the same tie rule, all in f32. It visits the nodes
+//! dfs-sign's twin visits, in the same order.
+
+use glam::{Vec3, Vec3A};
+
+use super::{octant, Threaded};
+use crate::accel::{Accel, Query, RayStats};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
+
+impl Accel for Threaded {
+    fn bounds(&self) -> Aabb {
+        if self.tris.is_empty() {
+            Aabb::EMPTY
+        } else {
+            self.nodes[0].bbox()
+        }
+    }
+
+    #[inline]
+    fn intersect(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        // One specialised loop per triangle test (the choice is not re-made per triangle).
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+    }
+}
+
+impl Threaded {
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
+    #[inline(always)]
+    fn walk<const TEST: u8>(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        let mut best = Hit::miss(ray.tmax);
+        if !ray.is_valid() {
+            return best;
+        }
+        let widen = robustness.far_widen();
+        let leaf = LeafRay::new(ray, robustness);
+        let inv = ray.inv_dir();
+        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
+        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
+        // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
+        // exactly the best t in a later box is still tested: equal t → smaller index.
+        let mut prune = prune_bound(best.t);
+        let n = self.copy_len();
+        let mut idx = octant(ray.dir) * n;
+        let end = idx + n;
+        while idx < end {
+            let node = &self.nodes[idx];
+            stats.nodes += 1;
+            let enter = if parallel {
+                node.bbox()
+                    .slab_hit(ray.origin, inv, ray.tmin, prune, widen)
+            } else {
+                Aabb::slab_hit_nonparallel(
+                    Vec3A::from_array(node.lo),
+                    Vec3A::from_array(node.hi),
+                    origin_a,
+                    inv_a,
+                    ray.tmin,
+                    prune,
+                    widen,
+                )
+            };
+            if enter {
+                if node.is_leaf() {
+                    let first = node.a as usize;
+                    let tris = &self.tris[first..first + node.count() as usize];
+                    if leaf.test_leaf::<TEST>(
+                        tris,
+                        query == Query::Any,
+                        &mut best,
+                        &mut prune,
+                        stats,
+                    ) {
+                        return best;
+                    }
+                }
+                idx += 1;
+            } else if node.is_leaf() {
+                idx += 1;
+            } else {
+                idx = node.a as usize;
+            }
+        }
+        debug_assert!(best.prim == MISS || best.t >= ray.tmin);
+        best
+    }
+}
