@@ -82,6 +82,9 @@ fn compare_layout(
         .unwrap()
         .trace(rays, kernel.query)
         .unwrap();
+    // No set here comes near a driver's loop cap: a retraced ray is a kernel that did not
+    // finish (it would hang where the driver has no cap).
+    assert_eq!(g.cpu_retraced, 0, "{name}: rays retraced on the CPU");
     let (cpu, cpu_stats, gpu_hits, gpu_stats) = (c.hits, c.stats.unwrap(), g.hits, g.stats);
     let cmp = compare_hits(mesh, rays, kernel.query, &cpu, &gpu_hits);
     let (agree, tie, bad) = (cmp.agree, cmp.ties, cmp.disagree);
@@ -248,15 +251,19 @@ fn bad_rays_terminate_as_misses() {
         Ray::new(o, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
         Ray::new(o, Vec3::X, 5.0, 1.0),
     ];
-    let options = TracerOptions {
-        stats: true,
-        ..TracerOptions::default()
-    };
-    let mut tracer = Tracer::new(gpu_device(), &mesh, &options).unwrap();
-    let result = tracer.trace(&rays, Query::Closest).unwrap();
-    for ((r, h), s) in rays.iter().zip(&result.hits).zip(result.stats.unwrap()) {
-        assert!(!h.is_hit(), "{r:?} hit");
-        assert_eq!(s.nodes, 0, "{r:?} traversed");
+    for &layout in LayoutKind::ALL {
+        let options = TracerOptions {
+            stats: true,
+            layout,
+            ..TracerOptions::default()
+        };
+        let mut tracer = Tracer::new(gpu_device(), &mesh, &options).unwrap();
+        let result = tracer.trace(&rays, Query::Closest).unwrap();
+        assert_eq!(result.cpu_retraced, 0, "{layout}");
+        for ((r, h), s) in rays.iter().zip(&result.hits).zip(result.stats.unwrap()) {
+            assert!(!h.is_hit(), "{layout} {r:?} hit");
+            assert_eq!(s.nodes, 0, "{layout} {r:?} traversed");
+        }
     }
 }
 

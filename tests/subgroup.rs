@@ -107,6 +107,9 @@ fn check(
                 cmp.disagree.len(),
                 cmp.disagree[0]
             );
+            // None of these sets comes near a driver's loop cap: a retraced ray is a kernel
+            // that did not finish (it would hang where the driver has no cap).
+            assert_eq!(sub.cpu_retraced, 0, "{label}: rays retraced on the CPU");
             if query == Query::Closest {
                 // Closest hits do not depend on the visiting order: bit for bit the per-ray
                 // kernel's, which runs the same tests.

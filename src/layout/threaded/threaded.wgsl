@@ -58,7 +58,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                         count = node.b >> 2u;
                     }
                 } else if !leaf {
-                    next = node.a;
+                    // Never backwards (validate() ensures it; this keeps a corrupt array
+                    // from looping).
+                    next = max(node.a, idx + 1u);
                 }
                 idx = next;
                 if has_leaf {

@@ -48,8 +48,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     }
     let mine = select(0u, 1u, r.dir.x < 0.0) | select(0u, 2u, r.dir.y < 0.0)
         | select(0u, 4u, r.dir.z < 0.0);
-    // The first live lane's octant (8 for a dead lane: never the minimum of a live one).
-    let octant = subgroupMin(select(8u, mine, valid) + 16u * lane) & 15u;
+    // The first valid lane's octant (some lane is valid, above): the smallest key, lane in
+    // the high bits.
+    let octant = subgroupMin(select(0xffffffffu, 16u * lane + mine, valid)) & 15u;
     var idx = octant * n;
     let end = idx + n;
     loop {
@@ -90,7 +91,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         } else if leaf {
             idx += 1u;
         } else {
-            idx = node.a;
+            // Never backwards (as per ray).
+            idx = max(node.a, idx + 1u);
         }
     }
     return best;

@@ -92,7 +92,8 @@ impl Threaded {
             } else if node.is_leaf() {
                 idx += 1;
             } else {
-                idx = node.a as usize;
+                // Never backwards, as the WGSL (validate() ensures it anyway).
+                idx = (node.a as usize).max(idx + 1);
             }
         }
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
