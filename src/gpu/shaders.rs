@@ -16,6 +16,8 @@ use super::{INCOMPLETE, TEXEL_ROW};
 pub const COMMON: &str = include_str!("../../shaders/lib/common.wgsl");
 /// BVH memory, leaf triangles and work counters every layout's traversal uses.
 pub const TRAVERSAL: &str = include_str!("../../shaders/lib/traversal.wgsl");
+/// What the subgroup traversals share (their start, a check of the subgroup's lanes).
+pub const SUBGROUP: &str = include_str!("../../shaders/lib/subgroup.wgsl");
 /// The trace kernel (closest / any hit, one ray per invocation).
 pub const TRACE: &str = include_str!("../../shaders/kernels/trace.wgsl");
 /// The driver trace kernel (the driver's ray queries, one ray per invocation).
@@ -107,7 +109,10 @@ pub fn trace_source(layout: &dyn Layout) -> String {
 /// device's `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
 pub fn trace_subgroup_source(layout: &dyn Layout) -> Option<String> {
     let traversal = layout.subgroup_wgsl()?;
-    Some(format!("{}\n{traversal}\n{TRACE}", library_source()))
+    Some(format!(
+        "{}\n{SUBGROUP}\n{traversal}\n{TRACE}",
+        library_source()
+    ))
 }
 
 /// The driver trace kernel's full source. The module needs the device's
@@ -142,7 +147,7 @@ pub fn render_source(layout: &dyn Layout) -> String {
 pub fn render_subgroup_source(layout: &dyn Layout) -> Option<String> {
     let traversal = layout.subgroup_wgsl()?;
     Some(format!(
-        "{}\n{traversal}\n{LANES_SUBGROUP}\n{RENDER}",
+        "{}\n{SUBGROUP}\n{traversal}\n{LANES_SUBGROUP}\n{RENDER}",
         library_source()
     ))
 }

@@ -26,17 +26,6 @@ const DFS_SG_NONE: u32 = 0xffffffffu;
 // Lanes a step reads by index (the four words of two nodes).
 const DFS_SG_LANES: u32 = 4u;
 
-// The lanes are exactly 0..lanes-1 (so a lane's rank among the active lanes is its index, the
-// one subgroupBroadcast reads) and at least DFS_SG_LANES of them. Called by every lane.
-fn dfs_sg_lanes_ok(lanes: u32) -> bool {
-    let ballot = subgroupBallot(true);
-    let first = vec4<u32>(0u, 32u, 64u, 96u);
-    let bits = min(max(vec4<u32>(lanes), first) - first, vec4<u32>(32u));
-    let low = (vec4<u32>(1u) << (bits & vec4<u32>(31u))) - vec4<u32>(1u);
-    let want = select(low, vec4<u32>(0xffffffffu), bits == vec4<u32>(32u));
-    return all(ballot == want) && lanes >= DFS_SG_LANES;
-}
-
 // Closest hit in [tmin, tmax], or with any_hit a hit; an invalid ray is a miss. Every lane
 // of the subgroup calls it together (trace.wgsl).
 fn traverse(r: Ray, any_hit: bool) -> Hit {
@@ -44,21 +33,10 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let valid = ray_is_valid(r);
     // This lane still wants nodes (with any_hit: until its first hit).
     var live = valid;
-    traversal_done = !valid;
-    if COUNT_STATS {
-        n_nodes = 0u;
-        n_tris = 0u;
+    if !subgroup_start(valid, DFS_SG_LANES) {
+        return best;
     }
-    let lanes = subgroupAdd(1u);
     let lane = subgroupExclusiveAdd(1u);
-    if !dfs_sg_lanes_ok(lanes) {
-        // Lanes this traversal cannot address: left not done, the host traces them again.
-        traversal_done = false;
-        return best;
-    }
-    if !subgroupAny(valid) {
-        return best;
-    }
     let inv = safe_recip3(r.dir);
     let w = watertight_setup(r.dir);
     // Boxes are cut against the best t plus a few ulps (prune_bound), as per ray.
