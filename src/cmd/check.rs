@@ -3,6 +3,7 @@
 //! and query, how many answers are identical, agree, are genuine ties (named by the f64
 //! oracle) or disagree.
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -226,16 +227,21 @@ impl CheckCmd {
         let bvh = (self.bvh.as_ref())
             .map(|p| load_bvh(p, &mesh))
             .transpose()?;
-        // Built when a layout is flattened here, not for a file's.
+        // Built when a layout is flattened here, not for a file's; each layout flattened once
+        // (the default one serves the ray sets, its row and the driver's).
         let mut tree = None;
+        let mut flat: HashMap<LayoutKind, Arc<dyn Layout>> = HashMap::new();
         let mut layout_of = |kind: LayoutKind| -> lancer::Result<Arc<dyn Layout>> {
-            Ok(match &bvh {
-                Some(file) => file.layout.clone(),
-                None => {
-                    let tree = tree.get_or_insert_with(|| build(&mesh, &self.build.options()));
-                    try_flatten(kind, tree, &mesh)?.into()
-                }
-            })
+            if let Some(file) = &bvh {
+                return Ok(file.layout.clone());
+            }
+            if let Some(layout) = flat.get(&kind) {
+                return Ok(layout.clone());
+            }
+            let tree = tree.get_or_insert_with(|| build(&mesh, &self.build.options()));
+            let layout: Arc<dyn Layout> = try_flatten(kind, tree, &mesh)?.into();
+            flat.insert(kind, layout.clone());
+            Ok(layout)
         };
         let kinds = match &bvh {
             Some(file) => vec![file.kind],

@@ -65,6 +65,16 @@ pub struct LayoutArrays<'a> {
     pub tris: &'a [u8],
 }
 
+impl<'a> LayoutArrays<'a> {
+    /// The bytes of a node array and the leaf triangles (the inverse of `records`).
+    pub fn of<N: bytemuck::Pod>(nodes: &'a [N], tris: &'a [LeafTri]) -> LayoutArrays<'a> {
+        LayoutArrays {
+            nodes: bytemuck::cast_slice(nodes),
+            tris: bytemuck::cast_slice(tris),
+        }
+    }
+}
+
 /// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
 /// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays
 /// in the same order as the WGSL. A flattened BVH ([`LayoutKind`]) or another structure

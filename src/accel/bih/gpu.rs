@@ -17,10 +17,7 @@ impl Layout for Bih {
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays {
-            nodes: bytemuck::cast_slice(&self.nodes),
-            tris: bytemuck::cast_slice(&self.tris),
-        }
+        LayoutArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {

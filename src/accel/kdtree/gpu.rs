@@ -19,10 +19,7 @@ impl Layout for KdTree {
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays {
-            nodes: bytemuck::cast_slice(&self.nodes),
-            tris: bytemuck::cast_slice(&self.tris),
-        }
+        LayoutArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {

@@ -199,10 +199,7 @@ impl super::Layout for Bvh4 {
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays {
-            nodes: bytemuck::cast_slice(&self.nodes),
-            tris: bytemuck::cast_slice(&self.tris),
-        }
+        LayoutArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {

@@ -274,10 +274,7 @@ impl super::Layout for Cwbvh {
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays {
-            nodes: bytemuck::cast_slice(&self.nodes),
-            tris: bytemuck::cast_slice(&self.tris),
-        }
+        LayoutArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {

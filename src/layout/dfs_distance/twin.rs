@@ -2,12 +2,11 @@
 //! inner node, the nearer entered first (the first child on equal entries), the farther
 //! pushed with its entry distance and culled on the pop against the prune bound.
 
-use glam::{Vec3, Vec3A};
-
 use super::{DfsDistance, DfsNode};
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, PARALLEL_INV};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness};
+use crate::layout::dfs_sign::DfsNodeRay;
 use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for DfsDistance {
@@ -43,28 +42,10 @@ impl DfsDistance {
             return best;
         }
         let nodes = self.nodes();
-        let widen = robustness.far_widen();
+        let boxes = DfsNodeRay::new(ray, robustness);
         let leaf = LeafRay::new(ray, robustness);
-        let inv = ray.inv_dir();
-        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
-        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
         // Node i's box for the ray, one node load (WGSL dfs_distance_load + slab_interval).
-        let interval = |n: &DfsNode, prune: f32| {
-            if parallel {
-                n.bbox()
-                    .slab_interval(ray.origin, inv, ray.tmin, prune, widen)
-            } else {
-                Aabb::slab_interval_nonparallel(
-                    Vec3A::from_array(n.lo),
-                    Vec3A::from_array(n.hi),
-                    origin_a,
-                    inv_a,
-                    ray.tmin,
-                    prune,
-                    widen,
-                )
-            }
-        };
+        let interval = |n: &DfsNode, prune: f32| boxes.interval(n, prune);
         let mut prune = prune_bound(best.t);
         let mut node = &nodes[0];
         stats.nodes += 1;

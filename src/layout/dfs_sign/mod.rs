@@ -3,6 +3,7 @@
 //! axis are stored, and traversal visits first the child on the side the ray's direction
 //! comes from on that axis. A leaf holds (first, count) into the triangle array.
 
+mod node_ray;
 mod twin;
 
 use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
@@ -10,6 +11,8 @@ use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
 use super::{LayoutArrays, LayoutKind, LeafTri};
+
+pub(crate) use node_ray::DfsNodeRay;
 
 /// Low two bits of `DfsNode::b` equal to this mark a leaf; otherwise they are the axis
 /// (generated into the WGSL prelude as `DFS_LEAF_TAG`).
@@ -93,10 +96,7 @@ impl super::Layout for DfsSign {
     }
 
     fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays {
-            nodes: bytemuck::cast_slice(&self.nodes),
-            tris: bytemuck::cast_slice(&self.tris),
-        }
+        LayoutArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {

@@ -2,12 +2,10 @@
 //! child, descend into the near one), the same ray-sign child order, the same slab and
 //! triangle tests in the same operation order, and the same tie rule, all in f32.
 
-use glam::{Vec3, Vec3A};
-
-use super::DfsSign;
+use super::{DfsNodeRay, DfsSign};
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS};
 use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for DfsSign {
@@ -46,11 +44,8 @@ impl DfsSign {
         if !ray.is_valid() {
             return best;
         }
-        let widen = robustness.far_widen();
+        let boxes = DfsNodeRay::new(ray, robustness);
         let leaf = LeafRay::new(ray, robustness);
-        let inv = ray.inv_dir();
-        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
-        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
@@ -60,20 +55,7 @@ impl DfsSign {
         loop {
             let node = &self.nodes[idx];
             stats.nodes += 1;
-            let enter = if parallel {
-                node.bbox()
-                    .slab_hit(ray.origin, inv, ray.tmin, prune, widen)
-            } else {
-                Aabb::slab_hit_nonparallel(
-                    Vec3A::from_array(node.lo),
-                    Vec3A::from_array(node.hi),
-                    origin_a,
-                    inv_a,
-                    ray.tmin,
-                    prune,
-                    widen,
-                )
-            };
+            let enter = boxes.enters(node, prune);
             if enter {
                 if !node.is_leaf() {
                     let (first, second) = (idx + 1, node.a as usize);

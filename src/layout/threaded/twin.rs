@@ -3,11 +3,10 @@
 //! tests in the same operation order, and the same tie rule, all in f32. It visits the nodes
 //! dfs-sign's twin visits, in the same order.
 
-use glam::{Vec3, Vec3A};
-
 use super::{octant, Threaded};
 use crate::accel::{Accel, Query, RayStats};
-use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
+use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS};
+use crate::layout::dfs_sign::DfsNodeRay;
 use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for Threaded {
@@ -46,11 +45,8 @@ impl Threaded {
         if !ray.is_valid() {
             return best;
         }
-        let widen = robustness.far_widen();
+        let boxes = DfsNodeRay::new(ray, robustness);
         let leaf = LeafRay::new(ray, robustness);
-        let inv = ray.inv_dir();
-        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
-        let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
@@ -60,20 +56,7 @@ impl Threaded {
         while idx < end {
             let node = &self.nodes[idx];
             stats.nodes += 1;
-            let enter = if parallel {
-                node.bbox()
-                    .slab_hit(ray.origin, inv, ray.tmin, prune, widen)
-            } else {
-                Aabb::slab_hit_nonparallel(
-                    Vec3A::from_array(node.lo),
-                    Vec3A::from_array(node.hi),
-                    origin_a,
-                    inv_a,
-                    ray.tmin,
-                    prune,
-                    widen,
-                )
-            };
+            let enter = boxes.enters(node, prune);
             if enter {
                 if node.is_leaf() {
                     let first = node.a as usize;
