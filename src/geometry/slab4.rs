@@ -1,9 +1,14 @@
 //! The slab test of four boxes at once, for the CPU twins of wide layouts: the boxes are
 //! given as structure of arrays (the four x minima, the four y minima, …), one SIMD lane per
-//! box. Lane k does exactly what [`Aabb::slab_interval_nonparallel`] does for box k: the
-//! same operations on the same operands in the same order; only the max (min) over the
-//! three axes associates differently, which is exact for the non-NaN values such a ray
-//! produces (a zero's sign may differ, which no comparison can see).
+//! box. Lane k gives what [`Aabb::slab_interval_nonparallel`] gives for box k, with fewer
+//! operations whose results are equal, for the non-NaN values such a ray produces (a
+//! zero's sign may differ, which no comparison can see):
+//! - per axis, the plane entered first is picked by the direction's sign instead of
+//!   taking the min and max of both planes' distances (the rounded product of an ordered
+//!   pair by one sign keeps or reverses the order);
+//! - the far widening is applied once, to the least exit, instead of to each axis's exit
+//!   (the widening never decreases, so the two are equal);
+//! - the max (min) over the three axes associates differently.
 
 use glam::{Vec3, Vec4};
 
@@ -18,6 +23,8 @@ pub struct SlabRay4 {
     tmin: Vec4,
     widen: Vec4,
     shrink: Vec4,
+    /// Per axis: the direction is negative, so the maximum plane is entered first.
+    neg: [bool; 3],
 }
 
 impl SlabRay4 {
@@ -31,6 +38,7 @@ impl SlabRay4 {
             tmin: Vec4::splat(tmin),
             widen: Vec4::splat(widen),
             shrink: Vec4::splat(2.0 - widen),
+            neg: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
         }
     }
 
@@ -41,16 +49,21 @@ impl SlabRay4 {
         let mut enter = Vec4::ZERO;
         let mut exit = Vec4::ZERO;
         for axis in 0..3 {
-            let t0 = (lo[axis] - self.origin[axis]) * self.inv_dir[axis];
-            let t1 = (hi[axis] - self.origin[axis]) * self.inv_dir[axis];
-            let near = t0.min(t1);
-            let far = t0.max(t1);
-            let far = (far * self.widen).max(far * self.shrink);
+            let (a, b) = if self.neg[axis] {
+                (hi[axis], lo[axis])
+            } else {
+                (lo[axis], hi[axis])
+            };
+            let near = (a - self.origin[axis]) * self.inv_dir[axis];
+            let far = (b - self.origin[axis]) * self.inv_dir[axis];
             (enter, exit) = match axis {
                 0 => (near, far),
                 _ => (enter.max(near), exit.min(far)),
             };
         }
+        // Widened once: the widening `x ↦ max(x·w, x·(2 − w))` never decreases (nor does
+        // rounding), so widening the least exit equals the least widened exit.
+        let exit = (exit * self.widen).max(exit * self.shrink);
         // `max(a, b)` is `a > b ? a : b` lane-wise: the scalar test's
         // `if enter > tmin { enter } else { tmin }`, and likewise for the exit.
         (enter.max(self.tmin), exit.min(Vec4::splat(tmax)))
@@ -77,11 +90,13 @@ mod tests {
             Vec3::new(0.1, -7.0, 0.3),
             Vec3::new(-3.0, 0.0, 0.0),
             Vec3::ZERO,
+            Vec3::new(7.0, 8.0, 9.0),
         ];
         let dirs = [
             Vec3::new(0.3, 1.0, -0.2),
             Vec3::new(1.0, 1e-3, 2e-3),
             Vec3::ONE,
+            Vec3::new(-1.0, -0.5, -2.0),
         ];
         for (o, d) in origins.iter().zip(&dirs) {
             for widen in [1.0, FAR_WIDEN] {

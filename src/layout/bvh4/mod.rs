@@ -69,7 +69,9 @@ pub(crate) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH / 2;
 /// (`lo_x[k]`, `lo_y[k]`, `lo_z[k]`)–(`hi_x[k]`, …). `kind[k]`: [`INNER`] (`child[k]` is a
 /// node index), 0 (unused slot: zero box, never entered) or a leaf's triangle count
 /// (`child[k]` is its first triangle).
-#[repr(C)]
+// Aligned to cache lines, so that a node is two of them, not three (a few % of the CPU
+// twin's rays/s).
+#[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct Bvh4Node {
     pub lo_x: [f32; WIDTH],
