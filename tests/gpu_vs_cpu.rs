@@ -8,7 +8,7 @@ mod common;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::camera::Camera;
-use lancer::geometry::{Hit, Ray, TriangleTest};
+use lancer::geometry::{Hit, Ray, Triangle, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::mesh::Mesh;
 use lancer::trace::compare::compare_hits;
@@ -329,6 +329,38 @@ fn axis_parallel_rays_on_box_faces() {
             ..TraceKernel::default()
         },
     );
+}
+
+#[test]
+fn axis_parallel_rays_on_exact_planes_of_every_layout() {
+    // Integer vertices, so every layout's boxes are exact, cwbvh's 8-bit ones included (its
+    // frames' steps are powers of two no coarser than 1): vertical rays through every vertex
+    // and edge midpoint start on box planes, the grid's last row and column on the high planes
+    // of every box that holds them. The parallel-axis rule keeps those boxes entered; a slab
+    // test without it ends each such interval at t = 0 and misses the grid's border.
+    let n = 16;
+    let mut tris = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let p = |a: usize, b: usize| Vec3::new(a as f32, b as f32, 0.0);
+            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
+            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
+        }
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let mut rays = Vec::new();
+    for i in 0..=2 * n {
+        for j in 0..=2 * n {
+            let (x, y) = (i as f32 / 2.0, j as f32 / 2.0);
+            for d in [Vec3::NEG_Z, Vec3::new(-0.0, -0.0, -1.0)] {
+                rays.push(Ray::new(Vec3::new(x, y, 1.0), d, 0.0, 10.0));
+            }
+        }
+    }
+    let cpu = cpu_hits(&mesh, &rays, Query::Closest);
+    let border = rays.len() - cpu.iter().filter(|h| h.is_hit()).count();
+    assert_eq!(border, 0, "{border} rays missed the grid on the CPU");
+    compare("exact planes", &mesh, &rays, TraceKernel::default());
 }
 
 #[test]

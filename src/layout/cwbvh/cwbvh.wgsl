@@ -27,30 +27,49 @@ fn cwbvh_load_node(i: u32) -> CwbvhNode {
 
 // The hit mask of the node's children whose dequantised boxes the ray enters before `prune`
 // (twin: RayBox::child_hits): an internal child in slot s at bit CWBVH_TRI_BITS + (s ^ oct_inv),
-// a leaf's triangles at their offsets from tri_base.
-fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, prune: f32, oct_inv: u32) -> u32 {
+// a leaf's triangles at their offsets from tri_base. A ray parallel to an axis (`parallel`)
+// takes the shared slab test with its parallel-axis rule; the others the same verdict from
+// each axis's planes in the order the ray meets them (slab_hit_ordered: the planes are
+// swapped once a node by the ray's signs, not compared per child). On this project's machine
+// that gave cwbvh's shadow rays ~1.15x rays/s on Mesa 25 lavapipe, whose SIMD lanes skip a
+// branch none of them takes.
+fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, parallel: bool, prune: f32,
+                    oct_inv: u32) -> u32 {
     let ex = vec3<u32>(n.e_imask, n.e_imask >> 8u, n.e_imask >> 16u) & vec3<u32>(0xffu);
     let scale = bitcast<vec3<f32>>(ex << vec3<u32>(23u));
     let imask = n.e_imask >> 24u;
     let index_mask = (1u << CWBVH_COUNT_SHIFT) - 1u;
+    // Per axis, the quantised planes met first (`a`) and last (`b`); low and high ones for a
+    // parallel ray.
+    let swap = (inv < vec3<f32>(0.0)) & vec3<bool>(!parallel);
+    let qa = array<vec2<u32>, 3>(select(n.q_lo[0], n.q_hi[0], swap.x),
+        select(n.q_lo[1], n.q_hi[1], swap.y), select(n.q_lo[2], n.q_hi[2], swap.z));
+    let qb = array<vec2<u32>, 3>(select(n.q_hi[0], n.q_lo[0], swap.x),
+        select(n.q_hi[1], n.q_lo[1], swap.y), select(n.q_hi[2], n.q_lo[2], swap.z));
     var hits = 0u;
     for (var h = 0u; h < 2u; h += 1u) {
         let hi_half = h == 1u;
         let child_meta = select(n.child_meta.x, n.child_meta.y, hi_half);
-        let lo4 = select(vec3<u32>(n.q_lo[0].x, n.q_lo[1].x, n.q_lo[2].x),
-                         vec3<u32>(n.q_lo[0].y, n.q_lo[1].y, n.q_lo[2].y), hi_half);
-        let hi4 = select(vec3<u32>(n.q_hi[0].x, n.q_hi[1].x, n.q_hi[2].x),
-                         vec3<u32>(n.q_hi[0].y, n.q_hi[1].y, n.q_hi[2].y), hi_half);
+        let a4 = select(vec3<u32>(qa[0].x, qa[1].x, qa[2].x),
+                        vec3<u32>(qa[0].y, qa[1].y, qa[2].y), hi_half);
+        let b4 = select(vec3<u32>(qb[0].x, qb[1].x, qb[2].x),
+                        vec3<u32>(qb[0].y, qb[1].y, qb[2].y), hi_half);
         for (var b = 0u; b < 4u; b += 1u) {
             let sh = 8u * b;
             let m = (child_meta >> sh) & 0xffu;
             if m != 0u {
                 // quantise::dequantise: p + q * scale (exact product, so contraction-proof).
-                let qlo = vec3<f32>((lo4 >> vec3<u32>(sh)) & vec3<u32>(0xffu));
-                let qhi = vec3<f32>((hi4 >> vec3<u32>(sh)) & vec3<u32>(0xffu));
-                let lo = n.p + qlo * scale;
-                let hi = n.p + qhi * scale;
-                if slab_hit(lo, hi, r.origin, inv, r.tmin, prune) {
+                let qpa = vec3<f32>((a4 >> vec3<u32>(sh)) & vec3<u32>(0xffu));
+                let qpb = vec3<f32>((b4 >> vec3<u32>(sh)) & vec3<u32>(0xffu));
+                let pa = n.p + qpa * scale;
+                let pb = n.p + qpb * scale;
+                var hit = false;
+                if parallel {
+                    hit = slab_hit(pa, pb, r.origin, inv, r.tmin, prune);
+                } else {
+                    hit = slab_hit_ordered(pa, pb, r.origin, inv, r.tmin, prune);
+                }
+                if hit {
                     let inner = (imask >> (4u * h + b)) & 1u;
                     hits |= (m >> CWBVH_COUNT_SHIFT) << ((m & index_mask) ^ (oct_inv * inner));
                 }
@@ -71,6 +90,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     }
     if ray_is_valid(r) {
         let inv = safe_recip3(r.dir);
+        let parallel = any(abs(inv) >= vec3<f32>(PARALLEL_INV));
         let w = watertight_setup(r.dir);
         let node_bits = ~((1u << CWBVH_TRI_BITS) - 1u);
         let octant = select(0u, 1u, r.dir.x < 0.0) | select(0u, 2u, r.dir.y < 0.0)
@@ -96,7 +116,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             if COUNT_STATS {
                 n_nodes += 1u;
             }
-            let hits = cwbvh_child_hits(node, r, inv, prune, oct_inv);
+            let hits = cwbvh_child_hits(node, r, inv, parallel, prune, oct_inv);
             group = vec2<u32>(node.child_base, (hits & node_bits) | (node.e_imask >> 24u));
             var tri_hits = hits & ~node_bits;
             var stop = false;
