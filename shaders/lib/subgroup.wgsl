@@ -18,11 +18,7 @@ fn subgroup_lanes_ok(lanes: u32, min_lanes: u32) -> bool {
 // traversal cannot go on: lanes it cannot address (subgroup_lanes_ok with `min_lanes`; left
 // not done, the host traces them again) or no lane with a valid ray (all misses).
 fn subgroup_start(valid: bool, min_lanes: u32) -> bool {
-    traversal_done = !valid;
-    if COUNT_STATS {
-        n_nodes = 0u;
-        n_tris = 0u;
-    }
+    traversal_start(valid);
     if !subgroup_lanes_ok(subgroupAdd(1u), min_lanes) {
         traversal_done = false;
         return false;

@@ -92,3 +92,14 @@ var<private> n_tris: u32;
 // 65,535 loop iterations have run in all, so a ray through ~50,000 coincident triangles stops
 // early. Callers mark such rays (gpu::INCOMPLETE) instead of returning a wrong hit.
 var<private> traversal_done: bool;
+
+// The start every per-ray traversal (and subgroup_start) takes, with whether its ray is valid:
+// resets the work counters and marks an invalid ray done (a miss). Returns `valid`.
+fn traversal_start(valid: bool) -> bool {
+    traversal_done = !valid;
+    if COUNT_STATS {
+        n_nodes = 0u;
+        n_tris = 0u;
+    }
+    return valid;
+}

@@ -82,12 +82,7 @@ fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, parallel: bool, prune:
 // An invalid ray (NaN, zero direction, empty interval) is a miss.
 fn traverse(r: Ray, any_hit: bool) -> Hit {
     var best = Hit(r.tmax, MISS, 0.0, 0.0);
-    traversal_done = !ray_is_valid(r);
-    if COUNT_STATS {
-        n_nodes = 0u;
-        n_tris = 0u;
-    }
-    if ray_is_valid(r) {
+    if traversal_start(ray_is_valid(r)) {
         let inv = safe_recip3(r.dir);
         let parallel = any(abs(inv) >= vec3<f32>(PARALLEL_INV));
         let w = watertight_setup(r.dir);

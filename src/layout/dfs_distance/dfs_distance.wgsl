@@ -14,12 +14,7 @@ fn dfs_distance_load(i: u32) -> DfsNode {
 // An invalid ray (NaN, zero direction, empty interval) is a miss.
 fn traverse(r: Ray, any_hit: bool) -> Hit {
     var best = Hit(r.tmax, MISS, 0.0, 0.0);
-    traversal_done = !ray_is_valid(r);
-    if COUNT_STATS {
-        n_nodes = 0u;
-        n_tris = 0u;
-    }
-    if !ray_is_valid(r) {
+    if !traversal_start(ray_is_valid(r)) {
         return best;
     }
     let inv = safe_recip3(r.dir);
