@@ -364,6 +364,43 @@ fn axis_parallel_rays_on_exact_planes_of_every_layout() {
 }
 
 #[test]
+fn deep_stacks_spill_and_refill() {
+    // Levels of 64 squares, each level half as far from x = 0 and half as wide as the last,
+    // the squares of a level one after another along x: the builders nest the levels, and a
+    // ray from x < 0 along +x near the axis enters every box, so the levels' subtrees wait on
+    // the stack while the deeper (nearer) ones are visited. cwbvh's stack reaches six groups,
+    // past the four it holds in variables (cwbvh.wgsl, group_push; the models reach five):
+    // this fails if the kernel drops the groups it moves to its array, or stores them in the
+    // wrong place (both checked).
+    let mut tris = Vec::new();
+    for level in 0..30 {
+        let s = 0.5f32.powi(level);
+        for j in 0..64 {
+            let x = s * (1.0 + j as f32 / 256.0);
+            let p = |y: f32, z: f32| Vec3::new(x, y * s, z * s);
+            tris.push(Triangle::new(p(-1.0, -1.0), p(1.0, -1.0), p(1.0, 1.0)));
+            tris.push(Triangle::new(p(-1.0, -1.0), p(1.0, 1.0), p(-1.0, 1.0)));
+        }
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let mut rng = Rng::new(11);
+    let mut rays = Vec::new();
+    for _ in 0..2000 {
+        // Offsets from the axis spread over many scales, so rays end at many depths.
+        let scale = 0.5f32.powi((rng.u64() % 30) as i32);
+        let (y, z) = (rng.range(-1.0, 1.0) * scale, rng.range(-1.0, 1.0) * scale);
+        let dir = Vec3::new(1.0, rng.range(-1e-3, 1e-3), rng.range(-1e-3, 1e-3));
+        rays.push(Ray::new(Vec3::new(-1.0, y, z), dir, 0.0, f32::INFINITY));
+    }
+    let cpu = cpu_hits(&mesh, &rays, Query::Closest);
+    let hits = cpu.iter().filter(|h| h.is_hit()).count();
+    assert!(hits > rays.len() / 2, "only {hits} rays hit the squares");
+    for kernel in kernels() {
+        compare("deep stacks", &mesh, &rays, kernel);
+    }
+}
+
+#[test]
 fn oversized_bvh_is_refused_naming_size_and_limit() {
     // A device of our own whose recorded limits we shrink: the checks run before upload.
     gpu_device(); // fails with the install hint when there is no adapter

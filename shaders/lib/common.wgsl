@@ -92,10 +92,23 @@ fn slab_hit_ordered(near: vec3<f32>, far: vec3<f32>, origin: vec3<f32>, inv_dir:
     let tn = (near - origin) * inv_dir;
     let tf = (far - origin) * inv_dir;
     let widen = select(1.0, FAR_WIDEN, ROBUST_SLAB);
-    let least = min(min(tf.x, tf.y), tf.z);
-    let enter = max(max(max(tn.x, tn.y), tn.z), tmin);
-    let exit = min(max(least * widen, least * (2.0 - widen)), tmax);
+    let least = min_not_nan(min_not_nan(tf.x, tf.y), tf.z);
+    let enter = max_not_nan(max_not_nan(max_not_nan(tn.x, tn.y), tn.z), tmin);
+    let exit = min_not_nan(max_not_nan(least * widen, least * (2.0 - widen)), tmax);
     return enter <= exit;
+}
+
+// min and max of two numbers neither of which is NaN, as a compare and a select. lavapipe
+// compiles WGSL's min and max with a NaN check (three instructions, not two); the slab
+// distances here are never NaN (finite reciprocals, finite planes and origins), and the
+// verdict does not depend on which zero a tie returns. On this project's machine (Mesa 25
+// lavapipe) that gave ~1.05x rays/s on cwbvh's primary and shadow rays.
+fn min_not_nan(a: f32, b: f32) -> f32 {
+    return select(b, a, a < b);
+}
+
+fn max_not_nan(a: f32, b: f32) -> f32 {
+    return select(b, a, a > b);
 }
 
 // WatertightRay: permutation k (dominant axis last) and shear s.
