@@ -101,8 +101,9 @@ fn slab_hit_ordered(near: vec3<f32>, far: vec3<f32>, origin: vec3<f32>, inv_dir:
 // min and max of two numbers neither of which is NaN, as a compare and a select. lavapipe
 // compiles WGSL's min and max with a NaN check (three instructions, not two); the slab
 // distances here may be ±inf but are never NaN (finite reciprocals, finite planes and
-// origins, a finite widening), and the verdict does not depend on which zero a tie returns. On this project's machine (Mesa 25
-// lavapipe) that gave ~1.05x rays/s on cwbvh's primary and shadow rays.
+// origins, a finite widening), and the verdict does not depend on which zero a tie returns.
+// On this project's machine (Mesa 25 lavapipe) that gave ~1.05x rays/s on cwbvh's primary
+// and shadow rays.
 fn min_not_nan(a: f32, b: f32) -> f32 {
     return select(b, a, a < b);
 }

@@ -164,6 +164,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 if COUNT_STATS {
                     n_tris += 1u;
                 }
+                // test_tri (traversal.wgsl), written out: calling it here, with pointers to
+                // best and prune, measured 0.93x shadow rays/s on Mesa 25 lavapipe (7 rounds).
                 let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
                 if h.ok && beats(h.t, tri.prim, best.t, best.prim)
                     && !(REJECT_NEAR_HITS && maybe_behind_origin(h, tri.v0, tri.v1, tri.v2, r.origin, w)) {
