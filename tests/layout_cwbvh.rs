@@ -11,7 +11,7 @@ use glam::Vec3;
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
 use lancer::accel::Accel;
 use lancer::camera::Camera;
-use lancer::geometry::{Aabb, Hit, Ray, Triangle};
+use lancer::geometry::{Aabb, Hit, Precision, Ray, SlabTest, Triangle, TriangleTest, MISS};
 use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
@@ -635,4 +635,75 @@ fn validate_refuses_corrupted_arrays() {
     refuse("a torn node", &nodes[..nodes.len() - 1], &tris);
     refuse("a missing triangle", &nodes, &tris[..tris.len() - 48]);
     refuse("no nodes", &[], &tris);
+}
+
+/// Hits as bytes: equal means bit for bit.
+fn bits(hits: &[Hit]) -> Vec<u8> {
+    hits.iter()
+        .flat_map(|h| bytemuck::bytes_of(h).to_vec())
+        .collect()
+}
+
+#[test]
+fn batch_walks_answer_as_single_walks() {
+    // `trace_hits` walks two rays at a time (and in AVX2 lanes where the CPU has them);
+    // `trace_batch` walks each alone. Random, primary, axis-parallel and invalid rays, both
+    // queries, every triangle test.
+    let Some(bunny) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let mut rng = Rng::new(11);
+    let soup_mesh = soup(&mut rng, 2000, 0.2);
+    for (name, mesh) in [("bunny", &bunny), ("soup", &soup_mesh)] {
+        let layout = cwbvh(mesh, &BuildOptions::default());
+        let mut rays = random_rays(&mut rng, 2000, mesh);
+        rays.extend(Camera::default_view(&mesh.bounds(), 48, 48).primary_rays());
+        let c = mesh.bounds().center();
+        for (k, d) in [Vec3::X, -Vec3::Y, Vec3::Z, Vec3::new(1.0, 1.0, 0.0)]
+            .iter()
+            .enumerate()
+        {
+            let origin = c - 3.0 * *d + Vec3::new(0.01, 0.02, 0.0) * k as f32;
+            rays.push(Ray::new(origin, *d, 0.0, 1e6));
+        }
+        rays.push(Ray::new(Vec3::splat(f32::NAN), Vec3::X, 0.0, 1e6));
+        rays.push(Ray::new(c, Vec3::ZERO, 0.0, 1e6));
+        let robust = Robustness::default();
+        let settings = [
+            ("robust", robust),
+            (
+                "moller-trumbore",
+                Robustness {
+                    triangle_test: TriangleTest::MollerTrumbore,
+                    ..robust
+                },
+            ),
+            (
+                "plain slabs",
+                Robustness {
+                    slab_test: SlabTest::Plain,
+                    ..robust
+                },
+            ),
+            (
+                "f64",
+                Robustness {
+                    precision: Precision::F64,
+                    ..robust
+                },
+            ),
+        ];
+        for (test, rob) in settings {
+            for query in [Query::Closest, Query::Any] {
+                let (single, _) = layout.trace_batch(&rays, query, &rob);
+                let batch = layout.trace_hits(&rays, query, &rob);
+                let hit = single.iter().filter(|h| h.prim != MISS);
+                println!("{name} {test} {query:?}: {} hits", hit.count());
+                assert!(
+                    bits(&single) == bits(&batch),
+                    "{name} {test} {query:?}: batch and single walks differ"
+                );
+            }
+        }
+    }
 }

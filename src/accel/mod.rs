@@ -41,15 +41,28 @@ pub(crate) fn trace_in_chunks<T, S>(
 where
     T: Clone + Send + Sync,
 {
+    trace_chunks(rays, empty, |rays, out| {
+        let mut s = scratch();
+        for (o, r) in out.iter_mut().zip(rays) {
+            *o = trace(&mut s, r);
+        }
+    })
+}
+
+/// [`trace_in_chunks`] for a tracer that answers a whole chunk at once: `trace(rays, out)`
+/// writes the answers to `rays` into `out` (as long, filled with `empty`).
+pub(crate) fn trace_chunks<T>(
+    rays: &[Ray],
+    empty: T,
+    trace: impl Fn(&[Ray], &mut [T]) + Sync,
+) -> Vec<T>
+where
+    T: Clone + Send + Sync,
+{
     let mut out = vec![empty; rays.len()];
     out.par_chunks_mut(RAY_CHUNK)
         .zip(rays.par_chunks(RAY_CHUNK))
-        .for_each(|(out, rays)| {
-            let mut s = scratch();
-            for (o, r) in out.iter_mut().zip(rays) {
-                *o = trace(&mut s, r);
-            }
-        });
+        .for_each(|(out, rays)| trace(rays, out));
     out
 }
 

@@ -82,16 +82,25 @@ pub(crate) mod leaf_test {
     }
 }
 
-/// Calls `$walk::<TEST>($args)` with the const triangle test `robustness` asks for.
+/// Calls `$walk::<TEST>($args)` with the const triangle test `robustness` asks for
+/// (`$walk::<TEST, $more>` when the call names one more const argument as `::<_, $more>`).
 macro_rules! with_leaf_test {
-    ($robustness:expr, $self:ident . $walk:ident ( $($arg:expr),* )) => {{
+    (@ $robustness:expr, $self:ident . $walk:ident [$($more:ident)?] ( $($arg:expr),* )) => {{
         use $crate::layout::leaf_tri::leaf_test;
         match leaf_test::of($robustness) {
-            leaf_test::F64 => $self.$walk::<{ leaf_test::F64 }>($($arg),*),
-            leaf_test::MOLLER_TRUMBORE => $self.$walk::<{ leaf_test::MOLLER_TRUMBORE }>($($arg),*),
-            _ => $self.$walk::<{ leaf_test::WATERTIGHT }>($($arg),*),
+            leaf_test::F64 => $self.$walk::<{ leaf_test::F64 } $(, $more)?>($($arg),*),
+            leaf_test::MOLLER_TRUMBORE => {
+                $self.$walk::<{ leaf_test::MOLLER_TRUMBORE } $(, $more)?>($($arg),*)
+            }
+            _ => $self.$walk::<{ leaf_test::WATERTIGHT } $(, $more)?>($($arg),*),
         }
     }};
+    ($robustness:expr, $self:ident . $walk:ident ( $($arg:expr),* )) => {
+        $crate::layout::leaf_tri::with_leaf_test!(@ $robustness, $self.$walk [] ($($arg),*))
+    };
+    ($robustness:expr, $self:ident . $walk:ident ::<_, $more:ident> ( $($arg:expr),* )) => {
+        $crate::layout::leaf_tri::with_leaf_test!(@ $robustness, $self.$walk [$more] ($($arg),*))
+    };
 }
 pub(crate) use with_leaf_test;
 
@@ -139,6 +148,14 @@ impl<'a> LeafRay<'a> {
             ray4: TriangleRay4::new(ray.origin, ray.dir, &wr, ray.tmin),
             reject_near: robustness.rejects_near_hits(),
         }
+    }
+
+    /// The same set-up for another ray (the robustness settings kept).
+    #[inline(always)]
+    pub fn reset(&mut self, ray: &'a Ray) {
+        self.ray = ray;
+        self.wr = WatertightRay::new(ray.dir);
+        self.ray4 = TriangleRay4::new(ray.origin, ray.dir, &self.wr, ray.tmin);
     }
 
     /// The leaf step every twin takes (WGSL `test_leaf` in shaders/lib/traversal.wgsl):

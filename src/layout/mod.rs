@@ -40,6 +40,7 @@ pub mod bvh_file;
 mod cwbvh;
 mod dfs_distance;
 mod dfs_sign;
+mod interleave;
 pub(crate) mod leaf_tri;
 mod threaded;
 

@@ -5,13 +5,16 @@
 //! with no parallel axis, equal to it lane for lane), a node's leaf triangles tested lowest bit
 //! first right after the node, and the same tie rule, all in f32.
 
+use std::mem::MaybeUninit;
+
 use glam::{Vec3, Vec3A, Vec4};
 
 use super::quantise::step;
 use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{trace_chunks, Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
+use crate::layout::interleave::{walk_interleaved, Stepper, WALKS};
+use crate::layout::leaf_tri::{with_leaf_test, LeafRay, LeafTri};
 
 /// Hit-mask bits of internal children.
 const NODE_BITS: u32 = !((1 << TRI_BITS) - 1);
@@ -34,8 +37,35 @@ impl Accel for Cwbvh {
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+        // The same source compiled for AVX2 where the CPU has it: the eight slots in one
+        // vector (identical results: no fused operations either way).
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { self.intersect_avx2(ray, query, robustness, stats) };
+        }
+        self.intersect_with::<false>(ray, query, robustness, stats)
     }
+
+    fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
+        trace_chunks(rays, Hit::miss(0.0), |rays, out| {
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2() {
+                // SAFETY: the CPU has AVX2.
+                return unsafe { self.trace_chunk_avx2(rays, out, query, robustness) };
+            }
+            self.trace_chunk_with::<false>(rays, out, query, robustness)
+        })
+    }
+}
+
+/// Whether the CPU has AVX2 and the bit instructions the AVX2 build uses.
+#[cfg(target_arch = "x86_64")]
+fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("popcnt")
+        && std::arch::is_x86_feature_detected!("bmi1")
+        && std::arch::is_x86_feature_detected!("lzcnt")
 }
 
 /// What the child tests of one ray share.
@@ -44,36 +74,41 @@ struct RayBox {
     inv: Vec3,
     tmin: f32,
     widen: f32,
-    /// For a ray with no parallel axis: its lanes for four boxes at a time.
-    slab4: Option<SlabRay4>,
+    /// The ray is parallel to an axis: the scalar slab test with its parallel-axis rule.
+    parallel: bool,
+    /// Else, without AVX2: its lanes for four boxes at a time.
+    slab4: SlabRay4,
+    /// Per axis: the direction is negative, so the high plane is met first.
+    neg: [bool; 3],
     /// 7 ^ octant: XORed into an internal child's slot to give its traversal rank.
     oct_inv: u32,
 }
 
 impl RayBox {
+    /// The set-up for `ray` with the far widening `widen`.
+    #[inline(always)]
+    fn new(ray: &Ray, widen: f32) -> RayBox {
+        let inv = ray.inv_dir();
+        let octant = (ray.dir.x < 0.0) as u32
+            | ((ray.dir.y < 0.0) as u32) << 1
+            | ((ray.dir.z < 0.0) as u32) << 2;
+        RayBox {
+            origin: ray.origin,
+            inv,
+            tmin: ray.tmin,
+            widen,
+            parallel: inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any(),
+            slab4: SlabRay4::new(ray.origin, inv, ray.tmin, widen),
+            neg: [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0],
+            oct_inv: (WIDTH as u32 - 1) ^ octant,
+        }
+    }
+
     /// Bit s set: slot s's box (used or not) is entered before `prune`.
     #[inline(always)]
     fn entered(&self, node: &CwNode, prune: f32) -> u32 {
-        match &self.slab4 {
-            // Slots 0–3 and 4–7 in SIMD lanes: per lane the dequantisation p + q · step of
-            // `CwNode::child_box` and the slab test of `SlabRay4`, which equal the scalar ones.
-            Some(s) => {
-                let (p, step) = (Vec3A::from_array(node.p), step(node.e));
-                let mut bits = 0;
-                for half in 0..2 {
-                    let lanes = |q: &[[u8; WIDTH]; 3], axis: usize| {
-                        let b = &q[axis][4 * half..4 * half + 4];
-                        let q = Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32);
-                        Vec4::splat(p[axis]) + q * Vec4::splat(step[axis])
-                    };
-                    let lo = [0, 1, 2].map(|a| lanes(&node.q_lo, a));
-                    let hi = [0, 1, 2].map(|a| lanes(&node.q_hi, a));
-                    let (enter, exit) = s.intervals(lo, hi, prune);
-                    bits |= enter.cmple(exit).bitmask() << (4 * half);
-                }
-                bits
-            }
-            None => (0..WIDTH).fold(0, |bits, s| {
+        if self.parallel {
+            return (0..WIDTH).fold(0, |bits, s| {
                 let (lo, hi) = node.child_box(s);
                 let b = Aabb {
                     lo: lo.into(),
@@ -81,14 +116,103 @@ impl RayBox {
                 };
                 let hit = b.slab_hit(self.origin, self.inv, self.tmin, prune, self.widen);
                 bits | (hit as u32) << s
-            }),
+            });
         }
+        // Slots 0–3 and 4–7 in SIMD lanes: per lane the dequantisation p + q · step of
+        // `CwNode::child_box` and the slab test of `SlabRay4`, which equal the scalar ones.
+        let s = &self.slab4;
+        let (p, step) = (Vec3A::from_array(node.p), step(node.e));
+        let mut bits = 0;
+        for half in 0..2 {
+            let lanes = |q: &[[u8; WIDTH]; 3], axis: usize| {
+                let b = &q[axis][4 * half..4 * half + 4];
+                let q = Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32);
+                Vec4::splat(p[axis]) + q * Vec4::splat(step[axis])
+            };
+            let lo = [0, 1, 2].map(|a| lanes(&node.q_lo, a));
+            let hi = [0, 1, 2].map(|a| lanes(&node.q_hi, a));
+            let (enter, exit) = s.intervals(lo, hi, prune);
+            bits |= enter.cmple(exit).bitmask() << (4 * half);
+        }
+        bits
+    }
+
+    /// [`RayBox::child_hits`] for a ray with no parallel axis, the eight slots in one AVX
+    /// vector: per lane the same operations as `SlabRay4::intervals` on the planes
+    /// `p + q · step`, in the same order (the max and min as `a > b ? a : b`, which is what
+    /// `maxps` computes), so the same slots entered; then each entered slot's hit-mask bits,
+    /// ORed together.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
+    #[inline]
+    unsafe fn child_hits_avx2(&self, node: &CwNode, prune: f32) -> u32 {
+        use std::arch::x86_64::*;
+        // Eight bytes widened to eight lanes.
+        let lanes = |b: &[u8; WIDTH]| {
+            // SAFETY: `b` is 8 bytes; the load reads exactly those.
+            _mm256_cvtepu8_epi32(unsafe { _mm_loadl_epi64(b.as_ptr() as *const __m128i) })
+        };
+        let step = step(node.e);
+        let planes = |q: &[u8; WIDTH], axis: usize| {
+            let plane = _mm256_add_ps(
+                _mm256_set1_ps(node.p[axis]),
+                _mm256_mul_ps(_mm256_cvtepi32_ps(lanes(q)), _mm256_set1_ps(step[axis])),
+            );
+            let o = _mm256_set1_ps(self.origin[axis]);
+            _mm256_mul_ps(_mm256_sub_ps(plane, o), _mm256_set1_ps(self.inv[axis]))
+        };
+        let (mut enter, mut exit) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+        for axis in 0..3 {
+            let (qa, qb) = match self.neg[axis] {
+                true => (&node.q_hi[axis], &node.q_lo[axis]),
+                false => (&node.q_lo[axis], &node.q_hi[axis]),
+            };
+            let (near, far) = (planes(qa, axis), planes(qb, axis));
+            (enter, exit) = match axis {
+                0 => (near, far),
+                _ => (_mm256_max_ps(enter, near), _mm256_min_ps(exit, far)),
+            };
+        }
+        let exit = _mm256_max_ps(
+            _mm256_mul_ps(exit, _mm256_set1_ps(self.widen)),
+            _mm256_mul_ps(exit, _mm256_set1_ps(2.0 - self.widen)),
+        );
+        let enter = _mm256_max_ps(enter, _mm256_set1_ps(self.tmin));
+        let exit = _mm256_min_ps(exit, _mm256_set1_ps(prune));
+        let entered = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit));
+        // Per slot, as the scalar loop: (m >> COUNT_SHIFT) << ((m & INDEX_MASK) ^ (oct_inv
+        // if internal)), kept where the slot is entered.
+        let slot = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let inner = _mm256_and_si256(
+            _mm256_srlv_epi32(_mm256_set1_epi32(node.imask as i32), slot),
+            _mm256_set1_epi32(1),
+        );
+        let flip = _mm256_mullo_epi32(inner, _mm256_set1_epi32(self.oct_inv as i32));
+        let m = lanes(&node.child_meta);
+        let shift = _mm256_xor_si256(
+            _mm256_and_si256(m, _mm256_set1_epi32(INDEX_MASK as i32)),
+            flip,
+        );
+        let bits = _mm256_sllv_epi32(_mm256_srli_epi32::<{ COUNT_SHIFT as i32 }>(m), shift);
+        let bits = _mm256_and_si256(bits, entered);
+        let four = _mm_or_si128(
+            _mm256_castsi256_si128(bits),
+            _mm256_extracti128_si256::<1>(bits),
+        );
+        let two = _mm_or_si128(four, _mm_unpackhi_epi64(four, four));
+        let one = _mm_or_si128(two, _mm_shuffle_epi32::<0b01>(two));
+        _mm_cvtsi128_si32(one) as u32
     }
 
     /// The hit mask of `node`'s children whose boxes the ray enters before `prune`:
     /// internal children at bit TRI_BITS + (slot ^ oct_inv), leaf triangles at their offsets.
     #[inline(always)]
-    fn child_hits(&self, node: &CwNode, prune: f32) -> u32 {
+    fn child_hits<const AVX2: bool>(&self, node: &CwNode, prune: f32) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 && !self.parallel {
+            // SAFETY: AVX2 is set only where the CPU has it (`Accel::intersect`).
+            return unsafe { self.child_hits_avx2(node, prune) };
+        }
         let mut entered = self.entered(node, prune);
         let mut hits = 0;
         while entered != 0 {
@@ -104,73 +228,306 @@ impl RayBox {
 }
 
 impl Cwbvh {
-    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
+    /// [`Accel::intersect`] with the node test in SSE (`AVX2` false: the target's
+    /// baseline) or AVX2 lanes.
     #[inline(always)]
-    fn walk<const TEST: u8>(
+    fn intersect_with<const AVX2: bool>(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
         stats: &mut RayStats,
     ) -> Hit {
-        let mut best = Hit::miss(ray.tmax);
-        if !ray.is_valid() {
-            return best;
+        // One specialised loop per triangle test (the choice is not re-made per triangle).
+        with_leaf_test!(
+            robustness,
+            self.walk::<_, AVX2>(ray, query, robustness, stats)
+        )
+    }
+
+    /// [`Accel::intersect`] compiled with AVX2 (and the bit instructions every AVX2 CPU
+    /// has); the CPU must have them.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
+    unsafe fn intersect_avx2(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        self.intersect_with::<true>(ray, query, robustness, stats)
+    }
+
+    /// [`Cwbvh::walk_chunk`] with the node test in SSE or AVX2 lanes (as
+    /// [`Cwbvh::intersect_with`]).
+    #[inline(always)]
+    fn trace_chunk_with<const AVX2: bool>(
+        &self,
+        rays: &[Ray],
+        out: &mut [Hit],
+        query: Query,
+        robustness: &Robustness,
+    ) {
+        with_leaf_test!(
+            robustness,
+            self.walk_chunk::<_, AVX2>(rays, out, query, robustness)
+        )
+    }
+
+    /// [`Cwbvh::trace_chunk_with`] compiled with AVX2; the CPU must have it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
+    unsafe fn trace_chunk_avx2(
+        &self,
+        rays: &[Ray],
+        out: &mut [Hit],
+        query: Query,
+        robustness: &Robustness,
+    ) {
+        self.trace_chunk_with::<true>(rays, out, query, robustness)
+    }
+
+    /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
+    #[inline(always)]
+    fn walk<const TEST: u8, const AVX2: bool>(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        let mut w = Walk::<TEST, AVX2>::idle(self, query, robustness);
+        if w.start(ray) {
+            while !w.step(stats) {}
         }
-        let leaf = LeafRay::new(ray, robustness);
-        let inv = ray.inv_dir();
-        let octant = (ray.dir.x < 0.0) as u32
-            | ((ray.dir.y < 0.0) as u32) << 1
-            | ((ray.dir.z < 0.0) as u32) << 2;
-        let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
-        let widen = robustness.far_widen();
-        let rb = RayBox {
-            origin: ray.origin,
-            inv,
-            tmin: ray.tmin,
-            widen,
-            slab4: (!parallel).then(|| SlabRay4::new(ray.origin, inv, ray.tmin, widen)),
-            oct_inv: (WIDTH as u32 - 1) ^ octant,
+        w.best
+    }
+
+    /// [`Accel::trace_hits`] on one chunk of rays, [`Cwbvh::walk`] for a few at once.
+    #[inline(always)]
+    fn walk_chunk<const TEST: u8, const AVX2: bool>(
+        &self,
+        rays: &[Ray],
+        out: &mut [Hit],
+        query: Query,
+        robustness: &Robustness,
+    ) {
+        let walks = [(); WALKS].map(|_| Walk::<TEST, AVX2>::idle(self, query, robustness));
+        walk_interleaved(rays, out, walks);
+    }
+}
+
+/// One ray's traversal of `cw`, a node step at a time ([`Stepper`]), with the triangle
+/// test `TEST` and the node test in SSE or AVX2 lanes.
+struct Walk<'a, const TEST: u8, const AVX2: bool> {
+    cw: &'a Cwbvh,
+    /// The ray's leaf-step set-up.
+    leaf: LeafRay<'a>,
+    /// Its child-test set-up.
+    rb: RayBox,
+    /// An any-hit query.
+    any: bool,
+    /// The closest hit so far.
+    best: Hit,
+    /// Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
+    /// exactly the best t in a later box is still tested: equal t → smaller index.
+    prune: f32,
+    /// Pushed groups. Not zeroed (512 bytes): an entry is read only below `sp`, where it
+    /// was written.
+    stack: [MaybeUninit<[u32; 2]>; STACK_SIZE],
+    sp: usize,
+    /// The group: [first child node, hit internal children (high byte) | imask]. Before a
+    /// step it always holds a node: first the root, alone in the top bit.
+    group: [u32; 2],
+    /// The far widening of the robustness settings.
+    widen: f32,
+}
+
+impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
+    /// A walk with no ray yet, answering `query` under `robustness`.
+    #[inline(always)]
+    fn idle(cw: &'a Cwbvh, query: Query, robustness: &Robustness) -> Self {
+        const NONE: Ray = Ray {
+            origin: Vec3::ZERO,
+            dir: Vec3::X,
+            tmin: 0.0,
+            tmax: 0.0,
         };
-        // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
-        // exactly the best t in a later box is still tested: equal t → smaller index.
-        let mut prune = prune_bound(best.t);
-        let mut stack = [[0u32; 2]; STACK_SIZE];
-        let mut sp = 0usize;
-        // The group: [first child node, hit internal children (high byte) | imask]. At the
-        // top of the loop it always holds a node: first the root, alone in the top bit.
-        let mut group = [0u32, 1 << 31];
-        loop {
-            let bit = 31 - group[1].leading_zeros();
-            group[1] &= !(1 << bit);
-            if group[1] & NODE_BITS != 0 {
-                stack[sp] = group;
-                sp += 1;
-            }
-            let slot = (bit - TRI_BITS) ^ rb.oct_inv;
-            let idx = group[0] + (group[1] & ((1 << slot) - 1)).count_ones();
-            let node = &self.nodes[idx as usize];
-            stats.nodes += 1;
-            let hits = rb.child_hits(node, prune);
-            group = [node.child_base, (hits & NODE_BITS) | node.imask as u32];
-            let mut tri_hits = hits & TRI_MASK;
-            while tri_hits != 0 {
-                let b = tri_hits.trailing_zeros();
-                tri_hits &= tri_hits - 1;
-                let lt = std::slice::from_ref(&self.tris[(node.tri_base + b) as usize]);
-                if leaf.test_leaf::<TEST>(lt, query == Query::Any, &mut best, &mut prune, stats) {
-                    return best;
+        let widen = robustness.far_widen();
+        Walk {
+            cw,
+            leaf: LeafRay::new(&NONE, robustness),
+            rb: RayBox::new(&NONE, widen),
+            any: query == Query::Any,
+            best: Hit::miss(0.0),
+            prune: 0.0,
+            stack: [MaybeUninit::uninit(); STACK_SIZE],
+            sp: 0,
+            group: [0, 0],
+            widen,
+        }
+    }
+}
+
+impl<'a, const TEST: u8, const AVX2: bool> Stepper<'a> for Walk<'a, TEST, AVX2> {
+    #[inline(always)]
+    fn start(&mut self, ray: &'a Ray) -> bool {
+        self.best = Hit::miss(ray.tmax);
+        if !ray.is_valid() {
+            return false;
+        }
+        self.leaf.reset(ray);
+        self.rb = RayBox::new(ray, self.widen);
+        self.prune = prune_bound(self.best.t);
+        self.sp = 0;
+        self.group = [0, 1 << 31];
+        true
+    }
+
+    /// Visits the group's next node and tests its hit leaf triangles.
+    #[inline(always)]
+    fn step(&mut self, stats: &mut RayStats) -> bool {
+        let cw = self.cw;
+        let group = &mut self.group;
+        let bit = 31 - group[1].leading_zeros();
+        group[1] &= !(1 << bit);
+        if group[1] & NODE_BITS != 0 {
+            self.stack[self.sp].write(*group);
+            self.sp += 1;
+        }
+        let slot = (bit - TRI_BITS) ^ self.rb.oct_inv;
+        let idx = group[0] + (group[1] & ((1 << slot) - 1)).count_ones();
+        let node = &cw.nodes[idx as usize];
+        stats.nodes += 1;
+        let hits = self.rb.child_hits::<AVX2>(node, self.prune);
+        *group = [node.child_base, (hits & NODE_BITS) | node.imask as u32];
+        // The hit leaf triangles, lowest bit first, tested as one leaf (four at a time):
+        // in place when they are one run (a leaf's triangles are hit all together, so one
+        // hit leaf is one run), else gathered.
+        let mut tri_hits = hits & TRI_MASK;
+        if tri_hits != 0 {
+            let first = tri_hits.trailing_zeros();
+            let run = tri_hits >> first;
+            let mut gathered = [MaybeUninit::<LeafTri>::uninit(); TRI_BITS as usize];
+            let tris = if run & (run + 1) == 0 {
+                let start = (node.tri_base + first) as usize;
+                &cw.tris[start..start + run.trailing_ones() as usize]
+            } else {
+                let mut n = 0;
+                while tri_hits != 0 {
+                    let b = tri_hits.trailing_zeros();
+                    tri_hits &= tri_hits - 1;
+                    gathered[n].write(cw.tris[(node.tri_base + b) as usize]);
+                    n += 1;
                 }
-            }
-            if group[1] & NODE_BITS == 0 {
-                if sp == 0 {
-                    break;
-                }
-                sp -= 1;
-                group = stack[sp];
+                // SAFETY: the first n entries were written just above.
+                unsafe { std::slice::from_raw_parts(gathered.as_ptr().cast(), n) }
+            };
+            let (best, prune) = (&mut self.best, &mut self.prune);
+            if self
+                .leaf
+                .test_leaf::<TEST>(tris, self.any, best, prune, stats)
+            {
+                return true;
             }
         }
-        debug_assert!(best.prim == MISS || best.t >= ray.tmin);
-        best
+        if group[1] & NODE_BITS == 0 {
+            if self.sp == 0 {
+                debug_assert!(self.best.prim == MISS || self.best.t >= self.leaf.ray.tmin);
+                return true;
+            }
+            self.sp -= 1;
+            // SAFETY: every entry below the stack pointer was written by a push.
+            *group = unsafe { self.stack[self.sp].assume_init() };
+        }
+        false
+    }
+
+    #[inline(always)]
+    fn best(&self) -> Hit {
+        self.best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::bvh::build;
+    use crate::geometry::Triangle;
+    use crate::mesh::Mesh;
+
+    /// The AVX2 build (where this CPU has it) and the baseline build answer and count
+    /// work alike, ray for ray, walked alone or two at a time.
+    #[test]
+    fn avx2_and_baseline_builds_agree() {
+        #[cfg(target_arch = "x86_64")]
+        if !has_avx2() {
+            return;
+        }
+        // A lattice of tilted triangles, and rays from a pseudo-random walk around it,
+        // a few parallel to an axis.
+        let tris = (0..2000)
+            .map(|i| {
+                let c = Vec3::new((i % 20) as f32, (i / 20 % 10) as f32, (i / 200) as f32);
+                Triangle::new(
+                    c,
+                    c + Vec3::new(0.9, 0.1, 0.3),
+                    c + Vec3::new(0.2, 0.8, -0.4),
+                )
+            })
+            .collect();
+        let mesh = Mesh::from_triangles(tris);
+        let cw = Cwbvh::flatten(&build(&mesh, &Default::default()), &mesh);
+        let mut seed = 1u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1 << 24) as f32
+        };
+        let rays: Vec<Ray> = (0..3000)
+            .map(|i| {
+                let o = Vec3::new(
+                    next() * 30.0 - 5.0,
+                    next() * 20.0 - 5.0,
+                    next() * 20.0 - 5.0,
+                );
+                let mut d = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5);
+                if i % 10 == 0 {
+                    d[i / 10 % 3] = 0.0;
+                }
+                Ray::new(o, d, 0.0, 1e4)
+            })
+            .collect();
+        let rob = Robustness::default();
+        for query in [Query::Closest, Query::Any] {
+            let mut out = [
+                vec![Hit::miss(0.0); rays.len()],
+                vec![Hit::miss(0.0); rays.len()],
+            ];
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the CPU has AVX2 (checked above).
+            unsafe {
+                cw.trace_chunk_avx2(&rays, &mut out[0], query, &rob)
+            };
+            cw.trace_chunk_with::<false>(&rays, &mut out[1], query, &rob);
+            let mut hits = 0;
+            for (i, r) in rays.iter().enumerate() {
+                let (mut s0, mut s1) = (RayStats::default(), RayStats::default());
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: as above.
+                let h0 = unsafe { cw.intersect_avx2(r, query, &rob, &mut s0) };
+                #[cfg(not(target_arch = "x86_64"))]
+                let h0 = cw.intersect_with::<false>(r, query, &rob, &mut s0);
+                let h1 = cw.intersect_with::<false>(r, query, &rob, &mut s1);
+                let b = bytemuck::bytes_of;
+                assert_eq!(b(&h0), b(&h1), "ray {i}: {r:?}");
+                assert_eq!(s0, s1, "ray {i}: {r:?}");
+                #[cfg(target_arch = "x86_64")]
+                assert_eq!(b(&h0), b(&out[0][i]), "ray {i}, two at a time (AVX2)");
+                assert_eq!(b(&h1), b(&out[1][i]), "ray {i}, two at a time");
+                hits += (h0.prim != MISS) as usize;
+            }
+            assert!(hits > 300, "{query:?}: {hits} hits");
+        }
     }
 }
