@@ -1,9 +1,11 @@
 //! The CPU twin of `cwbvh.wgsl`, step for step: the same group stack (a node's remaining
 //! hit children pushed before descending into the one with the highest hit-mask bit), the
 //! same octant order, child boxes dequantised with the same f32 arithmetic and tested with
-//! the shared slab test against the same bound (four slots at a time in SIMD lanes for a ray
-//! with no parallel axis, equal to it lane for lane), a node's leaf triangles tested lowest bit
-//! first right after the node, and the same tie rule, all in f32.
+//! the shared slab test against the same bound (for a ray with no parallel axis all eight
+//! slots in one AVX2 vector where the CPU has AVX2, else four at a time in SSE lanes, equal to
+//! it lane for lane), a node's hit leaf triangles tested lowest bit first right after the node
+//! (four at a time, `LeafRay::test_leaf`), and the same tie rule, all in f32. A batch
+//! (`trace_hits`) walks two rays at a time, a node step of each in turn (`interleave`).
 
 use std::mem::MaybeUninit;
 
