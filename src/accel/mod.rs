@@ -28,8 +28,9 @@ pub use query::{Query, RayStats};
 /// the hand-over cost nothing, few enough to balance two threads on a small batch.
 pub const RAY_CHUNK: usize = 1024;
 
-/// How CPU tracers drive a batch (the twins' [`Accel::trace_hits`] and the Embree row
-/// alike): rayon's threads take [`RAY_CHUNK`] rays at a time, each chunk with its own
+/// How CPU tracers drive a batch (the twins' default [`Accel::trace_hits`] and the Embree
+/// row alike; cwbvh's twin answers whole chunks, [`trace_chunks`]): rayon's threads take
+/// [`RAY_CHUNK`] rays at a time, each chunk with its own
 /// `scratch()` (work counters, an Embree context), and `trace` answers one ray, written in
 /// place into an output filled with `empty`; the answers are in ray order.
 pub(crate) fn trace_in_chunks<T, S>(

@@ -32,6 +32,7 @@ pub(crate) fn walk_interleaved<'a, W: Stepper<'a>>(
     out: &mut [Hit],
     walks: [W; WALKS],
 ) {
+    debug_assert_eq!(rays.len(), out.len());
     let mut stats = RayStats::default();
     let mut walks = walks.map(|w| (usize::MAX, w));
     let mut next = 0;

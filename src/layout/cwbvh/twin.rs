@@ -4,7 +4,7 @@
 //! the shared slab test against the same bound (for a ray with no parallel axis all eight
 //! slots in one AVX2 vector where the CPU has AVX2, else four at a time in SSE lanes, equal to
 //! it lane for lane), a node's hit leaf triangles tested lowest bit first right after the node
-//! (four at a time, `LeafRay::test_leaf`), and the same tie rule, all in f32. A batch
+//! (as one leaf: `LeafRay::test_leaf`), and the same tie rule, all in f32. A batch
 //! (`trace_hits`) walks two rays at a time, a node step of each in turn (`interleave`).
 
 use std::mem::MaybeUninit;
@@ -100,6 +100,7 @@ impl RayBox {
             tmin: ray.tmin,
             widen,
             parallel: inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any(),
+            // Built for every ray (one set-up, no branch); never used for a parallel one.
             slab4: SlabRay4::new(ray.origin, inv, ray.tmin, widen),
             neg: [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0],
             oct_inv: (WIDTH as u32 - 1) ^ octant,
@@ -141,8 +142,8 @@ impl RayBox {
 
     /// [`RayBox::child_hits`] for a ray with no parallel axis, the eight slots in one AVX
     /// vector: per lane the same operations as `SlabRay4::intervals` on the planes
-    /// `p + q · step`, in the same order (the max and min as `a > b ? a : b`, which is what
-    /// `maxps` computes), so the same slots entered; then each entered slot's hit-mask bits,
+    /// `p + q · step`, in the same order (the max as `a > b ? a : b` and the min as
+    /// `a < b ? a : b`, which is what `maxps` and `minps` compute), so the same slots entered; then each entered slot's hit-mask bits,
     /// ORed together.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
@@ -150,10 +151,8 @@ impl RayBox {
     unsafe fn child_hits_avx2(&self, node: &CwNode, prune: f32) -> u32 {
         use std::arch::x86_64::*;
         // Eight bytes widened to eight lanes.
-        let lanes = |b: &[u8; WIDTH]| {
-            // SAFETY: `b` is 8 bytes; the load reads exactly those.
-            _mm256_cvtepu8_epi32(unsafe { _mm_loadl_epi64(b.as_ptr() as *const __m128i) })
-        };
+        let lanes =
+            |b: &[u8; WIDTH]| _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(i64::from_le_bytes(*b)));
         let step = step(node.e);
         let planes = |q: &[u8; WIDTH], axis: usize| {
             let plane = _mm256_add_ps(
@@ -212,7 +211,8 @@ impl RayBox {
     fn child_hits<const AVX2: bool>(&self, node: &CwNode, prune: f32) -> u32 {
         #[cfg(target_arch = "x86_64")]
         if AVX2 && !self.parallel {
-            // SAFETY: AVX2 is set only where the CPU has it (`Accel::intersect`).
+            // SAFETY: `AVX2` is true only below `intersect_avx2` and `trace_chunk_avx2`, which
+            // run only where `has_avx2()` said the CPU has it.
             return unsafe { self.child_hits_avx2(node, prune) };
         }
         let mut entered = self.entered(node, prune);
@@ -231,7 +231,9 @@ impl RayBox {
 
 impl Cwbvh {
     /// [`Accel::intersect`] with the node test in SSE (`AVX2` false: the target's
-    /// baseline) or AVX2 lanes.
+    /// baseline) or AVX2 lanes. `AVX2` true is for `intersect_avx2` alone (and, in
+    /// `trace_chunk_with`, `trace_chunk_avx2`): the AVX2 code it reaches needs the CPU to
+    /// have AVX2.
     #[inline(always)]
     fn intersect_with<const AVX2: bool>(
         &self,
@@ -404,7 +406,7 @@ impl<'a, const TEST: u8, const AVX2: bool> Stepper<'a> for Walk<'a, TEST, AVX2> 
         stats.nodes += 1;
         let hits = self.rb.child_hits::<AVX2>(node, self.prune);
         *group = [node.child_base, (hits & NODE_BITS) | node.imask as u32];
-        // The hit leaf triangles, lowest bit first, tested as one leaf (four at a time):
+        // The hit leaf triangles, lowest bit first, tested as one leaf (`test_leaf`):
         // in place when they are one run (a leaf's triangles are hit all together, so one
         // hit leaf is one run), else gathered.
         let mut tri_hits = hits & TRI_MASK;
@@ -460,13 +462,12 @@ mod tests {
     use crate::mesh::Mesh;
 
     /// The AVX2 build (where this CPU has it) and the baseline build answer and count
-    /// work alike, ray for ray, walked alone or two at a time.
+    /// work alike, ray for ray, walked alone or two at a time, under every robustness
+    /// setting that changes the walk.
     #[test]
     fn avx2_and_baseline_builds_agree() {
         #[cfg(target_arch = "x86_64")]
-        if !has_avx2() {
-            return;
-        }
+        let avx2 = has_avx2();
         // A lattice of tilted triangles, and rays from a pseudo-random walk around it,
         // a few parallel to an axis.
         let tris = (0..2000)
@@ -500,36 +501,52 @@ mod tests {
                 Ray::new(o, d, 0.0, 1e4)
             })
             .collect();
-        let rob = Robustness::default();
-        for query in [Query::Closest, Query::Any] {
-            let mut out = [
-                vec![Hit::miss(0.0); rays.len()],
-                vec![Hit::miss(0.0); rays.len()],
-            ];
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: the CPU has AVX2 (checked above).
-            unsafe {
-                cw.trace_chunk_avx2(&rays, &mut out[0], query, &rob)
-            };
-            cw.trace_chunk_with::<false>(&rays, &mut out[1], query, &rob);
-            let mut hits = 0;
-            for (i, r) in rays.iter().enumerate() {
-                let (mut s0, mut s1) = (RayStats::default(), RayStats::default());
+        let robust = Robustness::default();
+        let settings = [
+            robust,
+            Robustness {
+                triangle_test: crate::geometry::TriangleTest::MollerTrumbore,
+                ..robust
+            },
+            Robustness {
+                slab_test: crate::geometry::SlabTest::Plain,
+                ..robust
+            },
+            Robustness {
+                precision: crate::geometry::Precision::F64,
+                ..robust
+            },
+        ];
+        let b = bytemuck::bytes_of::<Hit>;
+        for rob in &settings {
+            for query in [Query::Closest, Query::Any] {
+                let mut chunk = vec![Hit::miss(0.0); rays.len()];
+                cw.trace_chunk_with::<false>(&rays, &mut chunk, query, rob);
                 #[cfg(target_arch = "x86_64")]
-                // SAFETY: as above.
-                let h0 = unsafe { cw.intersect_avx2(r, query, &rob, &mut s0) };
-                #[cfg(not(target_arch = "x86_64"))]
-                let h0 = cw.intersect_with::<false>(r, query, &rob, &mut s0);
-                let h1 = cw.intersect_with::<false>(r, query, &rob, &mut s1);
-                let b = bytemuck::bytes_of;
-                assert_eq!(b(&h0), b(&h1), "ray {i}: {r:?}");
-                assert_eq!(s0, s1, "ray {i}: {r:?}");
+                let mut chunk_avx2 = chunk.clone();
                 #[cfg(target_arch = "x86_64")]
-                assert_eq!(b(&h0), b(&out[0][i]), "ray {i}, two at a time (AVX2)");
-                assert_eq!(b(&h1), b(&out[1][i]), "ray {i}, two at a time");
-                hits += (h0.prim != MISS) as usize;
+                if avx2 {
+                    // SAFETY: the CPU has AVX2.
+                    unsafe { cw.trace_chunk_avx2(&rays, &mut chunk_avx2, query, rob) };
+                }
+                let mut hits = 0;
+                for (i, r) in rays.iter().enumerate() {
+                    let mut s = RayStats::default();
+                    let h = cw.intersect_with::<false>(r, query, rob, &mut s);
+                    assert_eq!(b(&h), b(&chunk[i]), "ray {i}, two at a time: {r:?}");
+                    #[cfg(target_arch = "x86_64")]
+                    if avx2 {
+                        let mut s2 = RayStats::default();
+                        // SAFETY: as above.
+                        let h2 = unsafe { cw.intersect_avx2(r, query, rob, &mut s2) };
+                        assert_eq!(b(&h), b(&h2), "ray {i}, AVX2: {r:?}");
+                        assert_eq!(s, s2, "ray {i}, AVX2 work: {r:?}");
+                        assert_eq!(b(&h), b(&chunk_avx2[i]), "ray {i}, AVX2 two at a time");
+                    }
+                    hits += (h.prim != MISS) as usize;
+                }
+                assert!(hits > 300, "{rob:?} {query:?}: {hits} hits");
             }
-            assert!(hits > 300, "{query:?}: {hits} hits");
         }
     }
 }
