@@ -344,8 +344,6 @@ struct Walk<'a, const TEST: u8, const AVX2: bool> {
     /// The group: [first child node, hit internal children (high byte) | imask]. Before a
     /// step it always holds a node: first the root, alone in the top bit.
     group: [u32; 2],
-    /// The far widening of the robustness settings.
-    widen: f32,
 }
 
 impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
@@ -358,18 +356,16 @@ impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
             tmin: 0.0,
             tmax: 0.0,
         };
-        let widen = robustness.far_widen();
         Walk {
             cw,
             leaf: LeafRay::new(&NONE, robustness),
-            rb: RayBox::new(&NONE, widen),
+            rb: RayBox::new(&NONE, robustness.far_widen()),
             any: query == Query::Any,
             best: Hit::miss(0.0),
             prune: 0.0,
             stack: [MaybeUninit::uninit(); STACK_SIZE],
             sp: 0,
             group: [0, 0],
-            widen,
         }
     }
 }
@@ -382,7 +378,8 @@ impl<'a, const TEST: u8, const AVX2: bool> Stepper<'a> for Walk<'a, TEST, AVX2> 
             return false;
         }
         self.leaf.reset(ray);
-        self.rb = RayBox::new(ray, self.widen);
+        // The widening is the batch's robustness setting, kept from the last set-up.
+        self.rb = RayBox::new(ray, self.rb.widen);
         self.prune = prune_bound(self.best.t);
         self.sp = 0;
         self.group = [0, 1 << 31];
