@@ -1,7 +1,7 @@
-//! A chunk of rays walked a few at a time: the CPU twins' `trace_hits`. A twin's walk of one
-//! ray is a chain of dependent steps (each node's test waits on its loads and the one
-//! before); taking a step of each of two rays in turn gives the CPU independent work to
-//! overlap. Every ray still takes exactly its own walk's steps, in order, so the answers are
+//! A chunk of rays walked a few at a time: a CPU twin's `trace_hits` (cwbvh's). A twin's
+//! walk of one ray is a chain of dependent steps (each node's test waits on its loads and
+//! the one before); taking a step of each of two rays in turn gives the CPU independent work
+//! to overlap. Every ray still takes exactly its own walk's steps, in order, so the answers are
 //! those of walking it alone.
 
 use crate::accel::RayStats;
