@@ -2,20 +2,23 @@
 //! `dfs-sign` (closest and any hit) on the bunny, soups, shared edges and vertices,
 //! coincident triangles, binary leaves bigger than a wide node and a deep tree; every
 //! dequantised child box contains its exact box (and is not loose); `validate` refuses
-//! corrupted arrays. GPU ≡ twin is tests/gpu_vs_cpu.rs (every layout).
+//! corrupted arrays. Hand-made chains whose stacks fill to their depth trace alike on the
+//! GPU and the twin (the kernel sizes its stack to the tree). GPU ≡ twin on everything else
+//! is tests/gpu_vs_cpu.rs (every layout).
 
 mod common;
 
-use common::{load_model, random_rays, soup, Rng};
+use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
 use lancer::accel::Accel;
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Precision, Ray, SlabTest, Triangle, TriangleTest, MISS};
-use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays};
+use lancer::gpu::BvhMemory;
+use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays, LayoutKind};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
-use lancer::{Query, RayStats, Robustness};
+use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
 
 fn cwbvh(mesh: &Mesh, opts: &BuildOptions) -> Cwbvh {
     let layout = Cwbvh::flatten(&build(mesh, opts), mesh);
@@ -349,19 +352,28 @@ fn raw_node(imask: u8, child_base: u32, tri_base: u32, meta: [u8; 8]) -> Vec<u8>
 /// A chain of `levels` nodes, each with two internal children in slots 0 and 1: the next
 /// chain node and a side node holding one triangle (the last chain node holds one too).
 /// Every box contains every triangle, so a ray visits all nodes; one whose direction has
-/// x ≥ 0 descends the chain first and stacks one group per level.
-fn raw_chain(levels: usize) -> (Mesh, Vec<u8>, Vec<u8>) {
+/// x ≥ 0 descends the chain first and stacks one group per level. The side triangles cover
+/// the chain's whole square, or with `banded` a strip each: side k (at z = k) spans
+/// x ∈ [3(k − 1), 3k], so a ray from below along such a strip meets that side first.
+fn raw_chain(levels: usize, banded: bool) -> (Mesh, Vec<u8>, Vec<u8>) {
     const INNER: u8 = 1 << 5 | 24;
     const ONE_TRI: u8 = 1 << 5;
     let mut nodes = Vec::new();
     let mut tris = Vec::new();
     let mut mesh = Vec::new();
-    let mut tri = |z: f32| {
-        let t = Triangle::new(
-            Vec3::new(0.0, 0.0, z),
-            Vec3::new(200.0, 0.0, z),
-            Vec3::new(0.0, 200.0, z),
-        );
+    let mut tri = |z: f32, x: Option<f32>| {
+        let t = match x {
+            None => Triangle::new(
+                Vec3::new(0.0, 0.0, z),
+                Vec3::new(200.0, 0.0, z),
+                Vec3::new(0.0, 200.0, z),
+            ),
+            Some(x) => Triangle::new(
+                Vec3::new(x, 0.0, z),
+                Vec3::new(x + 3.0, 0.0, z),
+                Vec3::new(x, 200.0, z),
+            ),
+        };
         let prim = mesh.len() as u32;
         mesh.push(t);
         tris.extend_from_slice(bytemuck::bytes_of(&lancer::layout::LeafTri {
@@ -377,9 +389,9 @@ fn raw_chain(levels: usize) -> (Mesh, Vec<u8>, Vec<u8>) {
     // Chain node k at 2k − 1 (k ≥ 1), its children (chain k + 1, side k) at 2k + 1, 2k + 2.
     let mut side_tris = Vec::new();
     for k in 0..levels - 1 {
-        side_tris.push(tri(1.0 + k as f32));
+        side_tris.push(tri(1.0 + k as f32, banded.then_some(3.0 * k as f32)));
     }
-    let last = tri(100.0);
+    let last = tri(100.0, None);
     for k in 0..levels {
         if k + 1 < levels {
             let base = 2 * k as u32 + 1;
@@ -403,7 +415,7 @@ fn raw_chain(levels: usize) -> (Mesh, Vec<u8>, Vec<u8>) {
 #[test]
 fn the_group_stack_holds_one_group_per_level_and_no_more() {
     // Deepest nodes at depth 64: accepted, and traced with a full stack.
-    let (mesh, nodes, tris) = raw_chain(MAX_DEPTH + 1);
+    let (mesh, nodes, tris) = raw_chain(MAX_DEPTH + 1, false);
     let layout = Cwbvh::from_arrays(LayoutArrays {
         nodes: &nodes,
         tris: &tris,
@@ -428,13 +440,83 @@ fn the_group_stack_holds_one_group_per_level_and_no_more() {
         }
     }
     // One level more: refused.
-    let (_, nodes, tris) = raw_chain(MAX_DEPTH + 2);
+    let (_, nodes, tris) = raw_chain(MAX_DEPTH + 2, false);
     let e = Cwbvh::from_arrays(LayoutArrays {
         nodes: &nodes,
         tris: &tris,
     })
     .unwrap_err();
     assert!(e.contains("depth 65"), "{e}");
+}
+
+#[test]
+fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
+    // The kernel keeps four groups in variables and sizes its array for the rest to the
+    // tree's depth: chains whose stacks end at, just past and far past the four, and at the
+    // cap. The GPU must give the twin's hits and work ray for ray, with and without bounds
+    // checks (a trusted module relies on the size; a short array loses or overwrites the
+    // deepest groups, and the rays then skip the side leaves they wait for).
+    for levels in [4, 5, 6, 7, 12, MAX_DEPTH + 1] {
+        let (mesh, nodes, tris) = raw_chain(levels, true);
+        let arrays = LayoutArrays {
+            nodes: &nodes,
+            tris: &tris,
+        };
+        let cw = Cwbvh::from_arrays(arrays).unwrap();
+        let all = cw.node_count() as u32;
+        let layout: std::sync::Arc<dyn Layout> = std::sync::Arc::new(cw);
+        // From below, up along each side's strip (x ≥ 0: the chain first): each ray's
+        // closest hit is its strip's side, at the depth of its level's group.
+        let mut rng = Rng::new(levels as u64);
+        let rays: Vec<Ray> = (0..8 * levels)
+            .map(|i| {
+                let x = 3.0 * (i % (levels - 1)) as f32 + rng.range(0.3, 1.5);
+                let o = Vec3::new(x, rng.range(10.0, 80.0), -20.0);
+                let dir = Vec3::new(rng.range(0.0, 1e-3), rng.range(-1e-3, 1e-3), 1.0);
+                Ray::new(o, dir.normalize(), 0.0, 1e30)
+            })
+            .collect();
+        for checked_module in [true, false] {
+            for query in [Query::Closest, Query::Any] {
+                let options = TracerOptions {
+                    layout: LayoutKind::Cwbvh,
+                    memory: BvhMemory::Buffers,
+                    robustness: Robustness {
+                        checked_module,
+                        ..Robustness::default()
+                    },
+                    stats: true,
+                    ..TracerOptions::default()
+                };
+                let cpu = Tracer::with_layout(&Device::cpu(), layout.clone(), &options)
+                    .unwrap()
+                    .trace(&rays, query)
+                    .unwrap();
+                let gpu = Tracer::with_layout(gpu_device(), layout.clone(), &options)
+                    .unwrap()
+                    .trace(&rays, query)
+                    .unwrap();
+                let name = format!("{levels} levels, checked {checked_module}, {query:?}");
+                let (ch, gh) = (&cpu.hits, &gpu.hits);
+                if let Some(i) = (0..rays.len()).find(|&i| ch[i] != gh[i]) {
+                    panic!("{name}: ray {i}: twin {:?}, GPU {:?}", ch[i], gh[i]);
+                }
+                assert_eq!(cpu.stats, gpu.stats, "{name}");
+                if query == Query::Closest {
+                    // Every ray visits every node and finds its own strip's side.
+                    let stats = gpu.stats.unwrap();
+                    assert!(stats.iter().all(|s| s.nodes == all), "{name}: {stats:?}");
+                    for (r, h) in rays.iter().zip(&gpu.hits) {
+                        assert_eq!(judge(&mesh, r, h), Verdict::Agree, "{name}: {r:?}");
+                        assert!(
+                            (h.t - 20.0 - (h.prim + 1) as f32).abs() < 0.1,
+                            "{name} {h:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Exact box of every node's subtree (union of its triangles' boxes), by node index.

@@ -1,6 +1,6 @@
 // cwbvh: the compressed 8-wide BVH of Ylitie, Karras & Laine 2017, octant-ordered traversal
 // with a stack of node groups (group_push). The CPU twin is twin.rs, step for step.
-// CWBVH_TRI_BITS, CWBVH_COUNT_SHIFT, CWBVH_WIDTH and CWBVH_STACK_SIZE come from mod.rs.
+// CWBVH_TRI_BITS, CWBVH_COUNT_SHIFT, CWBVH_WIDTH and CWBVH_SPILL_SIZE come from mod.rs.
 
 // CwbvhNode, 80 bytes (mod.rs CwNode). e_imask: step exponents x, y, z and imask, one byte
 // each, low byte first. child_meta, q_lo, q_hi: one byte per slot, slots 0-3 in .x, 4-7 in .y;
@@ -78,8 +78,8 @@ fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, parallel: bool, prune:
     return hits;
 }
 
-// The stack of node groups, at most CWBVH_STACK_SIZE (one per level). Its top four
-// entries live in variables, the rest in an array: on lavapipe a store to or a load from a
+// The stack of node groups, at most one per level of this tree. Its top four entries live
+// in variables, the rest in an array of CWBVH_SPILL_SIZE (the tree's depth - 4): on lavapipe a store to or a load from a
 // private array at a per-lane index is a loop over the lanes, each a read-modify-write with
 // a branch, while shifting four variables is a few blends. An 8-wide tree is shallow and a
 // group holds up to eight children, so the array is seldom reached: on this project's
@@ -90,7 +90,7 @@ var<private> group_top0: vec2<u32>;
 var<private> group_top1: vec2<u32>;
 var<private> group_top2: vec2<u32>;
 var<private> group_top3: vec2<u32>;
-var<private> group_rest: array<vec2<u32>, CWBVH_STACK_SIZE>;
+var<private> group_rest: array<vec2<u32>, CWBVH_SPILL_SIZE>;
 var<private> group_count: u32;
 
 fn group_push(g: vec2<u32>) {
