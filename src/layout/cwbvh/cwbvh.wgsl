@@ -79,13 +79,14 @@ fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, parallel: bool, prune:
 }
 
 // The stack of node groups, at most one per level of this tree. Its top four entries live
-// in variables, the rest in an array of CWBVH_SPILL_SIZE (the tree's depth - 4): on lavapipe a store to or a load from a
-// private array at a per-lane index is a loop over the lanes, each a read-modify-write with
-// a branch, while shifting four variables is a few blends. An 8-wide tree is shallow and a
-// group holds up to eight children, so the array is seldom reached: on this project's
-// machine (Mesa 25 lavapipe) that gave 1.1-1.2x rays/s on bounce and random rays and ~1.05x
-// on primary ones. The binary layouts push at every inner node, far deeper than four, and
-// measured 0.84-0.93x with it (not kept there).
+// in variables, the rest in an array of CWBVH_SPILL_SIZE (the tree's depth - 4, mod.rs
+// spill_size): on lavapipe a store to or a load from a private array at a per-lane index is
+// a loop over the lanes, each a read-modify-write with a branch, while shifting four
+// variables is a few blends. An 8-wide tree is shallow and a group holds up to eight
+// children, so the array is seldom reached: on this project's machine (Mesa 25 lavapipe)
+// that gave 1.1-1.2x rays/s on bounce and random rays and ~1.05x on primary ones. The
+// binary layouts push at every inner node, far deeper than four, and measured 0.84-0.93x
+// with it (not kept there).
 var<private> group_top0: vec2<u32>;
 var<private> group_top1: vec2<u32>;
 var<private> group_top2: vec2<u32>;
