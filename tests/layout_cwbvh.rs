@@ -7,18 +7,22 @@
 //! is tests/gpu_vs_cpu.rs (every layout).
 
 mod common;
+#[path = "common/gpu_twin.rs"]
+mod gpu_twin;
 
-use common::{gpu_device, load_model, random_rays, soup, Rng};
+use std::sync::Arc;
+
+use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
+use gpu_twin::same_on_gpu;
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
 use lancer::accel::Accel;
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Precision, Ray, SlabTest, Triangle, TriangleTest, MISS};
-use lancer::gpu::BvhMemory;
-use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays, LayoutKind};
+use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
-use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
+use lancer::{Query, RayStats, Robustness};
 
 fn cwbvh(mesh: &Mesh, opts: &BuildOptions) -> Cwbvh {
     let layout = Cwbvh::flatten(&build(mesh, opts), mesh);
@@ -463,8 +467,6 @@ fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
             tris: &tris,
         };
         let cw = Cwbvh::from_arrays(arrays).unwrap();
-        let all = cw.node_count() as u32;
-        let layout: std::sync::Arc<dyn Layout> = std::sync::Arc::new(cw);
         // From below, up along each side's strip (x ≥ 0: the chain first): each ray's
         // closest hit is its strip's side, at the depth of its level's group.
         let mut rng = Rng::new(levels as u64);
@@ -476,45 +478,27 @@ fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
                 Ray::new(o, dir.normalize(), 0.0, 1e30)
             })
             .collect();
+        // The twin visits every node and finds each ray's own strip's side.
+        let (hits, stats) = cw.trace_batch(&rays, Query::Closest, &Robustness::default());
+        let all = cw.node_count() as u32;
+        assert!(
+            stats.iter().all(|s| s.nodes == all),
+            "{levels} levels: {stats:?}"
+        );
+        for (r, h) in rays.iter().zip(&hits) {
+            assert_eq!(judge(&mesh, r, h), Verdict::Agree, "{levels} levels: {r:?}");
+            let strip = (h.t - 20.0 - (h.prim + 1) as f32).abs() < 0.1;
+            assert!(strip, "{levels} levels: {r:?} {h:?}");
+        }
+        // The GPU: the same hits and work, ray for ray, both memories, both queries.
+        let layout: Arc<dyn Layout> = Arc::new(cw);
         for checked_module in [true, false] {
-            for query in [Query::Closest, Query::Any] {
-                let options = TracerOptions {
-                    layout: LayoutKind::Cwbvh,
-                    memory: BvhMemory::Buffers,
-                    robustness: Robustness {
-                        checked_module,
-                        ..Robustness::default()
-                    },
-                    stats: true,
-                    ..TracerOptions::default()
-                };
-                let cpu = Tracer::with_layout(&Device::cpu(), layout.clone(), &options)
-                    .unwrap()
-                    .trace(&rays, query)
-                    .unwrap();
-                let gpu = Tracer::with_layout(gpu_device(), layout.clone(), &options)
-                    .unwrap()
-                    .trace(&rays, query)
-                    .unwrap();
-                let name = format!("{levels} levels, checked {checked_module}, {query:?}");
-                let (ch, gh) = (&cpu.hits, &gpu.hits);
-                if let Some(i) = (0..rays.len()).find(|&i| ch[i] != gh[i]) {
-                    panic!("{name}: ray {i}: twin {:?}, GPU {:?}", ch[i], gh[i]);
-                }
-                assert_eq!(cpu.stats, gpu.stats, "{name}");
-                if query == Query::Closest {
-                    // Every ray visits every node and finds its own strip's side.
-                    let stats = gpu.stats.unwrap();
-                    assert!(stats.iter().all(|s| s.nodes == all), "{name}: {stats:?}");
-                    for (r, h) in rays.iter().zip(&gpu.hits) {
-                        assert_eq!(judge(&mesh, r, h), Verdict::Agree, "{name}: {r:?}");
-                        assert!(
-                            (h.t - 20.0 - (h.prim + 1) as f32).abs() < 0.1,
-                            "{name} {h:?}"
-                        );
-                    }
-                }
-            }
+            let rob = Robustness {
+                checked_module,
+                ..Robustness::default()
+            };
+            let name = format!("{levels} levels, checked {checked_module}");
+            same_on_gpu(&name, &layout, &rays, rob);
         }
     }
 }
