@@ -1,6 +1,7 @@
 // cwbvh: the compressed 8-wide BVH of Ylitie, Karras & Laine 2017, octant-ordered traversal
 // with a stack of node groups (group_push). The CPU twin is twin.rs, step for step.
-// CWBVH_TRI_BITS, CWBVH_COUNT_SHIFT, CWBVH_WIDTH and CWBVH_SPILL_SIZE come from mod.rs.
+// CWBVH_TRI_BITS, CWBVH_COUNT_SHIFT, CWBVH_WIDTH, CWBVH_STACK_REGISTERS and
+// CWBVH_SPILL_SIZE come from mod.rs.
 
 // CwbvhNode, 80 bytes (mod.rs CwNode). e_imask: step exponents x, y, z and imask, one byte
 // each, low byte first. child_meta, q_lo, q_hi: one byte per slot, slots 0-3 in .x, 4-7 in .y;
@@ -79,8 +80,8 @@ fn cwbvh_child_hits(n: CwbvhNode, r: Ray, inv: vec3<f32>, parallel: bool, prune:
 }
 
 // The stack of node groups, at most one per level of this tree. Its top four entries live
-// in variables, the rest in an array of CWBVH_SPILL_SIZE (the tree's depth - 4, mod.rs
-// spill_size): on lavapipe a store to or a load from a private array at a per-lane index is
+// in variables (CWBVH_STACK_REGISTERS: group_top0-3), the rest in an array of
+// CWBVH_SPILL_SIZE (the tree's depth - 4, mod.rs spill_size): on lavapipe a store to or a load from a private array at a per-lane index is
 // a loop over the lanes, each a read-modify-write with a branch, while shifting four
 // variables is a few blends. An 8-wide tree is shallow and a group holds up to eight
 // children, so the array is seldom reached: on this project's machine (Mesa 25 lavapipe)
@@ -97,9 +98,9 @@ var<private> group_count: u32;
 fn group_push(g: vec2<u32>) {
     // The oldest of the four moves to the array. A loop, not an `if`: lavapipe skips a loop
     // no lane enters, but runs a short `if` for every lane (the masked-off lanes' stores too).
-    var spill = group_count >= 4u;
+    var spill = group_count >= CWBVH_STACK_REGISTERS;
     while spill {
-        group_rest[group_count - 4u] = group_top3;
+        group_rest[group_count - CWBVH_STACK_REGISTERS] = group_top3;
         spill = false;
     }
     group_top3 = group_top2;
@@ -116,9 +117,9 @@ fn group_pop() -> vec2<u32> {
     group_top1 = group_top2;
     group_top2 = group_top3;
     group_count -= 1u;
-    var fill = group_count >= 4u;
+    var fill = group_count >= CWBVH_STACK_REGISTERS;
     while fill {
-        group_top3 = group_rest[group_count - 4u];
+        group_top3 = group_rest[group_count - CWBVH_STACK_REGISTERS];
         fill = false;
     }
     return g;

@@ -44,6 +44,9 @@ pub(crate) const COUNT_SHIFT: u32 = 5;
 /// `spill_size`). The wide tree is never deeper than the binary one, whose depth the
 /// builders cap at MAX_DEPTH.
 pub(crate) const STACK_SIZE: usize = MAX_DEPTH;
+/// Stack groups the kernel keeps in variables (WGSL `CWBVH_STACK_REGISTERS`, its
+/// `group_top0`–`group_top3`); deeper ones go to its spill array (`Cwbvh::spill_size`).
+const STACK_REGISTERS: usize = 4;
 /// Bytes of one node record.
 pub(crate) const NODE_BYTES: usize = std::mem::size_of::<CwNode>();
 
@@ -293,6 +296,7 @@ impl super::Layout for Cwbvh {
             "const CWBVH_TRI_BITS: u32 = {TRI_BITS}u;\n\
              const CWBVH_COUNT_SHIFT: u32 = {COUNT_SHIFT}u;\n\
              const CWBVH_WIDTH: u32 = {WIDTH}u;\n\
+             const CWBVH_STACK_REGISTERS: u32 = {STACK_REGISTERS}u;\n\
              const CWBVH_SPILL_SIZE: u32 = {}u;\n{}",
             self.spill_size(),
             include_str!("cwbvh.wgsl")
@@ -309,15 +313,15 @@ impl super::Layout for Cwbvh {
 }
 
 impl Cwbvh {
-    /// The kernel's spill array (WGSL `CWBVH_SPILL_SIZE`): the stack groups past the four
-    /// it keeps in variables. A stack of `deepest` groups spills at most `deepest` − 4 (at
-    /// least one entry: WGSL has no empty arrays). Sized to this tree rather than to
+    /// The kernel's spill array (WGSL `CWBVH_SPILL_SIZE`): the stack groups past the
+    /// `STACK_REGISTERS` it keeps in variables. A stack of `deepest` groups spills at most
+    /// `deepest` − `STACK_REGISTERS` (at least one entry: WGSL has no empty arrays). Sized to this tree rather than to
     /// `STACK_SIZE`, because every invocation zero-fills its private arrays (WGSL's rule):
     /// on this project's machine (Mesa 25 lavapipe, bunny primary rays) filling the
     /// 64-entry array took ~7% of the kernel's profile, and the sized array (two entries on
     /// the bunny) gave ~1.06x primary and ~1.04x shadow rays/s (six paired runs).
     fn spill_size(&self) -> usize {
-        self.deepest.max(5) - 4
+        self.deepest.max(STACK_REGISTERS + 1) - STACK_REGISTERS
     }
 
     /// [`validate`](super::Layout::validate)'s checks; returns the depth of the deepest node.
