@@ -386,6 +386,24 @@ fn bench_layouts_measures_every_layout_and_writes_json() {
         assert!(embree.is_empty(), "{v}");
         assert!(v["embree_build_ms"].is_null(), "{v}");
     }
+    // Paired ratios to Embree: with the feature, on every other row that has the speed they
+    // divide (and in two columns of the table); without it, none.
+    let paired = cfg!(feature = "embree");
+    assert_eq!(
+        text.contains("| CPU ÷ Embree | GPU ÷ Embree |"),
+        paired,
+        "{text}"
+    );
+    for r in runs.iter().filter(|r| r["layout"] != "embree") {
+        for (speed, ratio) in [
+            ("cpu_mrays_per_s", "cpu_vs_embree"),
+            ("gpu_mrays_per_s", "gpu_vs_embree"),
+        ] {
+            let expected = paired && r[speed].is_f64();
+            assert_eq!(r[ratio].as_f64().is_some_and(|x| x > 0.0), expected, "{r}");
+            assert_eq!(r[ratio].is_null(), !expected, "{r}");
+        }
+    }
 }
 
 #[test]

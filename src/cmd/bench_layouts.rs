@@ -1,7 +1,8 @@
 //! `lancer bench layouts`: every flattened layout on one mesh, side by side in one run:
 //! flatten time, bytes, work per ray (nodes, triangles, bytes loaded), and speed of the CPU
 //! twin and of the GPU kernel for primary, shadow, diffuse bounce and random rays; with the
-//! `embree` feature, Embree 3 on the same rays as the reference CPU tracer.
+//! `embree` feature, Embree 3 on the same rays as the reference CPU tracer, run beside every
+//! timed run so that each row is also a paired ratio to it.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -90,6 +91,55 @@ pub(super) struct Row {
     /// without a GPU and on embree rows.
     #[serde(rename = "gpu_mrays_per_s")]
     pub(super) gpu_mrays: Option<f64>,
+    /// The CPU twin's rays/s ÷ Embree's in the run right after each timed run (the median of
+    /// the --repeat paired ratios); null without the `embree` feature and where
+    /// `cpu_mrays_per_s` is.
+    pub(super) cpu_vs_embree: Option<f64>,
+    /// The GPU kernel's rays/s ÷ Embree's, paired the same way; null without the `embree`
+    /// feature and where `gpu_mrays_per_s` is.
+    pub(super) gpu_vs_embree: Option<f64>,
+}
+
+/// Wall seconds of one run of a tracer on these rays.
+pub(super) type TimeRun = Box<dyn Fn(&[Ray], Query) -> f64>;
+
+/// The reference tracer every timed run is paired with (Embree 3, the `embree` feature).
+pub(super) struct Reference {
+    /// One timed run.
+    pub(super) time: TimeRun,
+    /// Wall time of its scene build.
+    pub(super) build_ms: f64,
+    /// Its version ("3.13.5").
+    pub(super) version: String,
+}
+
+/// The runs of one row: seconds of each timed run of the measured tracer and of the
+/// reference right after it (empty without one).
+#[derive(Default)]
+struct Paired {
+    runs: Vec<f64>,
+    reference: Vec<f64>,
+}
+
+impl Paired {
+    /// Mrays/s of the measured tracer on `n` rays: the median run.
+    fn mrays(&self, n: usize) -> f64 {
+        n as f64 / median(self.runs.clone()) / 1e6
+    }
+
+    /// The median of the paired ratios of rays/s (reference seconds ÷ measured seconds),
+    /// where there is a reference.
+    fn ratio(&self) -> Option<f64> {
+        (!self.reference.is_empty()).then(|| {
+            median(
+                self.runs
+                    .iter()
+                    .zip(&self.reference)
+                    .map(|(t, r)| r / t)
+                    .collect(),
+            )
+        })
+    }
 }
 
 /// One layout's size (a JSON `layouts` entry).
@@ -142,26 +192,41 @@ fn layout_name<S: Serializer>(k: &LayoutKind, s: S) -> std::result::Result<S::Ok
     s.serialize_str(k.name())
 }
 
-/// GPU Mrays/s of `tracer` (statistics off): the median of `repeat` timed runs, after an
-/// untimed one that compiles the kernel.
-fn time_gpu(
+/// Seconds of one run of `tracer`: GPU time where the adapter reports it, else wall time.
+fn seconds(tracer: &mut Tracer, rays: &[Ray], query: Query) -> Result<f64> {
+    let t = tracer.trace(rays, query)?.timings;
+    Ok(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3)
+}
+
+/// `repeat` timed runs of `tracer` (statistics off, after an untimed run that compiles a GPU
+/// kernel), each followed by a run of the reference on the same rays.
+fn time_paired(
     tracer: &mut Tracer,
+    reference: Option<&Reference>,
     rays: &[Ray],
     query: Query,
     repeat: usize,
     bar: &ProgressBar,
-) -> Result<f64> {
+) -> Result<Paired> {
     let o = *tracer.options();
     tracer.set_kernel(o.robustness, o.workgroup_size, false);
     tracer.trace(&rays[..rays.len().min(1024)], query)?;
-    let mut times = Vec::new();
+    let mut paired = Paired::default();
     for _ in 0..repeat {
-        let t = tracer.trace(rays, query)?.timings;
-        times.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
+        paired.runs.push(seconds(tracer, rays, query)?);
         bar.inc(1);
+        if let Some(r) = reference {
+            paired.reference.push((r.time)(rays, query));
+            bar.inc(1);
+        }
     }
     tracer.set_kernel(o.robustness, o.workgroup_size, o.stats);
-    Ok(rays.len() as f64 / median(times) / 1e6)
+    Ok(paired)
+}
+
+/// Runs a timed repetition takes: the measured one, and the reference's beside it.
+fn runs_per_repeat(reference: Option<&Reference>) -> usize {
+    1 + reference.is_some() as usize
 }
 
 /// The driver row's layout and mode names.
@@ -180,6 +245,7 @@ impl BenchLayouts {
         device: &Device,
         leaf_order: &dyn Layout,
         sets: &[(String, Query, Vec<Ray>)],
+        reference: Option<&Reference>,
         bar: &ProgressBar,
     ) -> Result<Option<(f64, Vec<Row>)>> {
         let Some(ctx) = device.gpu_context().filter(|c| c.ray_query) else {
@@ -189,18 +255,22 @@ impl BenchLayouts {
             return Ok(None);
         }
         let repeat = self.repeat as usize;
-        bar.inc_length((sets.len() * repeat) as u64);
+        bar.inc_length((sets.len() * repeat * runs_per_repeat(reference)) as u64);
         bar.set_message(DRIVER);
         let mut driver = DriverTracer::new(ctx, leaf_order)?;
         let mut rows = Vec::new();
         for (name, query, rays) in sets {
             // An untimed run compiles the pipeline.
             driver.trace(&rays[..rays.len().min(1024)], *query)?;
-            let mut times = Vec::new();
+            let mut paired = Paired::default();
             for _ in 0..repeat {
                 let t = driver.trace(rays, *query)?.1;
-                times.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
+                paired.runs.push(t.gpu_ms.unwrap_or(t.wall_ms) * 1e-3);
                 bar.inc(1);
+                if let Some(r) = reference {
+                    paired.reference.push((r.time)(rays, *query));
+                    bar.inc(1);
+                }
             }
             rows.push(Row {
                 layout: DRIVER,
@@ -211,32 +281,24 @@ impl BenchLayouts {
                 tris: None,
                 bytes_loaded: None,
                 cpu_mrays: None,
-                gpu_mrays: Some(rays.len() as f64 / median(times) / 1e6),
+                gpu_mrays: Some(paired.mrays(rays.len())),
+                cpu_vs_embree: None,
+                gpu_vs_embree: paired.ratio(),
             });
         }
         Ok(Some((driver.build_ms(), rows)))
     }
 
-    /// Embree's rows on each ray set (the `embree` feature): its build time (ms), version and
-    /// one row per set.
+    /// The reference every timed run is paired with: Embree 3's scene over `mesh` (the
+    /// `embree` feature).
     #[cfg(feature = "embree")]
-    fn time_embree(
-        &self,
-        mesh: &lancer::Mesh,
-        sets: &[(String, Query, Vec<Ray>)],
-        bar: &ProgressBar,
-    ) -> Result<Option<(f64, String, Vec<Row>)>> {
-        super::embree_row::embree_rows(mesh, sets, self.repeat as usize, bar).map(Some)
+    fn reference(&self, mesh: &lancer::Mesh) -> Result<Option<Reference>> {
+        super::embree_row::reference(mesh).map(Some)
     }
 
-    /// Without the `embree` feature: no Embree rows.
+    /// Without the `embree` feature: no reference.
     #[cfg(not(feature = "embree"))]
-    fn time_embree(
-        &self,
-        _: &lancer::Mesh,
-        _: &[(String, Query, Vec<Ray>)],
-        _: &ProgressBar,
-    ) -> Result<Option<(f64, String, Vec<Row>)>> {
+    fn reference(&self, _: &lancer::Mesh) -> Result<Option<Reference>> {
         Ok(None)
     }
 
@@ -248,9 +310,15 @@ impl BenchLayouts {
         }
         let mesh = load_geometry(&self.mesh)?;
         let tree = build(&mesh, &self.build.options());
-        let reference = flatten(LayoutKind::default(), &tree, &mesh);
+        let reference_layout = flatten(LayoutKind::default(), &tree, &mesh);
         let rob = Robustness::default();
-        let mut sets = view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?;
+        let mut sets = view_ray_sets(
+            &mesh,
+            reference_layout.as_ref(),
+            self.width,
+            self.height,
+            &rob,
+        )?;
         // Incoherent rays, as many as primary rays (view_ray_sets checked the count).
         let n_random = sets.first().map_or(0, |s| s.2.len()) as u32;
         sets.push((
@@ -259,9 +327,11 @@ impl BenchLayouts {
             random_rays(&mesh, n_random),
         ));
         let device = open_bench_device(self.device)?;
+        let reference = self.reference(&mesh)?;
         let kinds = self.layouts.kinds();
         let repeat = self.repeat as usize;
-        let per_set = if device.is_cpu() { repeat } else { 2 * repeat };
+        let per_set =
+            repeat * runs_per_repeat(reference.as_ref()) * (1 + !device.is_cpu() as usize);
         let bar = ProgressBar::new((kinds.len() * sets.len() * per_set) as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}")
@@ -269,6 +339,8 @@ impl BenchLayouts {
         );
         let cpu = Device::cpu();
         let (mut sizes, mut rows) = (Vec::new(), Vec::new());
+        // Seconds of the reference's runs on each set, beside every layout's.
+        let mut reference_runs = vec![Vec::new(); sets.len()];
         for &kind in &kinds {
             bar.set_message(kind.name());
             let start = Instant::now();
@@ -305,23 +377,18 @@ impl BenchLayouts {
                 _ => None,
             };
             if subgroup.is_some() {
-                bar.inc_length((sets.len() * repeat) as u64);
+                bar.inc_length((sets.len() * repeat * runs_per_repeat(reference.as_ref())) as u64);
             }
-            for (name, query, rays) in &sets {
-                let n = rays.len() as f64;
+            for (set, (name, query, rays)) in sets.iter().enumerate() {
                 let stats = twin.trace(rays, *query)?.stats.unwrap_or_default();
                 let (nodes, tris) = RayStats::means(&stats);
-                twin.set_kernel(rob, options.workgroup_size, false);
-                let mut times = Vec::new();
-                for _ in 0..repeat {
-                    times.push(twin.trace(rays, *query)?.timings.wall_ms * 1e-3);
-                    bar.inc(1);
+                let timed =
+                    |t: &mut Tracer| time_paired(t, reference.as_ref(), rays, *query, repeat, &bar);
+                let cpu_runs = timed(&mut twin)?;
+                let gpu_runs = gpu.as_mut().map(timed).transpose()?;
+                for runs in std::iter::once(&cpu_runs).chain(&gpu_runs) {
+                    reference_runs[set].extend(&runs.reference);
                 }
-                twin.set_kernel(rob, options.workgroup_size, true);
-                let gpu_mrays = match gpu.as_mut() {
-                    None => None,
-                    Some(g) => Some(time_gpu(g, rays, *query, repeat, &bar)?),
-                };
                 let bytes_loaded = |nodes: f64, tris: f64| {
                     nodes * layout.node_bytes() as f64
                         + tris * std::mem::size_of::<LeafTri>() as f64
@@ -334,14 +401,17 @@ impl BenchLayouts {
                     nodes: Some(nodes),
                     tris: Some(tris),
                     bytes_loaded: Some(bytes_loaded(nodes, tris)),
-                    cpu_mrays: Some(n / median(times) / 1e6),
-                    gpu_mrays,
+                    cpu_mrays: Some(cpu_runs.mrays(rays.len())),
+                    gpu_mrays: gpu_runs.as_ref().map(|g| g.mrays(rays.len())),
+                    cpu_vs_embree: cpu_runs.ratio(),
+                    gpu_vs_embree: gpu_runs.as_ref().and_then(Paired::ratio),
                 });
                 if let Some(g) = subgroup.as_mut() {
                     // Work per ray as the subgroup kernel counts it (the union of its lanes').
                     let stats = g.trace(rays, *query)?.stats.unwrap_or_default();
                     let (nodes, tris) = RayStats::means(&stats);
-                    let mrays = time_gpu(g, rays, *query, repeat, &bar)?;
+                    let runs = timed(g)?;
+                    reference_runs[set].extend(&runs.reference);
                     rows.push(Row {
                         layout: kind.name(),
                         mode: TraversalMode::Subgroup.name(),
@@ -351,19 +421,47 @@ impl BenchLayouts {
                         tris: Some(tris),
                         bytes_loaded: Some(bytes_loaded(nodes, tris)),
                         cpu_mrays: None,
-                        gpu_mrays: Some(mrays),
+                        gpu_mrays: Some(runs.mrays(rays.len())),
+                        cpu_vs_embree: None,
+                        gpu_vs_embree: runs.ratio(),
                     });
                 }
             }
         }
-        let driver = self.time_driver(&device, reference.as_ref(), &sets, &bar)?;
+        // The leaf order the driver's structure is built in (dfs-sign's).
+        let leaf_order = reference_layout.as_ref();
+        let driver = self.time_driver(&device, leaf_order, &sets, reference.as_ref(), &bar)?;
         if let Some((_, driver_rows)) = &driver {
             rows.extend(driver_rows.iter().cloned());
         }
-        let embree = self.time_embree(&mesh, &sets, &bar)?;
-        if let Some((_, _, embree_rows)) = &embree {
-            rows.extend(embree_rows.iter().cloned());
-        }
+        // Embree's rows: the median of all its runs on each set (one beside every timed run).
+        let embree_rows: Vec<Row> = match &reference {
+            None => Vec::new(),
+            Some(_) => sets
+                .iter()
+                .zip(reference_runs)
+                .map(|((name, _, rays), runs)| Row {
+                    layout: EMBREE,
+                    mode: SINGLE_RAY,
+                    rays: name.clone(),
+                    count: rays.len(),
+                    nodes: None,
+                    tris: None,
+                    bytes_loaded: None,
+                    cpu_mrays: Some(
+                        Paired {
+                            runs,
+                            reference: Vec::new(),
+                        }
+                        .mrays(rays.len()),
+                    ),
+                    gpu_mrays: None,
+                    cpu_vs_embree: None,
+                    gpu_vs_embree: None,
+                })
+                .collect(),
+        };
+        rows.extend(embree_rows.iter().cloned());
         bar.finish_and_clear();
         let adapter = device
             .gpu_context()
@@ -397,15 +495,28 @@ impl BenchLayouts {
             );
         }
         say!(say);
-        say!(say, "| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |");
-        say!(say, "|---|---|---|---|---|---|---|---|---|");
+        // The paired ratios' columns, with a reference only.
+        let (ratio_head, ratio_rule) = match reference {
+            Some(_) => (" CPU ÷ Embree | GPU ÷ Embree |", "---|---|"),
+            None => ("", ""),
+        };
+        say!(say, "| layout | mode | rays | count | nodes/ray | triangles/ray | bytes loaded/ray | CPU twin Mrays/s | GPU Mrays/s |{ratio_head}");
+        say!(say, "|---|---|---|---|---|---|---|---|---|{ratio_rule}");
         let or_dash = |x: Option<f64>, digits: usize| {
             x.map_or("–".to_string(), |g| format!("{g:.digits$}"))
         };
         for r in &rows {
+            let ratios = match reference {
+                Some(_) => format!(
+                    " {} | {} |",
+                    or_dash(r.cpu_vs_embree, 2),
+                    or_dash(r.gpu_vs_embree, 2)
+                ),
+                None => String::new(),
+            };
             say!(
                 say,
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |{ratios}",
                 r.layout,
                 r.mode,
                 r.rays,
@@ -432,14 +543,19 @@ impl BenchLayouts {
             ),
             _ => {}
         }
-        if let Some((build_ms, version, _)) = &embree {
+        if let Some(r) = &reference {
             say!(
                 say,
-                "\nembree rows: Embree {version}, its scene (build quality medium, Embree's \
-                 default) built in {build_ms:.1} ms over the mesh's triangles on {} threads; \
+                "\nembree rows: Embree {}, its scene (build quality medium, Embree's \
+                 default) built in {:.1} ms over the mesh's triangles on {} threads; \
                  one ray per call (rtcIntersect1 for closest hits, rtcOccluded1 for any hit) \
-                 on the CPU twin's threads; it reports no work counts.",
-                rayon::current_num_threads()
+                 on the CPU twin's threads, run right after every timed run above (its rows: \
+                 the median of those runs); it reports no work counts. ÷ Embree: a row's \
+                 rays/s over Embree's in the run right after, the median of the {} pairs.",
+                r.version,
+                r.build_ms,
+                rayon::current_num_threads(),
+                repeat
             );
         }
         if rows
@@ -486,9 +602,9 @@ impl BenchLayouts {
                     .collect();
                 series.push((format!("{DRIVER} ({RAY_QUERY})"), values));
             }
-            if let Some((_, _, embree_rows)) = &embree {
+            if !embree_rows.is_empty() {
                 let mut values = Vec::new();
-                for r in embree_rows {
+                for r in &embree_rows {
                     values.push(r.cpu_mrays.unwrap_or(f64::NAN));
                     if !device.is_cpu() {
                         values.push(f64::NAN);
@@ -519,8 +635,8 @@ impl BenchLayouts {
             cpu_threads: rayon::current_num_threads(),
             layouts: &sizes,
             driver_build_ms: driver.as_ref().map(|d| d.0),
-            embree_build_ms: embree.as_ref().map(|e| e.0),
-            embree_version: embree.as_ref().map(|e| e.1.clone()),
+            embree_build_ms: reference.as_ref().map(|r| r.build_ms),
+            embree_version: reference.as_ref().map(|r| r.version.clone()),
             runs: &rows,
         };
         self.json.write(&report, say)?;
