@@ -12,17 +12,18 @@ mod gpu_twin;
 
 use std::sync::Arc;
 
-use common::{load_model, random_rays, soup, Rng};
+use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use gpu_twin::same_on_gpu;
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
 use lancer::accel::Accel;
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Precision, Ray, SlabTest, Triangle, TriangleTest, MISS};
+use lancer::gpu::BvhMemory;
 use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
-use lancer::{Query, RayStats, Robustness};
+use lancer::{Query, RayStats, Robustness, Tracer, TracerOptions, TraversalMode};
 
 fn cwbvh(mesh: &Mesh, opts: &BuildOptions) -> Cwbvh {
     let layout = Cwbvh::flatten(&build(mesh, opts), mesh);
@@ -499,6 +500,25 @@ fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
             };
             let name = format!("{levels} levels, checked {checked_module}");
             same_on_gpu(&name, &layout, &rays, rob);
+            // The subgroup kernel keeps the same stack for the union of its lanes' walks,
+            // which fills it at least as deep: the twin's closest hits, bit for bit.
+            for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
+                let options = TracerOptions {
+                    memory,
+                    mode: TraversalMode::Subgroup,
+                    robustness: rob,
+                    ..TracerOptions::default()
+                };
+                let mut gpu = Tracer::with_layout(gpu_device(), layout.clone(), &options).unwrap();
+                let got = gpu.trace(&rays, Query::Closest).unwrap();
+                let what = format!("{name} {memory:?} subgroup");
+                assert_eq!(got.mode, TraversalMode::Subgroup, "{what}");
+                assert_eq!(got.cpu_retraced, 0, "{what}: rays cut short by the driver");
+                assert!(
+                    bits(&hits) == bits(&got.hits),
+                    "{what}: hits differ from the twin's"
+                );
+            }
         }
     }
 }

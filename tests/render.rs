@@ -199,18 +199,23 @@ fn subgroup_renders_are_the_per_ray_renders_bit_for_bit() {
     // subgroup are traced together: the same image, bit for bit, on every scene (path,
     // AO, mirrors, glass, textures, soft shadows). lavapipe has subgroups, so the mode must
     // run, not fall back.
-    for (name, s) in scenes() {
-        let per_ray = gpu_render_in_mode(&s, LayoutKind::DfsSign, TraversalMode::PerRay, None);
-        let together = gpu_render_in_mode(&s, LayoutKind::DfsSign, TraversalMode::Subgroup, None);
-        assert_eq!(per_ray.mode, TraversalMode::PerRay, "{name}");
-        assert_eq!(together.mode, TraversalMode::Subgroup, "{name}: fell back");
-        assert_eq!(together.cpu_pixels, 0, "{name}: pixels retraced on the CPU");
-        let differ = (per_ray.image.pixels.iter())
-            .zip(&together.image.pixels)
-            .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
-            .count();
-        println!("{name}: subgroup ≡ per-ray ({differ} pixels differ)");
-        assert_eq!(differ, 0, "{name}: subgroup and per-ray images differ");
+    // Every layout with a subgroup traversal (the render kernel's lanes mix closest-hit
+    // path rays with any-hit shadow rays).
+    for layout in [LayoutKind::DfsSign, LayoutKind::Cwbvh, LayoutKind::Threaded] {
+        for (name, s) in scenes() {
+            let name = format!("{name} {layout}");
+            let per_ray = gpu_render_in_mode(&s, layout, TraversalMode::PerRay, None);
+            let together = gpu_render_in_mode(&s, layout, TraversalMode::Subgroup, None);
+            assert_eq!(per_ray.mode, TraversalMode::PerRay, "{name}");
+            assert_eq!(together.mode, TraversalMode::Subgroup, "{name}: fell back");
+            assert_eq!(together.cpu_pixels, 0, "{name}: pixels retraced on the CPU");
+            let differ = (per_ray.image.pixels.iter())
+                .zip(&together.image.pixels)
+                .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
+                .count();
+            println!("{name}: subgroup ≡ per-ray ({differ} pixels differ)");
+            assert_eq!(differ, 0, "{name}: subgroup and per-ray images differ");
+        }
     }
     // A crop of 23×17 pixels: its last subgroup has lanes with no pixel, which go along
     // with no ray.

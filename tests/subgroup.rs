@@ -294,17 +294,28 @@ fn invalid_rays_and_partial_subgroups_end_as_misses() {
             &BOTH,
         );
     }
-    // Batches of one ray, of only invalid rays, and of none.
+    // Batches of one ray, of only invalid rays, and of none, for every layout with the mode.
     let tree = build(&mesh, &Default::default());
-    let layout: Arc<dyn Layout> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
-    let sub = TracerOptions {
-        mode: TraversalMode::Subgroup,
-        ..TracerOptions::default()
-    };
-    for batch in [&rays[..1], &bad[..], &[]] {
-        let r = trace(gpu_device(), &layout, batch, Query::Closest, sub);
-        let cpu = trace(&Device::cpu(), &layout, batch, Query::Closest, sub);
-        assert_eq!(bits(&r.hits), bits(&cpu.hits));
+    for &kind in LayoutKind::ALL {
+        let layout: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+        if layout.subgroup_wgsl().is_none() {
+            continue;
+        }
+        let sub = TracerOptions {
+            layout: kind,
+            mode: TraversalMode::Subgroup,
+            ..TracerOptions::default()
+        };
+        for batch in [&rays[..1], &bad[..], &[]] {
+            let r = trace(gpu_device(), &layout, batch, Query::Closest, sub);
+            let cpu = trace(&Device::cpu(), &layout, batch, Query::Closest, sub);
+            assert_eq!(
+                bits(&r.hits),
+                bits(&cpu.hits),
+                "{kind}, {} rays",
+                batch.len()
+            );
+        }
     }
 }
 

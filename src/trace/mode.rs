@@ -24,7 +24,7 @@ pub enum TraversalMode {
         feature = "cli",
         value(
             help = "The lanes of a subgroup walk together, sharing node loads and one \
-                      stack; same closest hits as per-ray (dfs-sign only; needs adapter \
+                      stack; same closest hits as per-ray (dfs-sign, cwbvh and threaded; needs adapter \
                       subgroups)"
         )
     )]

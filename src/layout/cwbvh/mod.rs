@@ -12,6 +12,10 @@
 //! programme ([`collapse`]); binary leaves of more than 3 triangles are first split into
 //! one-triangle leaves (the DP then regroups them into wide leaves of ≤ 3). Triangles are
 //! stored in the layout's own order, each once, `prim` keeping the original index.
+//!
+//! WGSL: `cwbvh_node.wgsl` (node, child test, group stack) under `cwbvh.wgsl` (one ray an
+//! invocation, the twin's walk) or `cwbvh_subgroup.wgsl` (the subgroup's lanes walk the
+//! union of their walks: the same closest hits).
 
 mod collapse;
 mod quantise;
@@ -292,15 +296,15 @@ impl super::Layout for Cwbvh {
     }
 
     fn wgsl(&self) -> String {
-        format!(
-            "const CWBVH_TRI_BITS: u32 = {TRI_BITS}u;\n\
-             const CWBVH_COUNT_SHIFT: u32 = {COUNT_SHIFT}u;\n\
-             const CWBVH_WIDTH: u32 = {WIDTH}u;\n\
-             const CWBVH_STACK_REGISTERS: u32 = {STACK_REGISTERS}u;\n\
-             const CWBVH_SPILL_SIZE: u32 = {}u;\n{}",
-            self.spill_size(),
-            include_str!("cwbvh.wgsl")
-        )
+        format!("{}{}", self.node_wgsl(), include_str!("cwbvh.wgsl"))
+    }
+
+    fn subgroup_wgsl(&self) -> Option<String> {
+        Some(format!(
+            "{}{}",
+            self.node_wgsl(),
+            include_str!("cwbvh_subgroup.wgsl")
+        ))
     }
 
     /// Every node reached once from the root, children after their parent, depth ≤ the
@@ -313,6 +317,22 @@ impl super::Layout for Cwbvh {
 }
 
 impl Cwbvh {
+    /// The WGSL both traversals share (`cwbvh_node.wgsl`: node, child test, group stack),
+    /// with its constants from this module and this tree's spill array size.
+    fn node_wgsl(&self) -> String {
+        format!(
+            "const CWBVH_TRI_BITS: u32 = {TRI_BITS}u;\n\
+             const CWBVH_COUNT_SHIFT: u32 = {COUNT_SHIFT}u;\n\
+             const CWBVH_WIDTH: u32 = {WIDTH}u;\n\
+             const CWBVH_NODE_WORDS: u32 = {}u;\n\
+             const CWBVH_STACK_REGISTERS: u32 = {STACK_REGISTERS}u;\n\
+             const CWBVH_SPILL_SIZE: u32 = {}u;\n{}",
+            NODE_BYTES / 16,
+            self.spill_size(),
+            include_str!("cwbvh_node.wgsl")
+        )
+    }
+
     /// The kernel's spill array (WGSL `CWBVH_SPILL_SIZE`): the stack groups past the
     /// `STACK_REGISTERS` it keeps in variables. A stack of `deepest` groups spills at most
     /// `deepest` − `STACK_REGISTERS` (at least one entry: WGSL has no empty arrays). Sized to this tree rather than to
