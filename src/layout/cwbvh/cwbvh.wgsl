@@ -11,9 +11,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         let parallel = any(abs(inv) >= vec3<f32>(PARALLEL_INV));
         let w = watertight_setup(r.dir);
         let node_bits = ~((1u << CWBVH_TRI_BITS) - 1u);
-        let octant = select(0u, 1u, r.dir.x < 0.0) | select(0u, 2u, r.dir.y < 0.0)
-            | select(0u, 4u, r.dir.z < 0.0);
-        let oct_inv = (CWBVH_WIDTH - 1u) ^ octant;
+        let oct_inv = cwbvh_octant_inv(r.dir);
         // Boxes are cut against the best t plus a few ulps (prune_bound, as the twin does).
         var prune = prune_bound(best.t);
         group_count = 0u;
@@ -21,14 +19,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         // the loop it always holds a node: first the root, alone in the top bit.
         var group = vec2<u32>(0u, 1u << 31u);
         loop {
-            let bit = firstLeadingBit(group.y);
-            group.y &= ~(1u << bit);
-            if (group.y & node_bits) != 0u {
-                group_push(group);
-            }
-            let slot = (bit - CWBVH_TRI_BITS) ^ oct_inv;
-            let idx = group.x + countOneBits(group.y & ((1u << slot) - 1u));
-            let node = cwbvh_load_node(idx);
+            let node = cwbvh_load_node(cwbvh_take_child(group, oct_inv));
             if COUNT_STATS {
                 n_nodes += 1u;
             }

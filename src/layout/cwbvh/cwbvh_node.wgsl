@@ -113,6 +113,28 @@ fn group_push(g: vec2<u32>) {
     group_count += 1u;
 }
 
+// The slot order of a ray along `dir` (twin: the octant's xor): CWBVH_WIDTH - 1 xor the
+// direction's sign bits, so the highest hit bit is the nearest child.
+fn cwbvh_octant_inv(dir: vec3<f32>) -> u32 {
+    let octant = select(0u, 1u, dir.x < 0.0) | select(0u, 2u, dir.y < 0.0)
+        | select(0u, 4u, dir.z < 0.0);
+    return (CWBVH_WIDTH - 1u) ^ octant;
+}
+
+// Takes the next internal child of `group` (its highest bit: the nearest in the slot order
+// `oct_inv`), pushes the rest of the group if any internal child is left, and returns the
+// child's node index. `group` (x: first child node, y: hit internal children | imask) holds
+// at least one internal child.
+fn cwbvh_take_child(group: vec2<u32>, oct_inv: u32) -> u32 {
+    let bit = firstLeadingBit(group.y);
+    let rest = vec2<u32>(group.x, group.y & ~(1u << bit));
+    if (rest.y & ~((1u << CWBVH_TRI_BITS) - 1u)) != 0u {
+        group_push(rest);
+    }
+    let slot = (bit - CWBVH_TRI_BITS) ^ oct_inv;
+    return group.x + countOneBits(rest.y & ((1u << slot) - 1u));
+}
+
 // The top group, removed; the stack must not be empty.
 fn group_pop() -> vec2<u32> {
     let g = group_top0;

@@ -39,24 +39,16 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let parallel = any(abs(inv) >= vec3<f32>(PARALLEL_INV));
     let w = watertight_setup(r.dir);
     let node_bits = ~((1u << CWBVH_TRI_BITS) - 1u);
-    let mine = select(0u, 1u, r.dir.x < 0.0) | select(0u, 2u, r.dir.y < 0.0)
-        | select(0u, 4u, r.dir.z < 0.0);
-    // The first valid lane's octant (some lane is valid, above): the smallest key, lane in
-    // the high bits.
-    let octant = subgroupMin(select(0xffffffffu, 16u * lane + mine, valid)) & 15u;
-    let oct_inv = (CWBVH_WIDTH - 1u) ^ octant;
+    // The first valid lane's slot order (some lane is valid, above): the smallest key, lane
+    // in the high bits.
+    let mine = cwbvh_octant_inv(r.dir);
+    let oct_inv = subgroupMin(select(0xffffffffu, 16u * lane + mine, valid)) & 15u;
     var prune = prune_bound(best.t);
     group_count = 0u;
     // As per ray: x the first child node, y the internal children still to visit | imask.
     var group = vec2<u32>(0u, 1u << 31u);
     loop {
-        let bit = firstLeadingBit(group.y);
-        group.y &= ~(1u << bit);
-        if (group.y & node_bits) != 0u {
-            group_push(group);
-        }
-        let slot = (bit - CWBVH_TRI_BITS) ^ oct_inv;
-        let idx = group.x + countOneBits(group.y & ((1u << slot) - 1u));
+        let idx = cwbvh_take_child(group, oct_inv);
         // Lanes 0..4 fetch the node's words.
         let word = node_word(CWBVH_NODE_WORDS * idx + min(lane, CWBVH_NODE_WORDS - 1u));
         let node = cwbvh_node_from_words(subgroupBroadcast(word, 0u), subgroupBroadcast(word, 1u),
