@@ -10,7 +10,6 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         let inv = safe_recip3(r.dir);
         let parallel = any(abs(inv) >= vec3<f32>(PARALLEL_INV));
         let w = watertight_setup(r.dir);
-        let node_bits = ~((1u << CWBVH_TRI_BITS) - 1u);
         let oct_inv = cwbvh_octant_inv(r.dir);
         // Boxes are cut against the best t plus a few ulps (prune_bound, as the twin does).
         var prune = prune_bound(best.t);
@@ -24,8 +23,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 n_nodes += 1u;
             }
             let hits = cwbvh_child_hits(node, r, inv, parallel, prune, oct_inv);
-            group = vec2<u32>(node.child_base, (hits & node_bits) | (node.e_imask >> 24u));
-            var tri_hits = hits & ~node_bits;
+            group = cwbvh_group(node, hits);
+            var tri_hits = hits & ~CWBVH_NODE_BITS;
             var stop = false;
             while tri_hits != 0u {
                 let b = firstTrailingBit(tri_hits);
@@ -51,12 +50,10 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 traversal_done = true;
                 break;
             }
-            if (group.y & node_bits) == 0u {
-                if group_count == 0u {
-                    traversal_done = true;
-                    break;
-                }
-                group = group_pop();
+            group = cwbvh_next_group(group);
+            if group.y == 0u {
+                traversal_done = true;
+                break;
             }
         }
     }

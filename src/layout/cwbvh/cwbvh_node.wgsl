@@ -113,6 +113,27 @@ fn group_push(g: vec2<u32>) {
     group_count += 1u;
 }
 
+// The hit mask's bits that name internal children (the others name triangles).
+const CWBVH_NODE_BITS: u32 = ~((1u << CWBVH_TRI_BITS) - 1u);
+
+// The group a node leaves for its hit mask `hits`: its internal children still to visit (from
+// child_base), with its imask.
+fn cwbvh_group(node: CwbvhNode, hits: u32) -> vec2<u32> {
+    return vec2<u32>(node.child_base, (hits & CWBVH_NODE_BITS) | (node.e_imask >> 24u));
+}
+
+// The group the next node comes from: `group` while it holds an internal child, else the
+// stack's top; vec2(0) (no child) when the stack is empty too and the traversal is over.
+fn cwbvh_next_group(group: vec2<u32>) -> vec2<u32> {
+    if (group.y & CWBVH_NODE_BITS) != 0u {
+        return group;
+    }
+    if group_count == 0u {
+        return vec2<u32>(0u);
+    }
+    return group_pop();
+}
+
 // The slot order of a ray along `dir` (twin: the octant's xor): CWBVH_WIDTH - 1 xor the
 // direction's sign bits, so the highest hit bit is the nearest child.
 fn cwbvh_octant_inv(dir: vec3<f32>) -> u32 {
@@ -128,7 +149,7 @@ fn cwbvh_octant_inv(dir: vec3<f32>) -> u32 {
 fn cwbvh_take_child(group: vec2<u32>, oct_inv: u32) -> u32 {
     let bit = firstLeadingBit(group.y);
     let rest = vec2<u32>(group.x, group.y & ~(1u << bit));
-    if (rest.y & ~((1u << CWBVH_TRI_BITS) - 1u)) != 0u {
+    if (rest.y & CWBVH_NODE_BITS) != 0u {
         group_push(rest);
     }
     let slot = (bit - CWBVH_TRI_BITS) ^ oct_inv;

@@ -38,7 +38,6 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let inv = safe_recip3(r.dir);
     let parallel = any(abs(inv) >= vec3<f32>(PARALLEL_INV));
     let w = watertight_setup(r.dir);
-    let node_bits = ~((1u << CWBVH_TRI_BITS) - 1u);
     // The first valid lane's slot order (some lane is valid, above): the smallest key, lane
     // in the high bits.
     let mine = cwbvh_octant_inv(r.dir);
@@ -61,8 +60,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             hits = cwbvh_child_hits(node, r, inv, parallel, prune, oct_inv);
         }
         let any_hits = subgroupOr(hits);
-        group = vec2<u32>(node.child_base, (any_hits & node_bits) | (node.e_imask >> 24u));
-        var tris = any_hits & ~node_bits;
+        group = cwbvh_group(node, any_hits);
+        var tris = any_hits & ~CWBVH_NODE_BITS;
         while tris != 0u {
             let t = firstTrailingBit(tris);
             tris &= tris - 1u;
@@ -83,12 +82,10 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             traversal_done = true;
             break;
         }
-        if (group.y & node_bits) == 0u {
-            if group_count == 0u {
-                traversal_done = true;
-                break;
-            }
-            group = group_pop();
+        group = cwbvh_next_group(group);
+        if group.y == 0u {
+            traversal_done = true;
+            break;
         }
     }
     return best;
