@@ -403,11 +403,16 @@ fn inner(a: Node, b: Node) -> Node {
 }
 
 fn leaf(tris: &mut Vec<Triangle>, t: Triangle) -> Node {
-    tris.push(t);
+    copies(tris, t, 1)
+}
+
+/// A leaf of `count` copies of `t`.
+fn copies(tris: &mut Vec<Triangle>, t: Triangle, count: u32) -> Node {
+    tris.extend(std::iter::repeat_n(t, count as usize));
     Node::Leaf {
         bbox: t.bbox(),
-        start: tris.len() as u32 - 1,
-        count: 1,
+        start: tris.len() as u32 - count,
+        count,
     }
 }
 
@@ -416,8 +421,10 @@ fn leaf(tris: &mut Vec<Triangle>, t: Triangle) -> Node {
 /// line y = z = 0.001, x ≥ 0; a ray along +x enters the chain's boxes first (at x = 0) and
 /// the siblings' later (they lie at growing x). Every 4-wide node on the chain then pushes
 /// three entries. The chain's boxes are thin in x, so each sibling subtree is larger than
-/// the chain node beside it: the greedy SAH collapse alone would keep one chain node per
-/// 4-wide node; the depth rule pulls up two chain levels per 4-wide node.
+/// the chain node beside it, and the leaves of the three-leaf siblings hold five triangles
+/// (too many to merge): the SAH collapse would keep one chain node per 4-wide node, too
+/// deep for the stack, and so would the greedy SAH choice alone; the greedy collapse's depth
+/// rule pulls up two chain levels per 4-wide node.
 fn stack_filler(depth: usize) -> (Mesh, Bvh) {
     let mut tris = Vec::new();
     let (mut x, mut y) = (1.0f32, 100.0f32);
@@ -425,8 +432,9 @@ fn stack_filler(depth: usize) -> (Mesh, Bvh) {
         &mut tris,
         Triangle::new(Vec3::ZERO, Vec3::new(x, y, 0.0), Vec3::new(0.0, 0.0, y)),
     );
-    // n leaves of one triangle each, whose boxes are the slab x ∈ [x, 1.1x], y, z ∈ [0, 1.1y].
-    let mut slab = |tris: &mut Vec<Triangle>, n: usize| {
+    // n leaves of `count` copies of one triangle each, whose boxes are the slab x ∈ [x, 1.1x],
+    // y, z ∈ [0, 1.1y].
+    let mut slab = |tris: &mut Vec<Triangle>, n: usize, count: u32| {
         let (x0, x1, y1) = (x, 1.1 * x, 1.1 * y);
         (x, y) = (x1, y1);
         let v = |x, y, z| Vec3::new(x, y, z);
@@ -436,16 +444,16 @@ fn stack_filler(depth: usize) -> (Mesh, Bvh) {
             [v(x0, 0.0, 0.0), v(x1, 0.0, y1), v(x0, y1, 0.0)],
         ];
         (shapes[..n].iter())
-            .map(|&[a, b, c]| leaf(tris, Triangle::new(a, b, c)))
+            .map(|&[a, b, c]| copies(tris, Triangle::new(a, b, c), count))
             .collect::<Vec<_>>()
     };
     // The innermost chain node and its sibling have two leaves each, at `depth`.
-    let [a] = slab(&mut tris, 1).try_into().unwrap();
+    let [a] = slab(&mut tris, 1, 1).try_into().unwrap();
     let mut node = inner(first, a);
-    let [a, b] = slab(&mut tris, 2).try_into().unwrap();
+    let [a, b] = slab(&mut tris, 2, 1).try_into().unwrap();
     node = inner(node, inner(a, b));
     for _ in 0..depth - 2 {
-        let [a, b, c] = slab(&mut tris, 3).try_into().unwrap();
+        let [a, b, c] = slab(&mut tris, 3, 5).try_into().unwrap();
         node = inner(node, inner(inner(a, b), c));
     }
     let order = (0..tris.len() as u32).collect();

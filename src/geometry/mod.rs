@@ -22,4 +22,4 @@ pub use triangle::{
     intersect_watertight, intersect_watertight_bounded, t_error_bound, TriHit, Triangle,
     TriangleTest, WatertightRay, NEAR_HIT_PLANE_REL,
 };
-pub use triangle4::TriangleRay4;
+pub use triangle4::{TriHits4, TriangleRay4, Watertight4};

@@ -391,8 +391,13 @@ pub const NEAR_HIT_PLANE_REL: f32 = 32.0 * f32::EPSILON;
 /// largest unscaled z (`mzu`: the error of the shear x − s·z scales with z before the 1/d_z
 /// scaling, so the bound holds for directions of any length) and the largest edge function:
 /// 3·(γ₃·e·z + δe·z + δz·e); the bound is it over |det|.
+/// Generic over f32 and SIMD lanes of f32 (`TriangleRay4`'s), whose lanes compute the same.
 #[inline(always)]
-fn t_error_numerator(mx: f32, my: f32, mz: f32, mzu: f32, me: f32) -> f32 {
+pub(crate) fn t_error_numerator<T>(mx: T, my: T, mz: T, mzu: T, me: T) -> T
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+    f32: std::ops::Mul<T, Output = T>,
+{
     const G2: f32 = gamma(2.0);
     const G3: f32 = gamma(3.0);
     const G5: f32 = gamma(5.0);

@@ -7,8 +7,8 @@ use rayon::prelude::*;
 use crate::accel::bvh::Bvh;
 use crate::accel::RayStats;
 use crate::geometry::{
-    intersect_triangle_bounded, Hit, Ray, Robustness, Triangle, TriangleRay4, TriangleTest,
-    WatertightRay,
+    intersect_triangle_bounded, Hit, Ray, Robustness, TriHit, TriHits4, Triangle, TriangleRay4,
+    TriangleTest, WatertightRay,
 };
 use crate::mesh::Mesh;
 use crate::trace::oracle;
@@ -165,8 +165,10 @@ impl<'a> LeafRay<'a> {
     ///
     /// The f32 triangle tests first take their verdict on four triangles at once
     /// ([`TriangleRay4`], lane for lane the single test's) against the best t on entry,
-    /// then runs in order for those that may hit: a triangle it rules out would miss
-    /// against the smaller best t of the sequential loop too, so the result is the loop's.
+    /// then takes those that may hit in order (the watertight test's hits from the lanes,
+    /// `take_lane`; Möller–Trumbore's by the single test): a triangle the verdict rules out
+    /// would miss against the smaller best t of the sequential loop too, so the result is
+    /// the loop's.
     #[inline(always)]
     pub fn test_leaf<const TEST: u8>(
         &self,
@@ -188,11 +190,24 @@ impl<'a> LeafRay<'a> {
         for four in tris.chunks(LANES) {
             let all = (1u32 << four.len()) - 1;
             let v = lanes(four);
-            let mut may = all
-                & match TEST {
-                    leaf_test::WATERTIGHT => self.ray4.watertight(&v, best.t),
-                    _ => self.ray4.moller_trumbore(&v, best.t),
-                };
+            if TEST == leaf_test::WATERTIGHT {
+                let lanes = self.ray4.watertight_lanes(&v, best.t);
+                let mut may = all & lanes.mask;
+                if may != 0 {
+                    let hits = lanes.hits();
+                    while may != 0 {
+                        let k = may.trailing_zeros() as usize;
+                        may &= may - 1;
+                        if self.take_lane(&hits, k, &four[k], any_hit, best, prune) {
+                            stats.tris += k as u32 + 1;
+                            return true;
+                        }
+                    }
+                }
+                stats.tris += four.len() as u32;
+                continue;
+            }
+            let mut may = all & self.ray4.moller_trumbore(&v, best.t);
             while may != 0 {
                 let k = may.trailing_zeros() as usize;
                 may &= may - 1;
@@ -204,6 +219,38 @@ impl<'a> LeafRay<'a> {
             stats.tris += four.len() as u32;
         }
         false
+    }
+
+    /// [`LeafRay::test_one`] of the watertight test for lane k of `hits`, whose triangle
+    /// `lt` passed the four-lane verdict against a best t at least the current one: the
+    /// single test's hit is the lane's (its t is checked against the current best t, as
+    /// the single test's bound), but where only the single test can decide `in_front`.
+    #[inline(always)]
+    fn take_lane(
+        &self,
+        hits: &TriHits4,
+        k: usize,
+        lt: &LeafTri,
+        any_hit: bool,
+        best: &mut Hit,
+        prune: &mut f32,
+    ) -> bool {
+        if hits.near >> k & 1 != 0 {
+            return self.test_one::<{ leaf_test::WATERTIGHT }>(lt, any_hit, best, prune);
+        }
+        let h = TriHit {
+            t: hits.t[k],
+            u: hits.u[k],
+            v: hits.v[k],
+            err_num: hits.err_num[k],
+            det: hits.det[k],
+            in_front: false,
+        };
+        // (Neither is NaN: the lane passed, and a best t never is.)
+        if h.t > best.t {
+            return false;
+        }
+        self.take(h, lt, any_hit, best, prune)
     }
 
     /// One triangle of the leaf step; true when an any-hit query is answered.
@@ -230,6 +277,20 @@ impl<'a> LeafRay<'a> {
         let Some(h) = h else {
             return false;
         };
+        self.take(h, lt, any_hit, best, prune)
+    }
+
+    /// A triangle's hit `h` by the tie rule: whether it replaces `best` (and moves
+    /// `prune`); true when an any-hit query is answered.
+    #[inline(always)]
+    fn take(
+        &self,
+        h: TriHit,
+        lt: &LeafTri,
+        any_hit: bool,
+        best: &mut Hit,
+        prune: &mut f32,
+    ) -> bool {
         if !Hit::beats(h.t, lt.prim, best.t, best.prim)
             || (self.reject_near && h.maybe_behind_origin())
         {

@@ -7,30 +7,29 @@
 //! shared leaf step.
 //!
 //! Node: 128 bytes (8 words of 16 bytes): six `[f32; 4]` box planes, four child references,
-//! four child kinds. On the Stanford bunny (69,451 triangles, default sweep build): 12,454
-//! nodes of 2.97 children on average, 23.0 node bytes per triangle, 71.0 bytes per
-//! triangle with the 48-byte triangles (`dfs-sign`: 49,177 nodes of 32 bytes, 22.7 + 48).
+//! four child kinds. On the Stanford bunny (69,451 triangles, default sweep build): 8,598
+//! nodes, 15.8 node bytes per triangle, 63.8 bytes per triangle with the 48-byte triangles
+//! (the greedy collapse: 12,454 nodes, 71.0 bytes; `dfs-sign`: 49,177 nodes of 32 bytes,
+//! 22.7 + 48).
 //!
-//! Collapse (Wald, Benthin & Boulos 2008, "Getting rid of packets"; tinybvh's
-//! `ConvertBVH4`): a node starts with its binary node's two children and, while it has
-//! fewer than four, the inner child with the largest surface area is replaced by its two
-//! children. A 4-wide node costs one visit whatever its number of children, so pulling up
-//! child C removes C's own visit, taken with probability area(C)/area(root): the largest
-//! area is the greedy SAH choice. One rule comes first, for the stack: a node at 4-wide
-//! depth d comes from a binary node at depth b ≥ 2d (an inner child one binary level down
-//! that would break this is pulled up before the greedy choice).
+//! Collapse: the SAH dynamic programme of Ylitie, Karras & Laine 2017 for four slots
+//! (`sah_collapse`), which also merges binary leaves into leaves of up to four triangles;
+//! where its tree would be deeper than the stack holds (a degenerate binary tree), the
+//! greedy collapse (`greedy_collapse`), whose depth is bounded by construction.
 //!
 //! Stack: a traversal holds at most three entries per 4-wide node on its current path.
-//! Binary inner nodes lie at depth ≤ [`MAX_DEPTH`] − 1 = 63, so 4-wide nodes at depth
-//! ≤ 31, and `STACK_SIZE` = 3 · 32 = 96 entries hold any traversal; `validate` checks
-//! every node's depth against it. An entry is 8 bytes (node and slot, entry distance), the
+//! 4-wide nodes lie at depth ≤ [`MAX_WIDE_DEPTH`] = 31 (binary inner nodes at depth
+//! ≤ [`MAX_DEPTH`] − 1 = 63, and the greedy collapse halves that), and `STACK_SIZE` =
+//! 3 · 32 = 96 entries hold any traversal; `validate` checks every node's depth against it. An entry is 8 bytes (node and slot, entry distance), the
 //! stack 768 bytes; the kernel keeps it in a `var<private>`, zeroed once per invocation,
 //! not per `traverse` call. (On lavapipe, a function-local stack of 192 12-byte entries
 //! made the kernel ~10× slower than `dfs-sign` on the bunny's primary rays.)
 
+mod greedy_collapse;
+mod sah_collapse;
 mod twin;
 
-use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
+use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
@@ -64,6 +63,9 @@ const MAX_NODES: usize = 1 << (32 - SLOT_BITS);
 /// Traversal stack entries (generated into the WGSL as `BVH4_STACK_SIZE`): three per level
 /// for 4-wide depths 0..=31 (see the module doc).
 pub(crate) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH / 2;
+
+/// Deepest 4-wide node (the root at 0) whose traversal `STACK_SIZE` holds.
+const MAX_WIDE_DEPTH: usize = STACK_SIZE / (WIDTH - 1) - 1;
 
 /// One node, 128 bytes (WGSL `Bvh4Node` in bvh4.wgsl). Slot k's box is
 /// (`lo_x[k]`, `lo_y[k]`, `lo_z[k]`)–(`hi_x[k]`, …). `kind[k]`: [`INNER`] (`child[k]` is a
@@ -113,8 +115,8 @@ impl Bvh4 {
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Bvh4 {
         let tris = LeafTri::gather(bvh, mesh);
         // About one 4-wide node per three binary inner nodes.
-        let mut nodes = Vec::with_capacity(bvh.root.nodes() as usize / 6 + 1);
-        emit(&bvh.root, 0, 0, &mut nodes);
+        let nodes = sah_collapse::collapse(&bvh.root, MAX_WIDE_DEPTH)
+            .unwrap_or_else(|| greedy_collapse::collapse(&bvh.root));
         Bvh4 { nodes, tris }
     }
 
@@ -126,69 +128,6 @@ impl Bvh4 {
         super::Layout::validate(&layout)?;
         Ok(layout)
     }
-}
-
-/// The binary nodes that become the children of `node`'s 4-wide node, left to right, each
-/// with its binary depth; `node` is at binary depth `b` and becomes a 4-wide node at depth
-/// `d` ≤ b / 2. First an inner child that would break d ≤ b / 2 one level down is replaced
-/// by its two children (at most both children are, which makes four); then, while there
-/// are fewer than four, the inner child of largest area (the first among equals). A leaf
-/// (the root of a tiny tree) is its own single child.
-fn collapse(node: &Node, d: usize, b: usize) -> Vec<(&Node, usize)> {
-    let Node::Inner { children, .. } = node else {
-        return vec![(node, b)];
-    };
-    let mut slots: Vec<(&Node, usize)> = children.iter().map(|c| (c, b + 1)).collect();
-    let mut k = 0;
-    while k < slots.len() {
-        match slots[k] {
-            (Node::Inner { children, .. }, bc) if d + 1 > bc / 2 => {
-                slots.splice(k..=k, children.iter().map(|c| (c, bc + 1)));
-            }
-            _ => k += 1,
-        }
-    }
-    while slots.len() < WIDTH {
-        let mut pick: Option<(usize, f32)> = None;
-        for (k, (c, _)) in slots.iter().enumerate() {
-            if matches!(c, Node::Inner { .. }) {
-                let a = c.bbox().area();
-                if pick.is_none_or(|(_, best)| a > best) {
-                    pick = Some((k, a));
-                }
-            }
-        }
-        let Some((k, _)) = pick else { break };
-        if let (Node::Inner { children, .. }, bc) = slots[k] {
-            slots.splice(k..=k, children.iter().map(|c| (c, bc + 1)));
-        }
-    }
-    slots
-}
-
-/// Appends the 4-wide subtree of `node` (at binary depth `b`, 4-wide depth `d`) to `out`
-/// in pre-order; returns its index.
-fn emit(node: &Node, d: usize, b: usize, out: &mut Vec<Bvh4Node>) -> u32 {
-    let index = out.len();
-    out.push(bytemuck::Zeroable::zeroed());
-    let mut rec: Bvh4Node = bytemuck::Zeroable::zeroed();
-    for (k, (c, bc)) in collapse(node, d, b).into_iter().enumerate() {
-        match c {
-            Node::Leaf { bbox, start, count } => {
-                // An empty leaf (the root of an empty tree) is an unused slot.
-                if *count > 0 {
-                    rec.set_bbox(k, bbox);
-                    (rec.child[k], rec.kind[k]) = (*start, *count);
-                }
-            }
-            Node::Inner { bbox, .. } => {
-                rec.set_bbox(k, bbox);
-                (rec.child[k], rec.kind[k]) = (emit(c, d + 1, bc, out), INNER);
-            }
-        }
-    }
-    out[index] = rec;
-    index as u32
 }
 
 impl super::Layout for Bvh4 {
@@ -348,8 +287,8 @@ mod tests {
         assert!(layout.validate().is_ok());
     }
 
-    #[test]
-    fn a_soup_collapses_greedily_into_valid_nodes() {
+    /// A soup of 3000 small triangles in a 10-unit cube.
+    fn soup() -> Mesh {
         let mut s = 0x2545_f491_4f6c_dd1du64;
         let mut f = || {
             s ^= s << 13;
@@ -364,9 +303,75 @@ mod tests {
                 Triangle::new(v(), v(), v())
             })
             .collect();
-        let mesh = Mesh::from_triangles(tris);
+        Mesh::from_triangles(tris)
+    }
+
+    /// The SAH cost the collapses weigh: C_NODE·area per node, C_TRI·area per leaf triangle.
+    fn sah_cost(nodes: &[Bvh4Node]) -> f64 {
+        let mut cost = 0.0;
+        for n in nodes {
+            let used = (0..WIDTH).filter(|&k| n.kind[k] != 0);
+            let bbox = used.clone().fold(Aabb::EMPTY, |b, k| b.union(n.bbox(k)));
+            cost += (sah_collapse::C_NODE * bbox.area()) as f64;
+            for k in used.filter(|&k| n.kind[k] != INNER) {
+                cost += (sah_collapse::C_TRI * n.bbox(k).area() * n.kind[k] as f32) as f64;
+            }
+        }
+        cost
+    }
+
+    #[test]
+    fn the_sah_collapse_costs_no_more_than_the_greedy_one() {
+        let mesh = soup();
         let bvh = crate::accel::bvh::build(&mesh, &Default::default());
-        let layout = Bvh4::flatten(&bvh, &mesh);
+        let tris = LeafTri::gather(&bvh, &mesh);
+        let sah = sah_collapse::collapse(&bvh.root, MAX_WIDE_DEPTH).unwrap();
+        let greedy = greedy_collapse::collapse(&bvh.root);
+        assert_eq!(Bvh4::flatten(&bvh, &mesh).nodes, sah);
+        for nodes in [&sah, &greedy] {
+            let layout = Bvh4 {
+                nodes: nodes.clone(),
+                tris: tris.clone(),
+            };
+            layout.validate().unwrap();
+        }
+        // Optimal among the collapses that keep binary subtrees whole, of which the greedy
+        // one is one; and it merges small leaves (the greedy collapse keeps the binary ones).
+        let (s, g) = (sah_cost(&sah), sah_cost(&greedy));
+        assert!(s <= g, "SAH collapse {s}, greedy {g}");
+        assert!(
+            sah.len() < greedy.len(),
+            "{} nodes, greedy {}",
+            sah.len(),
+            greedy.len()
+        );
+        fn binary_leaves(n: &crate::accel::bvh::Node) -> usize {
+            match n {
+                crate::accel::bvh::Node::Leaf { .. } => 1,
+                crate::accel::bvh::Node::Inner { children, .. } => {
+                    binary_leaves(&children[0]) + binary_leaves(&children[1])
+                }
+            }
+        }
+        let leaves = |nodes: &[Bvh4Node]| {
+            (nodes.iter().flat_map(|n| n.kind))
+                .filter(|&k| k != INNER && k != 0)
+                .count()
+        };
+        assert_eq!(leaves(&greedy), binary_leaves(&bvh.root));
+        assert!(leaves(&sah) < binary_leaves(&bvh.root));
+        // Too deep for a bound of 2 levels: none, and flatten takes the greedy collapse.
+        assert!(sah_collapse::collapse(&bvh.root, 2).is_none());
+    }
+
+    #[test]
+    fn a_soup_collapses_greedily_into_valid_nodes() {
+        let mesh = soup();
+        let bvh = crate::accel::bvh::build(&mesh, &Default::default());
+        let layout = Bvh4 {
+            nodes: greedy_collapse::collapse(&bvh.root),
+            tris: LeafTri::gather(&bvh, &mesh),
+        };
         layout.validate().unwrap();
         // The collapse stops short of four children only when all of them are leaves.
         for (i, n) in layout.nodes.iter().enumerate() {
