@@ -14,6 +14,7 @@ use glam::{Vec3, Vec4};
 
 use super::triangle::t_error_numerator;
 use super::WatertightRay;
+use super::TIE_SLACK;
 #[cfg(doc)]
 use super::{intersect_moller_trumbore, intersect_watertight_bounded};
 
@@ -186,6 +187,8 @@ pub struct TriHits4 {
     pub err_num: [f32; 4],
     /// |det|.
     pub det: [f32; 4],
+    /// [`TriHit::prune`].
+    pub prune: [f32; 4],
     /// The lanes whose `in_front` the single test has to decide, as a bit set.
     pub near: u32,
 }
@@ -207,12 +210,19 @@ impl Watertight4 {
         let me = largest(u, v, w);
         let err_num = t_error_numerator(mx, my, mz, mzu, me);
         let det = self.det.abs();
+        // TriHit::t_error and prune_bound, lane for lane (of values that are not NaN).
+        let big = (err_num * Vec4::splat(1e-30)).cmpge(det);
+        let t_error = Vec4::select(big, Vec4::splat(1e30), err_num / det);
+        let b = (self.t + t_error).min(Vec4::splat(f32::MAX));
+        let a = b.abs();
+        let prune = b + (a * Vec4::splat(TIE_SLACK)).min(Vec4::splat(f32::MAX) - a);
         TriHits4 {
             t: self.t.to_array(),
             u: (v / self.det).to_array(),
             v: (w / self.det).to_array(),
             err_num: err_num.to_array(),
             det: det.to_array(),
+            prune: prune.to_array(),
             near: (self.t.abs() * det).cmple(err_num).bitmask(),
         }
     }
@@ -242,8 +252,9 @@ mod tests {
             hits.v[k],
             hits.err_num[k],
             hits.det[k],
+            hits.prune[k],
         ];
-        let single = [h.t, h.u, h.v, h.err_num, h.det];
+        let single = [h.t, h.u, h.v, h.err_num, h.det, h.prune()];
         if lane.map(f32::to_bits) != single.map(f32::to_bits) {
             return Err(format!("lane {k}: {lane:?}, single test {single:?}"));
         }

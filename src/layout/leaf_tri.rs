@@ -250,7 +250,7 @@ impl<'a> LeafRay<'a> {
         if h.t > best.t {
             return false;
         }
-        self.take(h, lt, any_hit, best, prune)
+        self.take(h, hits.prune[k], lt, any_hit, best, prune)
     }
 
     /// One triangle of the leaf step; true when an any-hit query is answered.
@@ -277,15 +277,16 @@ impl<'a> LeafRay<'a> {
         let Some(h) = h else {
             return false;
         };
-        self.take(h, lt, any_hit, best, prune)
+        self.take(h, h.prune(), lt, any_hit, best, prune)
     }
 
-    /// A triangle's hit `h` by the tie rule: whether it replaces `best` (and moves
-    /// `prune`); true when an any-hit query is answered.
+    /// A triangle's hit `h` by the tie rule: whether it replaces `best` (and moves `prune`
+    /// to `h_prune`, which is `h.prune()`); true when an any-hit query is answered.
     #[inline(always)]
     fn take(
         &self,
         h: TriHit,
+        h_prune: f32,
         lt: &LeafTri,
         any_hit: bool,
         best: &mut Hit,
@@ -302,7 +303,7 @@ impl<'a> LeafRay<'a> {
             u: h.u,
             v: h.v,
         };
-        *prune = h.prune();
+        *prune = h_prune;
         any_hit
     }
 }
