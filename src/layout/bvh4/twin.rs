@@ -59,27 +59,6 @@ fn ranks(hit: u32, enter: [f32; WIDTH]) -> [u32; WIDTH] {
 }
 
 impl Bvh4 {
-    /// Starts loading a pushed child (a node's two cache lines, or a leaf's first
-    /// triangle) while the walk goes on in its nearer sibling: by the time it is popped it
-    /// is in cache (1.2x the twin's rays/s on the bunny's random rays, no change on its
-    /// primary rays, on this project's 2-core AMD EPYC).
-    #[inline(always)]
-    fn prefetch(&self, c: u32, kind: u32) {
-        let c = c as usize;
-        if kind == INNER {
-            prefetch(self.nodes.as_ptr().wrapping_add(c).cast());
-            prefetch(
-                self.nodes
-                    .as_ptr()
-                    .wrapping_add(c)
-                    .cast::<u8>()
-                    .wrapping_add(64),
-            );
-        } else {
-            prefetch(self.tris.as_ptr().wrapping_add(c).cast());
-        }
-    }
-
     /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
     fn walk<const TEST: u8>(
@@ -167,7 +146,6 @@ impl Bvh4 {
                         let b = (31 - hit.leading_zeros()) as usize;
                         let (near, far) = if enter[b] < enter[a] { (b, a) } else { (a, b) };
                         (child, kind) = (node.child[near], node.kind[near]);
-                        self.prefetch(node.child[far], node.kind[far]);
                         stack[sp].write(Entry {
                             slot: index << SLOT_BITS | far as u32,
                             enter: enter[far],
@@ -184,7 +162,6 @@ impl Bvh4 {
                             if r == 0 {
                                 (child, kind) = (node.child[k], node.kind[k]);
                             } else {
-                                self.prefetch(node.child[k], node.kind[k]);
                                 stack[sp + (n - 1 - r) as usize].write(Entry {
                                     slot: index << SLOT_BITS | k as u32,
                                     enter: e,
@@ -223,16 +200,6 @@ impl Bvh4 {
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
         best
     }
-}
-
-/// A hint to load the cache line at `p` (nothing where the target has no such hint).
-#[inline(always)]
-fn prefetch(p: *const u8) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
-    };
 }
 
 #[cfg(test)]
