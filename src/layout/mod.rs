@@ -42,6 +42,7 @@ mod dfs_distance;
 mod dfs_sign;
 mod interleave;
 pub(crate) mod leaf_tri;
+mod sah_collapse;
 mod threaded;
 
 use crate::accel::bvh::Bvh;

@@ -30,7 +30,8 @@ use crate::mesh::Mesh;
 
 use super::{LayoutArrays, LayoutKind, LeafTri};
 
-use collapse::{Binary, Plan};
+use crate::layout::sah_collapse::Plan;
+use collapse::Binary;
 use quantise::{dequantise, step, Frame};
 
 /// Children per node.
@@ -140,7 +141,7 @@ impl Cwbvh {
             };
         }
         let tree = Binary::new(&bvh.root, &gathered);
-        let plan = Plan::new(&tree);
+        let plan = collapse::plan(&tree);
         let mut w = Writer {
             tree: &tree,
             plan: &plan,
@@ -221,7 +222,7 @@ impl Cwbvh {
 /// Writes wide nodes depth first; each node's internal children are contiguous.
 struct Writer<'a> {
     tree: &'a Binary,
-    plan: &'a Plan,
+    plan: &'a Plan<WIDTH>,
     gathered: &'a [LeafTri],
     nodes: Vec<CwNode>,
     tris: Vec<LeafTri>,

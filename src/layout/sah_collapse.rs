@@ -1,0 +1,130 @@
+//! The SAH collapse of a binary tree into a W-wide one (Ylitie, Karras & Laine 2017, §4.1),
+//! which `bvh4` (four slots) and `cwbvh` (eight) decide their trees by. For every binary
+//! node it decides whether it becomes a wide leaf, a wide internal node, or is spread over
+//! its parent's slots. cost(n, i) is the cheapest way to hold n's subtree in at most i slots:
+//!
+//! ```text
+//! cost(n, 1) = min(leaf: c_tri·A(n)·tris(n) if tris(n) ≤ max_leaf,  internal: c_node·A(n) + spread(n, W))
+//! cost(n, i) = min(cost(n, i − 1), spread(n, i))            for i = 2..=W
+//! spread(n, j) = min over 0 < k < j of cost(left, k) + cost(right, j − k)
+//! ```
+//!
+//! A binary leaf is a wide leaf whatever its size. Every wide internal child is a strict
+//! binary descendant, so the wide tree is never deeper than the binary one.
+
+/// The binary tree the programme runs on: nodes `0..len()`, children before parents.
+pub(crate) trait BinaryTree {
+    /// Nodes.
+    fn len(&self) -> usize;
+    /// Surface area of node n's box.
+    fn area(&self, n: u32) -> f32;
+    /// Node n's two children, none for a leaf.
+    fn kids(&self, n: u32) -> Option<[u32; 2]>;
+    /// Triangles beneath node n.
+    fn tris(&self, n: u32) -> u32;
+}
+
+/// The programme's costs: of a wide node's visit and of a triangle test, and the most
+/// triangles a wide leaf made of a binary inner node holds.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SahCosts {
+    pub node: f32,
+    pub tri: f32,
+    pub max_leaf: u32,
+}
+
+/// The programme's decisions for every binary node, for W slots.
+pub(crate) struct Plan<const W: usize> {
+    /// cost(n, i + 1).
+    cost: Vec<[f32; W]>,
+    /// `[0]`: the left share k of spread(n, W) (an internal node's children); `[i − 1]`
+    /// for i ≥ 2: the k of spread(n, i) when it beats cost(n, i − 1), else 0.
+    split: Vec<[u8; W]>,
+    /// Whether cost(n, 1) is the leaf's.
+    leaf: Vec<bool>,
+}
+
+impl<const W: usize> Plan<W> {
+    /// Runs the programme bottom-up.
+    pub fn new(tree: &impl BinaryTree, costs: SahCosts) -> Plan<W> {
+        let len = tree.len();
+        let mut plan = Plan {
+            cost: Vec::with_capacity(len),
+            split: Vec::with_capacity(len),
+            leaf: Vec::with_capacity(len),
+        };
+        for n in 0..len as u32 {
+            let area = tree.area(n);
+            let n_tris = tree.tris(n);
+            let leaf_cost = costs.tri * area * n_tris as f32;
+            let Some([l, r]) = tree.kids(n) else {
+                plan.cost.push([leaf_cost; W]);
+                plan.split.push([0; W]);
+                plan.leaf.push(true);
+                continue;
+            };
+            let (cl, cr) = (plan.cost[l as usize], plan.cost[r as usize]);
+            let spread = |j: usize| {
+                let mut best = (f32::INFINITY, 0u8);
+                for k in 1..j {
+                    let c = cl[k - 1] + cr[j - k - 1];
+                    if c < best.0 {
+                        best = (c, k as u8);
+                    }
+                }
+                best
+            };
+            let mut cost = [0.0; W];
+            let mut split = [0u8; W];
+            let (c_all, k_all) = spread(W);
+            let internal = costs.node * area + c_all;
+            let leaf = n_tris <= costs.max_leaf && leaf_cost <= internal;
+            cost[0] = if leaf { leaf_cost } else { internal };
+            split[0] = k_all;
+            for i in 2..=W {
+                let (c, k) = spread(i);
+                if c < cost[i - 2] {
+                    (cost[i - 1], split[i - 1]) = (c, k);
+                } else {
+                    cost[i - 1] = cost[i - 2];
+                }
+            }
+            plan.cost.push(cost);
+            plan.split.push(split);
+            plan.leaf.push(leaf);
+        }
+        plan
+    }
+
+    /// The children of the wide internal node made from `n`: (binary node, is a wide
+    /// leaf), at most W. A binary leaf (a one-leaf tree) is its own only child.
+    pub fn children(&self, tree: &impl BinaryTree, n: u32) -> Vec<(u32, bool)> {
+        let mut out = Vec::with_capacity(W);
+        match tree.kids(n) {
+            None => out.push((n, true)),
+            Some([l, r]) => {
+                let k = self.split[n as usize][0] as usize;
+                self.collect(tree, l, k, &mut out);
+                self.collect(tree, r, W - k, &mut out);
+            }
+        }
+        out
+    }
+
+    /// The at most `slots` subtrees that hold `n`'s subtree.
+    fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Vec<(u32, bool)>) {
+        let split = &self.split[n as usize];
+        let mut i = slots;
+        while i > 1 && split[i - 1] == 0 {
+            i -= 1;
+        }
+        let kids = tree.kids(n);
+        let (Some([l, r]), true) = (kids, i > 1) else {
+            out.push((n, self.leaf[n as usize]));
+            return;
+        };
+        let k = split[i - 1] as usize;
+        self.collect(tree, l, k, out);
+        self.collect(tree, r, i - k, out);
+    }
+}
