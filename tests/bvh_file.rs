@@ -99,8 +99,9 @@ fn refused(what: &str, bytes: &[u8], want: &str) {
 }
 
 /// Offset in the payload of a child index of the root node, per layout (dfs-sign: the
-/// second child; threaded: the root's skip index; bvh2-wide-node: the header's root reference; cwbvh: child_base; bvh4:
-/// slot 0's child).
+/// second child; threaded: the root's skip index; bvh2-wide-node: the header's root
+/// reference; cwbvh: child_base; bvh4 and bvh8: slot 0's child, after six planes of W
+/// floats).
 fn root_child_index(kind: LayoutKind) -> usize {
     match kind {
         LayoutKind::DfsSign
@@ -108,7 +109,8 @@ fn root_child_index(kind: LayoutKind) -> usize {
         | LayoutKind::Bvh2WideNode
         | LayoutKind::Threaded => 12,
         LayoutKind::Cwbvh => 16,
-        LayoutKind::Bvh4 => 96,
+        LayoutKind::Bvh4 => 6 * 4 * 4,
+        LayoutKind::Bvh8 => 6 * 8 * 4,
     }
 }
 

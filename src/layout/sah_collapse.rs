@@ -1,5 +1,5 @@
 //! The SAH collapse of a binary tree into a W-wide one (Ylitie, Karras & Laine 2017, §4.1),
-//! which `bvh4` (four slots) and `cwbvh` (eight) decide their trees by. For every binary
+//! which `bvh4` (four slots), `bvh8` and `cwbvh` (eight) decide their trees by. For every binary
 //! node it decides whether it becomes a wide leaf, a wide internal node, or is spread over
 //! its parent's slots. cost(n, i) is the cheapest way to hold n's subtree in at most i slots:
 //!

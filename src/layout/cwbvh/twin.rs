@@ -15,6 +15,8 @@ use super::quantise::step;
 use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
 use crate::accel::{trace_chunks, Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
+#[cfg(target_arch = "x86_64")]
+use crate::layout::has_avx2;
 use crate::layout::interleave::{walk_interleaved, Stepper, WALKS};
 use crate::layout::leaf_tri::{with_leaf_test, LeafRay, LeafTri};
 
@@ -59,15 +61,6 @@ impl Accel for Cwbvh {
             self.trace_chunk_with::<false>(rays, out, query, robustness)
         })
     }
-}
-
-/// Whether the CPU has AVX2 and the bit instructions the AVX2 build uses.
-#[cfg(target_arch = "x86_64")]
-fn has_avx2() -> bool {
-    std::arch::is_x86_feature_detected!("avx2")
-        && std::arch::is_x86_feature_detected!("popcnt")
-        && std::arch::is_x86_feature_detected!("bmi1")
-        && std::arch::is_x86_feature_detected!("lzcnt")
 }
 
 /// What the child tests of one ray share.

@@ -1,4 +1,4 @@
-//! bvh4's collapse: the shared SAH programme (`layout::sah_collapse`) for four slots on
+//! The wide layouts' collapse: the shared SAH programme (`layout::sah_collapse`) for W slots on
 //! lancer's binary tree as built, where a wide leaf is a binary subtree of at most
 //! `MAX_LEAF_TRIS` triangles (its leaves' ranges are contiguous in leaf order, so it is one
 //! range) or a binary leaf of any size. `collapse` gives up (and the greedy collapse is used)
@@ -7,9 +7,9 @@
 use crate::accel::bvh::Node;
 use crate::layout::sah_collapse::{BinaryTree, Plan, SahCosts};
 
-use super::{Bvh4Node, INNER, WIDTH};
+use super::{WideNode, INNER};
 
-/// SAH cost of a 4-wide node's visit and of a triangle test.
+/// SAH cost of a wide node's visit and of a triangle test.
 pub(super) const C_NODE: f32 = 1.0;
 pub(super) const C_TRI: f32 = 0.3;
 
@@ -57,22 +57,22 @@ impl BinaryTree for Arena<'_> {
     }
 }
 
-/// Appends the 4-wide node of inner node n at depth d (and its subtree) to `out` in
+/// Appends the wide node of inner node n at depth d (and its subtree) to `out` in
 /// pre-order; None when a node would lie deeper than `max_depth`.
-fn emit(
+fn emit<const W: usize>(
     arena: &Arena,
-    plan: &Plan<WIDTH>,
+    plan: &Plan<W>,
     n: u32,
     d: usize,
     max_depth: usize,
-    out: &mut Vec<Bvh4Node>,
+    out: &mut Vec<WideNode<W>>,
 ) -> Option<u32> {
     if d > max_depth {
         return None;
     }
     let index = out.len();
-    out.push(bytemuck::Zeroable::zeroed());
-    let mut rec: Bvh4Node = bytemuck::Zeroable::zeroed();
+    out.push(WideNode::empty());
+    let mut rec = WideNode::empty();
     for (k, (c, leaf)) in plan.children(arena, n).into_iter().enumerate() {
         let node = arena.nodes[c as usize];
         rec.set_bbox(k, node.bbox());
@@ -93,9 +93,9 @@ fn first(node: &Node) -> u32 {
     }
 }
 
-/// The 4-wide nodes of `root`'s tree by the SAH collapse, in depth-first pre-order (the
+/// The W-wide nodes of `root`'s tree by the SAH collapse, in depth-first pre-order (the
 /// root at 0); None when `root` is a leaf or the tree would be deeper than `max_depth`.
-pub(super) fn collapse(root: &Node, max_depth: usize) -> Option<Vec<Bvh4Node>> {
+pub(super) fn collapse<const W: usize>(root: &Node, max_depth: usize) -> Option<Vec<WideNode<W>>> {
     if matches!(root, Node::Leaf { .. }) {
         return None;
     }
@@ -110,7 +110,7 @@ pub(super) fn collapse(root: &Node, max_depth: usize) -> Option<Vec<Bvh4Node>> {
         tri: C_TRI,
         max_leaf: MAX_LEAF_TRIS,
     };
-    let plan = Plan::<WIDTH>::new(&arena, costs);
+    let plan = Plan::<W>::new(&arena, costs);
     let mut out = Vec::new();
     emit(&arena, &plan, r, 0, max_depth, &mut out)?;
     Some(out)

@@ -1,32 +1,34 @@
 //! The greedy collapse (Wald, Benthin & Boulos 2008, "Getting rid of packets"; tinybvh's
 //! `ConvertBVH4`), used where the SAH collapse's tree would be too deep for the stack: a
-//! node starts with its binary node's two children and, while it has fewer than four, the
-//! inner child with the largest surface area is replaced by its two children. A 4-wide node
+//! node starts with its binary node's two children and, while it has fewer than W, the
+//! inner child with the largest surface area is replaced by its two children. A wide node
 //! costs one visit whatever its number of children, so pulling up child C removes C's own
 //! visit, taken with probability area(C)/area(root): the largest area is the greedy SAH
-//! choice. One rule comes first, for the stack: a node at 4-wide depth d comes from a binary
-//! node at depth b ≥ 2d (an inner child one binary level down that would break this is
-//! pulled up before the greedy choice), so no node lies deeper than `MAX_WIDE_DEPTH`.
+//! choice. One rule comes first, for the stack: a node at wide depth d comes from a binary
+//! node at depth b ≥ d·log2(W) (an inner child that would break this is pulled up before
+//! the greedy choice), so no node lies deeper than `max_wide_depth(W)`.
 
 use crate::accel::bvh::Node;
 
-use super::{Bvh4Node, INNER, WIDTH};
+use super::{levels_per_node, WideNode, INNER};
 
-/// The 4-wide nodes of `root`'s tree, in depth-first pre-order (the root at 0).
-pub(super) fn collapse(root: &Node) -> Vec<Bvh4Node> {
-    // About one 4-wide node per three binary inner nodes.
-    let mut nodes = Vec::with_capacity(root.nodes() as usize / 6 + 1);
+/// The W-wide nodes of `root`'s tree, in depth-first pre-order (the root at 0).
+pub(super) fn collapse<const W: usize>(root: &Node) -> Vec<WideNode<W>> {
+    // About one W-wide node per W − 1 binary inner nodes.
+    let mut nodes = Vec::with_capacity(root.nodes() as usize / (2 * (W - 1)) + 1);
     emit(root, 0, 0, &mut nodes);
     nodes
 }
 
-/// The binary nodes that become the children of `node`'s 4-wide node, left to right, each
-/// with its binary depth; `node` is at binary depth `b` and becomes a 4-wide node at depth
-/// `d` ≤ b / 2. First an inner child that would break d ≤ b / 2 one level down is replaced
-/// by its two children (at most both children are, which makes four); then, while there
-/// are fewer than four, the inner child of largest area (the first among equals). A leaf
-/// (the root of a tiny tree) is its own single child.
-fn slots(node: &Node, d: usize, b: usize) -> Vec<(&Node, usize)> {
+/// The binary nodes that become the children of `node`'s W-wide node, left to right, each
+/// with its binary depth; `node` is at binary depth `b` and becomes a wide node at depth
+/// `d` ≤ b / L, L = log2(W). First every inner child that would break d + 1 ≤ b' / L one
+/// level down is replaced by its two children, and so on (they come from at most L levels
+/// below `node`: at most W of them); then, while there are fewer than W, the inner child
+/// of largest area (the first among equals). A leaf (the root of a tiny tree) is its own
+/// single child.
+fn slots<const W: usize>(node: &Node, d: usize, b: usize) -> Vec<(&Node, usize)> {
+    let l = levels_per_node(W);
     let Node::Inner { children, .. } = node else {
         return vec![(node, b)];
     };
@@ -34,13 +36,13 @@ fn slots(node: &Node, d: usize, b: usize) -> Vec<(&Node, usize)> {
     let mut k = 0;
     while k < slots.len() {
         match slots[k] {
-            (Node::Inner { children, .. }, bc) if d + 1 > bc / 2 => {
+            (Node::Inner { children, .. }, bc) if d + 1 > bc / l => {
                 slots.splice(k..=k, children.iter().map(|c| (c, bc + 1)));
             }
             _ => k += 1,
         }
     }
-    while slots.len() < WIDTH {
+    while slots.len() < W {
         let mut pick: Option<(usize, f32)> = None;
         for (k, (c, _)) in slots.iter().enumerate() {
             if matches!(c, Node::Inner { .. }) {
@@ -58,13 +60,13 @@ fn slots(node: &Node, d: usize, b: usize) -> Vec<(&Node, usize)> {
     slots
 }
 
-/// Appends the 4-wide subtree of `node` (at binary depth `b`, 4-wide depth `d`) to `out`
+/// Appends the W-wide subtree of `node` (at binary depth `b`, wide depth `d`) to `out`
 /// in pre-order; returns its index.
-fn emit(node: &Node, d: usize, b: usize, out: &mut Vec<Bvh4Node>) -> u32 {
+fn emit<const W: usize>(node: &Node, d: usize, b: usize, out: &mut Vec<WideNode<W>>) -> u32 {
     let index = out.len();
-    out.push(bytemuck::Zeroable::zeroed());
-    let mut rec: Bvh4Node = bytemuck::Zeroable::zeroed();
-    for (k, (c, bc)) in slots(node, d, b).into_iter().enumerate() {
+    out.push(WideNode::empty());
+    let mut rec = WideNode::empty();
+    for (k, (c, bc)) in slots::<W>(node, d, b).into_iter().enumerate() {
         match c {
             Node::Leaf { bbox, start, count } => {
                 // An empty leaf (the root of an empty tree) is an unused slot.

@@ -1,5 +1,5 @@
-//! The `bvh4` layout (src/layout/bvh4): its CPU twin against the f64 oracle (closest and any
-//! hit) and against `dfs-sign` (closest hits are independent of traversal order under the
+//! The `bvh4` and `bvh8` layouts (src/layout/wide_bvh), each test run for both widths: the
+//! CPU twin against the f64 oracle (closest and any hit) and against `dfs-sign` (closest hits are independent of traversal order under the
 //! tie rule, so they must be equal bit for bit) on the bunny, random soups, rays through
 //! shared edges and vertices, axis-parallel rays on box planes and coincident triangles;
 //! a tree built to fill the traversal stack exactly (twin and GPU); and `validate`
@@ -25,16 +25,16 @@ fn layout(kind: LayoutKind, mesh: &Mesh) -> Box<dyn Layout> {
 
 /// Judges the twin's closest and any-hit answers for every ray and fails on a wrong one;
 /// returns the closest hits and their work.
-fn check(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>, Vec<RayStats>) {
+fn check(name: &str, mesh: &Mesh, wide: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>, Vec<RayStats>) {
     let rob = Robustness::default();
     let mut closest = None;
     for query in [Query::Closest, Query::Any] {
-        let (hits, stats) = bvh4.trace_batch(rays, query, &rob);
+        let (hits, stats) = wide.trace_batch(rays, query, &rob);
         // The batch without work records (what the tracer runs without --stats) is the
         // same traversal.
         assert!(
             hits.iter()
-                .zip(bvh4.trace_hits(rays, query, &rob))
+                .zip(wide.trace_hits(rays, query, &rob))
                 .all(|(a, b)| *a == b),
             "{name}: trace_hits differs from trace_batch"
         );
@@ -68,10 +68,10 @@ fn check(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>,
 }
 
 /// The twin's closest hits equal dfs-sign's twin's, bit for bit.
-fn same_as_dfs_sign(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) {
+fn same_as_dfs_sign(name: &str, mesh: &Mesh, wide: &dyn Layout, rays: &[Ray]) {
     let rob = Robustness::default();
     let dfs = layout(LayoutKind::DfsSign, mesh);
-    let (a, _) = bvh4.trace_batch(rays, Query::Closest, &rob);
+    let (a, _) = wide.trace_batch(rays, Query::Closest, &rob);
     let (b, _) = dfs.trace_batch(rays, Query::Closest, &rob);
     let differ: Vec<_> = (rays.iter().zip(a.iter().zip(&b)))
         .filter(|(_, (x, y))| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y))
@@ -85,33 +85,31 @@ fn same_as_dfs_sign(name: &str, mesh: &Mesh, bvh4: &dyn Layout, rays: &[Ray]) {
     );
 }
 
-#[test]
-fn random_soups() {
+fn random_soups(kind: LayoutKind) {
     for seed in 0..3 {
         let mut rng = Rng::new(300 + seed);
         let mesh = soup(&mut rng, 2000, 0.2);
         let rays = random_rays(&mut rng, 3000, &mesh);
-        let bvh4 = layout(LayoutKind::Bvh4, &mesh);
-        bvh4.validate().unwrap();
+        let wide = layout(kind, &mesh);
+        wide.validate().unwrap();
         let name = format!("soup {seed}");
-        let (hits, _) = check(&name, &mesh, bvh4.as_ref(), &rays);
+        let (hits, _) = check(&name, &mesh, wide.as_ref(), &rays);
         assert!(hits.iter().filter(|h| h.is_hit()).count() > 1500);
-        same_as_dfs_sign(&name, &mesh, bvh4.as_ref(), &rays);
+        same_as_dfs_sign(&name, &mesh, wide.as_ref(), &rays);
     }
 }
 
-#[test]
-fn bunny_random_and_primary_rays() {
+fn bunny_random_and_primary_rays(kind: LayoutKind) {
     // The oracle tests every triangle per ray: few rays judged, many compared.
     let Some(mesh) = load_model("stanford-bunny.obj") else {
         return;
     };
-    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let wide = layout(kind, &mesh);
     let dfs = layout(LayoutKind::DfsSign, &mesh);
-    bvh4.validate().unwrap();
-    assert_eq!(bvh4.triangles(), mesh.len());
-    let tris = bvh4.triangles() as f64;
-    for l in [&bvh4, &dfs] {
+    wide.validate().unwrap();
+    assert_eq!(wide.triangles(), mesh.len());
+    let tris = wide.triangles() as f64;
+    for l in [&wide, &dfs] {
         let nodes = l.arrays().nodes.len();
         println!(
             "bunny {}: {} nodes, {:.1} node bytes + 48 triangle bytes per triangle",
@@ -122,28 +120,27 @@ fn bunny_random_and_primary_rays() {
     }
     let mut rng = Rng::new(7);
     let rays = random_rays(&mut rng, 3000, &mesh);
-    check("bunny random", &mesh, bvh4.as_ref(), &rays[..150]);
-    same_as_dfs_sign("bunny random", &mesh, bvh4.as_ref(), &rays);
+    check("bunny random", &mesh, wide.as_ref(), &rays[..150]);
+    same_as_dfs_sign("bunny random", &mesh, wide.as_ref(), &rays);
     let cam = Camera::default_view(&mesh.bounds(), 24, 24);
-    let (hits, _) = check("bunny primary", &mesh, bvh4.as_ref(), &cam.primary_rays());
+    let (hits, _) = check("bunny primary", &mesh, wide.as_ref(), &cam.primary_rays());
     assert!(hits.iter().filter(|h| h.is_hit()).count() > 100);
     let primary = Camera::default_view(&mesh.bounds(), 96, 96).primary_rays();
-    same_as_dfs_sign("bunny primary", &mesh, bvh4.as_ref(), &primary);
+    same_as_dfs_sign("bunny primary", &mesh, wide.as_ref(), &primary);
     let rob = Robustness::default();
     for (what, rays) in [("primary 96²", &primary), ("random", &rays)] {
-        let (_, a) = bvh4.trace_batch(rays, Query::Closest, &rob);
+        let (_, a) = wide.trace_batch(rays, Query::Closest, &rob);
         let (_, b) = dfs.trace_batch(rays, Query::Closest, &rob);
         let ((an, at), (bn, bt)) = (RayStats::means(&a), RayStats::means(&b));
         println!(
-            "bunny {what}: bvh4 {an:.1} nodes, {at:.1} triangles per ray; dfs-sign {bn:.1} \
+            "bunny {what}: {kind} {an:.1} nodes, {at:.1} triangles per ray; dfs-sign {bn:.1} \
              nodes, {bt:.1} triangles"
         );
     }
 }
 
-#[test]
-fn f64_precision_gives_the_oracles_answers() {
-    // The shared leaf step's f64 test behind bvh4's boxes: every closest hit is the
+fn f64_precision_gives_the_oracles_answers(kind: LayoutKind) {
+    // The shared leaf step's f64 test behind the wide layout's boxes: every closest hit is the
     // oracle's own (t rounded to f32, and its triangle), the misses its misses.
     let mut rng = Rng::new(51);
     let mesh = soup(&mut rng, 1500, 0.2);
@@ -152,7 +149,7 @@ fn f64_precision_gives_the_oracles_answers() {
         precision: Precision::F64,
         ..Robustness::default()
     };
-    let (hits, _) = layout(LayoutKind::Bvh4, &mesh).trace_batch(&rays, Query::Closest, &f64);
+    let (hits, _) = layout(kind, &mesh).trace_batch(&rays, Query::Closest, &f64);
     let unlike: Vec<_> = (rays.iter().zip(&hits))
         .filter(|(r, h)| match oracle::closest(&mesh, r) {
             None => h.is_hit(),
@@ -188,11 +185,10 @@ fn grid(n: usize, step: f32) -> (Vec<Triangle>, Vec<Vec3>) {
     (tris, targets)
 }
 
-#[test]
-fn rays_at_shared_edges_and_vertices_never_leak() {
+fn rays_at_shared_edges_and_vertices_never_leak(kind: LayoutKind) {
     let (tris, targets) = grid(24, 0.37);
     let mesh = Mesh::from_triangles(tris);
-    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let wide = layout(kind, &mesh);
     let mut rng = Rng::new(11);
     let c = mesh.bounds().center();
     let mut rays = Vec::new();
@@ -203,19 +199,18 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
         rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
     }
     for query in [Query::Closest, Query::Any] {
-        let (hits, _) = bvh4.trace_batch(&rays, query, &Robustness::default());
+        let (hits, _) = wide.trace_batch(&rays, query, &Robustness::default());
         let leaks = hits.iter().filter(|h| !h.is_hit()).count();
         assert_eq!(
             leaks, 0,
             "{query:?}: rays through shared edges and vertices leaked"
         );
     }
-    check("grid edges", &mesh, bvh4.as_ref(), &rays);
-    same_as_dfs_sign("grid edges", &mesh, bvh4.as_ref(), &rays);
+    check("grid edges", &mesh, wide.as_ref(), &rays);
+    same_as_dfs_sign("grid edges", &mesh, wide.as_ref(), &rays);
 }
 
-#[test]
-fn axis_parallel_rays_on_box_planes() {
+fn axis_parallel_rays_on_box_planes(kind: LayoutKind) {
     // Node boxes are unions of triangle boxes: origins on vertex coordinates lie on box
     // planes. Directions with zero (and −0.0, and tiny) components take the slab test's
     // parallel-axis rule.
@@ -223,7 +218,7 @@ fn axis_parallel_rays_on_box_planes() {
     let mut tris = soup(&mut rng, 1500, 0.25).triangles;
     tris.extend(grid(8, 0.25).0);
     let mesh = Mesh::from_triangles(tris);
-    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let wide = layout(kind, &mesh);
     let b = mesh.bounds();
     let mut rays = Vec::new();
     for i in 0..4000 {
@@ -249,12 +244,11 @@ fn axis_parallel_rays_on_box_planes() {
         }
         rays.push(Ray::new(o, d, 0.0, 3.4e38));
     }
-    check("axis-parallel", &mesh, bvh4.as_ref(), &rays);
-    same_as_dfs_sign("axis-parallel", &mesh, bvh4.as_ref(), &rays);
+    check("axis-parallel", &mesh, wide.as_ref(), &rays);
+    same_as_dfs_sign("axis-parallel", &mesh, wide.as_ref(), &rays);
 }
 
-#[test]
-fn coincident_triangles_keep_the_tie_rule() {
+fn coincident_triangles_keep_the_tie_rule(kind: LayoutKind) {
     // Copies of one triangle at several depths, indices interleaved, among random
     // triangles: the answer is the smallest index at the nearest t, whichever child the
     // traversal visits first.
@@ -283,7 +277,7 @@ fn coincident_triangles_keep_the_tie_rule() {
         max_leaf: 2,
         ..BuildOptions::default()
     };
-    let bvh4 = flatten(LayoutKind::Bvh4, &build(&mesh, &opts), &mesh);
+    let wide = flatten(kind, &build(&mesh, &opts), &mesh);
     let mut rays = Vec::new();
     for i in 0..2000 {
         let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
@@ -294,7 +288,7 @@ fn coincident_triangles_keep_the_tie_rule() {
         };
         rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
     }
-    let (hits, _) = check("coincident", &mesh, bvh4.as_ref(), &rays);
+    let (hits, _) = check("coincident", &mesh, wide.as_ref(), &rays);
     let mut exact = 0;
     for (r, h) in rays.iter().zip(&hits) {
         let Some((_, prim)) = oracle::closest(&mesh, r) else {
@@ -307,7 +301,7 @@ fn coincident_triangles_keep_the_tie_rule() {
         let v = judge(&mesh, r, h);
         assert!(
             matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-            "{r:?}: bvh4 reports {} but the oracle's smallest index at the nearest t is \
+            "{r:?}: {kind} reports {} but the oracle's smallest index at the nearest t is \
              {prim} ({v:?})",
             h.prim
         );
@@ -317,14 +311,13 @@ fn coincident_triangles_keep_the_tie_rule() {
         rays.len()
     );
     assert!(exact > 1800);
-    same_as_dfs_sign("coincident", &mesh, bvh4.as_ref(), &rays);
+    same_as_dfs_sign("coincident", &mesh, wide.as_ref(), &rays);
 }
 
-#[test]
-fn invalid_and_extreme_rays_neither_hang_nor_panic() {
+fn invalid_and_extreme_rays_neither_hang_nor_panic(kind: LayoutKind) {
     let mut rng = Rng::new(41);
     let mesh = soup(&mut rng, 500, 0.3);
-    let bvh4 = layout(LayoutKind::Bvh4, &mesh);
+    let wide = layout(kind, &mesh);
     let rob = Robustness::default();
     let invalid = [
         Ray::new(Vec3::NAN, Vec3::X, 0.0, 1.0),
@@ -338,7 +331,7 @@ fn invalid_and_extreme_rays_neither_hang_nor_panic() {
     ];
     for r in &invalid {
         let mut s = RayStats::default();
-        let h = bvh4.intersect(r, Query::Closest, &rob, &mut s);
+        let h = wide.intersect(r, Query::Closest, &rob, &mut s);
         assert!(!h.is_hit(), "{r:?}");
         assert_eq!(s, RayStats::default(), "{r:?}");
     }
@@ -369,13 +362,12 @@ fn invalid_and_extreme_rays_neither_hang_nor_panic() {
         };
         rays.push(Ray::new(o, d, tmin, tmax));
     }
-    check("extreme rays", &mesh, bvh4.as_ref(), &rays);
-    same_as_dfs_sign("extreme rays", &mesh, bvh4.as_ref(), &rays);
+    check("extreme rays", &mesh, wide.as_ref(), &rays);
+    same_as_dfs_sign("extreme rays", &mesh, wide.as_ref(), &rays);
 }
 
-#[test]
-fn empty_mesh_and_single_triangle() {
-    let empty = layout(LayoutKind::Bvh4, &Mesh::default());
+fn empty_mesh_and_single_triangle(kind: LayoutKind) {
+    let empty = layout(kind, &Mesh::default());
     empty.validate().unwrap();
     assert!(empty.bounds().is_empty());
     let r = Ray::new(Vec3::ZERO, Vec3::X, 0.0, 1.0);
@@ -387,7 +379,7 @@ fn empty_mesh_and_single_triangle() {
         Vec3::new(1.0, 1.0, -1.0),
         Vec3::new(1.0, 0.0, 1.0),
     )]);
-    let one = layout(LayoutKind::Bvh4, &one);
+    let one = layout(kind, &one);
     one.validate().unwrap();
     let h = one.intersect(&r, Query::Closest, &rob, &mut s);
     assert_eq!((h.prim, h.t), (0, 1.0));
@@ -419,12 +411,14 @@ fn copies(tris: &mut Vec<Triangle>, t: Triangle, count: u32) -> Node {
 /// A binary tree with leaves down to `depth`: a chain of inner nodes, each with the next
 /// chain node and a sibling subtree of two or three leaves, all of whose boxes hold the
 /// line y = z = 0.001, x ≥ 0; a ray along +x enters the chain's boxes first (at x = 0) and
-/// the siblings' later (they lie at growing x). Every 4-wide node on the chain then pushes
-/// three entries. The chain's boxes are thin in x, so each sibling subtree is larger than
+/// the siblings' later (they lie at growing x). Every W-wide node on the chain then pushes
+/// W − 1 entries. The chain's boxes are thin in x, so each sibling subtree is larger than
 /// the chain node beside it, and the leaves of the three-leaf siblings hold five triangles
-/// (too many to merge): the SAH collapse would keep one chain node per 4-wide node, too
+/// (too many to merge): the SAH collapse would keep one chain node per wide node, too
 /// deep for the stack, and so would the greedy SAH choice alone; the greedy collapse's depth
-/// rule pulls up two chain levels per 4-wide node.
+/// rule pulls up log2(W) chain levels per wide node (with their siblings: 1 + log2(W)
+/// slots), and its area rule spreads the largest siblings over the other slots (for bvh4 one
+/// sibling's two parts; for bvh8 the two nearer siblings' three leaves each).
 fn stack_filler(depth: usize) -> (Mesh, Bvh) {
     let mut tris = Vec::new();
     let (mut x, mut y) = (1.0f32, 100.0f32);
@@ -460,14 +454,20 @@ fn stack_filler(depth: usize) -> (Mesh, Bvh) {
     (Mesh::from_triangles(tris), Bvh { root: node, order })
 }
 
-#[test]
-fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu() {
-    // A binary chain as deep as the builders allow: 32 four-wide levels of three pushes,
-    // which fill the 96-entry stack exactly (validate accepts); one level more would
-    // overflow it (validate refuses).
+fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
+    // A binary chain as deep as the builders allow: wide nodes from binary depths
+    // 0, L, 2L, … ≤ MAX_DEPTH − 1 (L = log2(W) binary levels per wide node), each pushing
+    // W − 1 entries: 32 levels of 3 for bvh4, 22 of 7 for bvh8, which fill the stack
+    // exactly (96 and 154 entries; validate accepts). One wide level more would overflow it
+    // (validate refuses).
+    let (w, l) = match kind {
+        LayoutKind::Bvh4 => (4, 2),
+        _ => (8, 3),
+    };
+    let levels = (MAX_DEPTH - 1) / l + 1;
     let (mesh, bvh) = stack_filler(MAX_DEPTH);
-    let bvh4: Arc<dyn Layout> = flatten(LayoutKind::Bvh4, &bvh, &mesh).into();
-    bvh4.validate().unwrap();
+    let wide: Arc<dyn Layout> = flatten(kind, &bvh, &mesh).into();
+    wide.validate().unwrap();
     let mut rays = Vec::new();
     for i in 0..64 {
         let o = Vec3::new(-0.5 - i as f32, 0.001, 0.001 + 0.01 * i as f32);
@@ -475,25 +475,25 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu() {
         rays.push(Ray::new(o, Vec3::new(1.0, 1e-6, -0.0), 0.0, 3.4e38));
         rays.push(Ray::new(o, Vec3::new(1.0, 1e-7, 1e-6), 0.0, 3.4e38));
     }
-    let (hits, stats) = check("stack filler", &mesh, bvh4.as_ref(), &rays);
+    let (hits, stats) = check("stack filler", &mesh, wide.as_ref(), &rays);
     for ((r, h), s) in rays.iter().zip(&hits).zip(&stats) {
         // The chain is walked to its end before any triangle is tested, the innermost
         // triangle hit first, and then every pushed entry is cut.
         assert_eq!(h.prim, 0, "{r:?}");
-        assert_eq!((s.nodes, s.tris), (MAX_DEPTH as u32 / 2, 1), "{r:?}");
+        assert_eq!((s.nodes, s.tris), (levels as u32, 1), "{r:?}");
     }
-    same_as_dfs_sign("stack filler", &mesh, bvh4.as_ref(), &rays);
+    same_as_dfs_sign("stack filler", &mesh, wide.as_ref(), &rays);
     // The same walk on the GPU, through a stack sized from the same constant.
     for query in [Query::Closest, Query::Any] {
         let options = TracerOptions {
             stats: true,
             ..TracerOptions::default()
         };
-        let g = Tracer::with_layout(gpu_device(), bvh4.clone(), &options)
+        let g = Tracer::with_layout(gpu_device(), wide.clone(), &options)
             .unwrap()
             .trace(&rays, query)
             .unwrap();
-        let c = Tracer::with_layout(&Device::cpu(), bvh4.clone(), &options)
+        let c = Tracer::with_layout(&Device::cpu(), wide.clone(), &options)
             .unwrap()
             .trace(&rays, query)
             .unwrap();
@@ -501,23 +501,22 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu() {
         assert_eq!(g.hits, c.hits, "{query:?}");
         assert_eq!(g.stats, c.stats, "{query:?}");
     }
-    let (mesh, bvh) = stack_filler(MAX_DEPTH + 1);
-    let e = flatten(LayoutKind::Bvh4, &bvh, &mesh)
-        .validate()
-        .unwrap_err();
-    let (depth, entries) = (MAX_DEPTH / 2, 3 * MAX_DEPTH / 2);
+    // A chain whose inner nodes reach binary depth L · levels: a wide node at depth
+    // `levels`.
+    let (mesh, bvh) = stack_filler(l * levels + 1);
+    let e = flatten(kind, &bvh, &mesh).validate().unwrap_err();
+    let entries = (w - 1) * levels;
     assert!(
-        e.contains(&format!("depth {depth}")) && e.contains(&format!("{entries} stack entries")),
+        e.contains(&format!("depth {levels}")) && e.contains(&format!("{entries} stack entries")),
         "{e}"
     );
 }
 
-#[test]
-fn validate_refuses_corrupted_trees() {
+fn validate_refuses_corrupted_trees(kind: LayoutKind) {
     let (mesh, bvh) = stack_filler(3);
     let n = mesh.len() as u32;
     let refuse = |root: Node, order: Vec<u32>, want: &str| {
-        let e = flatten(LayoutKind::Bvh4, &Bvh { root, order }, &mesh)
+        let e = flatten(kind, &Bvh { root, order }, &mesh)
             .validate()
             .unwrap_err();
         assert!(e.contains(want), "{e}");
@@ -556,5 +555,36 @@ fn validate_refuses_corrupted_trees() {
         "triangles 1..2 are in no leaf",
     );
     // And the good tree passes.
-    flatten(LayoutKind::Bvh4, &bvh, &mesh).validate().unwrap();
+    flatten(kind, &bvh, &mesh).validate().unwrap();
 }
+
+/// Each test above as two tests, one per width: `bvh4::name` and `bvh8::name`.
+macro_rules! for_both_widths {
+    ($($name:ident),* $(,)?) => {
+        mod bvh4 {
+            $(#[test]
+            fn $name() {
+                super::$name(lancer::layout::LayoutKind::Bvh4);
+            })*
+        }
+        mod bvh8 {
+            $(#[test]
+            fn $name() {
+                super::$name(lancer::layout::LayoutKind::Bvh8);
+            })*
+        }
+    };
+}
+
+for_both_widths!(
+    random_soups,
+    bunny_random_and_primary_rays,
+    f64_precision_gives_the_oracles_answers,
+    rays_at_shared_edges_and_vertices_never_leak,
+    axis_parallel_rays_on_box_planes,
+    coincident_triangles_keep_the_tie_rule,
+    invalid_and_extreme_rays_neither_hang_nor_panic,
+    empty_mesh_and_single_triangle,
+    a_tree_that_fills_the_stack_traces_on_twin_and_gpu,
+    validate_refuses_corrupted_trees,
+);
