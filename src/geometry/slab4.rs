@@ -186,10 +186,11 @@ mod tests {
         };
         for _ in 0..2000 {
             let mut planes = [[0.0f32; 8]; 6];
-            for k in 0..8 {
-                for a in 0..3 {
+            let (los, his) = planes.split_at_mut(3);
+            for (lo, hi) in los.iter_mut().zip(his.iter_mut()) {
+                for (l, h) in lo.iter_mut().zip(hi.iter_mut()) {
                     let (p, q) = (f(10.0), f(10.0));
-                    (planes[a][k], planes[a + 3][k]) = (p.min(q), p.max(q));
+                    (*l, *h) = (p.min(q), p.max(q));
                 }
             }
             // Some empty boxes, as unused slots hold (zero boxes).
