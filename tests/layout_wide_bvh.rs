@@ -483,7 +483,9 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
         assert_eq!((s.nodes, s.tris), (levels as u32, 1), "{r:?}");
     }
     same_as_dfs_sign("stack filler", &mesh, wide.as_ref(), &rays);
-    // The same walk on the GPU, through a stack sized from the same constant.
+    // The same walk on the GPU, its stack filled to the last entry: the twin's answers and
+    // work. (A kernel stack one entry short is not caught here: WGSL keeps an index in
+    // range, and the entries a short stack would lose are all cut after the first hit.)
     for query in [Query::Closest, Query::Any] {
         let options = TracerOptions {
             stats: true,
