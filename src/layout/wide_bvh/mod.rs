@@ -187,6 +187,26 @@ where
         WideBvh { nodes, tris }
     }
 
+    /// The depth of the deepest node (the root at 0): the kernel's stack holds W − 1
+    /// entries for each level down to it, not for the deepest tree the builders allow, as
+    /// WGSL zero-fills a private array at every invocation (bvh8's 154 entries: 1,232 bytes
+    /// a ray). Children come after their parents (as `validate` requires; a child that
+    /// does not is skipped here).
+    fn depth(&self) -> usize {
+        let mut depth = vec![0usize; self.nodes.len()];
+        let mut deepest = 0;
+        for (i, n) in self.nodes.iter().enumerate() {
+            for k in 0..W {
+                let c = n.child[k] as usize;
+                if n.kind[k] == INNER && c > i && c < depth.len() {
+                    depth[c] = depth[i] + 1;
+                    deepest = deepest.max(depth[c]);
+                }
+            }
+        }
+        deepest
+    }
+
     /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
     /// unless they are whole records and pass [`validate`](super::Layout::validate).
     pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<WideBvh<W>, String> {
@@ -222,7 +242,7 @@ where
              const WIDE_NODE_WORDS: u32 = {}u;\n\
              const WIDE_SLOT_BITS: u32 = {}u;\n{}",
             W / 4,
-            stack_size(W),
+            (W - 1) * (self.depth() + 1),
             Self::NODE_BYTES / 16,
             Self::SLOT_BITS,
             include_str!("wide_bvh.wgsl")

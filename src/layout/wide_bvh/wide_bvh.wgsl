@@ -41,7 +41,7 @@ struct WideEntry {
 }
 
 // The traversal stack: per invocation, not per traverse() call (WGSL zeroes a function's
-// variables at every call).
+// variables at every call); W − 1 entries for each level of this tree (mod.rs, `depth`).
 var<private> wide_stack: array<WideEntry, WIDE_STACK_SIZE>;
 
 // Closest hit in [tmin, tmax], or with any_hit the first hit met in traversal order.
