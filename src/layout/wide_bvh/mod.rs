@@ -24,9 +24,10 @@
 //! ≤ 63 / log2(W) (31 for bvh4, 21 for bvh8), and (W − 1) entries for each of those levels
 //! (96 for bvh4, 154 for bvh8) hold any traversal; `validate` checks every node's depth
 //! against it. An entry is 8 bytes (node and slot, entry distance); the kernel keeps the
-//! stack in a `var<private>`, zeroed once per invocation, not per `traverse` call. (On
-//! lavapipe, a function-local stack of 192 12-byte entries made bvh4's kernel ~10× slower
-//! than `dfs-sign` on the bunny's primary rays.)
+//! stack in a `var<private>` of W − 1 entries for each level of the tree at hand (`depth`),
+//! zeroed once per invocation, not per `traverse` call.
+//! (On lavapipe, a function-local stack of 192 12-byte entries made bvh4's kernel ~10×
+//! slower than `dfs-sign` on the bunny's primary rays.)
 
 mod greedy_collapse;
 mod sah_collapse;
@@ -357,6 +358,9 @@ mod tests {
     use crate::gpu::shaders;
     use crate::layout::Layout;
 
+    /// The kernel reads plane p (lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, child, kind) of slots
+    /// 4g..4g+3 at word p · WIDE_GROUPS + g of a WIDE_NODE_WORDS-word node: the Rust node's
+    /// fields lie there, and the constants the source is given say so.
     fn the_wgsl_node_matches<const W: usize>()
     where
         WideNode<W>: bytemuck::Pod,
@@ -368,18 +372,32 @@ mod tests {
         )]);
         let layout =
             WideBvh::<W>::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
-        let src = shaders::trace_source(&layout);
-        let fields = [
-            ("lo_x", offset_of!(WideNode<W>, lo_x)),
-            ("lo_y", offset_of!(WideNode<W>, lo_y)),
-            ("lo_z", offset_of!(WideNode<W>, lo_z)),
-            ("hi_x", offset_of!(WideNode<W>, hi_x)),
-            ("hi_y", offset_of!(WideNode<W>, hi_y)),
-            ("hi_z", offset_of!(WideNode<W>, hi_z)),
-            ("child", offset_of!(WideNode<W>, child)),
-            ("kind", offset_of!(WideNode<W>, kind)),
+        let offsets = [
+            offset_of!(WideNode<W>, lo_x),
+            offset_of!(WideNode<W>, lo_y),
+            offset_of!(WideNode<W>, lo_z),
+            offset_of!(WideNode<W>, hi_x),
+            offset_of!(WideNode<W>, hi_y),
+            offset_of!(WideNode<W>, hi_z),
+            offset_of!(WideNode<W>, child),
+            offset_of!(WideNode<W>, kind),
         ];
-        shaders::check_struct(&src, "WideNode", size_of::<WideNode<W>>(), &fields).unwrap();
+        let groups = W / 4;
+        for (p, offset) in offsets.into_iter().enumerate() {
+            assert_eq!(offset, 16 * p * groups, "plane {p}");
+        }
+        let src = shaders::trace_source(&layout);
+        for constant in [
+            format!("const WIDE_WIDTH: u32 = {W}u;"),
+            format!("const WIDE_GROUPS: u32 = {groups}u;"),
+            format!("const WIDE_NODE_WORDS: u32 = {}u;", 8 * groups),
+        ] {
+            assert!(src.contains(&constant), "{constant}");
+        }
+        naga::front::wgsl::parse_str(&src)
+            .map_err(|e| e.emit_to_string(&src))
+            .unwrap();
+        assert_eq!(size_of::<WideNode<W>>(), 16 * 8 * groups);
         assert_eq!(WideBvh::<W>::NODE_BYTES, 32 * W);
         assert!(layout.validate().is_ok());
     }
