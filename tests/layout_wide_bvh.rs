@@ -418,8 +418,10 @@ fn copies(tris: &mut Vec<Triangle>, t: Triangle, count: u32) -> Node {
 /// deep for the stack, and so would the greedy SAH choice alone; the greedy collapse's depth
 /// rule pulls up log2(W) chain levels per wide node (with their siblings: 1 + log2(W)
 /// slots), and its area rule spreads the largest siblings over the other slots (for bvh4 one
-/// sibling's two parts; for bvh8 the two nearer siblings' three leaves each).
-fn stack_filler(depth: usize) -> (Mesh, Bvh) {
+/// sibling's two parts; for bvh8 the two nearer siblings' three leaves each). The innermost
+/// sibling has `innermost` leaves (2 or 3), of one triangle each: bvh4's deepest node holds
+/// two binary levels, so 2; bvh8's three, so 3 (its 8 leaves fill the node).
+fn stack_filler(depth: usize, innermost: usize) -> (Mesh, Bvh) {
     let mut tris = Vec::new();
     let (mut x, mut y) = (1.0f32, 100.0f32);
     let first = leaf(
@@ -441,11 +443,15 @@ fn stack_filler(depth: usize) -> (Mesh, Bvh) {
             .map(|&[a, b, c]| copies(tris, Triangle::new(a, b, c), count))
             .collect::<Vec<_>>()
     };
-    // The innermost chain node and its sibling have two leaves each, at `depth`.
+    // The innermost chain node has two leaves, at `depth`, its sibling `innermost`.
     let [a] = slab(&mut tris, 1, 1).try_into().unwrap();
     let mut node = inner(first, a);
-    let [a, b] = slab(&mut tris, 2, 1).try_into().unwrap();
-    node = inner(node, inner(a, b));
+    let sibling = match &slab(&mut tris, innermost, 1)[..] {
+        [a, b] => inner(a.clone(), b.clone()),
+        [a, b, c] => inner(inner(a.clone(), b.clone()), c.clone()),
+        _ => unreachable!("2 or 3 leaves"),
+    };
+    node = inner(node, sibling);
     for _ in 0..depth - 2 {
         let [a, b, c] = slab(&mut tris, 3, 5).try_into().unwrap();
         node = inner(node, inner(inner(a, b), c));
@@ -455,17 +461,18 @@ fn stack_filler(depth: usize) -> (Mesh, Bvh) {
 }
 
 fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
-    // A binary chain as deep as the builders allow: wide nodes from binary depths
-    // 0, L, 2L, … ≤ MAX_DEPTH − 1 (L = log2(W) binary levels per wide node), each pushing
-    // W − 1 entries: 32 levels of 3 for bvh4, 22 of 7 for bvh8, which fill the stack
-    // exactly (96 and 154 entries; validate accepts). One wide level more would overflow it
-    // (validate refuses).
+    // A binary chain of leaves at depth L·k ≤ MAX_DEPTH (L = log2(W) binary levels per
+    // wide node), as deep as the builders allow with every wide node whole: k wide levels
+    // from binary depths 0, L, …, each pushing W − 1 entries, 32 levels of 3 for bvh4 and
+    // 21 of 7 for bvh8. The kernel's stack, sized to the tree's depth, is then full (96 and
+    // 147 entries). validate bounds any tree by wide depth 63 / L (31 for bvh4, 21 for
+    // bvh8; 96 and 154 entries); a chain one wide level deeper is refused.
     let (w, l) = match kind {
         LayoutKind::Bvh4 => (4, 2),
         _ => (8, 3),
     };
-    let levels = (MAX_DEPTH - 1) / l + 1;
-    let (mesh, bvh) = stack_filler(MAX_DEPTH);
+    let levels = MAX_DEPTH / l;
+    let (mesh, bvh) = stack_filler(l * levels, l);
     let wide: Arc<dyn Layout> = flatten(kind, &bvh, &mesh).into();
     wide.validate().unwrap();
     let mut rays = Vec::new();
@@ -483,9 +490,24 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
         assert_eq!((s.nodes, s.tris), (levels as u32, 1), "{r:?}");
     }
     same_as_dfs_sign("stack filler", &mesh, wide.as_ref(), &rays);
-    // The same walk on the GPU, its stack filled to the last entry: the twin's answers and
-    // work. (A kernel stack one entry short is not caught here: WGSL keeps an index in
-    // range, and the entries a short stack would lose are all cut after the first hit.)
+    // Rays from inside the chain's boxes, past the innermost triangle: the chain is walked
+    // to its end as before (its boxes hold the origin, the siblings' lie ahead), but the
+    // first hit lies in a pushed sibling, which the pops must find.
+    let mut inside = Vec::new();
+    for i in 0..64 {
+        let o = Vec3::new(0.5, 0.001, 0.001 + 0.01 * i as f32);
+        inside.push(Ray::new(o, Vec3::X, 0.0, 3.4e38));
+        inside.push(Ray::new(o, Vec3::new(1.0, 1e-6, -0.0), 0.0, 3.4e38));
+    }
+    let (hits, stats) = check("stack filler, inside", &mesh, wide.as_ref(), &inside);
+    for ((r, h), s) in inside.iter().zip(&hits).zip(&stats) {
+        assert!(h.is_hit() && h.prim != 0, "{r:?}: {h:?}");
+        assert!(s.nodes >= levels as u32, "{r:?}: {s:?}");
+    }
+    same_as_dfs_sign("stack filler, inside", &mesh, wide.as_ref(), &inside);
+    rays.extend(inside);
+    // The same walks on the GPU, its stack filled to the last entry: the twin's answers and
+    // work (a kernel stack one entry short loses an entry the inside rays need).
     for query in [Query::Closest, Query::Any] {
         let options = TracerOptions {
             stats: true,
@@ -503,19 +525,20 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
         assert_eq!(g.hits, c.hits, "{query:?}");
         assert_eq!(g.stats, c.stats, "{query:?}");
     }
-    // A chain whose inner nodes reach binary depth L · levels: a wide node at depth
-    // `levels`.
-    let (mesh, bvh) = stack_filler(l * levels + 1);
+    // A chain whose inner nodes reach binary depth L · (63 / L + 1): a wide node one level
+    // deeper than validate allows.
+    let deepest = (MAX_DEPTH - 1) / l + 1;
+    let (mesh, bvh) = stack_filler(l * deepest + 1, l);
     let e = flatten(kind, &bvh, &mesh).validate().unwrap_err();
-    let entries = (w - 1) * levels;
+    let entries = (w - 1) * deepest;
     assert!(
-        e.contains(&format!("depth {levels}")) && e.contains(&format!("{entries} stack entries")),
+        e.contains(&format!("depth {deepest}")) && e.contains(&format!("{entries} stack entries")),
         "{e}"
     );
 }
 
 fn validate_refuses_corrupted_trees(kind: LayoutKind) {
-    let (mesh, bvh) = stack_filler(3);
+    let (mesh, bvh) = stack_filler(3, 2);
     let n = mesh.len() as u32;
     let refuse = |root: Node, order: Vec<u32>, want: &str| {
         let e = flatten(kind, &Bvh { root, order }, &mesh)

@@ -57,8 +57,8 @@ pub use leaf_tri::LeafTri;
 pub use threaded::Threaded;
 pub use wide_bvh::{Bvh4, Bvh8, WideBvh};
 
-/// Whether the CPU has AVX2 and the bit instructions the twins' AVX2 builds use (`cwbvh`,
-/// `bvh8`: eight slots in one vector).
+/// Whether the CPU has AVX2 and the bit instructions the twins' AVX2 builds use (`cwbvh`
+/// and `bvh8`, whose eight slots fit one vector, and `bvh4`).
 #[cfg(target_arch = "x86_64")]
 pub(crate) fn has_avx2() -> bool {
     std::arch::is_x86_feature_detected!("avx2")

@@ -2,9 +2,9 @@
 //! slab test (`Aabb::slab_interval`; for a ray with no parallel axis four at a time in SIMD
 //! lanes, `SlabRay4`, which equals it, or for bvh8 on a CPU with AVX2 all eight in one
 //! vector, `SlabRay4::intervals8`, which equals that), the same child order (entry
-//! distance, then slot),
-//! the same stack of (node and slot, entry) entries popped only while their entry is within
-//! the prune bound, and the shared leaf step (`LeafRay::test_leaf`: triangle test, tie rule).
+//! distance, then slot), the same stack of (node and slot, entry) entries popped only while
+//! their entry is within the prune bound, and the shared leaf step (`LeafRay::test_leaf`:
+//! triangle test, tie rule).
 
 use std::mem::MaybeUninit;
 
