@@ -348,8 +348,9 @@ where
 
 /// Colour of series `s`.
 fn colour(s: usize) -> RGBColor {
-    // Tableau 10: distinct for the first ten series, then repeated (with another shape).
-    const TABLEAU: [(u8, u8, u8); 10] = [
+    // Tableau 20: the ten strong colours, then their light shades (`bench layouts` draws 12
+    // series); distinct for the first twenty series, then repeated (with another shape).
+    const TABLEAU: [(u8, u8, u8); 20] = [
         (31, 119, 180),
         (255, 127, 14),
         (44, 160, 44),
@@ -360,6 +361,16 @@ fn colour(s: usize) -> RGBColor {
         (127, 127, 127),
         (188, 189, 34),
         (23, 190, 207),
+        (174, 199, 232),
+        (255, 187, 120),
+        (152, 223, 138),
+        (255, 152, 150),
+        (197, 176, 213),
+        (196, 156, 148),
+        (247, 182, 210),
+        (199, 199, 199),
+        (219, 219, 141),
+        (158, 218, 229),
     ];
     let (r, g, b) = TABLEAU[s % TABLEAU.len()];
     RGBColor(r, g, b)
@@ -431,6 +442,15 @@ mod tests {
         img.enumerate_pixels()
             .filter(|(x, _, p)| *x > plot_width && p.0.iter().all(|&v| v < 100))
             .count()
+    }
+
+    #[test]
+    fn twenty_series_get_twenty_colours() {
+        let colours: std::collections::HashSet<_> = (0..20)
+            .map(|s| (colour(s).0, colour(s).1, colour(s).2))
+            .collect();
+        assert_eq!(colours.len(), 20);
+        assert_eq!(colour(20), colour(0));
     }
 
     #[test]
