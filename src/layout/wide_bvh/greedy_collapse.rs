@@ -13,7 +13,10 @@ use crate::accel::bvh::Node;
 use super::{levels_per_node, WideNode, INNER};
 
 /// The W-wide nodes of `root`'s tree, in depth-first pre-order (the root at 0).
-pub(super) fn collapse<const W: usize>(root: &Node) -> Vec<WideNode<W>> {
+pub(super) fn collapse<const W: usize>(root: &Node) -> Vec<WideNode<W>>
+where
+    WideNode<W>: bytemuck::Pod,
+{
     // About one W-wide node per W − 1 binary inner nodes.
     let mut nodes = Vec::with_capacity(root.nodes() as usize / (2 * (W - 1)) + 1);
     emit(root, 0, 0, &mut nodes);
@@ -62,10 +65,13 @@ fn slots<const W: usize>(node: &Node, d: usize, b: usize) -> Vec<(&Node, usize)>
 
 /// Appends the W-wide subtree of `node` (at binary depth `b`, wide depth `d`) to `out`
 /// in pre-order; returns its index.
-fn emit<const W: usize>(node: &Node, d: usize, b: usize, out: &mut Vec<WideNode<W>>) -> u32 {
+fn emit<const W: usize>(node: &Node, d: usize, b: usize, out: &mut Vec<WideNode<W>>) -> u32
+where
+    WideNode<W>: bytemuck::Pod,
+{
     let index = out.len();
-    out.push(WideNode::empty());
-    let mut rec = WideNode::empty();
+    out.push(bytemuck::Zeroable::zeroed());
+    let mut rec: WideNode<W> = bytemuck::Zeroable::zeroed();
     for (k, (c, bc)) in slots::<W>(node, d, b).into_iter().enumerate() {
         match c {
             Node::Leaf { bbox, start, count } => {

@@ -62,16 +62,23 @@ const fn max_wide_depth(w: usize) -> usize {
     (MAX_DEPTH - 1) / levels_per_node(w)
 }
 
-/// Traversal stack entries (generated into the WGSL as `WIDE_STACK_SIZE`): W − 1 per level
-/// for wide depths 0..=`max_wide_depth(w)`.
+/// Stack entries a traversal holds at most while it visits a node at wide depth `depth`:
+/// W − 1 for the node and for each of its ancestors (the kernel's `WIDE_STACK_SIZE` is
+/// this for the tree's deepest node).
+const fn stack_entries(w: usize, depth: usize) -> usize {
+    (w - 1) * (depth + 1)
+}
+
+/// Traversal stack entries any valid tree needs at most (`validate`'s bound): W − 1 per
+/// level for wide depths 0..=`max_wide_depth(w)`.
 pub(crate) const fn stack_size(w: usize) -> usize {
-    (w - 1) * (max_wide_depth(w) + 1)
+    stack_entries(w, max_wide_depth(w))
 }
 
 /// The most stack entries either width needs (the twin's stack array; generic consts
 /// cannot size an array).
 pub(crate) const MAX_STACK_SIZE: usize = stack_size(8);
-const _: () = assert!(stack_size(4) == 96 && MAX_STACK_SIZE == 154 && stack_size(4) <= 154);
+const _: () = assert!(stack_size(4) == 96 && MAX_STACK_SIZE == 154);
 
 /// One node, 32·W bytes (WGSL `WideNode` in wide_bvh.wgsl). Slot k's box is
 /// (`lo_x[k]`, `lo_y[k]`, `lo_z[k]`)–(`hi_x[k]`, …). `kind[k]`: [`INNER`] (`child[k]` is a
@@ -132,20 +139,6 @@ impl<const W: usize> WideNode<W> {
             used |= four.cmpne(glam::UVec4::ZERO).bitmask() << g;
         }
         used
-    }
-
-    /// A node with every slot unused.
-    fn empty() -> WideNode<W> {
-        WideNode {
-            lo_x: [0.0; W],
-            lo_y: [0.0; W],
-            lo_z: [0.0; W],
-            hi_x: [0.0; W],
-            hi_y: [0.0; W],
-            hi_z: [0.0; W],
-            child: [0; W],
-            kind: [0; W],
-        }
     }
 }
 
@@ -243,7 +236,7 @@ where
              const WIDE_NODE_WORDS: u32 = {}u;\n\
              const WIDE_SLOT_BITS: u32 = {}u;\n{}",
             W / 4,
-            (W - 1) * (self.depth() + 1),
+            stack_entries(W, self.depth()),
             Self::NODE_BYTES / 16,
             Self::SLOT_BITS,
             include_str!("wide_bvh.wgsl")
@@ -274,9 +267,7 @@ where
                 return Err(format!("node {i} is reached twice"));
             }
             reached[i] = true;
-            // Entries on the stack while node i is processed: ≤ W − 1 per ancestor, W − 1
-            // of its own.
-            if (W - 1) * (depth + 1) > stack_size {
+            if stack_entries(W, depth) > stack_size {
                 return Err(format!(
                     "node {i} is at depth {depth}: its traversal may need more than \
                      {stack_size} stack entries"

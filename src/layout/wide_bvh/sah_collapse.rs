@@ -66,13 +66,16 @@ fn emit<const W: usize>(
     d: usize,
     max_depth: usize,
     out: &mut Vec<WideNode<W>>,
-) -> Option<u32> {
+) -> Option<u32>
+where
+    WideNode<W>: bytemuck::Pod,
+{
     if d > max_depth {
         return None;
     }
     let index = out.len();
-    out.push(WideNode::empty());
-    let mut rec = WideNode::empty();
+    out.push(bytemuck::Zeroable::zeroed());
+    let mut rec: WideNode<W> = bytemuck::Zeroable::zeroed();
     for (k, (c, leaf)) in plan.children(arena, n).into_iter().enumerate() {
         let node = arena.nodes[c as usize];
         rec.set_bbox(k, node.bbox());
@@ -95,7 +98,10 @@ fn first(node: &Node) -> u32 {
 
 /// The W-wide nodes of `root`'s tree by the SAH collapse, in depth-first pre-order (the
 /// root at 0); None when `root` is a leaf or the tree would be deeper than `max_depth`.
-pub(super) fn collapse<const W: usize>(root: &Node, max_depth: usize) -> Option<Vec<WideNode<W>>> {
+pub(super) fn collapse<const W: usize>(root: &Node, max_depth: usize) -> Option<Vec<WideNode<W>>>
+where
+    WideNode<W>: bytemuck::Pod,
+{
     if matches!(root, Node::Leaf { .. }) {
         return None;
     }

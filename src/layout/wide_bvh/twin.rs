@@ -211,7 +211,7 @@ where
         // Not zeroed (768 bytes per ray for bvh4, a twentieth of a primary ray's time): an
         // entry is read only below `sp`, where it was written. Sized for the widest layout
         // (a generic const cannot size an array); `validate` bounds the entries used by
-        // `stack_size(W)`, as the kernel's array is.
+        // `stack_size(W)` (the kernel's array holds those of the tree's own depth).
         let mut stack = [MaybeUninit::<Entry>::uninit(); MAX_STACK_SIZE];
         let mut sp = 0usize;
         let (mut child, mut kind) = (0u32, INNER);
