@@ -6,9 +6,9 @@ mod common;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats};
 use lancer::geometry::Aabb;
-use lancer::layout::{flatten, LayoutKind};
 use lancer::mesh::Mesh;
 
 fn opts(builder: Builder) -> BuildOptions {

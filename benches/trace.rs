@@ -6,10 +6,10 @@ mod common;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions};
 use lancer::camera::Camera;
 use lancer::geometry::{Robustness, TriangleTest};
-use lancer::layout::{flatten, LayoutKind};
 use lancer::trace::files::{default_light, shadow_rays};
 use lancer::Query;
 

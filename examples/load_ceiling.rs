@@ -13,11 +13,12 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions};
+use lancer::accel::GpuForm;
 use lancer::camera::Camera;
 use lancer::geometry::Ray;
 use lancer::gpu::{bindings, shaders, BvhMemory, GpuBvh, GpuContext, GpuTracer, TraceKernel};
-use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::{RayStats, Result};
 
@@ -125,7 +126,7 @@ fn main() -> Result<()> {
 /// in the given memory.
 fn probe(
     ctx: &GpuContext,
-    flat: &dyn Layout,
+    flat: &dyn GpuForm,
     rays: &[Ray],
     (nodes, tris): (u32, u32),
     memory: BvhMemory,

@@ -2,8 +2,8 @@
 
 use glam::Vec3;
 
+use crate::geometry::normalize;
 use crate::geometry::{Aabb, Ray};
-use crate::render::sampling::normalize;
 
 /// tmax of primary rays, as written in ray files.
 pub const PRIMARY_TMAX: f32 = 3.4e38;

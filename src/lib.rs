@@ -1,5 +1,5 @@
 //! lancer: a GPU compute ray tracer. The CPU builds an SAH BVH and flattens it into a
-//! [`Layout`]; a WGSL compute kernel traverses it, and the layout's CPU twin — the same
+//! [`GpuForm`]; a WGSL compute kernel traverses it, and the layout's CPU twin — the same
 //! algorithm in the same order — is the reference, judged by an f64 oracle.
 //!
 //! # Quick start
@@ -38,10 +38,13 @@
 //! # }
 //! ```
 //!
-//! The pieces: [`accel`] (the [`Accel`] trait and the BVH builders), [`layout`] (flattened
-//! BVHs for the GPU, each with its CPU twin), [`trace`] ([`Tracer`], the f64 oracle, ray and
-//! hit files), [`render`] (scenes and the [`Renderer`]), [`gpu`] (the wgpu plumbing and the
-//! WGSL sources), [`geometry`] (rays, boxes, triangle tests, [`Robustness`]).
+//! The pieces, bottom of the house first (each uses only those before it): [`geometry`]
+//! (rays, boxes, triangle tests, [`Robustness`]), [`mesh`] (OBJ, PLY, glTF), [`camera`],
+//! [`accel`] (the [`Accel`] trait, every structure in its own folder, and [`GpuForm`], a
+//! structure's GPU face; the BVH's builders and its flattened layouts,
+//! [`accel::bvh::layouts`], each with its CPU twin), [`gpu`] (the wgpu plumbing and the WGSL
+//! sources), [`trace`] ([`Tracer`], the f64 oracle, ray and hit files), [`render`] (scenes
+//! and the [`Renderer`]), [`accuracy`] (the error each robustness setting leaves).
 
 #![warn(missing_docs)]
 
@@ -54,20 +57,21 @@ pub mod embree;
 pub mod error;
 pub mod geometry;
 pub mod gpu;
-pub mod layout;
 pub mod limits;
 pub mod mesh;
 pub mod output;
 pub mod render;
 pub mod trace;
+pub mod util;
 
-pub use accel::{Accel, AccelKind, Query, RayStats};
+pub use accel::bvh::layouts::LayoutKind;
+pub use accel::TraversalMode;
+pub use accel::{Accel, AccelKind, GpuForm, Query, RayStats};
 pub use camera::Camera;
 pub use device::{Device, DeviceChoice};
 pub use error::{Error, Result};
 pub use geometry::{Hit, Ray, Robustness};
 pub use glam::{Vec2, Vec3};
-pub use layout::{Layout, LayoutKind};
 pub use mesh::Mesh;
 pub use render::{Image, RenderOptions, RenderScene, Rendered, Renderer};
-pub use trace::{TraceResult, Tracer, TracerOptions, TraversalMode};
+pub use trace::{TraceResult, Tracer, TracerOptions};

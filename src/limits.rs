@@ -2,7 +2,7 @@
 //! ending in an allocation abort minutes later.
 
 use crate::error::{Error, Result};
-use crate::gpu::human_bytes;
+use crate::util::human_bytes;
 
 /// The largest vertex coordinate magnitude lancer traces: the watertight test forms products
 /// of three coordinates relative to the ray origin (about 42·R³ at most for relative

@@ -39,7 +39,7 @@ fn validate(mesh: &Mesh, tree: &Bih, max_leaf: usize) {
     // Returns (index after the subtree, box of its triangles, next triangle position).
     fn walk(
         nodes: &[BihNode],
-        tris: &[lancer::layout::LeafTri],
+        tris: &[lancer::accel::LeafTri],
         i: usize,
         depth: usize,
         next_tri: usize,

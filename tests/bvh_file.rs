@@ -1,4 +1,4 @@
-//! BVH files (`lancer::layout::bvh_file`, `build --out`, `--bvh`): every layout survives a
+//! BVH files (`lancer::accel::bvh::layouts::bvh_file`, `build --out`, `--bvh`): every layout survives a
 //! round trip byte for byte and traces bit for bit as the freshly flattened layout, on the
 //! CPU twin and on the GPU; every corruption is refused with its own message, never a
 //! panic; the CLI traces a file as it traces the mesh.
@@ -11,8 +11,9 @@ use std::sync::Arc;
 
 use common::{gpu_device, random_rays, soup, Rng};
 use lancer::accel::bvh;
-use lancer::layout::bvh_file::{self, HEADER_BYTES};
-use lancer::layout::{flatten, Layout, LayoutKind};
+use lancer::accel::bvh::layouts::bvh_file::{self, HEADER_BYTES};
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
+use lancer::accel::GpuForm;
 use lancer::mesh::Mesh;
 use lancer::{Device, Hit, Query, Ray, Tracer, TracerOptions};
 
@@ -23,7 +24,7 @@ fn bits(hits: &[Hit]) -> Vec<[u32; 4]> {
 }
 
 /// Hits of `layout` on `device`, closest then any.
-fn hits(device: &Device, layout: Arc<dyn Layout>, rays: &[Ray]) -> Vec<Vec<[u32; 4]>> {
+fn hits(device: &Device, layout: Arc<dyn GpuForm>, rays: &[Ray]) -> Vec<Vec<[u32; 4]>> {
     let mut t = Tracer::with_layout(device, layout, &TracerOptions::default()).unwrap();
     [Query::Closest, Query::Any]
         .into_iter()
@@ -45,7 +46,7 @@ fn every_layout_round_trips_and_traces_bit_for_bit_on_the_cpu_and_the_gpu() {
     let gpu = gpu_device();
     let dir = tempfile::tempdir().unwrap();
     for &kind in LayoutKind::ALL {
-        let fresh: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+        let fresh: Arc<dyn GpuForm> = flatten(kind, &tree, &mesh).into();
         let bytes = bvh_file::encode(fresh.as_ref(), mesh.len()).unwrap();
         let path = dir.path().join(format!("{kind}.bvh"));
         bvh_file::write(&path, fresh.as_ref(), mesh.len()).unwrap();

@@ -5,9 +5,9 @@ mod common;
 
 use common::{load_model, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions, Builder, Bvh, BvhStats, Node, MAX_DEPTH};
 use lancer::geometry::Triangle;
-use lancer::layout::{flatten, LayoutKind};
 use lancer::mesh::{Mesh, TriStatus};
 use proptest::prelude::*;
 

@@ -274,7 +274,7 @@ fn subgroup_modes(layout: lancer::LayoutKind) -> Vec<lancer::TraversalMode> {
         lancer::Vec3::Y,
     )]);
     let tree = lancer::accel::bvh::build(&mesh, &Default::default());
-    let has = lancer::layout::flatten(layout, &tree, &mesh)
+    let has = lancer::accel::bvh::layouts::flatten(layout, &tree, &mesh)
         .subgroup_wgsl()
         .is_some();
     let mut modes = vec![lancer::TraversalMode::PerRay];
@@ -429,10 +429,11 @@ fn compare_tells_equal_from_different_images_and_hit_files() {
     }
     img.save(&b).unwrap();
     let same = lancer_ok(&["compare", s(&a), s(&a)]);
-    assert!(String::from_utf8_lossy(&same.stdout).contains("0 pixels (0.000 %)"));
+    assert!(String::from_utf8_lossy(&same.stdout).contains("pixels: bit-identical"));
     let differ = lancer(&["compare", s(&a), s(&b), "-o", s(&diff)]);
     assert_eq!(differ.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&differ.stdout).contains("8 pixels"));
+    let text = String::from_utf8_lossy(&differ.stdout).into_owned();
+    assert!(text.contains("8 differ") && text.contains("8 pixels"), "{text}");
     assert!(image::open(&diff).is_ok(), "no difference picture");
     lancer_ok(&["compare", s(&a), s(&b), "--tolerance", "5"]);
     let rays = d.path("r.bin");
@@ -490,6 +491,68 @@ fn compare_tells_equal_from_different_images_and_hit_files() {
     ]);
     assert_eq!(judged.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&judged.stdout).contains("1 disagree"));
+    // Every hit's t 4 ulps further (another kernel's arithmetic): beyond --t-ulps 2 without
+    // the oracle, within its error bound with it.
+    let mut bytes = std::fs::read(&ha).unwrap();
+    for h in bytes.chunks_mut(16).filter(|h| h[4..8] != [0xff; 4]) {
+        let t = u32::from_le_bytes(h[..4].try_into().unwrap()) + 4;
+        h[..4].copy_from_slice(&t.to_le_bytes());
+    }
+    std::fs::write(&hb, bytes).unwrap();
+    assert_eq!(lancer(&["compare", s(&ha), s(&hb)]).status.code(), Some(1));
+    lancer_ok(&["compare", s(&ha), s(&hb), "--t-ulps", "4"]);
+    let judged = lancer_ok(&[
+        "compare",
+        s(&ha),
+        s(&hb),
+        "--mesh",
+        s(&quad),
+        "--rays",
+        s(&rays),
+    ]);
+    assert!(String::from_utf8_lossy(&judged.stdout).contains(" 0 disagree"));
+}
+
+/// "Check your own kernel": a kernel with another triangle test (Möller–Trumbore, as
+/// `trace --triangle-test moller-trumbore` runs it) gives the default's triangles at a t a
+/// few ulps away; `compare --mesh --rays` judges those t by the oracle and passes them,
+/// where a bit-for-bit comparison (`--t-ulps 0`) finds them.
+#[test]
+fn compare_passes_a_correct_kernel_of_another_triangle_test() {
+    let d = Scratch::new();
+    let mesh = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.obj");
+    let (rays, wt, mt) = (d.path("r.bin"), d.path("wt.hits"), d.path("mt.hits"));
+    let size = ["--width", "64", "--height", "64"];
+    lancer_ok(&[&["rays", s(&mesh), "-o", s(&rays)][..], &size].concat());
+    let trace = |out: &PathBuf, test: &str| {
+        lancer_ok(&[
+            "trace",
+            s(&mesh),
+            "--rays",
+            s(&rays),
+            "-o",
+            s(out),
+            "--device",
+            "cpu",
+            "--triangle-test",
+            test,
+        ])
+    };
+    trace(&wt, "watertight");
+    trace(&mt, "moller-trumbore");
+    let exact = lancer(&["compare", s(&wt), s(&mt), "--t-ulps", "0"]);
+    assert_eq!(exact.status.code(), Some(1), "the two tests gave the same bits");
+    let judged = lancer_ok(&[
+        "compare",
+        s(&wt),
+        s(&mt),
+        "--mesh",
+        s(&mesh),
+        "--rays",
+        s(&rays),
+    ]);
+    let text = String::from_utf8_lossy(&judged.stdout).into_owned();
+    assert!(text.contains(" 0 disagree"), "{text}");
 }
 
 /// scenes/teapot-in-stadium.toml, when ../shared/models (its teapot) is present.
@@ -740,12 +803,19 @@ fn auto_runs_on_a_hardware_gpu_else_on_the_cpu_and_says_why() {
         Some(a) if !a.software => assert_eq!(auto["device"], "gpu", "{auto}"),
         Some(a) => {
             assert_eq!(auto["device"], "cpu", "{auto}");
-            // One line says what was chosen and why, and how to force the adapter.
-            let why: Vec<&str> = err.lines().filter(|l| l.contains(&a.name)).collect();
-            assert_eq!(why.len(), 1, "{err}");
+            // The CPU is a normal place to run: no warning. With -v, one info line says
+            // what was chosen and why, and how to force the adapter.
+            assert!(!err.lines().any(|l| l.starts_with("warning:")), "{err}");
+            let (_, verbose) = trace_json(&dir, &["-v"], &[], &[]);
+            let why: Vec<&str> = (verbose.lines())
+                .filter(|l| l.contains("using the CPU"))
+                .collect();
+            assert_eq!(why.len(), 1, "{verbose}");
             assert!(
-                why[0].contains("using the CPU") && why[0].contains("--device gpu"),
-                "{err}"
+                why[0].starts_with("info:")
+                    && why[0].contains(&a.name)
+                    && why[0].contains("--device gpu"),
+                "{verbose}"
             );
         }
         None => assert_eq!(auto["device"], "cpu", "{auto}"),
@@ -756,11 +826,12 @@ fn auto_runs_on_a_hardware_gpu_else_on_the_cpu_and_says_why() {
         let (v, _) = trace_json(&dir, &[], &[], &[("WGPU_POWER_PREF", pref)]);
         assert_eq!(v["device"], auto["device"], "WGPU_POWER_PREF={pref}: {v}");
     }
-    // -q silences the reason (the summary stays on stderr); the data is the same.
+    // -q is errors only: no summary, no warning; the data is the same.
+    assert!(err.contains("64 rays"), "{err}");
     let (quiet, err) = trace_json(&dir, &["-q"], &[], &[]);
     assert_eq!(quiet["device"], auto["device"]);
     assert!(!err.contains("warning"), "-q printed: {err}");
-    assert!(err.contains("64 rays"), "{err}");
+    assert!(!err.contains("64 rays"), "-q printed the summary: {err}");
     let Some(adapter) = preferred else {
         return;
     };
@@ -969,7 +1040,7 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
             0,
             "64 rays",
         ),
-        (vec!["compare", s(&png), s(&png), "--json"], 0, "0 pixels"),
+        (vec!["compare", s(&png), s(&png), "--json"], 0, "bit-identical"),
         (
             vec![
                 "heatmap",
@@ -1088,13 +1159,11 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
             "every answer agrees",
         ));
     }
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-    let section = readme
-        .split("### JSON output")
-        .nth(1)
-        .and_then(|t| t.split("\n## ").next())
-        .expect("a JSON output section in the README");
+    let section = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/src/reference/json.md"
+    ))
+    .expect("the book's JSON reference page");
     for (args, code, text) in &runs {
         let (v, err) = json_of(args, *code);
         assert!(
@@ -1106,7 +1175,7 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
         for k in all {
             assert!(
                 section.contains(&format!("`{k}`")),
-                "{args:?}: key {k} is not in the README"
+                "{args:?}: key {k} is not in docs/src/reference/json.md"
             );
         }
     }

@@ -11,11 +11,11 @@ mod common;
 
 use common::{gpu_device, random_rays, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::layouts::LayoutKind;
 use lancer::accel::{self, AccelKind};
 use lancer::accuracy::cases::{self, HardCase};
 use lancer::accuracy::{false_misses, secondary, wrong_answers};
 use lancer::geometry::{Hit, Precision, Ray, RayOffset, Robustness, SlabTest, Triangle};
-use lancer::layout::LayoutKind;
 use lancer::mesh::{load_obj, Mesh};
 use lancer::trace::oracle;
 use lancer::{Device, Query, Tracer, TracerOptions};

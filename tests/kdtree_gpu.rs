@@ -18,13 +18,13 @@ use glam::Vec3;
 use gpu_twin::{bits, cpu_device, gpu_form, judged, same_on_gpu};
 use lancer::accel::kdtree::{KdOptions, KdTree, MAX_KD_DEPTH};
 use lancer::accel::AccelKind;
+use lancer::accel::GpuForm;
 use lancer::camera::Camera;
 use lancer::geometry::{Ray, RayOffset, TriangleTest};
-use lancer::layout::Layout;
 use lancer::mesh::Mesh;
 use lancer::{Device, Query, Robustness, Tracer, TracerOptions};
 
-fn gpu_kd(mesh: &Mesh) -> Arc<dyn Layout> {
+fn gpu_kd(mesh: &Mesh) -> Arc<dyn GpuForm> {
     gpu_form(AccelKind::KdTree, mesh)
 }
 
@@ -80,7 +80,7 @@ fn axis_parallel_rays_on_split_planes() {
     let planes = tree.split_planes();
     assert!(planes.len() > 100);
     let rays = split_plane_rays(&mut rng, &mesh, &planes, 3000);
-    let tree: Arc<dyn Layout> = Arc::new(tree);
+    let tree: Arc<dyn GpuForm> = Arc::new(tree);
     let hits = same_on_gpu("split planes", &tree, &rays, Robustness::default());
     judged("split planes", &mesh, &rays, &hits, 1);
 }
@@ -133,7 +133,7 @@ fn a_tree_at_the_depth_cap_stays_within_the_kernel_stack() {
     let rays = corner_rays(&mut rng, &mesh);
     let hits = same_on_gpu(
         "deep",
-        &(Arc::new(tree) as Arc<dyn Layout>),
+        &(Arc::new(tree) as Arc<dyn GpuForm>),
         &rays,
         Robustness::default(),
     );

@@ -5,18 +5,20 @@
 use std::mem::{offset_of, size_of};
 
 use glam::Vec3;
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions};
+use lancer::accel::{GpuForm, LeafTri};
 use lancer::geometry::{Hit, Ray, Triangle};
 use lancer::gpu::shaders::{self, Shared};
-use lancer::layout::{flatten, Layout, LayoutKind, LeafTri};
 use lancer::mesh::Mesh;
+use lancer::render::kernel::{all_kernels, render_constants};
 
 fn module(src: &str) -> naga::Module {
     naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)))
 }
 
 /// Every layout, flattened over a small mesh.
-fn layouts() -> Vec<Box<dyn Layout>> {
+fn layouts() -> Vec<Box<dyn GpuForm>> {
     let mesh = Mesh::from_triangles(vec![
         Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y),
         Triangle::new(Vec3::Z, Vec3::X, Vec3::Y),
@@ -35,7 +37,7 @@ fn check(src: &str, name: &str, rust_size: usize, rust: &[(&str, usize)]) {
 #[test]
 fn all_shaders_validate() {
     for layout in layouts() {
-        for (name, src) in shaders::all(layout.as_ref()) {
+        for (name, src) in all_kernels(layout.as_ref()) {
             let m = module(&src);
             naga::valid::Validator::new(
                 naga::valid::ValidationFlags::all(),
@@ -102,7 +104,7 @@ fn gpu_structs_match_rust() {
 fn render_structs_match_rust() {
     use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
     let layout = &layouts()[0];
-    let src = shaders::render_source(layout.as_ref());
+    let src = lancer::render::kernel::render_source(layout.as_ref());
     let m = &src;
     macro_rules! fields {
         ($t:ty; $($w:literal => $f:ident),*) => {
@@ -152,9 +154,14 @@ fn render_structs_match_rust() {
 #[test]
 fn shared_constants_read_back_as_the_rust_values() {
     let layout = &layouts()[0];
-    for (kernel, src) in shaders::all(layout.as_ref()) {
+    for (kernel, src) in all_kernels(layout.as_ref()) {
         let m = module(&src);
-        for (name, value) in shaders::shared_constants() {
+        // The render kernels also carry the renderer's own constants.
+        let mut constants = shaders::shared_constants();
+        if kernel.starts_with("render") {
+            constants.extend(render_constants());
+        }
+        for (name, value) in constants {
             let (_, c) = (m.constants.iter())
                 .find(|(_, c)| c.name.as_deref() == Some(name))
                 .unwrap_or_else(|| panic!("{name} not in the {kernel} kernel"));
@@ -188,7 +195,7 @@ fn bindings_are_the_rust_numbers() {
     ];
     let layout = &layouts()[0];
     let mut seen = 0;
-    let kernels = shaders::all(layout.as_ref());
+    let kernels = all_kernels(layout.as_ref());
     let of_kind = |k: &str| kernels.iter().filter(|(n, _)| n.starts_with(k)).count();
     // dfs-sign has a subgroup form of both kernels.
     let (traces, renders) = (of_kind("trace"), of_kind("render"));

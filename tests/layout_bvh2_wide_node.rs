@@ -1,4 +1,4 @@
-//! The `bvh2-wide-node` layout's CPU twin (src/layout/bvh2_wide_node) against the f64 oracle
+//! The `bvh2-wide-node` layout's CPU twin (src/accel/bvh/layouts/bvh2_wide_node) against the f64 oracle
 //! and an f32 brute force: closest hits equal the brute force bit for bit (so no box the
 //! tie rule needs is cut, whatever the near-first order), any hits are real hits; on random
 //! soups, the bunny, rays through shared edges and vertices, axis-parallel rays on node-box
@@ -11,12 +11,13 @@ mod common;
 
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build as build_bvh, BuildOptions, Bvh, Node, MAX_DEPTH};
+use lancer::accel::GpuForm;
 use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::{intersect_triangle_bounded, Aabb, Hit, Ray, Triangle, WatertightRay};
 use lancer::gpu::BvhMemory;
-use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{self, judge, judge_any, Verdict};
 use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
@@ -444,7 +445,7 @@ fn a_tree_at_the_depth_cap_fills_the_stack_on_cpu_and_gpu() {
     assert!(hit > 500, "{hit} rays hit the chain");
     // The GPU, with and without bounds checks (a trusted module relies on the stack bound
     // validate() checked): the twin's answers and work, ray for ray.
-    let layout: std::sync::Arc<dyn Layout> = layout.into();
+    let layout: std::sync::Arc<dyn GpuForm> = layout.into();
     for checked_module in [true, false] {
         for query in [Query::Closest, Query::Any] {
             let options = TracerOptions {

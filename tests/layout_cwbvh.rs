@@ -1,4 +1,4 @@
-//! The `cwbvh` layout (src/layout/cwbvh): its CPU twin against the f64 oracle and against
+//! The `cwbvh` layout (src/accel/bvh/layouts/cwbvh): its CPU twin against the f64 oracle and against
 //! `dfs-sign` (closest and any hit) on the bunny, soups, shared edges and vertices,
 //! coincident triangles, binary leaves bigger than a wide node and a deep tree; every
 //! dequantised child box contains its exact box (and is not loose); `validate` refuses
@@ -15,12 +15,13 @@ use std::sync::Arc;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use gpu_twin::same_on_gpu;
+use lancer::accel::bvh::layouts::{CwChild, Cwbvh, DfsSign};
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
 use lancer::accel::Accel;
+use lancer::accel::{GpuArrays, GpuForm};
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Precision, Ray, SlabTest, Triangle, TriangleTest, MISS};
 use lancer::gpu::BvhMemory;
-use lancer::layout::{CwChild, Cwbvh, DfsSign, Layout, LayoutArrays};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
 use lancer::{Query, RayStats, Robustness, Tracer, TracerOptions, TraversalMode};
@@ -381,7 +382,7 @@ fn raw_chain(levels: usize, banded: bool) -> (Mesh, Vec<u8>, Vec<u8>) {
         };
         let prim = mesh.len() as u32;
         mesh.push(t);
-        tris.extend_from_slice(bytemuck::bytes_of(&lancer::layout::LeafTri {
+        tris.extend_from_slice(bytemuck::bytes_of(&lancer::accel::LeafTri {
             v0: t.v[0].into(),
             prim,
             v1: t.v[1].into(),
@@ -421,7 +422,7 @@ fn raw_chain(levels: usize, banded: bool) -> (Mesh, Vec<u8>, Vec<u8>) {
 fn the_group_stack_holds_one_group_per_level_and_no_more() {
     // Deepest nodes at depth 64: accepted, and traced with a full stack.
     let (mesh, nodes, tris) = raw_chain(MAX_DEPTH + 1, false);
-    let layout = Cwbvh::from_arrays(LayoutArrays {
+    let layout = Cwbvh::from_arrays(GpuArrays {
         nodes: &nodes,
         tris: &tris,
     })
@@ -446,7 +447,7 @@ fn the_group_stack_holds_one_group_per_level_and_no_more() {
     }
     // One level more: refused.
     let (_, nodes, tris) = raw_chain(MAX_DEPTH + 2, false);
-    let e = Cwbvh::from_arrays(LayoutArrays {
+    let e = Cwbvh::from_arrays(GpuArrays {
         nodes: &nodes,
         tris: &tris,
     })
@@ -463,7 +464,7 @@ fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
     // deepest groups, and the rays then skip the side leaves they wait for).
     for levels in [4, 5, 6, 7, 12, MAX_DEPTH + 1] {
         let (mesh, nodes, tris) = raw_chain(levels, true);
-        let arrays = LayoutArrays {
+        let arrays = GpuArrays {
             nodes: &nodes,
             tris: &tris,
         };
@@ -492,7 +493,7 @@ fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
             assert!(strip, "{levels} levels: {r:?} {h:?}");
         }
         // The GPU: the same hits and work, ray for ray, both memories, both queries.
-        let layout: Arc<dyn Layout> = Arc::new(cw);
+        let layout: Arc<dyn GpuForm> = Arc::new(cw);
         for checked_module in [true, false] {
             let rob = Robustness {
                 checked_module,
@@ -670,7 +671,7 @@ fn validate_refuses_corrupted_arrays() {
     let layout = cwbvh(&mesh, &BuildOptions::default());
     let a = layout.arrays();
     let (nodes, tris) = (a.nodes.to_vec(), a.tris.to_vec());
-    let back = Cwbvh::from_arrays(LayoutArrays {
+    let back = Cwbvh::from_arrays(GpuArrays {
         nodes: &nodes,
         tris: &tris,
     })
@@ -685,7 +686,7 @@ fn validate_refuses_corrupted_arrays() {
         })
         .unwrap();
     let refuse = |what: &str, nodes: &[u8], tris: &[u8]| {
-        let e = Cwbvh::from_arrays(LayoutArrays { nodes, tris })
+        let e = Cwbvh::from_arrays(GpuArrays { nodes, tris })
             .err()
             .unwrap_or_else(|| panic!("{what}: accepted"));
         println!("{what}: {e}");

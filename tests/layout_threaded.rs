@@ -1,4 +1,4 @@
-//! The `threaded` layout (src/layout/threaded): eight copies of the dfs-sign tree, one per
+//! The `threaded` layout (src/accel/bvh/layouts/threaded): eight copies of the dfs-sign tree, one per
 //! ray octant, walked without a stack. Its twin must visit exactly the nodes dfs-sign's twin
 //! visits, in the same order: so closest and any hits are dfs-sign's bit for bit and so is
 //! the work per ray (nodes and triangles), on the bunny's primary, shadow and random rays,
@@ -13,10 +13,11 @@ use std::sync::Arc;
 
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions};
+use lancer::accel::GpuForm;
 use lancer::camera::Camera;
 use lancer::geometry::{Hit, Ray, Triangle};
-use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::Mesh;
 use lancer::trace::files::{default_light, shadow_rays};
 use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
@@ -33,9 +34,9 @@ fn work(stats: &[RayStats]) -> Vec<(u32, u32)> {
 
 /// The threaded twin against dfs-sign's over the same tree, both queries: hits and work
 /// equal ray for ray. Returns the threaded layout.
-fn same_as_dfs_sign(name: &str, mesh: &Mesh, rays: &[Ray]) -> Arc<dyn Layout> {
+fn same_as_dfs_sign(name: &str, mesh: &Mesh, rays: &[Ray]) -> Arc<dyn GpuForm> {
     let tree = build(mesh, &BuildOptions::default());
-    let threaded: Arc<dyn Layout> = flatten(LayoutKind::Threaded, &tree, mesh).into();
+    let threaded: Arc<dyn GpuForm> = flatten(LayoutKind::Threaded, &tree, mesh).into();
     threaded.validate().unwrap();
     let dfs = flatten(LayoutKind::DfsSign, &tree, mesh);
     let rob = Robustness::default();
@@ -71,7 +72,7 @@ fn same_as_dfs_sign(name: &str, mesh: &Mesh, rays: &[Ray]) -> Arc<dyn Layout> {
 }
 
 /// The GPU kernel against the twin (hits and work), both queries.
-fn same_on_gpu(name: &str, layout: &Arc<dyn Layout>, rays: &[Ray]) {
+fn same_on_gpu(name: &str, layout: &Arc<dyn GpuForm>, rays: &[Ray]) {
     let options = TracerOptions {
         layout: LayoutKind::Threaded,
         stats: true,

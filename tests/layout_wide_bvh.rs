@@ -1,4 +1,4 @@
-//! The `bvh4` and `bvh8` layouts (src/layout/wide_bvh), each test run for both widths: the
+//! The `bvh4` and `bvh8` layouts (src/accel/bvh/layouts/wide_bvh), each test run for both widths: the
 //! CPU twin against the f64 oracle (closest and any hit) and against `dfs-sign` (closest hits are independent of traversal order under the
 //! tie rule, so they must be equal bit for bit) on the bunny, random soups, rays through
 //! shared edges and vertices, axis-parallel rays on box planes and coincident triangles;
@@ -11,21 +11,22 @@ use std::sync::Arc;
 
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
+use lancer::accel::GpuForm;
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Precision, Ray, Triangle};
-use lancer::layout::{flatten, Layout, LayoutKind};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{self, judge, judge_any, Verdict};
 use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
 
-fn layout(kind: LayoutKind, mesh: &Mesh) -> Box<dyn Layout> {
+fn layout(kind: LayoutKind, mesh: &Mesh) -> Box<dyn GpuForm> {
     flatten(kind, &build(mesh, &BuildOptions::default()), mesh)
 }
 
 /// Judges the twin's closest and any-hit answers for every ray and fails on a wrong one;
 /// returns the closest hits and their work.
-fn check(name: &str, mesh: &Mesh, wide: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>, Vec<RayStats>) {
+fn check(name: &str, mesh: &Mesh, wide: &dyn GpuForm, rays: &[Ray]) -> (Vec<Hit>, Vec<RayStats>) {
     let rob = Robustness::default();
     let mut closest = None;
     for query in [Query::Closest, Query::Any] {
@@ -68,7 +69,7 @@ fn check(name: &str, mesh: &Mesh, wide: &dyn Layout, rays: &[Ray]) -> (Vec<Hit>,
 }
 
 /// The twin's closest hits equal dfs-sign's twin's, bit for bit.
-fn same_as_dfs_sign(name: &str, mesh: &Mesh, wide: &dyn Layout, rays: &[Ray]) {
+fn same_as_dfs_sign(name: &str, mesh: &Mesh, wide: &dyn GpuForm, rays: &[Ray]) {
     let rob = Robustness::default();
     let dfs = layout(LayoutKind::DfsSign, mesh);
     let (a, _) = wide.trace_batch(rays, Query::Closest, &rob);
@@ -473,7 +474,7 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
     };
     let levels = MAX_DEPTH / l;
     let (mesh, bvh) = stack_filler(l * levels, l);
-    let wide: Arc<dyn Layout> = flatten(kind, &bvh, &mesh).into();
+    let wide: Arc<dyn GpuForm> = flatten(kind, &bvh, &mesh).into();
     wide.validate().unwrap();
     let mut rays = Vec::new();
     for i in 0..64 {
@@ -589,13 +590,13 @@ macro_rules! for_both_widths {
         mod bvh4 {
             $(#[test]
             fn $name() {
-                super::$name(lancer::layout::LayoutKind::Bvh4);
+                super::$name(lancer::accel::bvh::layouts::LayoutKind::Bvh4);
             })*
         }
         mod bvh8 {
             $(#[test]
             fn $name() {
-                super::$name(lancer::layout::LayoutKind::Bvh8);
+                super::$name(lancer::accel::bvh::layouts::LayoutKind::Bvh8);
             })*
         }
     };

@@ -9,9 +9,9 @@ use std::path::PathBuf;
 
 use common::gpu_device;
 use glam::Vec3;
+use lancer::accel::bvh::layouts::LayoutKind;
 use lancer::accel::AccelKind;
 use lancer::gpu::BvhMemory;
-use lancer::layout::LayoutKind;
 use lancer::render::{render, to_rgb8, EffectSet, RenderOptions, RenderScene};
 use lancer::render::{Crop, Rendered};
 use lancer::{Device, TraversalMode};

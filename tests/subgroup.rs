@@ -13,10 +13,11 @@ use std::sync::Arc;
 use common::{gpu, gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::build;
+use lancer::accel::bvh::layouts::{flatten, LayoutKind};
+use lancer::accel::{GpuArrays, GpuForm};
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Ray, Triangle, TriangleTest};
 use lancer::gpu::{shaders, BvhMemory};
-use lancer::layout::{flatten, Layout, LayoutArrays, LayoutKind};
 use lancer::mesh::Mesh;
 use lancer::trace::compare::compare_hits;
 use lancer::trace::files::{bounce_rays, default_light, shadow_rays};
@@ -34,7 +35,7 @@ fn bits(hits: &[Hit]) -> Vec<[u32; 4]> {
 /// for on a GPU with subgroups.
 fn trace(
     device: &Device,
-    layout: &Arc<dyn Layout>,
+    layout: &Arc<dyn GpuForm>,
     rays: &[Ray],
     query: Query,
     options: TracerOptions,
@@ -66,7 +67,7 @@ fn check(
     let tree = build(mesh, &Default::default());
     let mut identical = 0;
     for &kind in LayoutKind::ALL {
-        let layout: Arc<dyn Layout> = flatten(kind, &tree, mesh).into();
+        let layout: Arc<dyn GpuForm> = flatten(kind, &tree, mesh).into();
         if layout.subgroup_wgsl().is_none() {
             continue;
         }
@@ -200,7 +201,7 @@ fn bunny_primary_shadow_and_bounce_rays() {
     let primary = Camera::default_view(&mesh.bounds(), 96, 72).primary_rays();
     let cpu = Device::cpu();
     let tree = build(&mesh, &Default::default());
-    let layout: Arc<dyn Layout> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
+    let layout: Arc<dyn GpuForm> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
     let hits = trace(&cpu, &layout, &primary, Query::Closest, Default::default()).hits;
     let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
     let bounce = bounce_rays(&mesh, &primary, &hits, 3);
@@ -297,7 +298,7 @@ fn invalid_rays_and_partial_subgroups_end_as_misses() {
     // Batches of one ray, of only invalid rays, and of none, for every layout with the mode.
     let tree = build(&mesh, &Default::default());
     for &kind in LayoutKind::ALL {
-        let layout: Arc<dyn Layout> = flatten(kind, &tree, &mesh).into();
+        let layout: Arc<dyn GpuForm> = flatten(kind, &tree, &mesh).into();
         if layout.subgroup_wgsl().is_none() {
             continue;
         }
@@ -333,7 +334,7 @@ fn rays_the_driver_cuts_short_are_traced_again_on_the_cpu() {
         })
         .collect();
     let tree = build(&mesh, &Default::default());
-    let layout: Arc<dyn Layout> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
+    let layout: Arc<dyn GpuForm> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
     let twin = trace(
         &Device::cpu(),
         &layout,
@@ -376,7 +377,7 @@ fn rays_the_driver_cuts_short_are_traced_again_on_the_cpu() {
 }
 
 /// dfs-sign without its subgroup traversal: a layout that lacks the mode.
-struct PerRayOnly(Arc<dyn Layout>);
+struct PerRayOnly(Arc<dyn GpuForm>);
 
 impl Accel for PerRayOnly {
     fn bounds(&self) -> Aabb {
@@ -387,11 +388,11 @@ impl Accel for PerRayOnly {
     }
 }
 
-impl Layout for PerRayOnly {
+impl GpuForm for PerRayOnly {
     fn name(&self) -> &'static str {
         self.0.name()
     }
-    fn arrays(&self) -> LayoutArrays<'_> {
+    fn arrays(&self) -> GpuArrays<'_> {
         self.0.arrays()
     }
     fn wgsl(&self) -> String {
@@ -406,7 +407,13 @@ impl Layout for PerRayOnly {
 }
 
 /// (what, device, layout, workgroup size, the mode that must run).
-type Case<'a> = (&'a str, &'a Device, &'a Arc<dyn Layout>, u32, TraversalMode);
+type Case<'a> = (
+    &'a str,
+    &'a Device,
+    &'a Arc<dyn GpuForm>,
+    u32,
+    TraversalMode,
+);
 
 #[test]
 fn where_the_mode_cannot_run_it_falls_back_to_per_ray() {
@@ -414,7 +421,7 @@ fn where_the_mode_cannot_run_it_falls_back_to_per_ray() {
     let mesh = soup(&mut rng, 500, 0.2);
     let rays = random_rays(&mut rng, 700, &mesh);
     let tree = build(&mesh, &Default::default());
-    let layout: Arc<dyn Layout> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
+    let layout: Arc<dyn GpuForm> = flatten(LayoutKind::DfsSign, &tree, &mesh).into();
     let sub = TracerOptions {
         mode: TraversalMode::Subgroup,
         ..TracerOptions::default()
@@ -427,7 +434,7 @@ fn where_the_mode_cannot_run_it_falls_back_to_per_ray() {
         Default::default(),
     );
     let lanes = gpu().subgroups.expect("subgroups").max;
-    let no_mode: Arc<dyn Layout> = Arc::new(PerRayOnly(layout.clone()));
+    let no_mode: Arc<dyn GpuForm> = Arc::new(PerRayOnly(layout.clone()));
     let cpu = Device::cpu();
     let cases: [Case; 4] = [
         ("the CPU", &cpu, &layout, 64, TraversalMode::PerRay),

@@ -14,7 +14,7 @@ struct Params {
 }
 
 @group(0) @binding(BINDING_DRIVER_SCENE) var scene: acceleration_structure;
-// layout::LeafTri words: the driver's primitive i is leaf triangle i, whose original index
+// accel::LeafTri words: the driver's primitive i is leaf triangle i, whose original index
 // is the w slot of its first word.
 @group(0) @binding(BINDING_TRI_WORDS) var<storage, read> tri_words: array<vec4<u32>>;
 @group(0) @binding(BINDING_TRACE_RAYS) var<storage, read> rays: array<Ray>;

@@ -1,5 +1,5 @@
 // What every layout's traversal reads and counts: the layout's two word arrays in the chosen
-// BVH memory (gpu::BvhMemory), the shared leaf triangles (layout::LeafTri), and the work
+// BVH memory (gpu::BvhMemory), the shared leaf triangles (accel::LeafTri), and the work
 // counters. A layout's WGSL defines `traverse(r: Ray, any_hit: bool) -> Hit` on top of it.
 
 override COUNT_STATS: bool = false;  // count nodes visited / triangles tested
@@ -31,7 +31,7 @@ fn tri_word(i: u32) -> vec4<u32> {
     return tri_words[i];
 }
 
-// layout::LeafTri: vertices, original triangle index in v0's w slot.
+// accel::LeafTri: vertices, original triangle index in v0's w slot.
 struct Tri {
     v0: vec3<f32>,
     prim: u32,
@@ -65,7 +65,7 @@ fn test_tri(tri: Tri, r: Ray, w: Watertight, best: ptr<function, Hit>,
     return false;
 }
 
-// The leaf step of every layout's traversal (layout::LeafRay::test_leaf, step for step):
+// The leaf step of every layout's traversal (accel::leaf_tri::LeafRay::test_leaf, step for step):
 // tests triangles first..first+count in order with test_tri. Returns true when an any-hit
 // query is answered.
 fn test_leaf(first: u32, count: u32, r: Ray, w: Watertight, any_hit: bool,

@@ -1,8 +1,8 @@
 //! Acceleration structures: one trait, [`Accel`], and two entry points, [`build`] (the CPU
 //! form of every structure) and [`build_gpu`] (the GPU form of those that have one). The BVH
-//! is built by [`bvh`] and traversed through a flattened [`Layout`], whose CPU twin is the
+//! is built by [`bvh`] and traversed through a flattened [`GpuForm`], whose CPU twin is the
 //! BVH's `Accel`: the CPU walks the same arrays, in the same order, as the GPU kernel. The
-//! kd-tree and the BIH are their own [`Layout`]s (their CPU traversals are the twins of their
+//! kd-tree and the BIH are their own [`GpuForm`]s (their CPU traversals are the twins of their
 //! WGSL).
 
 pub mod bih;
@@ -11,18 +11,24 @@ pub mod grid;
 pub mod kdtree;
 pub mod octree;
 
+mod gpu_form;
+pub(crate) mod leaf_tri;
 mod plane_ray;
 mod query;
+mod traversal_mode;
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
+use crate::accel::bvh::layouts::{self, LayoutKind};
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
-use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
 
+pub use gpu_form::{GpuArrays, GpuForm};
+pub use leaf_tri::LeafTri;
 pub use query::{Query, RayStats};
+pub use traversal_mode::TraversalMode;
 
 /// Rays a CPU thread takes at a time in a batch ([`Accel::trace_hits`]): enough to make
 /// the hand-over cost nothing, few enough to balance two threads on a small batch.
@@ -179,7 +185,7 @@ pub fn build(
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
-            layout::try_flatten(layout, &tree, mesh)?
+            layouts::try_flatten(layout, &tree, mesh)?
         }
         AccelKind::KdTree => Box::new(kdtree::KdTree::build(mesh, &Default::default())?),
         AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
@@ -196,11 +202,11 @@ pub fn build_gpu(
     kind: AccelKind,
     mesh: &Mesh,
     options: &bvh::BuildOptions,
-) -> crate::Result<Option<Arc<dyn Layout>>> {
+) -> crate::Result<Option<Arc<dyn GpuForm>>> {
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
-            Some(layout::try_flatten(layout, &tree, mesh)?.into())
+            Some(layouts::try_flatten(layout, &tree, mesh)?.into())
         }
         AccelKind::KdTree => Some(Arc::new(kdtree::KdTree::build(mesh, &Default::default())?)),
         AccelKind::Bih => Some(Arc::new(bih::Bih::build(mesh, &Default::default())?)),

@@ -48,7 +48,7 @@ pub fn triangle_test_hits(mesh: &Mesh, ray: &Ray, robustness: &Robustness) -> bo
         .filter(|(_, s)| **s == TriStatus::Ok)
         .any(|(tri, _)| {
             let h = match robustness.precision {
-                Precision::F64 => oracle::triangle_hit(tri, ray, ray.tmin, ray.tmax),
+                Precision::F64 => crate::geometry::triangle_hit_f64(tri, ray, ray.tmin, ray.tmax),
                 Precision::F32 => {
                     intersect_triangle_bounded(test, tri, ray, &wr, ray.tmin, ray.tmax)
                 }

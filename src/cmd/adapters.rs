@@ -1,17 +1,22 @@
 //! `lancer adapters`: every GPU adapter wgpu finds, and what lancer can use of each.
 
 use clap::Args;
-use lancer::gpu::{adapters, human_bytes};
+use lancer::gpu::adapters;
+use lancer::util::human_bytes;
 use lancer::Result;
+
+use super::out::{say, Say};
 
 #[derive(Args)]
 pub struct AdaptersCmd {}
 
 impl AdaptersCmd {
     pub fn run(self) -> Result<()> {
+        let say = Say::new(false);
         let all = adapters()?;
         if all.is_empty() {
-            println!(
+            say!(
+                say,
                 "no adapter: install a Vulkan driver (Debian/Ubuntu: apt-get install \
                  mesa-vulkan-drivers libvulkan1, which includes lavapipe) or use --device cpu"
             );
@@ -19,9 +24,10 @@ impl AdaptersCmd {
         }
         for (i, a) in all.iter().enumerate() {
             let yes = |b: bool| if b { "yes" } else { "no" };
-            println!("{i}: {} ({}, {})", a.name, a.device_type, a.backend);
-            println!("   driver            {}", a.driver);
-            println!(
+            say!(say, "{i}: {} ({}, {})", a.name, a.device_type, a.backend);
+            say!(say, "   driver            {}", a.driver);
+            say!(
+                say,
                 "   limits            storage binding {}, 2D texture {} texels, workgroup {} invocations",
                 human_bytes(a.max_storage_buffer_binding),
                 a.max_texture_dimension_2d,
@@ -32,7 +38,8 @@ impl AdaptersCmd {
                 Some((lo, hi)) => format!("yes (sizes {lo}–{hi})"),
                 None => "no".into(),
             };
-            println!(
+            say!(
+                say,
                 "   features          subgroups {subgroups}, timestamps {}, shader f64 {}, \
                  ray queries {}",
                 yes(a.timestamps),
@@ -40,10 +47,11 @@ impl AdaptersCmd {
                 yes(a.ray_query)
             );
             if a.device_type == "Cpu" {
-                println!("   (a software driver: it runs on the CPU)");
+                say!(say, "   (a software driver: it runs on the CPU)");
             }
         }
-        println!(
+        say!(
+            say,
             "choose one with WGPU_ADAPTER_NAME=<part of its name> (WGPU_BACKEND and \
              WGPU_POWER_PREF=low|high also apply)"
         );

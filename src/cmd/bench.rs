@@ -2,11 +2,11 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 use lancer::accel::build_gpu;
+use lancer::accel::GpuForm;
 use lancer::camera::Camera;
 use lancer::gpu::BvhMemory;
-use lancer::layout::Layout;
 use lancer::mesh::load_mesh;
 use lancer::trace::files::{default_light, shadow_rays};
 use lancer::{
@@ -71,7 +71,7 @@ struct BenchTrace {
 #[derive(Args)]
 pub struct JsonArg {
     /// Also write the results as one JSON object: on stdout with --json alone or --json -
-    /// (the tables then go to stderr), or in FILE.json (keys: the README's "JSON output").
+    /// (the tables then go to stderr), or in FILE.json (keys: the book's JSON page, docs/src/reference/json.md).
     #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
     pub json: Option<JsonTo>,
 }
@@ -180,11 +180,12 @@ impl BenchTrace {
         )?;
         let build_options = self.build.options();
         let kind = self.accel.kind(self.build.layout);
-        let layout: Arc<dyn Layout> = build_gpu(kind, &mesh, &build_options)?.ok_or_else(|| {
-            Error::Usage(format!(
-                "the {kind} structure has no GPU kernel: use `lancer bench structures`"
-            ))
-        })?;
+        let layout: Arc<dyn GpuForm> =
+            build_gpu(kind, &mesh, &build_options)?.ok_or_else(|| {
+                Error::Usage(format!(
+                    "the {kind} structure has no GPU kernel: use `lancer bench structures`"
+                ))
+            })?;
         let primary = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1))
             .primary_rays();
         let rob = Robustness::default();
@@ -206,7 +207,7 @@ impl BenchTrace {
         };
         let gpu_runs = memories.len() * gpu_configs.len();
         let repeat = self.repeat as usize;
-        let bar = ProgressBar::new((sets.len() * (1 + gpu_runs) * repeat) as u64);
+        let bar = super::out::progress_bar((sets.len() * (1 + gpu_runs) * repeat) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}").unwrap());
         let mut rows = Vec::new();
         let cpu = lancer::Device::cpu();

@@ -10,11 +10,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
+use lancer::accel::bvh::layouts::{flatten, try_flatten};
 use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats};
+use lancer::accel::GpuForm;
 use lancer::accuracy::{cases, closed, false_misses, secondary};
 use lancer::geometry::{Precision, RayOffset, SlabTest, TriangleTest};
-use lancer::layout::{flatten, try_flatten, Layout};
 use lancer::mesh::Mesh;
 use lancer::render::Rng;
 use lancer::trace::files::{default_light, shadow_rays};
@@ -33,9 +34,9 @@ use super::render::load_scene;
 #[derive(Args)]
 pub struct BenchAccuracy {
     /// Scene: a .toml scene file or a mesh (.obj, .ply, .gltf, .glb; traced from the scene's
-    /// camera, and rendered for the spp and bounce rows).
-    #[arg(default_value = "scenes/cornell.toml")]
-    scene: PathBuf,
+    /// camera, and rendered for the spp and bounce rows); the built-in Cornell box (the one
+    /// in scenes/cornell.toml) when none is given.
+    scene: Option<PathBuf>,
     /// Width of the timed primary rays' image.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=4096))]
     width: u32,
@@ -68,7 +69,7 @@ pub struct BenchAccuracy {
     chart: PathBuf,
     /// The results as one JSON object: on stdout with --json alone or --json - (the table
     /// then goes to stderr), or in FILE.json (default: the --chart path with .json; keys:
-    /// the README's "JSON output").
+    /// the book's JSON page, docs/src/reference/json.md).
     #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
     json: Option<JsonTo>,
 }
@@ -341,7 +342,7 @@ impl<'d> Tracers<'d> {
         };
         let tree = build(&work.mesh, build_opts);
         let sah = BvhStats::of(&tree, build_opts).sah_cost;
-        let layout: Arc<dyn Layout> = try_flatten(opts.layout, &tree, &work.mesh)?.into();
+        let layout: Arc<dyn GpuForm> = try_flatten(opts.layout, &tree, &work.mesh)?.into();
         let scene = Tracer::with_layout(device, layout, &opts)?;
         let mut tracers = Vec::new();
         if judged {
@@ -459,13 +460,25 @@ fn render(scene: &RenderScene, device: &Device, spp: u32, seed: u32) -> Result<(
 }
 
 impl BenchAccuracy {
+    /// The scene as reports name it.
+    fn scene_name(&self) -> String {
+        self.scene
+            .as_ref()
+            .map_or(lancer::render::builtin::CORNELL_NAME.to_string(), |p| {
+                p.display().to_string()
+            })
+    }
+
     pub fn run(self) -> Result<()> {
         let json =
             (self.json.clone()).unwrap_or_else(|| JsonTo::File(self.chart.with_extension("json")));
         let say = Say::new(json.is_stdout());
         let charts = ["cpu", "gpu", "spp"].map(|k| chart_path(&self.chart, k));
-        let mut inputs = vec![self.scene.clone()];
-        let scene = load_scene(&self.scene, None, None)?;
+        let mut inputs: Vec<PathBuf> = self.scene.iter().cloned().collect();
+        let scene = match &self.scene {
+            Some(path) => load_scene(path, None, None)?,
+            None => lancer::render::builtin::cornell_box()?,
+        };
         inputs.extend(scene.mesh.sources.iter().cloned());
         for out in &charts {
             lancer::output::check_output(out, &inputs)?;
@@ -484,7 +497,7 @@ impl BenchAccuracy {
             .collect();
         let bounces: Vec<u32> = [1, 2, 4, 8, 16].into();
         let jobs = devices.len() * (settings.len() + spps.len() + bounces.len()) + 1;
-        let bar = ProgressBar::new(jobs as u64);
+        let bar = super::out::progress_bar(jobs as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} settings {msg}")
                 .map_err(|e| Error::Usage(e.to_string()))?,
@@ -576,7 +589,7 @@ impl BenchAccuracy {
         say!(
             say,
             "scene {}  {} triangles  primary {w}x{h} + shadow rays ({} rays)  {} CPU threads",
-            self.scene.display(),
+            self.scene_name(),
             work.mesh.included().len(),
             work.primary.len() + work.shadow.len(),
             rayon::current_num_threads()
@@ -642,7 +655,7 @@ impl BenchAccuracy {
             charts[2].display()
         );
         let report = Report {
-            scene: self.scene.display().to_string(),
+            scene: self.scene_name(),
             adapter: device.gpu_context().map(|c| c.adapter.to_string()),
             cpu_threads: rayon::current_num_threads(),
             rows: &rows,

@@ -11,8 +11,9 @@ use std::time::Instant;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lancer::accel::bvh::build;
+use lancer::accel::bvh::layouts::{flatten, try_flatten, LayoutKind};
+use lancer::accel::{GpuForm, LeafTri};
 use lancer::gpu::{BvhMemory, DriverTracer};
-use lancer::layout::{flatten, try_flatten, Layout, LayoutKind, LeafTri};
 use lancer::{
     Device, DeviceChoice, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
     TraversalMode,
@@ -267,7 +268,7 @@ impl BenchLayouts {
     fn time_driver(
         &self,
         device: &Device,
-        leaf_order: &dyn Layout,
+        leaf_order: &dyn GpuForm,
         sets: &[(String, Query, Vec<Ray>)],
         reference: Option<&Reference>,
         bar: &ProgressBar,
@@ -349,7 +350,7 @@ impl BenchLayouts {
         let repeat = self.repeat as usize;
         let per_set =
             repeat * runs_per_repeat(reference.as_ref()) * (1 + !device.is_cpu() as usize);
-        let bar = ProgressBar::new((kinds.len() * sets.len() * per_set) as u64);
+        let bar = super::out::progress_bar((kinds.len() * sets.len() * per_set) as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -361,7 +362,7 @@ impl BenchLayouts {
         for &kind in &kinds {
             bar.set_message(kind.name());
             let start = Instant::now();
-            let layout: Arc<dyn Layout> = try_flatten(kind, &tree, &mesh)?.into();
+            let layout: Arc<dyn GpuForm> = try_flatten(kind, &tree, &mesh)?.into();
             let flatten_ms = start.elapsed().as_secs_f64() * 1e3;
             sizes.push(Size {
                 layout: kind,

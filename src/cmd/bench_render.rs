@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 use lancer::render::{EffectSet, RenderOptions, Renderer};
 use lancer::{Device, DeviceChoice, Result, Robustness, TraversalMode, Vec3};
 
@@ -106,7 +106,7 @@ impl BenchRender {
             configs.insert(0, ("gpu", &device, Some(TraversalMode::PerRay)));
             configs.insert(1, ("gpu", &device, Some(TraversalMode::Subgroup)));
         }
-        let bar = ProgressBar::new((configs.len() * 2 * (self.spp as usize + 1)) as u64);
+        let bar = super::out::progress_bar((configs.len() * 2 * (self.spp as usize + 1)) as u64);
         bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} samples {msg}").unwrap());
         let seed = scene.settings.seed;
         let rob = Robustness::default();

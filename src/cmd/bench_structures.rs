@@ -9,8 +9,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 use lancer::accel::bih::Bih;
+use lancer::accel::bvh::layouts::{flatten, try_flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions, BvhStats};
 use lancer::accel::grid::{GridStats, HashedGrid, TwoLevelGrid, UniformGrid};
 use lancer::accel::kdtree::KdTree;
@@ -18,13 +19,12 @@ use lancer::accel::octree::Octree;
 use lancer::accuracy::random_dir;
 use lancer::camera::Camera;
 use lancer::gpu::BvhMemory;
-use lancer::layout::{flatten, try_flatten, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::render::{RenderScene, Rng};
 use lancer::trace::files::{default_light, shadow_rays};
 use lancer::{
-    Accel, AccelKind, Device, DeviceChoice, Layout, Mesh, Query, Ray, RayStats, Result, Robustness,
-    Tracer, TracerOptions,
+    Accel, AccelKind, Device, DeviceChoice, GpuForm, Mesh, Query, Ray, RayStats, Result,
+    Robustness, Tracer, TracerOptions,
 };
 use serde::Serialize;
 
@@ -69,7 +69,7 @@ pub struct BenchStructures {
 /// A built structure: its CPU form, its GPU form where it has one, and its size.
 struct Built {
     accel: Arc<dyn Accel>,
-    layout: Option<Arc<dyn Layout>>,
+    layout: Option<Arc<dyn GpuForm>>,
     size: Size,
 }
 
@@ -140,14 +140,14 @@ fn build_one(kind: AccelKind, mesh: &Mesh) -> Result<Built> {
     let grid = |s: GridStats| (s.bytes, s.duplicated, None);
     let (accel, layout, (bytes, duplicated, max_depth)): (
         Arc<dyn Accel>,
-        Option<Arc<dyn Layout>>,
+        Option<Arc<dyn GpuForm>>,
         _,
     ) = match kind {
         AccelKind::Bvh(layout) => {
             let opts = BuildOptions::default();
             let tree = build(mesh, &opts);
             let depth = BvhStats::of(&tree, &opts).max_depth;
-            let flat: Arc<dyn Layout> = try_flatten(layout, &tree, mesh)?.into();
+            let flat: Arc<dyn GpuForm> = try_flatten(layout, &tree, mesh)?.into();
             let info = (flat.bytes() as u64, 0, Some(depth));
             (flat.clone(), Some(flat), info)
         }
@@ -287,7 +287,7 @@ impl BenchStructures {
             false => kinds.len(), // those without a GPU kernel step over their share
         };
         let runs_total = kinds.len() * (1 + sets.len() * repeat) + gpu_kinds * sets.len() * repeat;
-        let bar = ProgressBar::new(runs_total as u64);
+        let bar = super::out::progress_bar(runs_total as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} {msg}")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),

@@ -2,13 +2,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
+use lancer::accel::bvh::layouts::{bvh_file, try_flatten};
 use lancer::accel::bvh::{build, BvhStats};
-use lancer::layout::{bvh_file, try_flatten};
 use lancer::Result;
 use serde::Serialize;
 
 use super::input::load_geometry;
-use super::out::print_json;
+use super::out::{print_json, say, Say};
 use super::{spelled, BuildArgs};
 
 #[derive(Args)]
@@ -17,11 +17,11 @@ pub struct BuildCmd {
     mesh: PathBuf,
     #[command(flatten)]
     build: BuildArgs,
-    /// Also write the flattened layout to this BVH file (the README's "File formats"), for
+    /// Also write the flattened layout to this BVH file (docs/src/reference/file-formats.md), for
     /// `trace`, `check` and `heatmap --bvh`.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
-    /// Print one JSON object instead of text (keys: the README's "JSON output").
+    /// Print one JSON object instead of text (keys: the book's JSON page, docs/src/reference/json.md).
     #[arg(long)]
     json: bool,
 }
@@ -82,17 +82,18 @@ impl BuildCmd {
                 out,
             })?;
         } else {
-            println!("builder     {}", spelled(opts.builder));
-            println!("layout      {}", self.build.layout);
-            println!("triangles   {}", s.triangles);
-            println!("nodes       {}", s.nodes);
-            println!("leaves      {}", s.leaves);
-            println!("max depth   {}", s.max_depth);
-            println!("SAH cost    {:.3}", s.sah_cost);
-            println!("build ms    {ms:.2}");
-            println!("GPU bytes   {}", layout.bytes());
+            let say = Say::new(false);
+            say!(say, "builder     {}", spelled(opts.builder));
+            say!(say, "layout      {}", self.build.layout);
+            say!(say, "triangles   {}", s.triangles);
+            say!(say, "nodes       {}", s.nodes);
+            say!(say, "leaves      {}", s.leaves);
+            say!(say, "max depth   {}", s.max_depth);
+            say!(say, "SAH cost    {:.3}", s.sah_cost);
+            say!(say, "build ms    {ms:.2}");
+            say!(say, "GPU bytes   {}", layout.bytes());
             if let Some(out) = out {
-                println!("written to  {out}");
+                say!(say, "written to  {out}");
             }
         }
         Ok(())

@@ -9,8 +9,9 @@ use std::sync::Arc;
 
 use clap::Args;
 use lancer::accel::bvh::build;
+use lancer::accel::bvh::layouts::{try_flatten, LayoutKind};
+use lancer::accel::GpuForm;
 use lancer::gpu::DriverTracer;
-use lancer::layout::{try_flatten, Layout, LayoutKind};
 use lancer::mesh::load_mesh;
 use lancer::trace::compare::{compare_hits, compare_hits_independent, Comparison};
 use lancer::trace::files::decode_rays;
@@ -181,7 +182,7 @@ pub struct CheckCmd {
     /// (--width × --height) and the shadow and diffuse bounce rays from their hits.
     #[arg(long)]
     rays: Option<PathBuf>,
-    /// Layout to check: a name or all.
+    /// GpuForm to check: a name or all.
     #[arg(long = "layout", value_name = "NAME|all", default_value = "all", value_parser = layout_choice)]
     layouts: LayoutChoice,
     /// GPU traversal mode to check: per-ray, subgroup, or all (each mode the layout and the
@@ -200,13 +201,13 @@ pub struct CheckCmd {
     robustness: RobustnessArgs,
     #[command(flatten)]
     build: BuilderArgs,
-    /// Check the BVH in this file (`build --out`; the README's "File formats") instead of
+    /// Check the BVH in this file (`build --out`; docs/src/reference/file-formats.md) instead of
     /// building one: only its layout is checked (--layout and the builder options are
     /// refused with it), and MESH must be the mesh it was built from.
     #[arg(long, value_name = "FILE", conflicts_with_all = BUILDER_IDS, conflicts_with = "layouts")]
     bvh: Option<PathBuf>,
     /// Print the results as one JSON object on stdout, the table on stderr (keys: the
-    /// README's "JSON output").
+    /// book's JSON page, docs/src/reference/json.md).
     #[arg(long)]
     json: bool,
 }
@@ -230,8 +231,8 @@ impl CheckCmd {
         // Built when a layout is flattened here, not for a file's; each layout flattened once
         // (the default one serves the ray sets, its row and the driver's).
         let mut tree = None;
-        let mut flat: HashMap<LayoutKind, Arc<dyn Layout>> = HashMap::new();
-        let mut layout_of = |kind: LayoutKind| -> lancer::Result<Arc<dyn Layout>> {
+        let mut flat: HashMap<LayoutKind, Arc<dyn GpuForm>> = HashMap::new();
+        let mut layout_of = |kind: LayoutKind| -> lancer::Result<Arc<dyn GpuForm>> {
             if let Some(file) = &bvh {
                 return Ok(file.layout.clone());
             }
@@ -239,7 +240,7 @@ impl CheckCmd {
                 return Ok(layout.clone());
             }
             let tree = tree.get_or_insert_with(|| build(&mesh, &self.build.options()));
-            let layout: Arc<dyn Layout> = try_flatten(kind, tree, &mesh)?.into();
+            let layout: Arc<dyn GpuForm> = try_flatten(kind, tree, &mesh)?.into();
             flat.insert(kind, layout.clone());
             Ok(layout)
         };

@@ -58,7 +58,7 @@ pub struct HeatmapCmd {
     #[arg(long)]
     no_bar: bool,
     /// Print the summary as one JSON object on stdout, the text on stderr; the keys are
-    /// described in the README's "JSON output".
+    /// described in the book's JSON page, docs/src/reference/json.md.
     #[arg(long)]
     json: bool,
     /// Map the BVH in this file (`build --out`) instead of building one (--accel, --layout

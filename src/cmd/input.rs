@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use lancer::layout::bvh_file::BvhFile;
+use lancer::accel::bvh::layouts::bvh_file::BvhFile;
 use lancer::mesh::{load_mesh, Mesh};
 use lancer::{RenderScene, Result};
 
@@ -17,7 +17,7 @@ pub fn load_geometry(path: &Path) -> Result<Mesh> {
 
 /// The BVH file `path` (`--bvh`), refused unless it was built from `mesh`.
 pub fn load_bvh(path: &Path, mesh: &Mesh) -> Result<BvhFile> {
-    let file = lancer::layout::bvh_file::read(path)?;
+    let file = lancer::accel::bvh::layouts::bvh_file::read(path)?;
     file.check_mesh(path, mesh)?;
     log::info!("{}: a {} BVH", path.display(), file.kind);
     Ok(file)

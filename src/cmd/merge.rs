@@ -4,6 +4,8 @@ use clap::Args;
 use lancer::render::{image_kind, merge_tiles, ExrImage, ImageKind};
 use lancer::{Error, Result};
 
+use super::out::{say, Say};
+
 #[derive(Args)]
 pub struct MergeCmd {
     /// EXR tiles of one render (`lancer render --crop … -o tile.exr`), in any order.
@@ -29,7 +31,8 @@ impl MergeCmd {
             .collect::<Result<Vec<_>>>()?;
         let full = merge_tiles(&tiles)?;
         full.write(&self.out)?;
-        println!(
+        say!(
+            Say::new(false),
             "{} tiles -> {} ({}x{}, channels {})",
             tiles.len(),
             self.out.display(),

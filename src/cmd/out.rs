@@ -4,12 +4,21 @@
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use lancer::{Error, Result};
 use serde::Serialize;
 
+/// `-q`: errors only, so no human-readable lines (data still goes out).
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Sets `-q` for the whole run (before the command runs).
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
 /// The human-readable lines of one command: on stdout, or on stderr when stdout carries
-/// data.
+/// data; none under `-q`.
 #[derive(Clone, Copy, Debug)]
 pub struct Say {
     stderr: bool,
@@ -23,12 +32,23 @@ impl Say {
         }
     }
 
-    /// Prints one line.
+    /// Prints one line (nothing under `-q`). A closed stdout ends the run quietly, as a
+    /// pipe into `head` expects; a full one ends it with exit code 1.
     pub fn line(&self, args: std::fmt::Arguments) {
+        if QUIET.load(Ordering::Relaxed) {
+            return;
+        }
         if self.stderr {
             eprintln!("{args}");
-        } else {
-            println!("{args}");
+            return;
+        }
+        let mut stdout = std::io::stdout().lock();
+        if let Err(e) = writeln!(stdout, "{args}").and_then(|_| stdout.flush()) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+            eprintln!("error: writing to stdout: {e}");
+            std::process::exit(1);
         }
     }
 }
@@ -141,4 +161,14 @@ pub fn print_json(value: &impl Serialize) -> Result<()> {
     let text = serde_json::to_string(value)
         .map_err(|e| Error::io(Path::new("<stdout>"), std::io::Error::other(e)))?;
     write_output(Path::new("-"), format!("{text}\n").as_bytes())
+}
+
+/// A progress bar of `len` steps on stderr; hidden under `-q` (and by indicatif where
+/// stderr is not a terminal).
+pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
+    if QUIET.load(Ordering::Relaxed) {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(len)
+    }
 }

@@ -2,22 +2,22 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::camera::Camera;
-use lancer::mesh::load_mesh;
+use lancer::mesh::{load_mesh, FileKind};
 use lancer::trace::files::encode_rays;
-use lancer::Result;
+use lancer::{RenderScene, Result};
 
 use super::out::{check_output, is_std, say, write_output, Say};
 
 #[derive(Args)]
 pub struct RaysCmd {
-    /// Mesh (.obj, .ply, .gltf, .glb) whose default view is used.
+    /// A scene (.toml: its camera) or a mesh (.obj, .ply, .gltf, .glb: its default view).
     mesh: PathBuf,
-    /// Image width in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
-    width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
-    height: u32,
+    /// Image width in pixels (default: the scene camera's, or 512 for a mesh).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    width: Option<u32>,
+    /// Image height in pixels (default: the scene camera's, or 512 for a mesh).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    height: Option<u32>,
     /// Output ray file (32 bytes a ray), or - for stdout (text then goes to stderr).
     #[arg(short, long)]
     out: PathBuf,
@@ -25,16 +25,22 @@ pub struct RaysCmd {
 
 impl RaysCmd {
     pub fn run(self) -> Result<()> {
-        let mesh = load_mesh(&self.mesh)?;
-        check_output(&self.out, &mesh.sources)?;
+        // A scene's own camera; a mesh's default view.
+        let (mut cam, sources) = match FileKind::of(&self.mesh)? {
+            FileKind::Scene => {
+                let scene = RenderScene::from_file(&self.mesh)?;
+                (scene.camera, scene.mesh.sources)
+            }
+            _ => {
+                let mesh = load_mesh(&self.mesh)?;
+                (Camera::default_view(&mesh.bounds(), 512, 512), mesh.sources)
+            }
+        };
+        check_output(&self.out, &sources)?;
+        cam.width = self.width.unwrap_or(cam.width);
+        cam.height = self.height.unwrap_or(cam.height);
         // The rays in memory and their bytes on the way out: 64 bytes a ray.
-        lancer::limits::check_image(
-            self.width,
-            self.height,
-            64,
-            "use a smaller --width/--height",
-        )?;
-        let cam = Camera::default_view(&mesh.bounds(), self.width, self.height);
+        lancer::limits::check_image(cam.width, cam.height, 64, "use a smaller --width/--height")?;
         let rays = cam.primary_rays();
         write_output(&self.out, &encode_rays(&rays))?;
         let say = Say::new(is_std(&self.out));

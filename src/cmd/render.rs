@@ -4,7 +4,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 use lancer::accel::bvh::BvhStats;
 use lancer::mesh::FileKind;
 use lancer::render::{
@@ -13,6 +13,7 @@ use lancer::render::{
 use lancer::{Error, RenderScene, Result, TraversalMode};
 use serde::Serialize;
 
+use super::out::{say, Say};
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
@@ -244,7 +245,7 @@ impl RenderCmd {
             let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
         }
         let spp = self.spp.unwrap_or(scene.settings.spp);
-        let bar = ProgressBar::new(spp as u64);
+        let bar = super::out::progress_bar(spp as u64);
         bar.set_style(
             ProgressStyle::with_template("{bar:30} {pos}/{len} spp  {msg}  {elapsed_precise}")
                 .expect("valid template"),
@@ -298,13 +299,8 @@ impl RenderCmd {
             Stop::Complete => "",
         };
         // With --json the JSON object is stdout's only line; people read the rest on stderr.
-        let say = |line: String| {
-            if self.json {
-                eprintln!("{line}");
-            } else {
-                println!("{line}");
-            }
-        };
+        let to = Say::new(self.json);
+        let say = |line: String| say!(to, "{line}");
         say(format!(
             "{w}x{h}{tile} {}/{} spp -> {} ({device}, {:.2} s){why}",
             done.samples,

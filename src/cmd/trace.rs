@@ -13,7 +13,7 @@ use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLI
 pub struct TraceCmd {
     /// Mesh (.obj, .ply, .gltf, .glb) or scene (.toml: its assembled mesh).
     mesh: PathBuf,
-    /// Input ray file (32 bytes a ray; see the README's file formats), or - for stdin.
+    /// Input ray file (32 bytes a ray; docs/src/reference/file-formats.md), or - for stdin.
     #[arg(long)]
     rays: PathBuf,
     /// Output hit file (16 bytes a ray), or - for stdout (text then goes to stderr).
@@ -30,7 +30,7 @@ pub struct TraceCmd {
     #[arg(long)]
     stats: bool,
     /// Print the summary (and the --stats) as one JSON object on stdout, the text on
-    /// stderr; the keys are described in the README's "JSON output".
+    /// stderr; the keys are described in the book's JSON page, docs/src/reference/json.md.
     #[arg(long)]
     json: bool,
     /// GPU: invocations per workgroup (the adapter's limit applies).
@@ -45,7 +45,7 @@ pub struct TraceCmd {
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH run on the CPU).
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
-    /// Trace the BVH in this file (`build --out`; the README's "File formats") instead of
+    /// Trace the BVH in this file (`build --out`; docs/src/reference/file-formats.md) instead of
     /// building one: its layout is the file's (--accel, --layout and the builder options are
     /// refused with it), and MESH must be the mesh it was built from.
     #[arg(long, value_name = "FILE", conflicts_with_all = BVH_CONFLICTS)]

@@ -8,6 +8,8 @@ mod robustness;
 mod slab4;
 mod triangle;
 mod triangle4;
+mod triangle_f64;
+mod vector;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use hit::{Hit, MISS};
@@ -23,3 +25,5 @@ pub use triangle::{
     TriangleTest, WatertightRay, NEAR_HIT_PLANE_REL,
 };
 pub use triangle4::{TriHits4, TriangleRay4, Watertight4};
+pub use triangle_f64::{d3, intersect_f64, triangle_hit_f64};
+pub use vector::{cross, dot, normalize};

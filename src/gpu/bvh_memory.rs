@@ -2,13 +2,13 @@
 //! `shaders/lib/traversal.wgsl` declares both and reads one, chosen by its `BVH_TEXTURES`
 //! override; the other pair of bindings gets a one-word placeholder.
 
+use crate::accel::{GpuForm, LeafTri};
 use crate::error::{Error, Result};
-use crate::layout::{Layout, LeafTri};
 
 use super::bindings;
-use super::context::human_bytes;
 use super::plumbing::{storage_entry, texel_entry};
 use super::GpuContext;
+use crate::util::human_bytes;
 
 /// Where the kernels read nodes and triangles from. The words are the same; only the kind
 /// of binding differs.
@@ -44,7 +44,7 @@ impl GpuBvh {
     /// Validates and uploads a layout's arrays (with no triangle, one unused zero triangle
     /// is bound); refuses an invalid layout (trusted modules rely on its indices) and sizes
     /// the device cannot bind, naming the size and the limit.
-    pub fn upload(ctx: &GpuContext, layout: &dyn Layout, memory: BvhMemory) -> Result<GpuBvh> {
+    pub fn upload(ctx: &GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<GpuBvh> {
         layout
             .validate()
             .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;

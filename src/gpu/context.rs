@@ -1,5 +1,6 @@
 //! One place that opens a headless GPU device.
 
+use crate::util::human_bytes;
 use std::sync::{Arc, Mutex};
 
 use wgpu::util::DeviceExt;
@@ -297,14 +298,4 @@ fn check_backend_variable() -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// A size for people: bytes, KiB, MiB or GiB.
-pub fn human_bytes(bytes: u64) -> String {
-    match bytes {
-        b if b >= 1 << 30 => format!("{:.1} GiB", b as f64 / 1073741824.0),
-        b if b >= 1 << 20 => format!("{:.1} MiB", b as f64 / 1048576.0),
-        b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
-        b => format!("{b} bytes"),
-    }
 }

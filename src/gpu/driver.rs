@@ -16,9 +16,9 @@ use super::plumbing::{
 use super::trace::{batch_len, CHUNK};
 use super::{bindings, shaders, GpuContext, Timings, TraceParams};
 use crate::accel::Query;
+use crate::accel::{GpuForm, LeafTri};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray};
-use crate::layout::{Layout, LeafTri};
 
 /// Bytes between vertices in a [`LeafTri`]: each vertex is a 16-byte word (xyz, then a spare
 /// slot), so the leaf triangle array is the driver's vertex buffer as it is.
@@ -44,7 +44,7 @@ impl<'a> DriverTracer<'a> {
     /// Has the driver build its acceleration structure over the layout's leaf triangles and
     /// compiles the kernel. Refused where the device has no ray queries
     /// ([`GpuContext::ray_query`]).
-    pub fn new(ctx: &'a GpuContext, layout: &dyn Layout) -> Result<Self> {
+    pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm) -> Result<Self> {
         if !ctx.ray_query {
             return Err(Error::Gpu(format!(
                 "{} offers no ray queries (wgpu's EXPERIMENTAL_RAY_QUERY): the driver row needs \

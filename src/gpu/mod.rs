@@ -12,6 +12,6 @@ mod trace;
 
 pub use adapters::{adapters, AdapterSummary};
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
-pub use context::{human_bytes, AdapterReport, GpuContext, SubgroupSizes};
+pub use context::{AdapterReport, GpuContext, SubgroupSizes};
 pub use driver::DriverTracer;
 pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};

@@ -9,11 +9,11 @@ use super::plumbing::{
     Kernel, Readback, Timer,
 };
 use super::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
+use crate::accel::GpuForm;
+use crate::accel::TraversalMode;
 use crate::accel::{Query, RayStats};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, Robustness};
-use crate::layout::Layout;
-use crate::trace::TraversalMode;
 
 /// The prim the trace kernel reports for a ray whose traversal did not end by itself: the
 /// driver cut it short (see `traversal_done` in shaders/lib/traversal.wgsl), or a subgroup
@@ -99,7 +99,7 @@ pub struct GpuTracer<'a> {
 
 impl<'a> GpuTracer<'a> {
     /// Validates and uploads a layout in the given memory and compiles the kernel.
-    pub fn new(ctx: &'a GpuContext, layout: &dyn Layout, memory: BvhMemory) -> Result<Self> {
+    pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
         let mut entries: Vec<_> = GpuBvh::layout_entries().into();
         entries.extend([

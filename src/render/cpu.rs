@@ -10,10 +10,11 @@ use rayon::prelude::*;
 use super::aov::FirstHit;
 use super::crop::Crop;
 use super::effects::EffectSet;
-use super::sampling::{cosine_direction, cross, dot, normalize, offset_origin, point_error, Rng};
+use super::sampling::{cosine_direction, offset_origin, point_error, Rng};
 use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
 use crate::accel::{Accel, Query, RayStats};
 use crate::camera::{CameraFrame, PRIMARY_TMAX};
+use crate::geometry::{cross, dot, normalize};
 use crate::geometry::{Hit, Ray, RayOffset, Robustness};
 
 /// Bilinear lookup with wrap-around, in linear RGB.

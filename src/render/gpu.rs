@@ -9,15 +9,15 @@ use super::aov::FirstHit;
 use super::crop::Crop;
 use super::effects::EffectSet;
 use super::scene::{Light, LightKind, RenderScene};
+use crate::accel::GpuForm;
+use crate::accel::TraversalMode;
 use crate::error::Result;
 use crate::geometry::Robustness;
 use crate::gpu::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
     Chunks, Kernel, Readback,
 };
-use crate::gpu::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
-use crate::layout::Layout;
-use crate::trace::TraversalMode;
+use crate::gpu::{bindings, BvhMemory, GpuBvh, GpuContext};
 
 /// Pixels per dispatch: keeps every dispatch short on a software rasteriser.
 const CHUNK: u32 = 1 << 16;
@@ -182,7 +182,7 @@ impl<'a> GpuRenderer<'a> {
     pub fn new(
         ctx: &'a GpuContext,
         scene: &RenderScene,
-        layout: &dyn Layout,
+        layout: &dyn GpuForm,
         memory: BvhMemory,
         crop: Crop,
         aovs: bool,
@@ -316,7 +316,7 @@ impl<'a> GpuRenderer<'a> {
         let subgroup_source = match mode {
             TraversalMode::PerRay => None,
             TraversalMode::Subgroup => {
-                let source = shaders::render_subgroup_source(layout);
+                let source = super::kernel::render_subgroup_source(layout);
                 let why = ctx.subgroup_unavailable(layout.name(), source.is_some(), WORKGROUP);
                 if let Some(why) = &why {
                     log::warn!("no {mode} traversal ({why}): rendering per ray");
@@ -328,7 +328,7 @@ impl<'a> GpuRenderer<'a> {
             Some(_) => TraversalMode::Subgroup,
             None => TraversalMode::PerRay,
         };
-        let source = subgroup_source.unwrap_or_else(|| shaders::render_source(layout));
+        let source = subgroup_source.unwrap_or_else(|| super::kernel::render_source(layout));
         let kernel = Kernel::new(
             ctx, "render", "render", &source, &entries,
             // Trusted modules are offered: the layout was validated by GpuBvh::upload, the

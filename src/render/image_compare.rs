@@ -26,6 +26,8 @@ pub struct ImageDiff {
     pub rmse: f64,
     /// Pixels whose difference exceeds the threshold.
     pub over: usize,
+    /// Pixels not bit-identical in every channel (NaN and ±∞ compared by their bits).
+    pub differing: usize,
     /// The threshold `over` counts against.
     pub threshold: f32,
 }
@@ -83,20 +85,28 @@ pub fn compare_images(a: &Image, b: &Image, threshold: f32) -> Result<ImageDiff>
         )));
     }
     let per_pixel: Vec<f32> = (a.pixels.iter().zip(&b.pixels))
-        .map(|(p, q)| (*p - *q).abs().max_element())
+        .map(|(p, q)| {
+            (0..3)
+                .map(|c| channel_difference(p[c], q[c]))
+                .fold(0.0, f32::max)
+        })
         .collect();
     let n = per_pixel.len().max(1) as f64;
     let sq: f64 = (a.pixels.iter().zip(&b.pixels))
-        .map(|(p, q)| (*p - *q).as_dvec3().length_squared())
+        .map(|(p, q)| {
+            (0..3)
+                .map(|c| (channel_difference(p[c], q[c]) as f64).powi(2))
+                .sum::<f64>()
+        })
         .sum();
-    // NaN pixels count as different (a comparison with NaN is false both ways).
-    let over = per_pixel
-        .iter()
-        .filter(|d| d.is_nan() || **d > threshold)
+    let over = per_pixel.iter().filter(|d| **d > threshold).count();
+    let differing = (a.pixels.iter().zip(&b.pixels))
+        .filter(|(p, q)| (0..3).any(|c| p[c].to_bits() != q[c].to_bits()))
         .count();
     Ok(ImageDiff {
         width: a.width,
         height: a.height,
+        differing,
         max: per_pixel.iter().copied().fold(0.0, f32::max),
         mean: per_pixel.iter().map(|&d| d as f64).sum::<f64>() / n,
         rmse: (sq / (3.0 * n)).sqrt(),
@@ -104,4 +114,17 @@ pub fn compare_images(a: &Image, b: &Image, threshold: f32) -> Result<ImageDiff>
         threshold,
         per_pixel,
     })
+}
+
+/// How far apart two values of a channel are: 0 where their bits are the same (NaN and ±∞
+/// included), +∞ where they differ and either is not finite (a NaN or an infinity that the
+/// other image does not have is as different as can be), else |a − b|.
+fn channel_difference(a: f32, b: f32) -> f32 {
+    if a.to_bits() == b.to_bits() {
+        0.0
+    } else if !a.is_finite() || !b.is_finite() {
+        f32::INFINITY
+    } else {
+        (a - b).abs()
+    }
 }

@@ -10,6 +10,7 @@ mod exr;
 mod gpu;
 mod image;
 mod image_compare;
+pub mod kernel;
 mod merge;
 mod renderer;
 pub(crate) mod sampling;
@@ -28,6 +29,7 @@ pub use image_compare::{compare_images, load_image, ImageDiff};
 pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
 pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
+pub use scene::builtin;
 pub use scene::{
     Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile, Settings, Texture,
 };

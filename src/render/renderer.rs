@@ -16,14 +16,15 @@ use super::effects::EffectSet;
 use super::gpu::GpuRenderer;
 use super::image::Image;
 use super::scene::RenderScene;
+use crate::accel::bvh::layouts;
 use crate::accel::bvh::{self, BuildOptions, BvhStats};
+use crate::accel::GpuForm;
+use crate::accel::TraversalMode;
 use crate::accel::{self, Accel, AccelKind};
 use crate::device::Device;
 use crate::error::{Error, Result};
 use crate::geometry::Robustness;
 use crate::gpu::BvhMemory;
-use crate::layout::{self, Layout};
-use crate::trace::TraversalMode;
 
 /// Where a render stands, for a progress callback.
 #[derive(Clone, Copy, Debug)]
@@ -155,11 +156,11 @@ impl<'a> Renderer<'a> {
         )?;
         let kind = options.accel;
         let start = Instant::now();
-        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn Layout>>, _) = match kind {
+        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) = match kind {
             AccelKind::Bvh(layout_kind) => {
                 let tree = bvh::build(&scene.mesh, &options.build);
-                let flat: Arc<dyn Layout> =
-                    layout::try_flatten(layout_kind, &tree, &scene.mesh)?.into();
+                let flat: Arc<dyn GpuForm> =
+                    layouts::try_flatten(layout_kind, &tree, &scene.mesh)?.into();
                 (flat.clone(), Some(flat), Some(tree))
             }
             _ if device.is_cpu() => (

@@ -4,6 +4,8 @@
 
 use glam::Vec3;
 
+use crate::geometry::dot;
+
 /// PCG hash (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering").
 #[inline]
 pub fn pcg(v: u32) -> u32 {
@@ -31,27 +33,6 @@ impl Rng {
     pub fn next_f32(&mut self) -> f32 {
         (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
     }
-}
-
-#[inline]
-pub fn dot(a: Vec3, b: Vec3) -> f32 {
-    a.x * b.x + a.y * b.y + a.z * b.z
-}
-
-#[inline]
-pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    Vec3::new(
-        a.y * b.z - a.z * b.y,
-        a.z * b.x - a.x * b.z,
-        a.x * b.y - a.y * b.x,
-    )
-}
-
-/// v / |v| (a division, not a reciprocal square root: exact on both sides).
-#[inline]
-pub fn normalize(v: Vec3) -> Vec3 {
-    let l = dot(v, v).sqrt();
-    Vec3::new(v.x / l, v.y / l, v.z / l)
 }
 
 /// Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis,

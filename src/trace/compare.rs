@@ -59,7 +59,7 @@ pub fn compare_hits(
     reference: &[Hit],
     other: &[Hit],
 ) -> Comparison {
-    compare(mesh, rays, query, reference, other, false)
+    compare(mesh, rays, query, reference, other, T_ULPS, false)
 }
 
 /// Like [`compare_hits`] for an independent tracer whose t comes from other arithmetic (the
@@ -72,7 +72,21 @@ pub fn compare_hits_independent(
     reference: &[Hit],
     other: &[Hit],
 ) -> Comparison {
-    compare(mesh, rays, query, reference, other, true)
+    compare(mesh, rays, query, reference, other, T_ULPS, true)
+}
+
+/// Like [`compare_hits_independent`] with `t_ulps` for [`T_ULPS`]: the comparison `lancer
+/// compare --mesh --rays` makes of a kernel of one's own (another triangle test gives a t a
+/// few ulps away, which the oracle's error bound accepts).
+pub fn compare_hits_judged(
+    mesh: &Mesh,
+    rays: &[Ray],
+    query: Query,
+    reference: &[Hit],
+    other: &[Hit],
+    t_ulps: u32,
+) -> Comparison {
+    compare(mesh, rays, query, reference, other, t_ulps, true)
 }
 
 fn compare(
@@ -81,6 +95,7 @@ fn compare(
     query: Query,
     reference: &[Hit],
     other: &[Hit],
+    t_ulps: u32,
     judge_same_triangle: bool,
 ) -> Comparison {
     enum One {
@@ -98,7 +113,7 @@ fn compare(
             Query::Any => judge_any(mesh, r, h),
         };
         if a.prim == b.prim {
-            if !a.is_hit() || ulps(a.t, b.t) <= T_ULPS {
+            if !a.is_hit() || ulps(a.t, b.t) <= t_ulps {
                 return One::Agree;
             }
             let why = format!("t {} vs {} ({} ulp)", a.t, b.t, ulps(a.t, b.t));

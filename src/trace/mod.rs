@@ -3,9 +3,8 @@
 
 pub mod compare;
 pub mod files;
-mod mode;
+
 pub mod oracle;
 mod tracer;
 
-pub use mode::TraversalMode;
 pub use tracer::{TraceResult, Tracer, TracerOptions};

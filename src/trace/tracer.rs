@@ -4,15 +4,16 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use crate::accel::bvh::layouts::{self, LayoutKind};
 use crate::accel::bvh::{self, BuildOptions};
+use crate::accel::GpuForm;
+use crate::accel::TraversalMode;
 use crate::accel::{self, Accel, AccelKind, Query, RayStats};
 use crate::device::Device;
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Precision, Ray, Robustness};
 use crate::gpu::{BvhMemory, GpuTracer, Timings, TraceKernel, INCOMPLETE};
-use crate::layout::{self, Layout, LayoutKind};
 use crate::mesh::Mesh;
-use crate::trace::TraversalMode;
 
 /// How a [`Tracer`] builds, lays out and traces.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,7 +74,7 @@ pub struct Tracer<'d> {
     /// What the CPU traces (for a BVH, the layout's twin; it also re-traces rays a GPU
     /// driver cut short).
     cpu: Arc<dyn Accel>,
-    layout: Option<Arc<dyn Layout>>,
+    layout: Option<Arc<dyn GpuForm>>,
     gpu: Option<GpuTracer<'d>>,
     options: TracerOptions,
     /// The mode that runs, [`Tracer::resolve_mode`] of the options.
@@ -85,7 +86,7 @@ impl<'d> Tracer<'d> {
     /// the device is a GPU.
     pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
         let tree = bvh::build(mesh, &options.build);
-        let layout: Arc<dyn Layout> = layout::try_flatten(options.layout, &tree, mesh)?.into();
+        let layout: Arc<dyn GpuForm> = layouts::try_flatten(options.layout, &tree, mesh)?.into();
         Self::with_layout(device, layout, options)
     }
 
@@ -125,7 +126,7 @@ impl<'d> Tracer<'d> {
     /// then not used): benches and tests share one layout between tracers.
     pub fn with_layout(
         device: &'d Device,
-        layout: Arc<dyn Layout>,
+        layout: Arc<dyn GpuForm>,
         options: &TracerOptions,
     ) -> Result<Self> {
         let gpu = match device.gpu_context() {
@@ -177,7 +178,7 @@ impl<'d> Tracer<'d> {
 
     /// The layout traced (on the CPU, its twin): a BVH layout, or on a GPU device another
     /// structure's GPU form; None for a structure traced on the CPU only.
-    pub fn layout(&self) -> Option<&Arc<dyn Layout>> {
+    pub fn layout(&self) -> Option<&Arc<dyn GpuForm>> {
         self.layout.as_ref()
     }
 

@@ -6,10 +6,10 @@
 
 use std::sync::{Arc, OnceLock};
 
+use lancer::accel::GpuForm;
 use lancer::accel::{build_gpu, AccelKind};
 use lancer::geometry::{Hit, Ray};
 use lancer::gpu::BvhMemory;
-use lancer::layout::Layout;
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Verdict};
 use lancer::{Device, Query, Robustness, Tracer, TracerOptions};
@@ -26,7 +26,7 @@ pub fn bits(h: &Hit) -> [u32; 4] {
 }
 
 /// Structure `kind`'s GPU form, as `Tracer::with_structure` builds it.
-pub fn gpu_form(kind: AccelKind, mesh: &Mesh) -> Arc<dyn Layout> {
+pub fn gpu_form(kind: AccelKind, mesh: &Mesh) -> Arc<dyn GpuForm> {
     build_gpu(kind, mesh, &Default::default())
         .unwrap()
         .unwrap_or_else(|| panic!("{kind} has no GPU form"))
@@ -38,7 +38,7 @@ pub fn gpu_form(kind: AccelKind, mesh: &Mesh) -> Arc<dyn Layout> {
 /// the GPU's closest and any hits.
 pub fn same_on_gpu(
     name: &str,
-    tree: &Arc<dyn Layout>,
+    tree: &Arc<dyn GpuForm>,
     rays: &[Ray],
     rob: Robustness,
 ) -> [Vec<Hit>; 2] {

@@ -26,8 +26,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::node::BihNode;
+use crate::accel::LeafTri;
 use crate::geometry::Aabb;
-use crate::layout::LeafTri;
 use crate::mesh::Mesh;
 
 /// Nodes with at least this many triangles build their two subtrees in parallel.

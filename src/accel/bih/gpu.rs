@@ -1,13 +1,13 @@
 //! The BIH on the GPU: the tree's own arrays, uploaded as they are — 16-byte nodes one to a
-//! word, the leaves' [`LeafTri`](crate::layout::LeafTri)s — walked by `bih.wgsl`, whose CPU
+//! word, the leaves' [`LeafTri`](crate::accel::LeafTri)s — walked by `bih.wgsl`, whose CPU
 //! twin is the tree's [`Accel`](crate::accel::Accel) (`traverse.rs`).
 
 use super::{Bih, BihNode, BIH_LEAF_TAG, BIH_LINK_SHIFT, BIH_NODE_BYTES, MAX_BIH_DEPTH};
 use crate::accel::plane_ray::PLANE_RAY_WGSL;
 use crate::accel::AccelKind;
-use crate::layout::{Layout, LayoutArrays};
+use crate::accel::{GpuArrays, GpuForm};
 
-impl Layout for Bih {
+impl GpuForm for Bih {
     fn name(&self) -> &'static str {
         AccelKind::Bih.name()
     }
@@ -16,8 +16,8 @@ impl Layout for Bih {
         BIH_NODE_BYTES
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -146,7 +146,7 @@ mod tests {
     #[test]
     fn the_wgsl_validates_and_its_node_matches_the_rust_node() {
         let tree = row();
-        for (kernel, src) in shaders::all(&tree) {
+        for (kernel, src) in crate::render::kernel::all_kernels(&tree) {
             let m = naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
             naga::valid::Validator::new(

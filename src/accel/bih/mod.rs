@@ -10,7 +10,7 @@
 //!   parallel build.
 //! - `traverse.rs`: the [`Accel`](crate::accel::Accel) implementation, the CPU twin of
 //!   `bih.wgsl`, which walks the same arrays step for step.
-//! - `gpu.rs`: the [`Layout`](crate::layout::Layout) (arrays, WGSL, validation) that runs
+//! - `gpu.rs`: the [`GpuForm`](crate::accel::GpuForm) (arrays, WGSL, validation) that runs
 //!   the tree on a GPU (`accel::build_gpu`).
 //!
 //! The arrays are GPU-ready: [`Bih::nodes`] (16-byte nodes in depth-first order) and
@@ -23,12 +23,12 @@ mod traverse;
 
 pub use node::{BihNode, BIH_INDEX_MAX, BIH_LEAF_TAG, BIH_LINK_SHIFT, BIH_NODE_BYTES};
 
+use crate::accel::LeafTri;
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
-use crate::gpu::human_bytes;
-use crate::layout::LeafTri;
 use crate::limits::check_memory;
 use crate::mesh::Mesh;
+use crate::util::human_bytes;
 
 /// Deepest leaf any BIH may have: the traversal's stack holds one entry per level.
 pub const MAX_BIH_DEPTH: usize = 64;

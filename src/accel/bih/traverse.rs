@@ -23,10 +23,10 @@
 //! the smaller original index ([`Hit::beats`]). Triangles are referenced once: no mailbox.
 
 use super::{Bih, MAX_BIH_DEPTH};
+use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
 use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for Bih {
     fn bounds(&self) -> Aabb {

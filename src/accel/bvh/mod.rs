@@ -1,7 +1,8 @@
 //! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median) and its
-//! statistics. Flattened layouts for the GPU live in `crate::layout`.
+//! statistics. Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
 
 mod binned;
+pub mod layouts;
 mod median;
 mod options;
 mod prims;

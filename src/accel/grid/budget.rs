@@ -7,8 +7,8 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Error, Result};
-use crate::gpu::human_bytes;
 use crate::limits::available_memory;
+use crate::util::human_bytes;
 
 /// Most references a grid holds: cell ranges are u32 offsets.
 pub(crate) const MAX_REFS: u64 = u32::MAX as u64;

@@ -25,8 +25,8 @@ use super::clip::clip_bounds;
 use super::{KdOptions, KdTri, Node, NODE_FIELD_MAX};
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Triangle};
-use crate::gpu::human_bytes;
 use crate::limits::available_memory;
+use crate::util::human_bytes;
 
 /// Event kinds, in the order events at one position are swept.
 const END: u32 = 0;

@@ -1,5 +1,5 @@
 //! The kd-tree on the GPU: the tree's own arrays, uploaded as they are — 8-byte nodes two to
-//! a 16-byte word, the leaves' [`LeafTri`](crate::layout::LeafTri)s — walked by
+//! a 16-byte word, the leaves' [`LeafTri`](crate::accel::LeafTri)s — walked by
 //! `kdtree.wgsl`, whose CPU twin is the tree's [`Accel`](crate::accel::Accel)
 //! (`traverse.rs`).
 
@@ -7,9 +7,9 @@ use super::traverse::MAILBOX;
 use super::{KdTree, ABOVE_EMPTY, ABOVE_SHIFT, BELOW_EMPTY, COUNT_SHIFT, LEAF_TAG, MAX_KD_DEPTH};
 use crate::accel::plane_ray::PLANE_RAY_WGSL;
 use crate::accel::AccelKind;
-use crate::layout::{Layout, LayoutArrays};
+use crate::accel::{GpuArrays, GpuForm};
 
-impl Layout for KdTree {
+impl GpuForm for KdTree {
     fn name(&self) -> &'static str {
         AccelKind::KdTree.name()
     }
@@ -18,8 +18,8 @@ impl Layout for KdTree {
         std::mem::size_of::<super::Node>()
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -145,7 +145,7 @@ mod tests {
     #[test]
     fn the_wgsl_validates_and_its_node_matches_the_rust_node() {
         let tree = row();
-        for (kernel, src) in shaders::all(&tree) {
+        for (kernel, src) in crate::render::kernel::all_kernels(&tree) {
             let m = naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
             naga::valid::Validator::new(

@@ -7,7 +7,7 @@
 //! - `clip.rs`: Sutherland–Hodgman clipping of a triangle to a cell, conservatively.
 //! - `traverse.rs`: the [`Accel`](crate::accel::Accel) implementation, which is also the CPU
 //!   twin of the GPU traversal;
-//! - `gpu.rs` and `kdtree.wgsl`: the tree as a [`Layout`](crate::layout::Layout): its own
+//! - `gpu.rs` and `kdtree.wgsl`: the tree as a [`GpuForm`](crate::accel::GpuForm): its own
 //!   node and triangle arrays uploaded as they are, walked by the WGSL step for step as
 //!   `traverse.rs` walks them.
 
@@ -19,9 +19,9 @@ mod traverse;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::accel::LeafTri;
 use crate::error::Result;
 use crate::geometry::{Aabb, Triangle};
-use crate::layout::LeafTri;
 use crate::mesh::Mesh;
 
 /// Deepest leaf any kd-tree may have: the traversal's stack holds one entry per level.
@@ -202,7 +202,7 @@ pub(crate) struct KdTri {
 }
 
 /// A kd-tree over the included triangles of a mesh, traced on the CPU through
-/// [`Accel`](crate::accel::Accel) and on the GPU as a [`Layout`](crate::layout::Layout)
+/// [`Accel`](crate::accel::Accel) and on the GPU as a [`GpuForm`](crate::accel::GpuForm)
 /// (the same arrays). Hits report original triangle indices.
 ///
 /// A leaf's triangles are copies ([`LeafTri`], 48 bytes, ascending original index within a

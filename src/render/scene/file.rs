@@ -1,4 +1,4 @@
-//! The TOML scene format (documented in README.md). Parsing only: `scene.rs` turns a
+//! The TOML scene format (documented in docs/src/reference/scene-format.md). Parsing only: `scene.rs` turns a
 //! `SceneFile` into something the renderers can use. Unknown keys and bad values are
 //! refused with `FILE:LINE: message`.
 

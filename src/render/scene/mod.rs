@@ -2,6 +2,7 @@
 //! lights, and the built-in shapes.
 
 mod assemble;
+pub mod builtin;
 mod file;
 mod imported;
 mod shapes;

@@ -37,7 +37,7 @@ use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
-use super::{LayoutArrays, LayoutKind, LeafTri};
+use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// A 4-wide BVH (the `bvh4` layout); its [`Accel`](crate::accel::Accel) is the CPU twin of
 /// `wide_bvh.wgsl` for four slots.
@@ -86,7 +86,7 @@ const _: () = assert!(stack_size(4) == 96 && MAX_STACK_SIZE == 154);
 /// (`child[k]` is its first triangle).
 ///
 /// Public only so that [`WideBvh`]'s bounds can name it (it is not exported: the arrays
-/// are [`Layout::arrays`](super::Layout::arrays)).
+/// are [`GpuForm::arrays`](super::GpuForm::arrays)).
 // Aligned to cache lines, so that a node spans W / 2 of them, not one more (a few % of
 // the CPU twin's rays/s).
 #[repr(C, align(64))]
@@ -201,17 +201,17 @@ where
         deepest
     }
 
-    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
-    /// unless they are whole records and pass [`validate`](super::Layout::validate).
-    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<WideBvh<W>, String> {
+    /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::GpuForm::validate).
+    pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<WideBvh<W>, String> {
         let (nodes, tris) = super::records(arrays)?;
         let layout = WideBvh { nodes, tris };
-        super::Layout::validate(&layout)?;
+        super::GpuForm::validate(&layout)?;
         Ok(layout)
     }
 }
 
-impl<const W: usize> super::Layout for WideBvh<W>
+impl<const W: usize> super::GpuForm for WideBvh<W>
 where
     WideNode<W>: bytemuck::Pod,
 {
@@ -223,8 +223,8 @@ where
         Self::NODE_BYTES
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -345,9 +345,9 @@ mod tests {
     use std::mem::{offset_of, size_of};
 
     use super::*;
+    use crate::accel::GpuForm;
     use crate::geometry::Triangle;
     use crate::gpu::shaders;
-    use crate::layout::Layout;
 
     /// The kernel reads plane p (lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, child, kind) of slots
     /// 4g..4g+3 at word p · WIDE_GROUPS + g of a WIDE_NODE_WORDS-word node: the Rust node's

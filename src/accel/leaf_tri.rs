@@ -11,7 +11,6 @@ use crate::geometry::{
     TriangleTest, WatertightRay,
 };
 use crate::mesh::Mesh;
-use crate::trace::oracle;
 
 /// One triangle, 48 bytes: three vertices, the original index in v0's slot w.
 #[repr(C)]
@@ -86,7 +85,7 @@ pub(crate) mod leaf_test {
 /// (`$walk::<TEST, $more>` when the call names one more const argument as `::<_, $more>`).
 macro_rules! with_leaf_test {
     (@ $robustness:expr, $self:ident . $walk:ident [$($more:ident)?] ( $($arg:expr),* )) => {{
-        use $crate::layout::leaf_tri::leaf_test;
+        use $crate::accel::leaf_tri::leaf_test;
         match leaf_test::of($robustness) {
             leaf_test::F64 => $self.$walk::<{ leaf_test::F64 } $(, $more)?>($($arg),*),
             leaf_test::MOLLER_TRUMBORE => {
@@ -96,10 +95,10 @@ macro_rules! with_leaf_test {
         }
     }};
     ($robustness:expr, $self:ident . $walk:ident ( $($arg:expr),* )) => {
-        $crate::layout::leaf_tri::with_leaf_test!(@ $robustness, $self.$walk [] ($($arg),*))
+        $crate::accel::leaf_tri::with_leaf_test!(@ $robustness, $self.$walk [] ($($arg),*))
     };
     ($robustness:expr, $self:ident . $walk:ident ::<_, $more:ident> ( $($arg:expr),* )) => {
-        $crate::layout::leaf_tri::with_leaf_test!(@ $robustness, $self.$walk [$more] ($($arg),*))
+        $crate::accel::leaf_tri::with_leaf_test!(@ $robustness, $self.$walk [$more] ($($arg),*))
     };
 }
 pub(crate) use with_leaf_test;
@@ -270,7 +269,7 @@ impl<'a> LeafRay<'a> {
         let ray = self.ray;
         let tri = lt.triangle();
         let h = if TEST == leaf_test::F64 {
-            oracle::triangle_hit(&tri, ray, ray.tmin, best.t)
+            crate::geometry::triangle_hit_f64(&tri, ray, ray.tmin, best.t)
         } else {
             intersect_triangle_bounded(test, &tri, ray, &self.wr, ray.tmin, best.t)
         };

@@ -10,7 +10,7 @@ use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
-use super::{LayoutArrays, LayoutKind, LeafTri};
+use super::{GpuArrays, LayoutKind, LeafTri};
 
 pub(crate) use node_ray::DfsNodeRay;
 
@@ -76,17 +76,17 @@ impl DfsSign {
         DfsSign { nodes, tris }
     }
 
-    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
-    /// unless they are whole records and pass [`validate`](super::Layout::validate).
-    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<DfsSign, String> {
+    /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::GpuForm::validate).
+    pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<DfsSign, String> {
         let (nodes, tris) = super::records(arrays)?;
         let layout = DfsSign { nodes, tris };
-        super::Layout::validate(&layout)?;
+        super::GpuForm::validate(&layout)?;
         Ok(layout)
     }
 }
 
-impl super::Layout for DfsSign {
+impl super::GpuForm for DfsSign {
     fn name(&self) -> &'static str {
         LayoutKind::DfsSign.name()
     }
@@ -95,8 +95,8 @@ impl super::Layout for DfsSign {
         std::mem::size_of::<DfsNode>()
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -198,9 +198,9 @@ mod tests {
     use std::mem::{offset_of, size_of};
 
     use super::*;
+    use crate::accel::GpuForm;
     use crate::geometry::Triangle;
     use crate::gpu::shaders;
-    use crate::layout::Layout;
 
     #[test]
     fn the_wgsl_node_matches_the_rust_node() {

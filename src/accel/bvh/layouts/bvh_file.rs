@@ -1,11 +1,11 @@
-//! BVH files: a flattened [`Layout`] saved with `lancer build --out` and traced with
+//! BVH files: a flattened [`GpuForm`] saved with `lancer build --out` and traced with
 //! `--bvh`, so a flattener of one's own can be traced (and checked against the f64 oracle)
 //! without building a tree here.
 //!
 //! # Format (version 1)
 //!
 //! An 84-byte header, then the layout's node array and its [`LeafTri`] array, exactly the
-//! bytes the GPU reads ([`Layout::arrays`]). Every number is little-endian.
+//! bytes the GPU reads ([`GpuForm::arrays`]). Every number is little-endian.
 //!
 //! | offset | bytes | field |
 //! |---|---|---|
@@ -21,7 +21,7 @@
 //! | 84 | | node array, then triangle array |
 //!
 //! The arrays are all a layout holds: every layout is rebuilt from them
-//! ([`layout::from_arrays`](super::from_arrays)), and the root box is checked against the
+//! ([`layouts::from_arrays`](super::from_arrays)), and the root box is checked against the
 //! rebuilt layout's. Reading refuses, naming the file and what to do: a file shorter or
 //! longer than its header says (checked against the file's length before anything is
 //! allocated, and against the memory available), a wrong magic, an unknown version or
@@ -37,7 +37,7 @@ use std::sync::Arc;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 
-use super::{Layout, LayoutArrays, LayoutKind, LeafTri};
+use super::{GpuArrays, GpuForm, LayoutKind, LeafTri};
 
 /// The first 8 bytes of every BVH file.
 pub const MAGIC: [u8; 8] = *b"LANCRBVH";
@@ -61,7 +61,7 @@ pub struct BvhFile {
     /// Which layout.
     pub kind: LayoutKind,
     /// The layout, ready for [`Tracer::with_layout`](crate::Tracer::with_layout).
-    pub layout: Arc<dyn Layout>,
+    pub layout: Arc<dyn GpuForm>,
     /// Triangles of the mesh it was built from (every leaf triangle's `prim` is below it).
     pub mesh_triangles: u64,
 }
@@ -154,7 +154,7 @@ impl Header {
 }
 
 /// Refuses a layout that is not one of [`LayoutKind::ALL`] (a kd-tree's or BIH's GPU form).
-fn kind_of(layout: &dyn Layout) -> Result<LayoutKind> {
+fn kind_of(layout: &dyn GpuForm) -> Result<LayoutKind> {
     LayoutKind::from_name(layout.name()).ok_or_else(|| {
         Error::Usage(format!(
             "only a flattened BVH can be saved, not the {} structure's arrays",
@@ -164,7 +164,7 @@ fn kind_of(layout: &dyn Layout) -> Result<LayoutKind> {
 }
 
 /// The bytes of `layout`'s BVH file (built from a mesh of `mesh_triangles` triangles).
-pub fn encode(layout: &dyn Layout, mesh_triangles: usize) -> Result<Vec<u8>> {
+pub fn encode(layout: &dyn GpuForm, mesh_triangles: usize) -> Result<Vec<u8>> {
     let header = header_of(layout, mesh_triangles)?;
     let a = layout.arrays();
     Ok([&header.encode()[..], a.nodes, a.tris].concat())
@@ -173,7 +173,7 @@ pub fn encode(layout: &dyn Layout, mesh_triangles: usize) -> Result<Vec<u8>> {
 /// Writes `layout` (built from a mesh of `mesh_triangles` triangles) to the BVH file
 /// `path`, atomically ([`write_atomic`](crate::output::write_atomic)); check the path with
 /// [`check_output`](crate::output::check_output) first.
-pub fn write(path: &Path, layout: &dyn Layout, mesh_triangles: usize) -> Result<()> {
+pub fn write(path: &Path, layout: &dyn GpuForm, mesh_triangles: usize) -> Result<()> {
     let header = header_of(layout, mesh_triangles)?;
     let a = layout.arrays();
     crate::output::write_atomic(path, |w| {
@@ -184,7 +184,7 @@ pub fn write(path: &Path, layout: &dyn Layout, mesh_triangles: usize) -> Result<
 }
 
 /// The header of `layout`'s file, checksum included.
-fn header_of(layout: &dyn Layout, mesh_triangles: usize) -> Result<Header> {
+fn header_of(layout: &dyn GpuForm, mesh_triangles: usize) -> Result<Header> {
     refuse_big_endian()?;
     let kind = kind_of(layout)?;
     let a = layout.arrays();
@@ -208,7 +208,7 @@ fn header_of(layout: &dyn Layout, mesh_triangles: usize) -> Result<Header> {
 }
 
 /// CRC-32 of the header before the checksum and the payload.
-fn checksum(header: &[u8; HEADER_BYTES], a: LayoutArrays<'_>) -> u32 {
+fn checksum(header: &[u8; HEADER_BYTES], a: GpuArrays<'_>) -> u32 {
     let mut h = crc32fast::Hasher::new();
     h.update(&header[..CRC_AT]);
     h.update(a.nodes);
@@ -295,7 +295,7 @@ pub fn decode(name: &Path, bytes: &[u8]) -> Result<BvhFile> {
     check_length(&h, bytes.len() as u64).map_err(bad)?;
     // The length matched counts that fit in the file, so these fit in usize.
     let (nodes, tris) = bytes[HEADER_BYTES..].split_at(h.node_bytes as usize);
-    let arrays = LayoutArrays { nodes, tris };
+    let arrays = GpuArrays { nodes, tris };
     let crc = checksum(head, arrays);
     if crc != h.crc {
         return Err(bad(format!(

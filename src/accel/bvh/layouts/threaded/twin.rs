@@ -1,14 +1,15 @@
-//! The CPU twin of `dfs_sign.wgsl`, step for step: the same stack discipline (push the far
-//! child, descend into the near one), the same ray-sign child order, the same slab and
-//! triangle tests in the same operation order, and the same tie rule, all in f32.
+//! The CPU twin of `threaded.wgsl`, step for step: the copy of the ray's octant, walked in
+//! array order (a missed inner node jumps to its skip index), the same slab and triangle
+//! tests in the same operation order, and the same tie rule, all in f32. It visits the nodes
+//! dfs-sign's twin visits, in the same order.
 
-use super::{DfsNodeRay, DfsSign};
-use crate::accel::bvh::MAX_DEPTH;
+use super::{octant, Threaded};
+use crate::accel::bvh::layouts::dfs_sign::DfsNodeRay;
+use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS};
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
-impl Accel for DfsSign {
+impl Accel for Threaded {
     fn bounds(&self) -> Aabb {
         if self.tris.is_empty() {
             Aabb::EMPTY
@@ -30,7 +31,7 @@ impl Accel for DfsSign {
     }
 }
 
-impl DfsSign {
+impl Threaded {
     /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
     fn walk<const TEST: u8>(
@@ -49,37 +50,34 @@ impl DfsSign {
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
-        let mut stack = [0u32; MAX_DEPTH];
-        let mut sp = 0usize;
-        let mut idx = 0usize;
-        loop {
+        let n = self.copy_len();
+        let mut idx = octant(ray.dir) * n;
+        let end = idx + n;
+        while idx < end {
             let node = &self.nodes[idx];
             stats.nodes += 1;
             let enter = boxes.enters(node, prune);
             if enter {
-                if !node.is_leaf() {
-                    let (first, second) = (idx + 1, node.a as usize);
-                    let (near, far) = if ray.dir[node.axis()] < 0.0 {
-                        (second, first)
-                    } else {
-                        (first, second)
-                    };
-                    stack[sp] = far as u32;
-                    sp += 1;
-                    idx = near;
-                    continue;
+                if node.is_leaf() {
+                    let first = node.a as usize;
+                    let tris = &self.tris[first..first + node.count() as usize];
+                    if leaf.test_leaf::<TEST>(
+                        tris,
+                        query == Query::Any,
+                        &mut best,
+                        &mut prune,
+                        stats,
+                    ) {
+                        return best;
+                    }
                 }
-                let first = node.a as usize;
-                let tris = &self.tris[first..first + node.count() as usize];
-                if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
-                    return best;
-                }
+                idx += 1;
+            } else if node.is_leaf() {
+                idx += 1;
+            } else {
+                // Never backwards, as the WGSL (validate() ensures it anyway).
+                idx = (node.a as usize).max(idx + 1);
             }
-            if sp == 0 {
-                break;
-            }
-            sp -= 1;
-            idx = stack[sp] as usize;
         }
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
         best

@@ -19,7 +19,7 @@
 //! reference, all shallower than it. A record at depth d (the root's record has d = 0)
 //! thus writes stack slot ≤ d. The builders keep every leaf at depth ≤ `MAX_DEPTH`, so
 //! every record (an inner node) is at d ≤ `MAX_DEPTH` − 1, and the kernel's `STACK_SIZE`
-//! = `MAX_DEPTH` entries suffice; [`validate`](super::Layout::validate) checks this depth
+//! = `MAX_DEPTH` entries suffice; [`validate`](super::GpuForm::validate) checks this depth
 //! on the flattened array. An entry is a whole reference (two `u32`: a leaf's range needs
 //! both), so the stack is 512 bytes, twice `dfs-sign`'s.
 
@@ -29,7 +29,7 @@ use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
-use super::{LayoutArrays, LayoutKind, LeafTri};
+use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// A child reference whose `b` has this bit set is a leaf: `a` = first triangle,
 /// `b >> COUNT_SHIFT` = count. Otherwise `a` is the child's record index and `b` = 0
@@ -112,12 +112,12 @@ impl Bvh2WideNode {
         Bvh2WideNode { nodes, tris }
     }
 
-    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
-    /// unless they are whole records and pass [`validate`](super::Layout::validate).
-    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Bvh2WideNode, String> {
+    /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::GpuForm::validate).
+    pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<Bvh2WideNode, String> {
         let (nodes, tris) = super::records(arrays)?;
         let layout = Bvh2WideNode { nodes, tris };
-        super::Layout::validate(&layout)?;
+        super::GpuForm::validate(&layout)?;
         Ok(layout)
     }
 }
@@ -173,7 +173,7 @@ fn write(node: &Node, out: &mut [WideNode], index: u32) {
     }
 }
 
-impl super::Layout for Bvh2WideNode {
+impl super::GpuForm for Bvh2WideNode {
     fn name(&self) -> &'static str {
         LayoutKind::Bvh2WideNode.name()
     }
@@ -182,8 +182,8 @@ impl super::Layout for Bvh2WideNode {
         NODE_BYTES
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -253,9 +253,9 @@ mod tests {
     use std::mem::offset_of;
 
     use super::*;
+    use crate::accel::GpuForm;
     use crate::geometry::Triangle;
     use crate::gpu::shaders;
-    use crate::layout::Layout;
 
     fn soup(n: usize) -> Mesh {
         // A deterministic scatter of small triangles: enough for a tree several levels deep.

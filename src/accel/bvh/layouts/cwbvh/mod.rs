@@ -28,9 +28,9 @@ use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
-use super::{LayoutArrays, LayoutKind, LeafTri};
+use super::{GpuArrays, LayoutKind, LeafTri};
 
-use crate::layout::sah_collapse::Plan;
+use crate::accel::bvh::layouts::sah_collapse::Plan;
 use collapse::Binary;
 use quantise::{dequantise, step, Frame};
 
@@ -160,9 +160,9 @@ impl Cwbvh {
         }
     }
 
-    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
-    /// unless they are whole records and pass [`validate`](super::Layout::validate).
-    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Cwbvh, String> {
+    /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::GpuForm::validate).
+    pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<Cwbvh, String> {
         let (nodes, tris) = super::records::<CwNode>(arrays)?;
         let bounds = (tris.iter()).fold(Aabb::EMPTY, |b, t| b.union(t.triangle().bbox()));
         let mut layout = Cwbvh {
@@ -283,7 +283,7 @@ impl Writer<'_> {
     }
 }
 
-impl super::Layout for Cwbvh {
+impl super::GpuForm for Cwbvh {
     fn name(&self) -> &'static str {
         LayoutKind::Cwbvh.name()
     }
@@ -292,8 +292,8 @@ impl super::Layout for Cwbvh {
         NODE_BYTES
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -345,7 +345,7 @@ impl Cwbvh {
         self.deepest.max(STACK_REGISTERS + 1) - STACK_REGISTERS
     }
 
-    /// [`validate`](super::Layout::validate)'s checks; returns the depth of the deepest node.
+    /// [`validate`](super::GpuForm::validate)'s checks; returns the depth of the deepest node.
     fn checked_depth(&self) -> Result<usize, String> {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
@@ -429,8 +429,8 @@ mod tests {
     use std::mem::{offset_of, size_of};
 
     use super::*;
+    use crate::accel::GpuForm;
     use crate::gpu::shaders;
-    use crate::layout::Layout;
 
     #[test]
     fn the_wgsl_node_matches_the_rust_node() {

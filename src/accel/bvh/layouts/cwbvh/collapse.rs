@@ -1,14 +1,14 @@
 //! The shape of the 8-wide tree, decided on lancer's binary SAH tree: its leaves are first
 //! split down to one triangle each (median splits along the leaf's longest centroid axis:
 //! a binary leaf may hold up to `max_leaf` triangles, a wide leaf at most 3), then the
-//! shared SAH programme (`layout::sah_collapse`, Ylitie, Karras & Laine 2017, §4.1) for
+//! shared SAH programme (`layouts::sah_collapse`, Ylitie, Karras & Laine 2017, §4.1) for
 //! eight slots decides for every binary node whether it becomes a wide leaf (≤ 3
 //! triangles), a wide internal node, or is spread over its parent's slots.
 
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan, SahCosts};
 use crate::accel::bvh::Node;
+use crate::accel::LeafTri;
 use crate::geometry::Aabb;
-use crate::layout::sah_collapse::{BinaryTree, Plan, SahCosts};
-use crate::layout::LeafTri;
 
 use super::{MAX_LEAF_TRIS, WIDTH};
 

@@ -13,12 +13,12 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use super::quantise::step;
 use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
+#[cfg(target_arch = "x86_64")]
+use crate::accel::bvh::layouts::has_avx2;
+use crate::accel::bvh::layouts::interleave::{walk_interleaved, Stepper, WALKS};
+use crate::accel::leaf_tri::{with_leaf_test, LeafRay, LeafTri};
 use crate::accel::{trace_chunks, Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
-#[cfg(target_arch = "x86_64")]
-use crate::layout::has_avx2;
-use crate::layout::interleave::{walk_interleaved, Stepper, WALKS};
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay, LeafTri};
 
 /// Hit-mask bits of internal children.
 const NODE_BITS: u32 = !((1 << TRI_BITS) - 1);

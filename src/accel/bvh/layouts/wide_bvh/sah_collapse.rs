@@ -1,11 +1,11 @@
-//! The wide layouts' collapse: the shared SAH programme (`layout::sah_collapse`) for W slots on
+//! The wide layouts' collapse: the shared SAH programme (`layouts::sah_collapse`) for W slots on
 //! lancer's binary tree as built, where a wide leaf is a binary subtree of at most
 //! `MAX_LEAF_TRIS` triangles (its leaves' ranges are contiguous in leaf order, so it is one
 //! range) or a binary leaf of any size. `collapse` gives up (and the greedy collapse is used)
 //! where the tree would be deeper than the stack holds.
 
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan, SahCosts};
 use crate::accel::bvh::Node;
-use crate::layout::sah_collapse::{BinaryTree, Plan, SahCosts};
 
 use super::{WideNode, INNER};
 

@@ -11,9 +11,9 @@ use std::mem::MaybeUninit;
 use glam::{Vec3, Vec4};
 
 use super::{stack_size, WideBvh, WideNode, INNER, MAX_STACK_SIZE};
+use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 /// A pushed child: its node and slot (`node << SLOT_BITS | slot`), and the entry distance its box
 /// was entered at (WGSL `WideEntry`). 8 bytes, not the child and kind themselves (12): a
@@ -48,7 +48,7 @@ where
         // source as for baseline x86-64, 0.74× → 0.77× (what the walk generic over the width
         // had cost it against its own 4-wide code).
         #[cfg(target_arch = "x86_64")]
-        if crate::layout::has_avx2() {
+        if crate::accel::bvh::layouts::has_avx2() {
             // SAFETY: the CPU has AVX2.
             return unsafe { self.intersect_avx2(ray, query, robustness, stats) };
         }

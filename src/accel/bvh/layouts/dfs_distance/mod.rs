@@ -11,7 +11,7 @@ use crate::accel::bvh::Bvh;
 use crate::mesh::Mesh;
 
 use super::dfs_sign::{node_wgsl, DfsNode};
-use super::{DfsSign, LayoutArrays, LayoutKind};
+use super::{DfsSign, GpuArrays, LayoutKind};
 
 /// A BVH flattened like `dfs-sign`, traversed in entry-distance order; its
 /// [`Accel`](crate::accel::Accel) is the CPU twin of `dfs_distance.wgsl`.
@@ -29,8 +29,8 @@ impl DfsDistance {
     }
 
     /// A layout from raw arrays (the dfs-sign arrays), refused unless they are whole
-    /// records and pass [`validate`](super::Layout::validate).
-    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<DfsDistance, String> {
+    /// records and pass [`validate`](super::GpuForm::validate).
+    pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<DfsDistance, String> {
         DfsSign::from_arrays(arrays).map(|flat| DfsDistance { flat })
     }
 
@@ -39,7 +39,7 @@ impl DfsDistance {
     }
 }
 
-impl super::Layout for DfsDistance {
+impl super::GpuForm for DfsDistance {
     fn name(&self) -> &'static str {
         LayoutKind::DfsDistance.name()
     }
@@ -48,7 +48,7 @@ impl super::Layout for DfsDistance {
         self.flat.node_bytes()
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
+    fn arrays(&self) -> GpuArrays<'_> {
         self.flat.arrays()
     }
 

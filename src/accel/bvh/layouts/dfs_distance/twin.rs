@@ -3,11 +3,11 @@
 //! pushed with its entry distance and culled on the pop against the prune bound.
 
 use super::{DfsDistance, DfsNode};
+use crate::accel::bvh::layouts::dfs_sign::DfsNodeRay;
 use crate::accel::bvh::MAX_DEPTH;
+use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness};
-use crate::layout::dfs_sign::DfsNodeRay;
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for DfsDistance {
     fn bounds(&self) -> Aabb {

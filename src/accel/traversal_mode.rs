@@ -3,7 +3,7 @@
 
 /// The traversal mode of the GPU trace and render kernels (the CPU twin always traces one
 /// ray at a time). A mode a layout, adapter or workgroup size cannot run falls back to
-/// [`TraversalMode::PerRay`], with a warning; [`TraceResult::mode`](super::TraceResult)
+/// [`TraversalMode::PerRay`], with a warning; [`TraceResult::mode`](crate::trace::TraceResult)
 /// and [`Rendered::mode`](crate::render::Rendered) say which ran. A render is the same
 /// image in every mode.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -16,7 +16,7 @@ pub enum TraversalMode {
     /// ray hits its box, loads nodes and triangles cooperatively and shares one stack;
     /// each lane keeps its own closest hit (the same closest hits as per ray, bit for bit;
     /// any hits may differ, each a real hit). Needs the adapter's subgroup operations, a
-    /// layout that offers it ([`Layout::subgroup_wgsl`](crate::layout::Layout)) and a
+    /// layout that offers it ([`GpuForm::subgroup_wgsl`](crate::accel::GpuForm)) and a
     /// workgroup of whole subgroups. Statistics count, per ray, the nodes and triangles its
     /// subgroup loaded while the ray was live (valid, and for any hit not yet answered): the
     /// union of the lanes' traversals, each load shared by the lanes.

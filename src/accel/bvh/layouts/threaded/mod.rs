@@ -15,7 +15,7 @@ use crate::accel::bvh::{Bvh, Node};
 use crate::mesh::Mesh;
 
 use super::dfs_sign::{node_wgsl, DfsNode, LEAF_TAG};
-use super::{LayoutArrays, LayoutKind, LeafTri};
+use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// Copies of the tree: one per ray-direction octant.
 pub(crate) const OCTANTS: usize = 8;
@@ -56,12 +56,12 @@ impl Threaded {
         Threaded { nodes, tris }
     }
 
-    /// A layout from raw arrays (as [`arrays`](super::Layout::arrays) gives them), refused
-    /// unless they are whole records and pass [`validate`](super::Layout::validate).
-    pub fn from_arrays(arrays: LayoutArrays<'_>) -> Result<Threaded, String> {
+    /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
+    /// unless they are whole records and pass [`validate`](super::GpuForm::validate).
+    pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<Threaded, String> {
         let (nodes, tris) = super::records(arrays)?;
         let layout = Threaded { nodes, tris };
-        super::Layout::validate(&layout)?;
+        super::GpuForm::validate(&layout)?;
         Ok(layout)
     }
 
@@ -77,7 +77,7 @@ impl Threaded {
     }
 }
 
-impl super::Layout for Threaded {
+impl super::GpuForm for Threaded {
     fn name(&self) -> &'static str {
         LayoutKind::Threaded.name()
     }
@@ -86,8 +86,8 @@ impl super::Layout for Threaded {
         std::mem::size_of::<DfsNode>()
     }
 
-    fn arrays(&self) -> LayoutArrays<'_> {
-        LayoutArrays::of(&self.nodes, &self.tris)
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays::of(&self.nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -209,8 +209,8 @@ fn write(node: &Node, out: &mut [DfsNode], index: u32, octant: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::GpuForm;
     use crate::geometry::Triangle;
-    use crate::layout::Layout;
     use glam::Vec3;
 
     fn layout() -> Threaded {

@@ -1,12 +1,12 @@
-//! Layouts: a structure's GPU arrays, the WGSL that walks them, and the CPU twin that walks
-//! the same arrays in the same order. The flattened BVH layouts live here, one folder each
-//! (registered in [`LayoutKind`]); other structures with a GPU form implement [`Layout`] in
-//! their own folder (the kd-tree and the BIH: `src/accel/{kdtree,bih}/gpu.rs`) and are built for the GPU by
-//! [`accel::build_gpu`](crate::accel::build_gpu).
+//! The BVH's flattened layouts: each one the BVH's [`GpuForm`] — its GPU arrays, the WGSL
+//! that walks them, and the CPU twin that walks the same arrays in the same order — one
+//! folder each, registered in [`LayoutKind`]. Other structures with a GPU form implement
+//! [`GpuForm`] in their own folder (the kd-tree and the BIH: `src/accel/{kdtree,bih}/gpu.rs`);
+//! [`accel::build_gpu`](crate::accel::build_gpu) builds any of them for the GPU.
 //!
 //! # Adding a BVH layout
 //!
-//! A layout is one folder, `src/layout/<name>/`, plus one registry line:
+//! A layout is one folder, `src/accel/bvh/layouts/<name>/`, plus one registry line:
 //!
 //! 1. `mod.rs`: a type holding the flattened arrays (its node type is `#[repr(C)]`,
 //!    `bytemuck::Pod`, a multiple of 16 bytes, and private to the folder) and a
@@ -24,8 +24,8 @@
 //!    child order, same stack discipline, same tests in the same operation order — so the
 //!    GPU and the twin agree bit for bit (the equivalence tests in `tests/gpu_vs_cpu.rs`
 //!    run over every entry of [`LayoutKind::ALL`]).
-//! 4. `impl Layout`: name, arrays, WGSL source, overrides, validation; and
-//!    `from_arrays(LayoutArrays) -> Result<Self, String>`, which rebuilds it from its arrays
+//! 4. `impl GpuForm`: name, arrays, WGSL source, overrides, validation; and
+//!    `from_arrays(GpuArrays) -> Result<Self, String>`, which rebuilds it from its arrays
 //!    (with `records`) and runs `validate` (a [BVH file](bvh_file) is read through it).
 //! 5. Register it: a variant of [`LayoutKind`] and its arms in [`flatten`] and
 //!    [`from_arrays`].
@@ -40,20 +40,19 @@ mod cwbvh;
 mod dfs_distance;
 mod dfs_sign;
 mod interleave;
-pub(crate) mod leaf_tri;
 mod sah_collapse;
 mod threaded;
 mod wide_bvh;
 
 use crate::accel::bvh::Bvh;
-use crate::accel::Accel;
+use crate::accel::gpu_form::records;
+use crate::accel::{GpuArrays, GpuForm, LeafTri};
 use crate::mesh::Mesh;
 
 pub use bvh2_wide_node::Bvh2WideNode;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
-pub use leaf_tri::LeafTri;
 pub use threaded::Threaded;
 pub use wide_bvh::{Bvh4, Bvh8, WideBvh};
 
@@ -65,81 +64,6 @@ pub(crate) fn has_avx2() -> bool {
         && std::arch::is_x86_feature_detected!("popcnt")
         && std::arch::is_x86_feature_detected!("bmi1")
         && std::arch::is_x86_feature_detected!("lzcnt")
-}
-
-/// The byte arrays a layout uploads: nodes and leaf triangles, each a whole number of
-/// 16-byte words (the GPU reads them as `vec4<u32>`).
-#[derive(Clone, Copy, Debug)]
-pub struct LayoutArrays<'a> {
-    /// The node array.
-    pub nodes: &'a [u8],
-    /// The triangles in leaf order ([`LeafTri`]s).
-    pub tris: &'a [u8],
-}
-
-impl<'a> LayoutArrays<'a> {
-    /// The bytes of a node array and the leaf triangles (the inverse of `records`).
-    pub fn of<N: bytemuck::Pod>(nodes: &'a [N], tris: &'a [LeafTri]) -> LayoutArrays<'a> {
-        LayoutArrays {
-            nodes: bytemuck::cast_slice(nodes),
-            tris: bytemuck::cast_slice(tris),
-        }
-    }
-}
-
-/// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
-/// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays
-/// in the same order as the WGSL. A flattened BVH ([`LayoutKind`]) or another structure
-/// with a GPU kernel (the kd-tree, the BIH).
-pub trait Layout: Accel {
-    /// Its name, for messages, tests and benches (a BVH layout's [`LayoutKind::name`]).
-    fn name(&self) -> &'static str;
-
-    /// The arrays to upload.
-    fn arrays(&self) -> LayoutArrays<'_>;
-
-    /// Its WGSL traversal (with its own constants generated in front): defines
-    /// `traverse(r: Ray, any_hit: bool) -> Hit`.
-    fn wgsl(&self) -> String;
-
-    /// Its subgroup-coherent WGSL traversal ([`TraversalMode::Subgroup`]), if it has one:
-    /// like [`Layout::wgsl`], `traverse(r: Ray, any_hit: bool) -> Hit`, but called by every
-    /// invocation of a subgroup together (those past the end of the rays with an invalid
-    /// ray), so it may use subgroup operations. Subgroups are whole (the workgroup is a
-    /// multiple of the adapter's largest subgroup); a traversal that meets lanes it cannot
-    /// use leaves `traversal_done` false and the host traces those rays again. Same hits as
-    /// the per-ray traversal: closest hits bit for bit, any hits judged by the oracle.
-    ///
-    /// [`TraversalMode::Subgroup`]: crate::trace::TraversalMode::Subgroup
-    fn subgroup_wgsl(&self) -> Option<String> {
-        None
-    }
-
-    /// Override constants its WGSL declares, with their values for this instance.
-    fn overrides(&self) -> Vec<(&'static str, f64)> {
-        Vec::new()
-    }
-
-    /// Checks every invariant the traversal relies on (indices in range, depth within the
-    /// stack). Run before trusted (unchecked) shader modules see the arrays; the error
-    /// names the first bad node.
-    fn validate(&self) -> Result<(), String>;
-
-    /// Bytes of one node record: what a traversal loads per node it counts in
-    /// [`RayStats::nodes`](crate::accel::RayStats), so nodes × this + triangles × 48 is the
-    /// memory traffic of a ray.
-    fn node_bytes(&self) -> usize;
-
-    /// Bytes the GPU holds for this layout.
-    fn bytes(&self) -> usize {
-        let a = self.arrays();
-        a.nodes.len() + a.tris.len()
-    }
-
-    /// Triangles referenced by leaves.
-    fn triangles(&self) -> usize {
-        self.arrays().tris.len() / std::mem::size_of::<LeafTri>()
-    }
 }
 
 /// The registry of layouts: one variant per folder.
@@ -210,7 +134,7 @@ impl std::fmt::Display for LayoutKind {
 /// Flattens a built tree into the chosen layout, after checking that its arrays fit in the
 /// memory available (the `threaded` layout holds eight copies of the tree's nodes): the
 /// library's and the command line's way in, for trees built from input.
-pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Box<dyn Layout>> {
+pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Box<dyn GpuForm>> {
     if kind == LayoutKind::Threaded {
         crate::limits::check_memory(
             "the threaded layout",
@@ -223,7 +147,7 @@ pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Bo
 
 /// Flattens a built tree into the chosen layout, unchecked: for trees known to fit (tests,
 /// benches); input goes through [`try_flatten`].
-pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
+pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn GpuForm> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
         LayoutKind::DfsDistance => Box::new(DfsDistance::flatten(bvh, mesh)),
@@ -235,10 +159,10 @@ pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn Layout> {
     }
 }
 
-/// Rebuilds a layout of kind `kind` from its arrays (as [`Layout::arrays`] gives them);
+/// Rebuilds a layout of kind `kind` from its arrays (as [`GpuForm::arrays`] gives them);
 /// refused, naming the first fault, unless they are whole records that pass
-/// [`Layout::validate`].
-pub fn from_arrays(kind: LayoutKind, arrays: LayoutArrays<'_>) -> Result<Box<dyn Layout>, String> {
+/// [`GpuForm::validate`].
+pub fn from_arrays(kind: LayoutKind, arrays: GpuArrays<'_>) -> Result<Box<dyn GpuForm>, String> {
     Ok(match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::from_arrays(arrays)?),
         LayoutKind::DfsDistance => Box::new(DfsDistance::from_arrays(arrays)?),
@@ -248,27 +172,4 @@ pub fn from_arrays(kind: LayoutKind, arrays: LayoutArrays<'_>) -> Result<Box<dyn
         LayoutKind::Bvh8 => Box::new(Bvh8::from_arrays(arrays)?),
         LayoutKind::Threaded => Box::new(Threaded::from_arrays(arrays)?),
     })
-}
-
-/// A layout's arrays as records of node type `N` and [`LeafTri`]s (copied: the bytes need
-/// not be aligned); refused unless both are whole records.
-pub(crate) fn records<N: bytemuck::Pod>(
-    arrays: LayoutArrays<'_>,
-) -> Result<(Vec<N>, Vec<LeafTri>), String> {
-    let whole = |what: &str, bytes: &[u8], size: usize| {
-        if bytes.len().is_multiple_of(size) {
-            Ok(())
-        } else {
-            Err(format!(
-                "{what} array of {} bytes is not whole {size}-byte records",
-                bytes.len()
-            ))
-        }
-    };
-    whole("node", arrays.nodes, std::mem::size_of::<N>())?;
-    whole("triangle", arrays.tris, std::mem::size_of::<LeafTri>())?;
-    Ok((
-        bytemuck::pod_collect_to_vec(arrays.nodes),
-        bytemuck::pod_collect_to_vec(arrays.tris),
-    ))
 }

@@ -7,9 +7,9 @@ use glam::{Vec3, Vec3A};
 
 use super::{is_leaf, Bvh2WideNode, ChildRef, COUNT_SHIFT};
 use crate::accel::bvh::MAX_DEPTH;
+use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
 use crate::accel::{Accel, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
-use crate::layout::leaf_tri::{with_leaf_test, LeafRay};
 
 impl Accel for Bvh2WideNode {
     fn bounds(&self) -> Aabb {

@@ -1,0 +1,105 @@
+//! A structure's GPU face: the arrays it uploads, the WGSL that walks them, and the CPU twin
+//! that walks the same arrays in the same order ([`GpuForm`]). The BVH's flattened layouts
+//! (`accel::bvh::layouts`), the kd-tree and the BIH implement it; the GPU tracer and renderer
+//! take any `dyn GpuForm`.
+
+use super::{Accel, LeafTri};
+
+/// The byte arrays a GPU form uploads: nodes and leaf triangles, each a whole number of
+/// 16-byte words (the GPU reads them as `vec4<u32>`).
+#[derive(Clone, Copy, Debug)]
+pub struct GpuArrays<'a> {
+    /// The node array.
+    pub nodes: &'a [u8],
+    /// The triangles in leaf order ([`LeafTri`]s).
+    pub tris: &'a [u8],
+}
+
+impl<'a> GpuArrays<'a> {
+    /// The bytes of a node array and the leaf triangles (the inverse of `records`).
+    pub fn of<N: bytemuck::Pod>(nodes: &'a [N], tris: &'a [LeafTri]) -> GpuArrays<'a> {
+        GpuArrays {
+            nodes: bytemuck::cast_slice(nodes),
+            tris: bytemuck::cast_slice(tris),
+        }
+    }
+}
+
+/// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
+/// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays
+/// in the same order as the WGSL. A flattened BVH ([`LayoutKind`](crate::LayoutKind)) or
+/// another structure with a GPU kernel (the kd-tree, the BIH).
+pub trait GpuForm: Accel {
+    /// Its name, for messages, tests and benches (a BVH layout's
+    /// [`LayoutKind::name`](crate::LayoutKind::name)).
+    fn name(&self) -> &'static str;
+
+    /// The arrays to upload.
+    fn arrays(&self) -> GpuArrays<'_>;
+
+    /// Its WGSL traversal (with its own constants generated in front): defines
+    /// `traverse(r: Ray, any_hit: bool) -> Hit`.
+    fn wgsl(&self) -> String;
+
+    /// Its subgroup-coherent WGSL traversal ([`TraversalMode::Subgroup`]), if it has one:
+    /// like [`GpuForm::wgsl`], `traverse(r: Ray, any_hit: bool) -> Hit`, but called by every
+    /// invocation of a subgroup together (those past the end of the rays with an invalid
+    /// ray), so it may use subgroup operations. Subgroups are whole (the workgroup is a
+    /// multiple of the adapter's largest subgroup); a traversal that meets lanes it cannot
+    /// use leaves `traversal_done` false and the host traces those rays again. Same hits as
+    /// the per-ray traversal: closest hits bit for bit, any hits judged by the oracle.
+    ///
+    /// [`TraversalMode::Subgroup`]: crate::accel::TraversalMode::Subgroup
+    fn subgroup_wgsl(&self) -> Option<String> {
+        None
+    }
+
+    /// Override constants its WGSL declares, with their values for this instance.
+    fn overrides(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
+
+    /// Checks every invariant the traversal relies on (indices in range, depth within the
+    /// stack). Run before trusted (unchecked) shader modules see the arrays; the error
+    /// names the first bad node.
+    fn validate(&self) -> Result<(), String>;
+
+    /// Bytes of one node record: what a traversal loads per node it counts in
+    /// [`RayStats::nodes`](crate::accel::RayStats), so nodes × this + triangles × 48 is the
+    /// memory traffic of a ray.
+    fn node_bytes(&self) -> usize;
+
+    /// Bytes the GPU holds for this layout.
+    fn bytes(&self) -> usize {
+        let a = self.arrays();
+        a.nodes.len() + a.tris.len()
+    }
+
+    /// Triangles referenced by leaves.
+    fn triangles(&self) -> usize {
+        self.arrays().tris.len() / std::mem::size_of::<LeafTri>()
+    }
+}
+
+/// A layout's arrays as records of node type `N` and [`LeafTri`]s (copied: the bytes need
+/// not be aligned); refused unless both are whole records.
+pub(crate) fn records<N: bytemuck::Pod>(
+    arrays: GpuArrays<'_>,
+) -> Result<(Vec<N>, Vec<LeafTri>), String> {
+    let whole = |what: &str, bytes: &[u8], size: usize| {
+        if bytes.len().is_multiple_of(size) {
+            Ok(())
+        } else {
+            Err(format!(
+                "{what} array of {} bytes is not whole {size}-byte records",
+                bytes.len()
+            ))
+        }
+    };
+    whole("node", arrays.nodes, std::mem::size_of::<N>())?;
+    whole("triangle", arrays.tris, std::mem::size_of::<LeafTri>())?;
+    Ok((
+        bytemuck::pod_collect_to_vec(arrays.nodes),
+        bytemuck::pod_collect_to_vec(arrays.tris),
+    ))
+}

@@ -1,0 +1,71 @@
+//! The render kernel's WGSL: the GPU form's traversal (through `gpu::shaders`), then the
+//! renderer's own constants — material, light and integrator codes, defined here in Rust —
+//! and `shaders/kernels/render.wgsl`. The renderer owns these constants, so `gpu` never
+//! needs to know what a material is.
+
+use crate::accel::GpuForm;
+use crate::gpu::shaders::{self, Shared};
+
+use super::sampling::POINT_ERROR;
+use super::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED};
+
+/// The render kernel (one sample of one pixel per invocation).
+pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
+
+/// The render kernel where each lane traverses alone: it traces each ray where the CPU
+/// does (`lanes_any(b)`, unused there, is the lane's own `b`).
+const LANES_PER_RAY: &str = "const LANES_TOGETHER = false;\n\
+                             fn lanes_any(b: bool) -> bool { return b; }\n";
+/// The render kernel where the lanes of a subgroup traverse together: every lane traces
+/// one ray a round, and `lanes_any(b)` is any lane's `b`.
+const LANES_SUBGROUP: &str = "const LANES_TOGETHER = true;\n\
+                              fn lanes_any(b: bool) -> bool { return subgroupAny(b); }\n";
+
+/// The constants the render kernel shares with the renderer, by WGSL name; like
+/// [`shaders::shared_constants`], the Rust definition is the only one.
+pub fn render_constants() -> Vec<(&'static str, Shared)> {
+    use Shared::{F32, U32};
+    vec![
+        ("PI_INV", F32(std::f32::consts::FRAC_1_PI)), // the CPU renderer's FRAC_1_PI
+        ("KIND_DIFFUSE", U32(MaterialKind::Diffuse.code())),
+        ("KIND_MIRROR", U32(MaterialKind::Mirror.code())),
+        ("KIND_GLASS", U32(MaterialKind::Glass.code())),
+        ("KIND_EMISSIVE", U32(MaterialKind::Emissive.code())),
+        ("INTEGRATOR_DIRECT", U32(Integrator::Direct.code())),
+        ("INTEGRATOR_PATH", U32(Integrator::Path.code())),
+        ("INTEGRATOR_AO", U32(Integrator::Ao.code())),
+        ("LIGHT_POINT", U32(LightKind::Point.code())),
+        ("LIGHT_DIRECTIONAL", U32(LightKind::Directional.code())),
+        ("MAT_TEXTURED", U32(MAT_TEXTURED)),
+        ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
+        ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
+    ]
+}
+
+/// The renderer's constants, the lane mode and the render kernel.
+fn render_kernel(lanes: &str) -> String {
+    let constants = shaders::constants_wgsl("render::kernel", &render_constants());
+    format!("{constants}\n{lanes}\n{RENDER}")
+}
+
+/// The render kernel's full source for a GPU form.
+pub fn render_source(form: &dyn GpuForm) -> String {
+    shaders::kernel_source(form, &render_kernel(LANES_PER_RAY))
+}
+
+/// The render kernel's source for a GPU form's subgroup traversal, or None when the form
+/// has none; like [`shaders::trace_subgroup_source`], it needs the device's
+/// `Features::SUBGROUP`.
+pub fn render_subgroup_source(form: &dyn GpuForm) -> Option<String> {
+    shaders::subgroup_kernel_source(form, &render_kernel(LANES_SUBGROUP))
+}
+
+/// Every kernel's full source for a GPU form, by name (for validation and layout tests):
+/// the trace kernels ([`shaders::all`]) and the render kernels, the subgroup kernels
+/// included where the form has a subgroup traversal.
+pub fn all_kernels(form: &dyn GpuForm) -> Vec<(&'static str, String)> {
+    let mut v = shaders::all(form);
+    v.push(("render", render_source(form)));
+    v.extend(render_subgroup_source(form).map(|s| ("render-subgroup", s)));
+    v
+}
