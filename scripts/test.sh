@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The test command (README "The two commands"; .ci/run calls exactly this): makes sure a
 # Vulkan driver is there for the GPU tests — installing Mesa's lavapipe (software Vulkan)
-# when none is — then runs the whole suite, GPU tests included, in release mode.
+# when none is — then runs the whole suite, GPU tests included, in release mode, and builds
+# the book (scripts/book.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -33,6 +34,9 @@ MSG
 fi
 
 cargo test --release "$@"
+
+# The book (docs/): built with mdBook, failing on a broken internal link.
+scripts/book.sh
 
 # The driver's own traversal (tests/driver.rs) needs an adapter with ray queries. Debian 12's
 # lavapipe (Mesa 22.3) has none; Mesa 25's, in the bookworm-backports suite, has. Where apt can
