@@ -38,6 +38,13 @@ cargo test --release "$@"
 # The book (docs/): built with mdBook, failing on a broken internal link.
 scripts/book.sh
 
+# The examples a newcomer runs first (docs/src/library.md): each prints a few lines and
+# checks its own results (CPU and GPU hits bit for bit); seconds each on the CPU or lavapipe.
+for example in trace_arrays render_scene custom_layout; do
+  echo "example $example"
+  cargo run --release --example "$example"
+done
+
 # The driver's own traversal (tests/driver.rs) needs an adapter with ray queries. Debian 12's
 # lavapipe (Mesa 22.3) has none; Mesa 25's, in the bookworm-backports suite, has. Where apt can
 # reach that suite, its lavapipe is unpacked beside the system's (target/mesa25; the system

@@ -90,7 +90,18 @@ impl Device {
         }
     }
 
-    /// An already opened GPU.
+    /// An already opened GPU: one lancer opened ([`GpuContext::new`]), or the application's
+    /// own wgpu device and queue ([`GpuContext::from_wgpu`]).
+    ///
+    /// ```no_run
+    /// # fn main() -> lancer::Result<()> {
+    /// use lancer::gpu::{wgpu, GpuContext};
+    /// # let (device, queue): (wgpu::Device, wgpu::Queue) = unimplemented!();
+    /// // `device` and `queue`: the application's, from its own adapter.
+    /// let device = lancer::Device::gpu(GpuContext::from_wgpu(device, queue)?);
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn gpu(ctx: GpuContext) -> Device {
         Device {
             gpu: Some(ctx),

@@ -26,7 +26,8 @@ impl std::fmt::Display for AdapterReport {
     }
 }
 
-/// A headless device and queue (a clone shares them).
+/// A headless device and queue (a clone shares them): opened by lancer
+/// ([`GpuContext::new`]) or the application's own ([`GpuContext::from_wgpu`]).
 #[derive(Clone)]
 pub struct GpuContext {
     /// The wgpu device.
@@ -63,6 +64,9 @@ pub struct SubgroupSizes {
     pub max: u32,
 }
 
+/// Storage buffers the trace kernel binds (nodes, triangles, rays, hits, statistics).
+const MIN_STORAGE_BUFFERS: u32 = 5;
+
 const INSTALL_HINT: &str = "no GPU adapter found; install a Vulkan driver (on Debian/Ubuntu: \
 apt-get install mesa-vulkan-drivers libvulkan1, which includes the lavapipe software driver) \
 or use --device cpu";
@@ -94,6 +98,77 @@ impl GpuContext {
                 None => Ok(Err(report_of(&adapter.get_info()))),
             }
         })
+    }
+
+    /// Wraps an application's own wgpu device and queue (created from an adapter of any
+    /// backend, with any descriptor): lancer then traces and renders on them, sharing them
+    /// with the application. The `wgpu` crate must be the one lancer builds
+    /// ([`lancer::gpu::wgpu`](crate::gpu::wgpu), wgpu 30).
+    ///
+    /// lancer uses only the features and limits the device was created with, read back
+    /// from it (`Device::features`, `Device::limits`, `Device::adapter_info`): timestamp
+    /// queries (`Features::TIMESTAMP_QUERY`) for GPU times, subgroup operations
+    /// (`Features::SUBGROUP`) for the subgroup traversal, and the driver's ray queries
+    /// (`Features::EXPERIMENTAL_RAY_QUERY`) for [`DriverTracer`](super::DriverTracer),
+    /// each where the device has it and done without where it has not. Its buffers are
+    /// bounded by the device's limits: request `adapter.limits()` to trace the largest
+    /// meshes, as [`GpuContext::new`] does (a mesh beyond the limits is refused, naming the
+    /// limit).
+    ///
+    /// lancer's own errors are caught in error scopes and returned. The device's handler
+    /// for errors outside any scope stays the application's (wgpu's default one panics);
+    /// [`GpuContext::catch_uncaptured_errors`] hands it to lancer instead.
+    ///
+    /// Refuses a device whose limits leave no room for lancer's trace kernel (fewer than
+    /// five storage buffers per shader stage, or no compute shaders).
+    pub fn from_wgpu(device: wgpu::Device, queue: wgpu::Queue) -> Result<GpuContext> {
+        let info = device.adapter_info();
+        let report = report_of(&info);
+        let features = device.features();
+        let limits = device.limits();
+        // The trace kernel binds five storage buffers (the BVH in buffer memory); a device
+        // made with downlevel limits (4) or without compute shaders cannot run it.
+        if limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS
+            || limits.max_compute_workgroups_per_dimension == 0
+        {
+            return Err(Error::Gpu(format!(
+                "the device on {report} allows {} storage buffers per shader stage and {} \
+                 compute workgroups per dimension; lancer's kernels need at least \
+                 {MIN_STORAGE_BUFFERS} (8 to render) and compute shaders: create the device \
+                 with wgpu::Limits::default() or the adapter's limits",
+                limits.max_storage_buffers_per_shader_stage,
+                limits.max_compute_workgroups_per_dimension
+            )));
+        }
+        Ok(GpuContext {
+            limits,
+            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            subgroups: features
+                .contains(wgpu::Features::SUBGROUP)
+                .then_some(SubgroupSizes {
+                    min: info.subgroup_min_size,
+                    max: info.subgroup_max_size,
+                }),
+            ray_query: features.contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY),
+            device,
+            queue,
+            adapter: report,
+            uncaptured: Arc::new(Mutex::new(Vec::new())),
+        })
+    }
+
+    /// Sets the device's handler for errors outside any error scope to lancer's, which logs
+    /// each and keeps it for the next wait to return as an `Err` (what [`GpuContext::new`]
+    /// does). It replaces the handler the device had, the application's included: call it
+    /// on a device from [`GpuContext::from_wgpu`] only where lancer may take that over.
+    pub fn catch_uncaptured_errors(&self) {
+        let sink = Arc::clone(&self.uncaptured);
+        self.device.on_uncaptured_error(Arc::new(move |e| {
+            log::error!("GPU error: {e}");
+            if let Ok(mut errors) = sink.lock() {
+                errors.push(e.to_string());
+            }
+        }));
     }
 
     async fn on(adapter: wgpu::Adapter) -> Result<GpuContext> {
@@ -140,17 +215,7 @@ impl GpuContext {
             })
             .await
             .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?;
-        // Errors outside an error scope (gpu::plumbing::scoped) are logged and kept for the
-        // next wait to return, never a panic.
-        let uncaptured = Arc::new(Mutex::new(Vec::new()));
-        let sink = Arc::clone(&uncaptured);
-        device.on_uncaptured_error(Arc::new(move |e| {
-            log::error!("GPU error: {e}");
-            if let Ok(mut errors) = sink.lock() {
-                errors.push(e.to_string());
-            }
-        }));
-        Ok(GpuContext {
+        let ctx = GpuContext {
             device,
             queue,
             adapter: report,
@@ -158,8 +223,12 @@ impl GpuContext {
             timestamps,
             subgroups,
             ray_query,
-            uncaptured,
-        })
+            uncaptured: Arc::new(Mutex::new(Vec::new())),
+        };
+        // Errors outside an error scope (gpu::plumbing::scoped) are logged and kept for the
+        // next wait to return, never a panic.
+        ctx.catch_uncaptured_errors();
+        Ok(ctx)
     }
 
     /// Why a kernel of `layout` (a subgroup traversal when `layout_has_one`) cannot walk

@@ -15,3 +15,6 @@ pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
 pub use context::{AdapterReport, GpuContext, SubgroupSizes};
 pub use driver::DriverTracer;
 pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};
+/// The wgpu crate lancer is built on: create the device you hand to
+/// [`GpuContext::from_wgpu`] with it (or with the same major version, wgpu 30).
+pub use wgpu;

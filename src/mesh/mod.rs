@@ -1,8 +1,10 @@
 //! Meshes: triangles in file order from OBJ/MTL (tobj), PLY (ply-rs-bw) or glTF 2.0
-//! (gltf), each classified (usable or why not).
+//! (gltf), or from an application's own arrays ([`Mesh::from_indexed`]), each classified
+//! (usable or why not).
 
 mod format;
 mod gltf;
+mod indexed;
 mod load;
 mod mtl;
 mod obj;
