@@ -87,16 +87,16 @@ fn main() -> lancer::Result<()> {
     for choice in [DeviceChoice::Auto, DeviceChoice::Gpu] {
         match Device::open(choice) {
             Ok(device) if device.is_cpu() => println!(
-                "{choice:?}: the CPU ({})",
+                "DeviceChoice::{choice:?} chose the CPU ({})",
                 device.fallback().unwrap_or("asked for")
             ),
             Ok(device) => {
                 let hits = trace(&device, &mesh, &rays)?;
                 let same = hits.iter().zip(&cpu_hits).all(|(g, c)| bits(g) == bits(c));
-                println!("{choice:?}: {device}; hits bit-identical to the CPU's: {same}");
+                println!("DeviceChoice::{choice:?} opened {device}; hits bit-identical to the CPU's: {same}");
                 assert!(same, "the GPU and the CPU disagree");
             }
-            Err(e) => println!("{choice:?}: skipped, no GPU adapter opened ({e})"),
+            Err(e) => println!("DeviceChoice::{choice:?}: skipped, no GPU adapter opened ({e})"),
         }
     }
     Ok(())
