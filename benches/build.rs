@@ -148,7 +148,7 @@ fn bench_mesh(c: &mut Criterion, name: &str, mesh: &Mesh, samples: usize) {
     g.sample_size(samples);
     for b in [Builder::Sweep, Builder::Binned, Builder::Median] {
         g.bench_function(format!("lancer-{b:?}").to_lowercase(), |x| {
-            x.iter(|| flatten(LayoutKind::default(), &build(mesh, &opts(b)), mesh))
+            x.iter(|| flatten(LayoutKind::DfsSign, &build(mesh, &opts(b)), mesh))
         });
     }
     g.bench_function("obvhs-medium", |x| x.iter(|| obvhs_build(&obv)));

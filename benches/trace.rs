@@ -16,7 +16,7 @@ use lancer::Query;
 fn traces(c: &mut Criterion) {
     let mesh = common::bunny();
     let flat = flatten(
-        LayoutKind::default(),
+        LayoutKind::DfsSign,
         &build(&mesh, &BuildOptions::default()),
         &mesh,
     );

@@ -65,7 +65,7 @@ fn main() -> Result<()> {
     let (w, h) = (dim(1), dim(2));
     let mesh = load_mesh(&mesh_path)?;
     let layout = flatten(
-        LayoutKind::default(),
+        LayoutKind::DfsSign,
         &build(&mesh, &BuildOptions::default()),
         &mesh,
     );

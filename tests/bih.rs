@@ -653,7 +653,12 @@ fn bunny_speed_and_million_builds() {
             let rob = Robustness::default();
             let mut all: Vec<(String, Box<dyn Accel>, f64)> = Vec::new();
             let t = Instant::now();
-            let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+            let bvh = build(
+                AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+                &mesh,
+                &BuildOptions::default(),
+            )
+            .unwrap();
             all.push(("bvh".into(), bvh, t.elapsed().as_secs_f64()));
             let t = Instant::now();
             let kd = KdTree::build(&mesh, &Default::default()).unwrap();
@@ -717,7 +722,12 @@ fn bunny_speed_and_million_builds() {
                 );
             }
             let t = Instant::now();
-            let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+            let bvh = build(
+                AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+                &mesh,
+                &BuildOptions::default(),
+            )
+            .unwrap();
             println!(
                 "{name}: the default BVH builds (and flattens) in {:.1} ms",
                 t.elapsed().as_secs_f64() * 1e3,

@@ -433,7 +433,10 @@ fn compare_tells_equal_from_different_images_and_hit_files() {
     let differ = lancer(&["compare", s(&a), s(&b), "-o", s(&diff)]);
     assert_eq!(differ.status.code(), Some(1));
     let text = String::from_utf8_lossy(&differ.stdout).into_owned();
-    assert!(text.contains("8 differ") && text.contains("8 pixels"), "{text}");
+    assert!(
+        text.contains("8 differ") && text.contains("8 pixels"),
+        "{text}"
+    );
     assert!(image::open(&diff).is_ok(), "no difference picture");
     lancer_ok(&["compare", s(&a), s(&b), "--tolerance", "5"]);
     let rays = d.path("r.bin");
@@ -541,7 +544,11 @@ fn compare_passes_a_correct_kernel_of_another_triangle_test() {
     trace(&wt, "watertight");
     trace(&mt, "moller-trumbore");
     let exact = lancer(&["compare", s(&wt), s(&mt), "--t-ulps", "0"]);
-    assert_eq!(exact.status.code(), Some(1), "the two tests gave the same bits");
+    assert_eq!(
+        exact.status.code(),
+        Some(1),
+        "the two tests gave the same bits"
+    );
     let judged = lancer_ok(&[
         "compare",
         s(&wt),
@@ -1040,7 +1047,11 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
             0,
             "64 rays",
         ),
-        (vec!["compare", s(&png), s(&png), "--json"], 0, "bit-identical"),
+        (
+            vec!["compare", s(&png), s(&png), "--json"],
+            0,
+            "bit-identical",
+        ),
         (
             vec![
                 "heatmap",

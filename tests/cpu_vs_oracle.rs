@@ -119,7 +119,12 @@ fn the_judge_rejects_wrong_answers() {
     let mut rng = Rng::new(1);
     let mesh = soup(&mut rng, 500, 0.3);
     let rays = random_rays(&mut rng, 500, &mesh);
-    let accel = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+    let accel = build(
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        &mesh,
+        &BuildOptions::default(),
+    )
+    .unwrap();
     let (hits, _) = accel.trace_batch(&rays, Query::Closest, &Robustness::default());
     let (r, h) = rays
         .iter()

@@ -886,11 +886,8 @@ fn mesh_readers(reader: &str, path: &Path, files: &Files) -> Result<(), TestCase
             move || {
                 let opts = lancer::accel::bvh::BuildOptions::default();
                 let bvh = lancer::accel::bvh::build(&mesh, &opts);
-                let layout = lancer::accel::bvh::layouts::flatten(
-                    lancer::LayoutKind::default(),
-                    &bvh,
-                    &mesh,
-                );
+                let layout =
+                    lancer::accel::bvh::layouts::flatten(lancer::LayoutKind::DfsSign, &bvh, &mesh);
                 let rays = Camera::default_view(&mesh.bounds(), 4, 4).primary_rays();
                 let (hits, _) =
                     layout.trace_batch(&rays, Query::Closest, &lancer::Robustness::default());

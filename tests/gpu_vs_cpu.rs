@@ -25,7 +25,7 @@ struct TraceKernel {
 impl TraceKernel {
     fn options(&self, layout: LayoutKind, memory: BvhMemory) -> TracerOptions {
         TracerOptions {
-            layout,
+            layout: Some(layout),
             memory,
             robustness: self.robustness,
             workgroup_size: self.workgroup_size.unwrap_or(64),
@@ -254,7 +254,7 @@ fn bad_rays_terminate_as_misses() {
     for &layout in LayoutKind::ALL {
         let options = TracerOptions {
             stats: true,
-            layout,
+            layout: Some(layout),
             ..TracerOptions::default()
         };
         let mut tracer = Tracer::new(gpu_device(), &mesh, &options).unwrap();
@@ -414,8 +414,10 @@ fn oversized_bvh_is_refused_naming_size_and_limit() {
         (BvhMemory::Buffers, "max_storage_buffer_binding_size"),
         (BvhMemory::Textures, "max_texture_dimension_2d"),
     ] {
+        // dfs-sign's arrays: a size in KiB (the default layout's may be smaller).
         let options = TracerOptions {
             memory,
+            layout: Some(lancer::LayoutKind::DfsSign),
             ..TracerOptions::default()
         };
         let e = Tracer::new(&device, &mesh, &options)

@@ -103,7 +103,12 @@ struct Counts {
 /// tie, and prints the counts.
 fn check_with(name: &str, mesh: &Mesh, rays: &[Ray], opts: &GridOptions) -> Vec<Counts> {
     let rob = Robustness::default();
-    let bvh = build(AccelKind::default(), mesh, &BuildOptions::default()).unwrap();
+    let bvh = build(
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        mesh,
+        &BuildOptions::default(),
+    )
+    .unwrap();
     let (bvh_hits, _) = bvh.trace_batch(rays, Query::Closest, &rob);
     let built = grids(mesh, opts);
     let traced: Vec<_> = built
@@ -724,7 +729,12 @@ fn bench_bunny() {
         let rob = Robustness::default();
         let mut accels: Vec<(&str, Box<dyn Accel>, f64)> = Vec::new();
         let t = Instant::now();
-        let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+        let bvh = build(
+            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+            &mesh,
+            &BuildOptions::default(),
+        )
+        .unwrap();
         accels.push(("bvh (dfs-sign)", bvh, t.elapsed().as_secs_f64()));
         let t = Instant::now();
         let u = UniformGrid::build(&mesh, &opts).unwrap();

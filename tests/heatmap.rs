@@ -10,6 +10,7 @@ use std::process::{Command, Output};
 
 use lancer::camera::Camera;
 use lancer::render::heat_ramp;
+use lancer::trace::defaults::CPU_LAYOUT;
 use lancer::trace::files::{default_light, shadow_rays};
 use lancer::{Device, LayoutKind, Query, RayStats, Tracer, TracerOptions};
 
@@ -74,7 +75,7 @@ fn library_stats(mesh: &Path, layout: LayoutKind, shadow: bool) -> Vec<Option<Ra
     let mesh = lancer::mesh::load_mesh(mesh).unwrap();
     let device = Device::cpu();
     let options = TracerOptions {
-        layout,
+        layout: Some(layout),
         stats: true,
         ..TracerOptions::default()
     };
@@ -129,7 +130,7 @@ fn check_map(img: &image::RgbImage, json: &serde_json::Value, counts: &[Option<u
 fn fixed_scale_pixels_are_the_ramp_of_the_library_counts_nodes_and_triangles() {
     let dir = tempfile::tempdir().unwrap();
     let obj = soup_obj(dir.path());
-    let stats = library_stats(&obj, LayoutKind::default(), false);
+    let stats = library_stats(&obj, CPU_LAYOUT, false);
     let mut maps = Vec::new();
     for (name, field) in [
         ("nodes", (|s: &RayStats| s.nodes) as fn(&RayStats) -> u32),
@@ -198,7 +199,7 @@ fn two_layouts_drawn_with_one_max_share_the_scale() {
 fn shadow_maps_count_shadow_rays_and_grey_out_primary_misses() {
     let dir = tempfile::tempdir().unwrap();
     let obj = soup_obj(dir.path());
-    let shadow = library_stats(&obj, LayoutKind::default(), true);
+    let shadow = library_stats(&obj, CPU_LAYOUT, true);
     let counts: Vec<Option<u32>> = shadow.iter().map(|s| s.map(|s| s.nodes)).collect();
     let misses = counts.iter().filter(|c| c.is_none()).count();
     assert!(misses > 0 && misses < counts.len(), "{misses} misses");

@@ -399,7 +399,12 @@ fn bunny_speed_against_the_bvh() {
     pool.install(|| {
         let mut all: Vec<(String, Box<dyn Accel>, f64)> = Vec::new();
         let t = Instant::now();
-        let bvh = build(AccelKind::default(), &mesh, &BuildOptions::default()).unwrap();
+        let bvh = build(
+            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+            &mesh,
+            &BuildOptions::default(),
+        )
+        .unwrap();
         all.push(("bvh".into(), bvh, t.elapsed().as_secs_f64()));
         // Variants as K_I:λ:max_depth, comma-separated (0 = the automatic depth cap).
         let variants =

@@ -449,7 +449,7 @@ fn a_tree_at_the_depth_cap_fills_the_stack_on_cpu_and_gpu() {
     for checked_module in [true, false] {
         for query in [Query::Closest, Query::Any] {
             let options = TracerOptions {
-                layout: WIDE,
+                layout: Some(WIDE),
                 memory: BvhMemory::Buffers,
                 robustness: Robustness {
                     checked_module,

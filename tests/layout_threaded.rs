@@ -74,7 +74,7 @@ fn same_as_dfs_sign(name: &str, mesh: &Mesh, rays: &[Ray]) -> Arc<dyn GpuForm> {
 /// The GPU kernel against the twin (hits and work), both queries.
 fn same_on_gpu(name: &str, layout: &Arc<dyn GpuForm>, rays: &[Ray]) {
     let options = TracerOptions {
-        layout: LayoutKind::Threaded,
+        layout: Some(LayoutKind::Threaded),
         stats: true,
         ..TracerOptions::default()
     };

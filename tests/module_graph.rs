@@ -113,7 +113,7 @@ fn uses(code: &str, modules: &[String]) -> Vec<(String, usize)> {
                     .chars()
                     .take_while(|c| c.is_alphanumeric() || *c == '_')
                     .collect();
-                if modules.iter().any(|m| *m == name) {
+                if modules.contains(&name) {
                     found.push((name, n + 1));
                 }
             }

@@ -10,7 +10,12 @@ use lancer::mesh::Mesh;
 use lancer::{Query, RayStats};
 
 fn flat(mesh: &Mesh) -> Box<dyn Accel> {
-    build(AccelKind::default(), mesh, &BuildOptions::default()).unwrap()
+    build(
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        mesh,
+        &BuildOptions::default(),
+    )
+    .unwrap()
 }
 
 /// One ray through the default layout's CPU twin with the given triangle test.

@@ -723,7 +723,10 @@ fn bunny_depth_leaf_and_cost() {
     let random = random_rays(&mut Rng::new(17), 1 << 18, &mesh);
     let rob = Robustness::default();
     let mut all: Vec<(String, Box<dyn Accel>, String)> = Vec::new();
-    for kind in [AccelKind::default(), AccelKind::KdTree] {
+    for kind in [
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        AccelKind::KdTree,
+    ] {
         let t = Instant::now();
         let a = build(kind, &mesh, &BuildOptions::default()).unwrap();
         let info = format!("build {:.0} ms", t.elapsed().as_secs_f64() * 1e3);

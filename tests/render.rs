@@ -185,7 +185,7 @@ fn gpu_render_in_mode(
 ) -> Rendered {
     let options = RenderOptions {
         spp: Some(1),
-        accel: AccelKind::Bvh(layout),
+        accel: Some(AccelKind::Bvh(layout)),
         crop,
         mode,
         ..RenderOptions::default()

@@ -29,7 +29,7 @@ fn scenes() -> Vec<(&'static str, RenderScene)> {
 fn render_with(scene: &RenderScene, device: &Device, accel: AccelKind) -> Rendered {
     let options = RenderOptions {
         spp: Some(2),
-        accel,
+        accel: Some(accel),
         ..RenderOptions::default()
     };
     render(scene, device, &options).unwrap_or_else(|e| panic!("{accel}: {e}"))
@@ -53,7 +53,11 @@ fn differing(what: &str, got: &[Vec3], want: &[Vec3], width: u32) -> usize {
 #[test]
 fn every_structure_renders_the_bvh_image_on_the_cpu() {
     for (name, s) in scenes() {
-        let bvh = render_with(&s, &Device::cpu(), AccelKind::default());
+        let bvh = render_with(
+            &s,
+            &Device::cpu(),
+            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        );
         // Not a flat image: equality means something.
         let lum: Vec<f32> = bvh.image.pixels.iter().map(|c| c.x + c.y + c.z).collect();
         let spread =
@@ -78,8 +82,16 @@ fn every_structure_renders_the_bvh_image_on_the_cpu() {
 fn kdtree_and_bih_render_the_bvh_image_on_the_gpu() {
     // One scene: each structure's kernel compiles for long on lavapipe.
     for (name, s) in scenes().into_iter().take(1) {
-        let gpu_bvh = render_with(&s, gpu_device(), AccelKind::default());
-        let cpu = render_with(&s, &Device::cpu(), AccelKind::default());
+        let gpu_bvh = render_with(
+            &s,
+            gpu_device(),
+            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        );
+        let cpu = render_with(
+            &s,
+            &Device::cpu(),
+            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        );
         for kind in [AccelKind::KdTree, AccelKind::Bih] {
             let gpu = render_with(&s, gpu_device(), kind);
             let what = format!("{name} {kind} (gpu)");
@@ -120,7 +132,7 @@ fn a_structure_without_a_gpu_kernel_is_refused_on_a_gpu() {
         AccelKind::Octree,
     ] {
         let options = RenderOptions {
-            accel: kind,
+            accel: Some(kind),
             ..RenderOptions::default()
         };
         match render(&s, gpu_device(), &options) {

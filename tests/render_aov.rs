@@ -83,7 +83,12 @@ fn aovs_are_the_same_on_the_cpu_and_the_gpu() {
 fn depth_is_the_primary_rays_closest_hit_t() {
     let s = scene("glass-mirror");
     let aovs = with_aovs(&s, &Device::cpu(), None).aovs.unwrap();
-    let bvh = build(AccelKind::default(), &s.mesh, &Default::default()).unwrap();
+    let bvh = build(
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        &s.mesh,
+        &Default::default(),
+    )
+    .unwrap();
     let (w, h) = (s.camera.width, s.camera.height);
     let frame = s.camera.frame();
     for y in 0..h {

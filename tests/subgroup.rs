@@ -72,7 +72,7 @@ fn check(
             continue;
         }
         let base = TracerOptions {
-            layout: kind,
+            layout: Some(kind),
             robustness,
             ..TracerOptions::default()
         };
@@ -303,7 +303,7 @@ fn invalid_rays_and_partial_subgroups_end_as_misses() {
             continue;
         }
         let sub = TracerOptions {
-            layout: kind,
+            layout: Some(kind),
             mode: TraversalMode::Subgroup,
             ..TracerOptions::default()
         };

@@ -35,7 +35,7 @@ fn everywhere(mesh: &Mesh, rays: &[Ray], query: Query) -> Vec<(String, Vec<Hit>)
     let cpu = Device::cpu();
     for &layout in LayoutKind::ALL {
         let o = TracerOptions {
-            layout,
+            layout: Some(layout),
             ..TracerOptions::default()
         };
         let hits = Tracer::new(&cpu, mesh, &o)

@@ -136,14 +136,9 @@ pub enum AccelKind {
     Octree,
 }
 
-impl Default for AccelKind {
-    fn default() -> Self {
-        AccelKind::Bvh(LayoutKind::default())
-    }
-}
-
 impl AccelKind {
-    /// Every structure, the BVH in its default layout first (benches and tests run them all).
+    /// Every structure, the BVH (in dfs-sign, the simplest layout) first (benches and tests
+    /// run them all).
     pub const ALL: &'static [AccelKind] = &[
         AccelKind::Bvh(LayoutKind::DfsSign),
         AccelKind::KdTree,

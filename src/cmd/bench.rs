@@ -179,7 +179,9 @@ impl BenchTrace {
             "use a smaller --width/--height",
         )?;
         let build_options = self.build.options();
-        let kind = self.accel.kind(self.build.layout);
+        // A GPU kernel's bench: the GPU's default layout unless one is named.
+        let layout_kind = (self.build.layout).unwrap_or(lancer::trace::defaults::GPU_LAYOUT);
+        let kind = self.accel.kind(layout_kind);
         let layout: Arc<dyn GpuForm> =
             build_gpu(kind, &mesh, &build_options)?.ok_or_else(|| {
                 Error::Usage(format!(

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use clap::Args;
 use indicatif::ProgressStyle;
-use lancer::accel::bvh::layouts::{flatten, try_flatten};
+use lancer::accel::bvh::layouts::{flatten, try_flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions, Builder, BvhStats};
 use lancer::accel::GpuForm;
 use lancer::accuracy::{cases, closed, false_misses, secondary};
@@ -290,7 +290,7 @@ impl Work {
         (camera.width, camera.height) = (width, height);
         let primary = camera.primary_rays();
         let layout = flatten(
-            Default::default(),
+            LayoutKind::DfsSign,
             &build(&mesh, &BuildOptions::default()),
             &mesh,
         );
@@ -342,7 +342,12 @@ impl<'d> Tracers<'d> {
         };
         let tree = build(&work.mesh, build_opts);
         let sah = BvhStats::of(&tree, build_opts).sah_cost;
-        let layout: Arc<dyn GpuForm> = try_flatten(opts.layout, &tree, &work.mesh)?.into();
+        let layout: Arc<dyn GpuForm> = try_flatten(
+            (opts.layout).unwrap_or_else(|| lancer::trace::default_layout(device)),
+            &tree,
+            &work.mesh,
+        )?
+        .into();
         let scene = Tracer::with_layout(device, layout, &opts)?;
         let mut tracers = Vec::new();
         if judged {

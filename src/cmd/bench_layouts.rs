@@ -328,7 +328,7 @@ impl BenchLayouts {
         }
         let mesh = load_geometry(&self.mesh)?;
         let tree = build(&mesh, &self.build.options());
-        let reference_layout = flatten(LayoutKind::default(), &tree, &mesh);
+        let reference_layout = flatten(LayoutKind::DfsSign, &tree, &mesh);
         let rob = Robustness::default();
         let mut sets = view_ray_sets(
             &mesh,
@@ -371,7 +371,7 @@ impl BenchLayouts {
                 per_tri: layout.bytes() as f64 / mesh.len().max(1) as f64,
             });
             let options = TracerOptions {
-                layout: kind,
+                layout: Some(kind),
                 memory: self.bvh_memory,
                 stats: true,
                 ..TracerOptions::default()
@@ -552,7 +552,7 @@ impl BenchLayouts {
                 "\ndriver rows: the driver's own traversal through ray queries, its acceleration \
                  structure built by the driver in {build_ms:.1} ms over the {} leaf triangles \
                  (in their order); it reports no work counts.",
-                LayoutKind::default()
+                LayoutKind::DfsSign
             ),
             (None, Some(c)) if !c.ray_query => say!(
                 say,

@@ -92,7 +92,7 @@ impl BenchRender {
         let cpu = Device::cpu();
         let options = RenderOptions {
             build: self.build.options(),
-            accel: lancer::AccelKind::Bvh(self.build.layout),
+            accel: self.build.layout.map(lancer::AccelKind::Bvh),
             ..RenderOptions::default()
         };
         let specialised = EffectSet::of(&scene);

@@ -267,7 +267,7 @@ impl BenchStructures {
         let primary = camera.primary_rays();
         let rob = Robustness::default();
         let bvh = flatten(
-            LayoutKind::default(),
+            LayoutKind::DfsSign,
             &build(&mesh, &BuildOptions::default()),
             &mesh,
         );

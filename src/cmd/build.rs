@@ -61,7 +61,9 @@ impl BuildCmd {
         let opts = self.build.options();
         let t0 = Instant::now();
         let bvh = build(&mesh, &opts);
-        let layout = try_flatten(self.build.layout, &bvh, &mesh)?;
+        // No device here: a BVH file is for a GPU kernel (or a twin), so the GPU's default.
+        let kind = (self.build.layout).unwrap_or(lancer::trace::defaults::GPU_LAYOUT);
+        let layout = try_flatten(kind, &bvh, &mesh)?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let s = BvhStats::of(&bvh, &opts);
         if let Some(out) = &self.out {
@@ -71,7 +73,7 @@ impl BuildCmd {
         if self.json {
             print_json(&BuildReport {
                 builder: spelled(opts.builder),
-                layout: self.build.layout.name(),
+                layout: kind.name(),
                 triangles: s.triangles,
                 nodes: s.nodes,
                 leaves: s.leaves,
@@ -84,7 +86,7 @@ impl BuildCmd {
         } else {
             let say = Say::new(false);
             say!(say, "builder     {}", spelled(opts.builder));
-            say!(say, "layout      {}", self.build.layout);
+            say!(say, "layout      {kind}");
             say!(say, "triangles   {}", s.triangles);
             say!(say, "nodes       {}", s.nodes);
             say!(say, "leaves      {}", s.leaves);

@@ -262,7 +262,7 @@ impl CheckCmd {
                 ]
             }
             None => {
-                let reference = layout_of(LayoutKind::default())?;
+                let reference = layout_of(LayoutKind::DfsSign)?;
                 let rob = self.robustness.robustness();
                 view_ray_sets(&mesh, reference.as_ref(), self.width, self.height, &rob)?
             }
@@ -280,7 +280,7 @@ impl CheckCmd {
         for kind in kinds {
             let layout = layout_of(kind)?;
             let options = TracerOptions {
-                layout: kind,
+                layout: Some(kind),
                 memory: self.device.bvh_memory(),
                 robustness: self.robustness.robustness(),
                 ..TracerOptions::default()
@@ -329,7 +329,7 @@ impl CheckCmd {
         // The driver's own traversal, an independent oracle where the adapter has ray
         // queries: against the default layout's CPU twin (the file's with --bvh).
         if ctx.ray_query {
-            let reference = layout_of(LayoutKind::default())?;
+            let reference = layout_of(LayoutKind::DfsSign)?;
             let mut twin = Tracer::with_layout(&cpu, reference.clone(), &TracerOptions::default())?;
             let mut driver = DriverTracer::new(ctx, reference.as_ref())?;
             for (name, query, rays) in &sets {

@@ -195,15 +195,16 @@ impl HeatmapCmd {
         lancer::limits::check_image(w, h, 120, "use a smaller --width/--height")?;
         let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
         let device = self.accel.open(&self.device)?;
+        let layout = self.build.layout_on(&device);
         let options = TracerOptions {
             build: self.build.options(),
-            layout: self.build.layout,
+            layout: Some(layout),
             memory: self.device.bvh_memory,
             stats: true,
             mode: self.mode,
             ..TracerOptions::default()
         };
-        let kind = self.accel.kind(self.build.layout);
+        let kind = self.accel.kind(layout);
         let mut tracer = match &self.bvh {
             Some(path) => {
                 let file = super::input::load_bvh(path, &mesh)?;
@@ -258,7 +259,7 @@ impl HeatmapCmd {
         if self.json {
             print_json(&HeatmapReport {
                 structure: kind.to_string(),
-                layout: self.build.layout.name().to_string(),
+                layout: layout.name().to_string(),
                 mode: mode.name().to_string(),
                 rays: self.rays.name(),
                 counted: self.count.name(),

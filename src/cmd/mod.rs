@@ -132,14 +132,20 @@ pub const BVH_CONFLICTS: [&str; 7] = [
 pub struct BuildArgs {
     #[command(flatten)]
     builder: BuilderArgs,
-    /// Flattened BVH layout (GPU arrays and their CPU twin).
-    #[arg(long, value_enum, default_value_t = LayoutKind::default())]
-    layout: LayoutKind,
+    /// Flattened BVH layout (GPU arrays and their CPU twin); default: the device's fastest
+    /// (bvh8 on the CPU, dfs-sign on a GPU; see the book's "Defaults" page).
+    #[arg(long, value_enum)]
+    layout: Option<LayoutKind>,
 }
 
 impl BuildArgs {
     pub fn options(&self) -> BuildOptions {
         self.builder.options()
+    }
+
+    /// `--layout`, else `device`'s default.
+    pub fn layout_on(&self, device: &Device) -> LayoutKind {
+        (self.layout).unwrap_or_else(|| lancer::trace::default_layout(device))
     }
 }
 

@@ -238,6 +238,7 @@ impl RenderCmd {
             c.check(scene.camera.width, scene.camera.height)?;
         }
         let device = self.accel.open(&self.device)?;
+        let layout = self.build.layout_on(&device);
         let cancel = Arc::new(AtomicBool::new(false));
         {
             let cancel = cancel.clone();
@@ -265,7 +266,7 @@ impl RenderCmd {
             cancel: Some(cancel),
             progress: Some(progress),
             build: self.build.options(),
-            accel: self.accel.kind(self.build.layout),
+            accel: Some(self.accel.kind(layout)),
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
             crop,
@@ -321,7 +322,7 @@ impl RenderCmd {
                     "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}",
                     s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost,
                 ));
-                say(format!("layout: {}", self.build.layout));
+                say(format!("layout: {layout}"));
             }
             say(format!("effects: {}", done.effects));
             if !device.is_cpu() {
@@ -362,7 +363,7 @@ impl RenderCmd {
                     },
                     device: device.to_string(),
                     structure: renderer.structure().name(),
-                    layout: renderer.bvh_stats().map(|_| self.build.layout.name()),
+                    layout: renderer.bvh_stats().map(|_| layout.name()),
                     bvh: renderer.bvh_stats().copied(),
                     effects: done.effects.to_string(),
                     bvh_memory: (!device.is_cpu()).then(|| spelled(self.device.bvh_memory)),

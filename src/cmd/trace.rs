@@ -115,11 +115,13 @@ impl TraceCmd {
         let bvh = (self.bvh.as_ref())
             .map(|p| load_bvh(p, &mesh))
             .transpose()?;
-        let layout = bvh.as_ref().map_or(self.build.layout, |f| f.kind);
         let device = self.accel.open(&self.device)?;
+        let layout = bvh
+            .as_ref()
+            .map_or(self.build.layout_on(&device), |f| f.kind);
         let options = TracerOptions {
             build: self.build.options(),
-            layout,
+            layout: Some(layout),
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
             workgroup_size: self.workgroup_size,

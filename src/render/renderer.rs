@@ -61,8 +61,10 @@ pub struct RenderOptions {
     pub progress: Option<ProgressFn>,
     /// BVH builder (used by [`Renderer::new`] for a BVH).
     pub build: BuildOptions,
-    /// Acceleration structure, a BVH with its flattened layout (used by [`Renderer::new`]).
-    pub accel: AccelKind,
+    /// Acceleration structure, a BVH with its flattened layout (used by [`Renderer::new`]);
+    /// None: a BVH in the device's fastest layout,
+    /// [`default_layout`](crate::trace::default_layout) (bvh8 on the CPU, dfs-sign on a GPU).
+    pub accel: Option<AccelKind>,
     /// GPU: where the kernel reads the BVH from (used by [`Renderer::new`]).
     pub memory: BvhMemory,
     /// Render only these pixels of the image, with the full image's random numbers (used
@@ -154,7 +156,8 @@ impl<'a> Renderer<'a> {
             48,
             "use a smaller --width/--height or render tiles (--crop)",
         )?;
-        let kind = options.accel;
+        let kind =
+            (options.accel).unwrap_or_else(|| AccelKind::Bvh(crate::trace::default_layout(device)));
         let start = Instant::now();
         let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) = match kind {
             AccelKind::Bvh(layout_kind) => {

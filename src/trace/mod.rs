@@ -2,9 +2,10 @@
 //! the ray and hit file formats.
 
 pub mod compare;
+pub mod defaults;
 pub mod files;
-
 pub mod oracle;
 mod tracer;
 
+pub use defaults::default_layout;
 pub use tracer::{TraceResult, Tracer, TracerOptions};

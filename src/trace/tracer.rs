@@ -20,8 +20,9 @@ use crate::mesh::Mesh;
 pub struct TracerOptions {
     /// BVH builder and its constants.
     pub build: BuildOptions,
-    /// Flattened layout (GPU arrays and the CPU twin).
-    pub layout: LayoutKind,
+    /// Flattened layout (GPU arrays and the CPU twin); None: the device's fastest,
+    /// [`default_layout`](super::default_layout) (bvh8 on the CPU, dfs-sign on a GPU).
+    pub layout: Option<LayoutKind>,
     /// GPU: where the kernel reads the layout from.
     pub memory: BvhMemory,
     /// Triangle and slab tests, checked or trusted GPU modules.
@@ -39,7 +40,7 @@ impl Default for TracerOptions {
     fn default() -> Self {
         TracerOptions {
             build: BuildOptions::default(),
-            layout: LayoutKind::default(),
+            layout: None,
             memory: BvhMemory::default(),
             robustness: Robustness::default(),
             workgroup_size: 64,
@@ -86,7 +87,8 @@ impl<'d> Tracer<'d> {
     /// the device is a GPU.
     pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
         let tree = bvh::build(mesh, &options.build);
-        let layout: Arc<dyn GpuForm> = layouts::try_flatten(options.layout, &tree, mesh)?.into();
+        let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
+        let layout: Arc<dyn GpuForm> = layouts::try_flatten(kind, &tree, mesh)?.into();
         Self::with_layout(device, layout, options)
     }
 
@@ -100,6 +102,7 @@ impl<'d> Tracer<'d> {
         options: &TracerOptions,
     ) -> Result<Self> {
         if let AccelKind::Bvh(layout) = kind {
+            let layout = Some(layout);
             return Self::new(device, mesh, &TracerOptions { layout, ..*options });
         }
         if !device.is_cpu() {

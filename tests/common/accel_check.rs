@@ -53,7 +53,12 @@ pub fn check(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> (usize
 /// does not (counted and printed: a BVH bug). Returns that count.
 pub fn same_as_bvh(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> usize {
     let rob = Robustness::default();
-    let bvh = build(AccelKind::default(), mesh, &BuildOptions::default()).unwrap();
+    let bvh = build(
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        mesh,
+        &BuildOptions::default(),
+    )
+    .unwrap();
     let (a, _) = accel.trace_batch(rays, Query::Closest, &rob);
     let (b, _) = bvh.trace_batch(rays, Query::Closest, &rob);
     let (mut differ, mut bvh_wrong) = (0, 0);

@@ -67,12 +67,14 @@ pub(crate) fn has_avx2() -> bool {
 }
 
 /// The registry of layouts: one variant per folder.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+///
+/// No layout is the default everywhere: the fastest depends on the device
+/// ([`trace::default_layout`](crate::trace::default_layout)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LayoutKind {
     /// 32-byte nodes in depth-first order, children visited in the order the ray's sign on
     /// the split axis gives.
-    #[default]
     DfsSign,
     /// The dfs-sign nodes, both children tested and entered nearest first by entry
     /// distance; the farther is culled on the pop once a closer hit is known.
