@@ -5,13 +5,11 @@
 //! instead of aborting; the arrays are what the GPU will read (each triangle once, clip
 //! planes exactly the children's extents); the stats add up.
 
-#[path = "common/accel_check.rs"]
-mod accel_check;
 #[path = "../benches/common.rs"]
 mod bench_common;
 mod common;
 
-use accel_check::{brute_force, check, quad_plane, same_as_bvh};
+use common::accel_check::{brute_force, check, quad_plane, same_as_bvh};
 use common::hard::{chain_centres, corner_cascade};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;

@@ -3,11 +3,9 @@
 //! axis-parallel rays on split planes; coincident triangles keep the tie rule; the memory
 //! cap refuses instead of aborting; the stats add up.
 
-#[path = "common/accel_check.rs"]
-mod accel_check;
 mod common;
 
-use accel_check::{brute_force, check, same_as_bvh};
+use common::accel_check::{brute_force, check, same_as_bvh};
 use common::hard::{
     coincident_stacks, corner_rays, extreme_rays, grid, invalid_rays, shrinking_corner,
     soup_on_a_grid, split_plane_rays, stack_rays,

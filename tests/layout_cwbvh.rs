@@ -7,14 +7,12 @@
 //! is tests/gpu_vs_cpu.rs (every layout).
 
 mod common;
-#[path = "common/gpu_twin.rs"]
-mod gpu_twin;
 
 use std::sync::Arc;
 
+use common::gpu_twin::same_on_gpu;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
-use gpu_twin::same_on_gpu;
 use lancer::accel::bvh::layouts::{CwChild, Cwbvh, DfsSign};
 use lancer::accel::bvh::{build, BuildOptions, Bvh, Node, MAX_DEPTH};
 use lancer::accel::Accel;

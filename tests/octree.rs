@@ -3,11 +3,9 @@
 //! never leak; axis-parallel rays on cell planes; coincident triangles keep the tie rule; the
 //! memory cap refuses instead of aborting; the stats add up and count duplicated references.
 
-#[path = "common/accel_check.rs"]
-mod accel_check;
 mod common;
 
-use accel_check::{brute_force, check, quad_plane, same_as_bvh};
+use common::accel_check::{brute_force, check, quad_plane, same_as_bvh};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::BuildOptions;

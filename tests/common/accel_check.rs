@@ -1,8 +1,6 @@
 //! Judging any acceleration structure (`&dyn Accel`): against the f64 oracle, against the
 //! BVH, and against a brute-force pass with the tracers' own f32 test and tie rule; and a
 //! plane of quads whose shared edges and vertices rays must not leak through.
-//! Include with `#[path = "common/accel_check.rs"] mod accel_check;`.
-#![allow(dead_code)]
 
 use glam::Vec3;
 use lancer::accel::bvh::BuildOptions;

@@ -1,8 +1,6 @@
 //! A structure's GPU kernel against its CPU twin, bit for bit (hits and statistics, both BVH
 //! memories, closest and any hit), and the GPU's answers judged by the f64 oracle: shared by
-//! tests/kdtree_gpu.rs and tests/bih_gpu.rs.
-//! Include with `#[path = "common/gpu_twin.rs"] mod gpu_twin;` beside `mod common;`.
-#![allow(dead_code)]
+//! tests/gpu_forms.rs (the kd-tree and the BIH) and tests/layout_cwbvh.rs.
 
 use std::sync::{Arc, OnceLock};
 

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: a seeded RNG, random soups and rays, models.
 #![allow(dead_code)]
 
+pub mod accel_check;
+pub mod gpu_twin;
 pub mod hard;
 pub mod writers;
 
