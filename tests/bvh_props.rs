@@ -61,7 +61,7 @@ fn largest_leaf(n: &Node) -> usize {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    #![proptest_config(common::proptest_config("bvh_props", 48))]
     #[test]
     fn invariants_hold_on_random_soups(seed in any::<u64>(), n in 1usize..600, size in 0.001f32..0.5,
                                       max_leaf in 1usize..20) {

@@ -254,6 +254,7 @@ fn slab_coord() -> impl proptest::strategy::Strategy<Value = f32> {
 }
 
 proptest::proptest! {
+    #![proptest_config(common::proptest_config("numerics", 256))]
     /// The tracer's SIMD slab test for non-parallel rays is the scalar reference bit for
     /// bit in its verdict, including on box planes and under overflow.
     #[test]

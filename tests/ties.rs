@@ -238,7 +238,7 @@ fn rays_for(mesh: &Mesh, seed: u64) -> Vec<Ray> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+    #![proptest_config(common::proptest_config("ties", 6))]
     #[test]
     fn coincident_stacks_at_several_depths(seed in any::<u64>(),
                                            copies in proptest::collection::vec(2usize..3000, 1..4),

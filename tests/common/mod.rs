@@ -124,3 +124,23 @@ pub fn gpu_device() -> &'static Device {
 pub fn gpu() -> &'static GpuContext {
     gpu_device().gpu_context().expect("a GPU device")
 }
+
+/// proptest's settings for the integration test `name`: `cases` cases, and the failures it
+/// finds kept in proptest-regressions/tests/NAME.txt, the one folder the library's unit
+/// tests keep theirs in too (proptest would put them beside the test file).
+pub fn proptest_config(name: &str, cases: u32) -> proptest::test_runner::Config {
+    let path: &'static str = Box::leak(
+        format!(
+            "{}/proptest-regressions/tests/{name}.txt",
+            env!("CARGO_MANIFEST_DIR")
+        )
+        .into_boxed_str(),
+    );
+    proptest::test_runner::Config {
+        cases,
+        failure_persistence: Some(Box::new(
+            proptest::test_runner::FileFailurePersistence::Direct(path),
+        )),
+        ..proptest::test_runner::Config::default()
+    }
+}
