@@ -44,12 +44,15 @@
 //! structure's GPU face; the BVH's builders and its flattened layouts,
 //! [`accel::bvh::layouts`], each with its CPU twin), [`gpu`] (the wgpu plumbing and the WGSL
 //! sources), [`trace`] ([`Tracer`], the f64 oracle, ray and hit files), [`render`] (scenes
-//! and the [`Renderer`]), [`accuracy`] (the error each robustness setting leaves).
+//! and the [`Renderer`]), [`accuracy`] (the error each robustness setting leaves),
+//! [`bench`] (every `lancer bench` as `run(&Config, progress) -> Report`, its tables, charts
+//! and results pages).
 
 #![warn(missing_docs)]
 
 pub mod accel;
 pub mod accuracy;
+pub mod bench;
 pub mod camera;
 pub mod device;
 #[cfg(feature = "embree")]

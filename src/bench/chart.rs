@@ -2,13 +2,11 @@
 //! axes), each with its legend beside the plot (never over the data). Drawn in memory by
 //! plotters with an embedded font — a fresh machine may have no fonts and no fontconfig —
 //! encoded by `image` and written atomically by `lancer::output`.
-// A shared toolbox: each bench draws the kinds of chart it needs.
-#![allow(dead_code)]
 
 use std::path::Path;
 use std::sync::OnceLock;
 
-use lancer::{Error, Result};
+use crate::error::{Error, Result};
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::coord::Shift;
 use plotters::element::{Drawable, PointCollection};
@@ -110,6 +108,19 @@ pub fn bar_chart(
         }
         Ok(())
     })
+}
+
+/// The categories of a bench's bar chart: each ray set on the CPU, and on the GPU where
+/// there is one ("primary CPU", "primary GPU", …).
+pub fn device_categories(sets: &[&str], gpu: bool) -> Vec<String> {
+    let mut categories = Vec::new();
+    for name in sets {
+        categories.push(format!("{name} CPU"));
+        if gpu {
+            categories.push(format!("{name} GPU"));
+        }
+    }
+    categories
 }
 
 /// An x–y chart: one series per colour (and marker shape), joined by lines unless
@@ -279,7 +290,7 @@ fn draw_png(
     }
     let img = image::RgbImage::from_raw(w, h, buf)
         .ok_or_else(|| chart_error(path, "the image buffer has the wrong size"))?;
-    lancer::output::write_atomic(path, |out| {
+    crate::output::write_atomic(path, |out| {
         img.write_to(out, image::ImageFormat::Png)
             .map_err(std::io::Error::other)
     })

@@ -5,9 +5,9 @@
 
 use std::path::Path;
 
+use crate::error::Result;
+use crate::render::heat_ramp;
 use image::{Rgb, RgbImage};
-use lancer::render::heat_ramp;
-use lancer::Result;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -58,7 +58,7 @@ pub fn with_colour_bar(path: &Path, map: &RgbImage, bar: &ColourBar) -> Result<R
     };
     let (w, h) = (map.width().max(MIN_WIDTH), map.height() + bar_h);
     // The map passed the image-size check; the bar adds a fixed strip.
-    lancer::limits::check_image(w, h, 3, "use a smaller --width/--height")?;
+    crate::limits::check_image(w, h, 3, "use a smaller --width/--height")?;
     let top = map.height();
     let ramp = (MARGIN, w - MARGIN - 1);
     let mut buf = vec![255u8; 3 * w as usize * h as usize];

@@ -1,22 +1,18 @@
-use std::path::PathBuf;
-use std::sync::Arc;
+//! `lancer bench …`: each subcommand parses its options into a `lancer::bench` Config, runs
+//! the bench with a progress bar, and prints its report (tables, `--json`, `--chart`,
+//! `--report`).
+
+use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand};
-use indicatif::ProgressStyle;
-use lancer::accel::build_gpu;
-use lancer::accel::GpuForm;
-use lancer::camera::Camera;
-use lancer::gpu::BvhMemory;
+use indicatif::{ProgressBar, ProgressStyle};
+use lancer::bench::{page, BenchReport, Progress};
 use lancer::mesh::load_mesh;
-use lancer::trace::files::{default_light, shadow_rays};
-use lancer::{
-    DeviceChoice, Error, Query, Ray, RayStats, Result, Robustness, Tracer, TracerOptions,
-};
-
+use lancer::{DeviceChoice, Result};
 use serde::Serialize;
 
-use super::out::{json_to, say, JsonTo, Say};
-use super::{open_bench_device, spelled, AccelArg, BuildArgs};
+use super::out::{check_output, json_to, say, JsonTo, Say};
+use super::{AccelArg, BuildArgs};
 
 #[derive(Args)]
 pub struct BenchCmd {
@@ -38,6 +34,18 @@ enum BenchWhat {
     Layouts(super::bench_layouts::BenchLayouts),
     /// What each robustness knob costs in time and the error it leaves, CPU and GPU.
     Accuracy(super::bench_accuracy::BenchAccuracy),
+}
+
+impl BenchCmd {
+    pub fn run(self) -> Result<()> {
+        match self.what {
+            BenchWhat::Trace(b) => b.run(),
+            BenchWhat::Render(b) => b.run(),
+            BenchWhat::Structures(b) => b.run(),
+            BenchWhat::Layouts(b) => b.run(),
+            BenchWhat::Accuracy(b) => b.run(),
+        }
+    }
 }
 
 #[derive(Args)]
@@ -64,10 +72,168 @@ struct BenchTrace {
     #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
     accel: AccelArg,
     #[command(flatten)]
-    json: JsonArg,
+    out: Outputs,
 }
 
-/// `--json [FILE.json]`, shared by the benches.
+impl BenchTrace {
+    fn run(self) -> Result<()> {
+        let inputs = [self.mesh.clone()];
+        self.out
+            .check::<lancer::bench::trace::Report>(&inputs, None)?;
+        let config = lancer::bench::trace::Config {
+            mesh: load_mesh(&self.mesh)?,
+            name: self.mesh.display().to_string(),
+            width: self.width,
+            height: self.height,
+            device: self.device,
+            repeat: self.repeat as usize,
+            // A GPU kernel's bench: the GPU's default layout unless one is named.
+            accel: (self.accel).kind(
+                self.build
+                    .layout
+                    .unwrap_or(lancer::trace::defaults::GPU_LAYOUT),
+            ),
+            build: self.build.options(),
+        };
+        let report = with_bar("runs", |p| lancer::bench::trace::run(&config, p))?;
+        self.out.finish(&report, None)
+    }
+}
+
+/// Runs a bench with a progress bar on stderr (`unit`: what its steps are), cleared when
+/// the bench ends.
+pub fn with_bar<R>(unit: &str, run: impl FnOnce(&dyn Fn(Progress)) -> Result<R>) -> Result<R> {
+    let bar = Bar(super::out::progress_bar(0));
+    let template = match unit {
+        "" => "{bar:40} {pos}/{len} {msg}".to_string(),
+        u => format!("{{bar:40}} {{pos}}/{{len}} {u} {{msg}}"),
+    };
+    bar.0.set_style(
+        ProgressStyle::with_template(&template).unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    run(&|p: Progress| {
+        bar.0.set_length(p.total);
+        bar.0.set_position(p.done);
+        bar.0.set_message(p.message);
+    })
+}
+
+/// A progress bar, cleared when dropped.
+struct Bar(ProgressBar);
+
+impl Drop for Bar {
+    fn drop(&mut self) {
+        self.0.finish_and_clear();
+    }
+}
+
+/// `--json [FILE.json]` and `--report FILE.md`, shared by the benches.
+#[derive(Args)]
+pub struct Outputs {
+    /// Also write the results as one JSON object: on stdout with --json alone or --json -
+    /// (the tables then go to stderr), or in FILE.json (keys: the book's JSON page, docs/src/reference/json.md).
+    #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
+    pub json: Option<JsonTo>,
+    #[command(flatten)]
+    pub report: ReportArg,
+}
+
+impl Outputs {
+    /// Where the tables go.
+    pub fn say(&self) -> Say {
+        Say::new(self.json.as_ref().is_some_and(JsonTo::is_stdout))
+    }
+
+    /// Checks every output path before work starts: the JSON file, the report and its
+    /// charts, and `chart`.
+    pub fn check<R: BenchReport>(&self, inputs: &[PathBuf], chart: Option<&Path>) -> Result<()> {
+        self.json.as_ref().map_or(Ok(()), |j| j.check(inputs))?;
+        if let Some(c) = chart {
+            check_output(c, inputs)?;
+        }
+        self.report.check::<R>(inputs)
+    }
+
+    /// Prints the report's text, draws `chart`, writes the JSON and the results page.
+    pub fn finish<R: BenchReport>(&self, report: &R, chart: Option<&Path>) -> Result<()> {
+        let say = self.say();
+        print_text(say, &report.text());
+        if let Some(path) = chart {
+            report.draw_charts(&[path.to_path_buf()])?;
+            say!(say, "\nchart -> {}", path.display());
+        }
+        write_json(self.json.as_ref(), report, say)?;
+        self.report.write(report, say)
+    }
+}
+
+/// Prints a report's text, line by line.
+pub fn print_text(say: Say, text: &str) {
+    for line in text.lines() {
+        say!(say, "{line}");
+    }
+}
+
+/// Writes the report where --json asks (nowhere without it).
+pub fn write_json(json: Option<&JsonTo>, report: &impl Serialize, say: Say) -> Result<()> {
+    json.map_or(Ok(()), |j| j.write(report, say))
+}
+
+/// `--report FILE.md`.
+#[derive(Args)]
+pub struct ReportArg {
+    /// Also write a dated results page: the machine, adapter and driver, lancer's commit, the
+    /// date, this command, the tables, and the charts beside it (FILE.png or FILE-*.png); see
+    /// the book's results index, docs/src/results/index.md.
+    #[arg(long, value_name = "FILE.md", value_parser = md_file)]
+    pub report: Option<PathBuf>,
+}
+
+impl ReportArg {
+    /// Checks the page and its charts before work starts.
+    pub fn check<R: BenchReport>(&self, inputs: &[PathBuf]) -> Result<()> {
+        for path in self.report.iter().flat_map(|p| page::outputs::<R>(p)) {
+            lancer::output::check_output(&path, inputs)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the page and its charts; says where.
+    pub fn write<R: BenchReport>(&self, report: &R, say: Say) -> Result<()> {
+        if let Some(path) = &self.report {
+            page::write(path, report, &command_line())?;
+            say!(say, "report -> {}", path.display());
+        }
+        Ok(())
+    }
+}
+
+/// `--report FILE.md`: a markdown file name.
+fn md_file(s: &str) -> std::result::Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match path.extension() {
+        Some(e) if e.eq_ignore_ascii_case("md") => Ok(path),
+        _ => Err(format!("{s} is not a .md file name: give FILE.md")),
+    }
+}
+
+/// This run's command line as a shell would take it (`lancer` for the program).
+fn command_line() -> String {
+    let quote = |a: String| {
+        let plain = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
+        match !a.is_empty() && a.chars().all(plain) {
+            true => a,
+            false => format!("'{}'", a.replace('\'', r"'\''")),
+        }
+    };
+    let args = std::env::args().skip(1).map(quote);
+    std::iter::once("lancer".to_string())
+        .chain(args)
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `--json [FILE.json]` alone (the benches not yet moved to `Outputs`).
 #[derive(Args)]
 pub struct JsonArg {
     /// Also write the results as one JSON object: on stdout with --json alone or --json -
@@ -89,245 +255,6 @@ impl JsonArg {
 
     /// Writes the report where --json asks (nowhere without it).
     pub fn write(&self, report: &impl Serialize, say: Say) -> Result<()> {
-        self.json.as_ref().map_or(Ok(()), |j| j.write(report, say))
-    }
-}
-
-/// `bench trace --json`: one object a run.
-#[derive(Serialize)]
-struct BenchTraceReport {
-    /// The mesh file.
-    mesh: String,
-    /// Triangles in the structure's leaves.
-    triangles: usize,
-    /// Width of the default view.
-    width: u32,
-    /// Height of the default view.
-    height: u32,
-    /// The structure timed.
-    structure: String,
-    /// The GPU adapter, or null.
-    adapter: Option<String>,
-    /// CPU threads.
-    cpu_threads: usize,
-    /// Timed runs per configuration (the median is reported).
-    repeat: u64,
-    /// One object per ray set and configuration.
-    runs: Vec<BenchTraceRun>,
-}
-
-/// One ray set × device configuration.
-#[derive(Serialize)]
-struct BenchTraceRun {
-    /// "primary closest-hit" or "shadow any-hit".
-    rays: &'static str,
-    /// Rays in the set.
-    count: usize,
-    /// "cpu" or "gpu".
-    device: &'static str,
-    /// GPU: "textures" or "buffers" (null on the CPU).
-    bvh_memory: Option<String>,
-    /// GPU: invocations per workgroup (null on the CPU).
-    workgroup_size: Option<u32>,
-    /// GPU: "checked" or "trusted" shader module (null on the CPU).
-    module: Option<&'static str>,
-    /// Million rays per second by GPU time (the CPU's: by wall time; null without
-    /// timestamp queries).
-    mrays_per_s_gpu_time: Option<f64>,
-    /// Million rays per second by wall time (GPU: upload, dispatch and read-back).
-    mrays_per_s_wall: f64,
-    /// Mean nodes (or cells) visited per ray.
-    nodes_per_ray: f64,
-}
-
-impl BenchCmd {
-    pub fn run(self) -> Result<()> {
-        match self.what {
-            BenchWhat::Trace(b) => b.run(),
-            BenchWhat::Render(b) => b.run(),
-            BenchWhat::Structures(b) => b.run(),
-            BenchWhat::Layouts(b) => b.run(),
-            BenchWhat::Accuracy(b) => b.run(),
-        }
-    }
-}
-
-/// The median: the middle value, or the mean of the two middle ones (NaN when empty, or
-/// when a middle value is NaN).
-pub fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
-}
-
-fn nodes_per_ray(s: &[RayStats]) -> f64 {
-    RayStats::means(s).0
-}
-
-impl BenchTrace {
-    fn run(self) -> Result<()> {
-        let say = self.json.say();
-        self.json.check(std::slice::from_ref(&self.mesh))?;
-        let mesh = load_mesh(&self.mesh)?;
-        lancer::limits::check_image(
-            self.width,
-            self.height,
-            200,
-            "use a smaller --width/--height",
-        )?;
-        let build_options = self.build.options();
-        // A GPU kernel's bench: the GPU's default layout unless one is named.
-        let layout_kind = (self.build.layout).unwrap_or(lancer::trace::defaults::GPU_LAYOUT);
-        let kind = self.accel.kind(layout_kind);
-        let layout: Arc<dyn GpuForm> =
-            build_gpu(kind, &mesh, &build_options)?.ok_or_else(|| {
-                Error::Usage(format!(
-                    "the {kind} structure has no GPU kernel: use `lancer bench structures`"
-                ))
-            })?;
-        let primary = Camera::default_view(&mesh.bounds(), self.width.max(1), self.height.max(1))
-            .primary_rays();
-        let rob = Robustness::default();
-        let (hits, _) = layout.trace_batch(&primary, Query::Closest, &rob);
-        let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
-        let sets: [(&str, Query, &[Ray]); 2] = [
-            ("primary closest-hit", Query::Closest, &primary),
-            ("shadow any-hit", Query::Any, &shadow),
-        ];
-        let device = open_bench_device(self.device)?;
-        let memories = [BvhMemory::Textures, BvhMemory::Buffers];
-        let gpu_configs: Vec<(u32, bool)> = if device.is_cpu() {
-            Vec::new()
-        } else {
-            [32, 64, 128]
-                .iter()
-                .flat_map(|&w| [(w, false), (w, true)])
-                .collect()
-        };
-        let gpu_runs = memories.len() * gpu_configs.len();
-        let repeat = self.repeat as usize;
-        let bar = super::out::progress_bar((sets.len() * (1 + gpu_runs) * repeat) as u64);
-        bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} runs {msg}").unwrap());
-        let mut rows = Vec::new();
-        let cpu = lancer::Device::cpu();
-        for (name, query, rays) in sets {
-            let n = rays.len() as f64;
-            let stats_on = TracerOptions {
-                stats: true,
-                ..TracerOptions::default()
-            };
-            let mut tracer = Tracer::with_layout(&cpu, layout.clone(), &stats_on)?;
-            let mut times = Vec::new();
-            let mut stats = Vec::new();
-            for _ in 0..repeat {
-                let r = tracer.trace(rays, query)?;
-                times.push(r.timings.wall_ms * 1e-3);
-                stats = r.stats.unwrap_or_default();
-                bar.inc(1);
-            }
-            let rate = n / median(times) / 1e6;
-            rows.push(BenchTraceRun {
-                rays: name,
-                count: rays.len(),
-                device: "cpu",
-                bvh_memory: None,
-                workgroup_size: None,
-                module: None,
-                mrays_per_s_gpu_time: Some(rate),
-                mrays_per_s_wall: rate,
-                nodes_per_ray: nodes_per_ray(&stats),
-            });
-            if device.is_cpu() {
-                continue;
-            }
-            for memory in memories {
-                let options = TracerOptions {
-                    memory,
-                    ..TracerOptions::default()
-                };
-                let mut tracer = Tracer::with_layout(&device, layout.clone(), &options)?;
-                let bvh = spelled(memory);
-                for &(wg, trusted) in &gpu_configs {
-                    let rob = Robustness {
-                        checked_module: !trusted,
-                        ..Robustness::default()
-                    };
-                    tracer.set_kernel(rob, wg, false);
-                    tracer.trace(&rays[..rays.len().min(1024)], query)?; // compile outside the timing
-                    let (mut gpu, mut wall) = (Vec::new(), Vec::new());
-                    for _ in 0..repeat {
-                        let t = tracer.trace(rays, query)?.timings;
-                        gpu.push(t.gpu_ms.unwrap_or(f64::NAN));
-                        wall.push(t.wall_ms);
-                        bar.inc(1);
-                    }
-                    tracer.set_kernel(rob, wg, true);
-                    let s = tracer.trace(rays, query)?.stats;
-                    let module = if trusted { "trusted" } else { "checked" };
-                    let gpu = n / median(gpu) / 1e3;
-                    rows.push(BenchTraceRun {
-                        rays: name,
-                        count: rays.len(),
-                        device: "gpu",
-                        bvh_memory: Some(bvh.clone()),
-                        workgroup_size: Some(wg),
-                        module: Some(module),
-                        mrays_per_s_gpu_time: gpu.is_finite().then_some(gpu),
-                        mrays_per_s_wall: n / median(wall) / 1e3,
-                        nodes_per_ray: nodes_per_ray(&s.unwrap_or_default()),
-                    });
-                }
-            }
-        }
-        bar.finish_and_clear();
-        say!(
-            say,
-            "mesh {}  {} triangles in leaves  {}x{}  structure {}",
-            self.mesh.display(),
-            layout.triangles(),
-            self.width,
-            self.height,
-            layout.name()
-        );
-        if let Some(ctx) = device.gpu_context() {
-            say!(say, "adapter {}", ctx.adapter);
-        }
-        say!(say, "| rays | count | device | BVH memory | workgroup | module | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray |");
-        say!(say, "|---|---|---|---|---|---|---|---|---|");
-        let threads = rayon::current_num_threads();
-        let or_dash = |x: Option<String>| x.unwrap_or("–".into());
-        for r in &rows {
-            let device = match r.device {
-                "cpu" => format!("cpu ({threads} threads)"),
-                d => d.to_string(),
-            };
-            say!(
-                say,
-                "| {} | {} | {device} | {} | {} | {} | {} | {:.2} | {:.2} |",
-                r.rays,
-                r.count,
-                or_dash(r.bvh_memory.clone()),
-                or_dash(r.workgroup_size.map(|w| w.to_string())),
-                or_dash(r.module.map(String::from)),
-                or_dash(r.mrays_per_s_gpu_time.map(|m| format!("{m:.2}"))),
-                r.mrays_per_s_wall,
-                r.nodes_per_ray
-            );
-        }
-        let report = BenchTraceReport {
-            mesh: self.mesh.display().to_string(),
-            triangles: layout.triangles(),
-            width: self.width,
-            height: self.height,
-            structure: layout.name().to_string(),
-            adapter: device.gpu_context().map(|c| c.adapter.to_string()),
-            cpu_threads: threads,
-            repeat: self.repeat,
-            runs: rows,
-        };
-        self.json.write(&report, say)
+        write_json(self.json.as_ref(), report, say)
     }
 }

@@ -25,11 +25,11 @@ use lancer::{
 };
 use serde::Serialize;
 
-use super::bench::median;
-use super::chart::xy_chart;
 use super::open_bench_device;
 use super::out::{json_to, say, JsonTo, Say};
 use super::render::load_scene;
+use lancer::bench::chart::xy_chart;
+use lancer::bench::timing::median;
 
 #[derive(Args)]
 pub struct BenchAccuracy {

@@ -28,9 +28,10 @@ use lancer::{
 };
 use serde::Serialize;
 
-use super::bench::{median, JsonArg};
+use super::bench::JsonArg;
 use super::out::{check_output, say};
 use super::{open_bench_device, spelled};
+use lancer::bench::timing::median;
 
 #[derive(Args)]
 pub struct BenchStructures {
@@ -457,6 +458,6 @@ impl BenchStructures {
             self.height,
             rayon::current_num_threads()
         );
-        super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)
+        lancer::bench::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)
     }
 }

@@ -7,12 +7,8 @@ mod bench_layouts;
 mod bench_render;
 mod bench_structures;
 mod build;
-mod chart;
 mod check;
-mod colour_bar;
 mod compare;
-#[cfg(feature = "embree")]
-mod embree_row;
 mod heatmap;
 mod input;
 mod merge;
@@ -228,10 +224,7 @@ impl DeviceArgs {
 /// Opens the device a bench measures beside the CPU: with `auto`, any GPU adapter that
 /// opens, a software one included (the bench times its kernels); `cpu`: none.
 pub fn open_bench_device(choice: DeviceChoice) -> Result<Device> {
-    told(match choice {
-        DeviceChoice::Auto => Device::open_any()?,
-        other => Device::open(other)?,
-    })
+    lancer::bench::open_device(choice)
 }
 
 /// The device, once the CLI has said why it is the CPU and when GPU timings come from a
@@ -303,30 +296,7 @@ fn non_negative_finite(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
-/// The rays benches and checks trace: the default view's primary rays (closest hit), shadow
-/// rays from their hits to the default light (any hit) and diffuse bounce rays from the same
-/// hits (closest hit, incoherent).
-pub fn view_ray_sets(
-    mesh: &lancer::Mesh,
-    accel: &dyn lancer::Accel,
-    width: u32,
-    height: u32,
-    robustness: &Robustness,
-) -> Result<Vec<(String, lancer::Query, Vec<lancer::Ray>)>> {
-    use lancer::trace::files::{bounce_rays, default_light, shadow_rays};
-    use lancer::Query;
-    lancer::limits::check_image(width, height, 200, "use a smaller --width/--height")?;
-    let primary =
-        lancer::camera::Camera::default_view(&mesh.bounds(), width, height).primary_rays();
-    let (hits, _) = accel.trace_batch(&primary, Query::Closest, robustness);
-    let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
-    let bounce = bounce_rays(mesh, &primary, &hits, 1);
-    Ok(vec![
-        ("primary".into(), Query::Closest, primary),
-        ("shadow".into(), Query::Any, shadow),
-        ("bounce".into(), Query::Closest, bounce),
-    ])
-}
+pub use lancer::bench::rays::view_ray_sets;
 
 /// A value as the command line spells it.
 pub fn spelled<T: clap::ValueEnum + std::fmt::Debug>(v: T) -> String {
