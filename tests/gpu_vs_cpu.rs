@@ -1,5 +1,5 @@
-//! Every layout's GPU kernel against its CPU twin on lavapipe (or any adapter), through the
-//! one `Tracer` API. For every ray: hit/miss and prim agree with the CPU, except genuine ties
+//! Every GPU form's kernel — each BVH layout's, the kd-tree's and the BIH's — against its CPU
+//! twin on lavapipe (or any adapter), through the one `Tracer` API. For every ray: hit/miss and prim agree with the CPU, except genuine ties
 //! the f64 oracle names; t agrees to ≤ 2 ulp where the prim agrees. Traversal statistics
 //! agree exactly.
 
@@ -12,7 +12,7 @@ use lancer::geometry::{Hit, Ray, Triangle, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::mesh::Mesh;
 use lancer::trace::compare::compare_hits;
-use lancer::{Device, LayoutKind, Query, Robustness, Tracer, TracerOptions};
+use lancer::{AccelKind, Device, LayoutKind, Query, Robustness, Tracer, TracerOptions};
 
 /// One specialisation of the trace kernel.
 #[derive(Clone, Copy, Debug, Default)]
@@ -23,9 +23,8 @@ struct TraceKernel {
 }
 
 impl TraceKernel {
-    fn options(&self, layout: LayoutKind, memory: BvhMemory) -> TracerOptions {
+    fn options(&self, memory: BvhMemory) -> TracerOptions {
         TracerOptions {
-            layout: Some(layout),
             memory,
             robustness: self.robustness,
             workgroup_size: self.workgroup_size.unwrap_or(64),
@@ -42,7 +41,14 @@ fn cpu_hits(mesh: &Mesh, rays: &[Ray], query: Query) -> Vec<Hit> {
     t.trace(rays, query).unwrap().hits
 }
 
-/// Compares GPU (BVH in the default memory) with CPU on `rays` for every layout; returns
+/// Every structure with a GPU form: the BVH in each layout, the kd-tree, the BIH.
+fn gpu_forms() -> Vec<AccelKind> {
+    (LayoutKind::ALL.iter().map(|&l| AccelKind::Bvh(l)))
+        .chain([AccelKind::KdTree, AccelKind::Bih])
+        .collect()
+}
+
+/// Compares GPU (BVH in the default memory) with CPU on `rays` for every GPU form; returns
 /// (agree, tie) of the last.
 fn compare(name: &str, mesh: &Mesh, rays: &[Ray], kernel: TraceKernel) -> (usize, usize) {
     compare_in(name, mesh, rays, kernel, BvhMemory::default())
@@ -57,28 +63,28 @@ fn compare_in(
     memory: BvhMemory,
 ) -> (usize, usize) {
     let mut counts = (0, 0);
-    for &layout in LayoutKind::ALL {
-        let name = format!("{name} {layout}");
-        counts = compare_layout(&name, mesh, rays, kernel, memory, layout);
+    for form in gpu_forms() {
+        let name = format!("{name} {form}");
+        counts = compare_form(&name, mesh, rays, kernel, memory, form);
     }
     counts
 }
 
-fn compare_layout(
+fn compare_form(
     name: &str,
     mesh: &Mesh,
     rays: &[Ray],
     kernel: TraceKernel,
     memory: BvhMemory,
-    layout: LayoutKind,
+    form: AccelKind,
 ) -> (usize, usize) {
-    let options = kernel.options(layout, memory);
+    let options = kernel.options(memory);
     let cpu_device = Device::cpu();
-    let c = Tracer::new(&cpu_device, mesh, &options)
+    let c = Tracer::with_structure(&cpu_device, mesh, form, &options)
         .unwrap()
         .trace(rays, kernel.query)
         .unwrap();
-    let g = Tracer::new(gpu_device(), mesh, &options)
+    let g = Tracer::with_structure(gpu_device(), mesh, form, &options)
         .unwrap()
         .trace(rays, kernel.query)
         .unwrap();
