@@ -11,7 +11,7 @@ mod bench_common;
 mod common;
 
 use common::accel_check::{brute_force, check, quad_plane, same_as_bvh};
-use common::hard::{chain_centres, corner_cascade};
+use common::hard::{chain_centres, corner_cascade, edge_rays};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bih::{Bih, BihNode, BihOptions, BIH_LEAF_TAG, MAX_BIH_DEPTH};
@@ -181,21 +181,7 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
         assert!(tree.stats().nodes > 100, "the plane is split");
         let mut rng = Rng::new(11);
         let c = mesh.bounds().center();
-        let mut rays = Vec::new();
-        for &t in &targets {
-            // From above and below at random angles, and straight down the z axis.
-            for _ in 0..2 {
-                let mut o = c + rng.dir() * 20.0;
-                o.z = if rng.f32() < 0.5 {
-                    -o.z.abs() - 1.0
-                } else {
-                    o.z.abs() + 1.0
-                };
-                rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
-            }
-            rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
-            rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
-        }
+        let rays = edge_rays(&mut rng, c, &targets);
         let rob = Robustness::default();
         for query in [Query::Closest, Query::Any] {
             let (hits, _) = tree.trace_batch(&rays, query, &rob);

@@ -11,7 +11,7 @@
 mod common;
 
 use common::accel_check::{brute_force, check, same_as_bvh};
-use common::hard::{coincident_stacks, extreme_rays, grid, invalid_rays, stack_rays};
+use common::hard::{coincident_stacks, edge_rays, extreme_rays, grid, invalid_rays, stack_rays};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::BuildOptions;
@@ -97,21 +97,7 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
     let (mesh, targets) = grid(24, 0.37);
     let mut rng = Rng::new(11);
     let c = mesh.bounds().center();
-    let mut rays = Vec::new();
-    for &t in &targets {
-        // From above and below at random angles, and straight along the z axis.
-        for _ in 0..2 {
-            let mut o = c + rng.dir() * 20.0;
-            o.z = if rng.f32() < 0.5 {
-                -o.z.abs() - 1.0
-            } else {
-                o.z.abs() + 1.0
-            };
-            rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
-        }
-        rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
-        rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
-    }
+    let rays = edge_rays(&mut rng, c, &targets);
     let brute = brute_force(&mesh, &rays);
     let rob = Robustness::default();
     for (kind, accel) in every_structure(&mesh) {

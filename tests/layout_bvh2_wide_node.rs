@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::hard::edge_rays;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::layouts::{flatten, LayoutKind};
@@ -198,20 +199,7 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
     let accel = wide(&mesh);
     let mut rng = Rng::new(11);
     let c = mesh.bounds().center();
-    let mut rays = Vec::new();
-    for &t in &targets {
-        for _ in 0..2 {
-            let mut o = c + rng.dir() * 20.0;
-            o.z = if rng.f32() < 0.5 {
-                -o.z.abs() - 1.0
-            } else {
-                o.z.abs() + 1.0
-            };
-            rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
-        }
-        rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
-        rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
-    }
+    let rays = edge_rays(&mut rng, c, &targets);
     let rob = Robustness::default();
     for query in [Query::Closest, Query::Any] {
         let (hits, _) = accel.trace_batch(&rays, query, &rob);

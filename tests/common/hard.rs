@@ -243,3 +243,24 @@ pub fn corner_cascade(rng: &mut Rng) -> Mesh {
     tris.extend(chain_centres().into_iter().map(|(c, a)| small_at(c, a)));
     Mesh::from_triangles(tris)
 }
+
+/// Rays at `targets` (the shared edges and vertices of a plane of triangles in z = 0 around
+/// `centre`): two from above or below at random angles, and one straight down and one
+/// straight up the z axis, each.
+pub fn edge_rays(rng: &mut Rng, centre: Vec3, targets: &[Vec3]) -> Vec<Ray> {
+    let mut rays = Vec::new();
+    for &t in targets {
+        for _ in 0..2 {
+            let mut o = centre + rng.dir() * 20.0;
+            o.z = if rng.f32() < 0.5 {
+                -o.z.abs() - 1.0
+            } else {
+                o.z.abs() + 1.0
+            };
+            rays.push(Ray::new(o, (t - o).normalize(), 0.0, 3.4e38));
+        }
+        rays.push(Ray::new(t + Vec3::Z * 5.0, -Vec3::Z, 0.0, 3.4e38));
+        rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
+    }
+    rays
+}
