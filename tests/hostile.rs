@@ -1114,6 +1114,20 @@ fn hostile_command_lines() {
             ]),
         )
         .absent(&s.path("t.png")),
+        // Finite but beyond what a Duration holds: refused as usage, not a panic.
+        row_args(
+            "render --time-limit 1e20",
+            Want::Fail(2),
+            r(&[
+                &"render",
+                &cornell,
+                &"-o",
+                &"t.png",
+                &"--time-limit",
+                &"1e20",
+            ]),
+        )
+        .absent(&s.path("t.png")),
         row_args(
             "render --width 0",
             Want::Fail(2),

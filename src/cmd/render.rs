@@ -42,8 +42,9 @@ pub struct RenderCmd {
     /// Random seed (default: the scene's).
     #[arg(long)]
     seed: Option<u32>,
-    /// Stop after the last sample that fits in this many seconds (at least one sample).
-    #[arg(long)]
+    /// Stop after the last sample that fits in this many seconds (at least one sample;
+    /// above 0, at most a year).
+    #[arg(long, value_parser = time_limit)]
     time_limit: Option<f64>,
     /// Render only the tile of columns X0..X1 and rows Y0..Y1 of the image (half-open pixel
     /// bounds), with the full image's random numbers; an EXR tile records where it sits, and
@@ -220,14 +221,7 @@ impl RenderCmd {
                 self.out.display()
             )));
         }
-        let time_limit = match self.time_limit {
-            Some(t) if !(t.is_finite() && t > 0.0) => {
-                return Err(Error::Usage(format!(
-                    "--time-limit {t}: give a positive number of seconds"
-                )))
-            }
-            t => t.map(Duration::from_secs_f64),
-        };
+        let time_limit = self.time_limit.map(Duration::from_secs_f64);
         let scene = load_scene_scaled(&self.scene, self.width, self.height, self.scale)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
         let crop = match self.crop.as_deref() {
@@ -409,5 +403,18 @@ mod tests {
         );
         assert_eq!(image_size((256, 192), None, None, 0.25), (64, 48));
         assert_eq!(image_size((256, 192), None, None, 1e-9), (1, 1));
+    }
+}
+
+/// `--time-limit`: seconds above 0 and at most a year (a Duration holds any such number; a
+/// longer limit is no limit a render can reach).
+fn time_limit(s: &str) -> std::result::Result<f64, String> {
+    const YEAR: f64 = 365.25 * 24.0 * 3600.0;
+    match s.parse::<f64>() {
+        Ok(t) if t > 0.0 && t <= YEAR => Ok(t),
+        Ok(t) => Err(format!(
+            "{t} is not a number of seconds above 0 and at most a year ({YEAR})"
+        )),
+        Err(e) => Err(e.to_string()),
     }
 }
