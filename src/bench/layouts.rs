@@ -502,7 +502,7 @@ impl BenchReport for Report {
     /// Mrays/s, one group per ray set and device (CPU, GPU), one bar per layout and mode
     /// (subgroup and driver rows have no CPU bar, embree rows no GPU bar).
     #[cfg(feature = "charts")]
-    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<()> {
+    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>> {
         let gpu = self.gpu_driver.is_some();
         let mut sets: Vec<&str> = Vec::new();
         let mut series: Vec<(String, Vec<f64>)> = Vec::new();
@@ -535,6 +535,6 @@ impl BenchReport for Report {
         for path in paths {
             super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)?;
         }
-        Ok(())
+        Ok(paths.to_vec())
     }
 }

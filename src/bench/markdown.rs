@@ -57,14 +57,17 @@ fn is_table_line(line: &str) -> bool {
 pub fn page_body(text: &str) -> String {
     let mut out = String::new();
     let mut last: Option<bool> = None; // whether the previous line was a table row
+    let mut gap = false; // a blank line since the previous line
     for line in text.lines() {
         if line.trim().is_empty() {
+            gap = true;
             continue;
         }
         let table = is_table_line(line);
-        if last.is_some() && !(table && last == Some(true)) {
+        if last.is_some() && (gap || !(table && last == Some(true))) {
             out.push('\n');
         }
+        gap = false;
         out.push_str(line.trim_end());
         out.push('\n');
         last = Some(table);
@@ -85,10 +88,10 @@ mod tests {
 
     #[test]
     fn a_page_body_separates_paragraphs_and_tables() {
-        let text = "mesh x\nadapter y\n| a |\n|---|\n| 1 |\nnote\n\nmore";
+        let text = "mesh x\nadapter y\n| a |\n|---|\n| 1 |\n\n| b |\n|---|\nnote\n\nmore";
         assert_eq!(
             page_body(text),
-            "mesh x\n\nadapter y\n\n| a |\n|---|\n| 1 |\n\nnote\n\nmore\n"
+            "mesh x\n\nadapter y\n\n| a |\n|---|\n| 1 |\n\n| b |\n|---|\n\nnote\n\nmore\n"
         );
     }
 }

@@ -15,7 +15,7 @@
 //! traces), [`markdown`] (tables), [`page`] (a dated results page, `--report`), and with the
 //! `charts` feature [`chart`] (PNG charts, plotters) and [`colour_bar`] (the heatmap's bar).
 
-// pub mod accuracy;
+pub mod accuracy;
 #[cfg(feature = "charts")]
 pub mod chart;
 #[cfg(feature = "charts")]
@@ -25,12 +25,12 @@ pub mod markdown;
 pub mod page;
 pub mod rays;
 pub mod render;
-// pub mod structures;
+pub mod structures;
 pub mod timing;
 pub mod trace;
 
 use std::cell::{Cell, RefCell};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::device::{Device, DeviceChoice};
 use crate::error::Result;
@@ -116,9 +116,10 @@ pub trait BenchReport: serde::Serialize {
     /// What the CLI prints: header lines, markdown tables and notes, one line each.
     fn text(&self) -> String;
 
-    /// Draws the charts, one a path, in the order of [`Self::CHARTS`].
+    /// Draws the charts, one a path, in the order of [`Self::CHARTS`]; returns those drawn
+    /// (a chart of a device not measured is left out).
     #[cfg(feature = "charts")]
-    fn draw_charts(&self, paths: &[PathBuf]) -> Result<()>;
+    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>>;
 }
 
 /// Opens the device a bench measures beside the CPU: with `auto`, any GPU adapter that

@@ -180,12 +180,10 @@ pub fn markdown<R: BenchReport>(
 /// Writes the results page `path` (atomically, replacing it) and, with the `charts`
 /// feature, its charts beside it ([`beside`]).
 pub fn write<R: BenchReport>(path: &Path, report: &R, command: &str) -> Result<()> {
-    let charts: Vec<PathBuf> = match cfg!(feature = "charts") {
-        true => R::CHARTS.iter().map(|s| beside(path, s)).collect(),
-        false => Vec::new(),
-    };
     #[cfg(feature = "charts")]
-    report.draw_charts(&charts)?;
+    let charts = report.draw_charts(&outputs::<R>(path)[1..])?;
+    #[cfg(not(feature = "charts"))]
+    let charts: Vec<PathBuf> = Vec::new();
     let text = markdown(report, command, SystemTime::now(), &charts);
     crate::output::write_bytes(path, text.as_bytes())
 }

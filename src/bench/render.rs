@@ -242,7 +242,7 @@ impl BenchReport for Report {
 
     /// Milliseconds per spp, one group per device and mode, one bar per kernel.
     #[cfg(feature = "charts")]
-    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<()> {
+    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>> {
         let mut categories: Vec<String> = Vec::new();
         for r in &self.runs {
             let c = format!("{} {}", r.device, r.mode.unwrap_or(""))
@@ -275,6 +275,6 @@ impl BenchReport for Report {
         for path in paths {
             super::chart::bar_chart(path, &title, "ms per spp", &categories, &series)?;
         }
-        Ok(())
+        Ok(paths.to_vec())
     }
 }

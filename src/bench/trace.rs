@@ -202,7 +202,8 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
 }
 
 impl Report {
-    /// A configuration's name in the table's device column and the chart's legend.
+    /// A configuration's name in the chart's legend.
+    #[cfg(feature = "charts")]
     fn configuration(&self, r: &Run) -> String {
         match (r.device, &r.bvh_memory, r.workgroup_size, r.module) {
             ("cpu", ..) => format!("cpu ({} threads)", self.cpu_threads),
@@ -265,7 +266,7 @@ impl BenchReport for Report {
 
     /// Mrays/s (GPU time where measured), one group per ray set, one bar per configuration.
     #[cfg(feature = "charts")]
-    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<()> {
+    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>> {
         let mut categories: Vec<String> = Vec::new();
         let mut series: Vec<(String, Vec<f64>)> = Vec::new();
         for r in &self.runs {
@@ -295,6 +296,6 @@ impl BenchReport for Report {
         for path in paths {
             super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)?;
         }
-        Ok(())
+        Ok(paths.to_vec())
     }
 }

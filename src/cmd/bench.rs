@@ -232,29 +232,3 @@ fn command_line() -> String {
         .collect::<Vec<_>>()
         .join(" ")
 }
-
-/// `--json [FILE.json]` alone (the benches not yet moved to `Outputs`).
-#[derive(Args)]
-pub struct JsonArg {
-    /// Also write the results as one JSON object: on stdout with --json alone or --json -
-    /// (the tables then go to stderr), or in FILE.json (keys: the book's JSON page, docs/src/reference/json.md).
-    #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
-    pub json: Option<JsonTo>,
-}
-
-impl JsonArg {
-    /// Where the tables go.
-    pub fn say(&self) -> Say {
-        Say::new(self.json.as_ref().is_some_and(JsonTo::is_stdout))
-    }
-
-    /// Checks a JSON file's path before work starts.
-    pub fn check(&self, inputs: &[PathBuf]) -> Result<()> {
-        self.json.as_ref().map_or(Ok(()), |j| j.check(inputs))
-    }
-
-    /// Writes the report where --json asks (nowhere without it).
-    pub fn write(&self, report: &impl Serialize, say: Say) -> Result<()> {
-        write_json(self.json.as_ref(), report, say)
-    }
-}
