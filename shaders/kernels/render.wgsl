@@ -183,8 +183,9 @@ fn offset_origin(p: vec3<f32>, err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(next_away(po.x, off.x), next_away(po.y, off.y), next_away(po.z, off.z));
 }
 
-// Samples in which some traversal was cut short by the driver (see traversal_done): the
-// host renders those pixels again on the CPU.
+// Samples in which the driver cut some loop short, a traversal's (see traversal_done) or the
+// integrator's own (loops_were_cut, at the end of render): the host renders those pixels
+// again on the CPU.
 var<private> sample_incomplete: bool;
 
 fn texel(m: Material, x: i32, y: i32) -> vec3<f32> {
@@ -595,6 +596,13 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
         sample_together();
     } else {
         sample_alone();
+    }
+    // A driver's cut can end any loop of the sample as if it had finished, not only a
+    // traversal's: the sample's own (its next bounce never traced), the lights', the
+    // rejection sampler's; none of them shows it in the sample's state, so the sample asks
+    // whether this invocation's loops were cut at all (or it stopped short of its end).
+    if step != STEP_DONE || loops_were_cut(pixel) {
+        sample_incomplete = true;
     }
     if live {
         // w counts the samples of this pixel that a driver cut short.

@@ -87,11 +87,44 @@ fn test_leaf(first: u32, count: u32, r: Ray, w: Watertight, any_hit: bool,
 var<private> n_nodes: u32;
 var<private> n_tris: u32;
 
-// Set by traverse() when it ends by itself (its stack empty). Left false when the driver cut
-// the traversal loop short: lavapipe up to Mesa 22 ends every loop of an invocation once
-// 65,535 loop iterations have run in all, so a ray through ~50,000 coincident triangles stops
-// early. Callers mark such rays (gpu::INCOMPLETE) instead of returning a wrong hit.
+// Set by traverse() when it ends by itself (its stack empty, or an any-hit answered). Left
+// false when the driver cut it short: lavapipe up to Mesa 22 ends every loop of an
+// invocation once 65,535 loop iterations have run in all, so a ray through ~50,000
+// coincident triangles stops early. Callers mark such rays (gpu::INCOMPLETE) instead of
+// returning a wrong hit. A traversal whose inner loops the driver may cut (a leaf's
+// triangles, a pop, a node's slots) ends with traversal_end.
 var<private> traversal_done: bool;
+
+// Whether the driver has cut loops of this invocation short. lavapipe up to Mesa 22 counts
+// the loop iterations of an invocation (all its loops, its SIMD lanes together, never reset)
+// and, once 65,535 have run, ends every loop after the iteration it is in, each as if it had
+// finished: the traversal loop, but also a leaf's triangle loop, a pop loop, the render
+// kernel's own loops, where nothing in the loop's state need show it. From then on every
+// loop stops after one iteration, so a loop that needs two shows it (with one iteration
+// left before the cap it flags what was not cut: harmless). `start` is any value the
+// compiler cannot know, so that the loop is not unrolled away (with a constant start it is:
+// Mesa 22 then never reports a cut).
+fn loops_were_cut(start: u32) -> bool {
+    var n = start;
+    loop {
+        n += 1u;
+        if n - start >= 2u {
+            break;
+        }
+    }
+    return n - start < 2u;
+}
+
+// Where a traversal ends by itself (its stack empty, or an any-hit answered): done, unless
+// the driver has cut loops of this invocation short (loops_were_cut; `salt` any value of the
+// ray). A cut inner loop ends as if it had finished, and the traversal can then reach its
+// end with work left undone: the 8-wide traversals' pop loop, cut on an entry beyond the
+// prune bound, reads as an empty stack; a leaf's loop as its last triangle tested; cwbvh's
+// triangle loop as the node's last. Asked where the lane ends, not after the loop: a lane
+// that ended before another lane's cut is done.
+fn traversal_end(salt: u32) {
+    traversal_done = !loops_were_cut(salt);
+}
 
 // The start every per-ray traversal (and subgroup_start) takes, with whether its ray is valid:
 // resets the work counters and marks an invalid ray done (a miss). Returns `valid`.

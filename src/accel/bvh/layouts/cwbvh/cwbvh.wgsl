@@ -47,12 +47,12 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 }
             }
             if stop {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
             group = cwbvh_next_group(group);
             if group.y == 0u {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
         }

@@ -79,12 +79,12 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         // Asked of every lane (any_hit may differ between lanes: the render kernel's path
         // and shadow rays); a closest-hit lane's valid ray stays live.
         if !subgroupAny(live) {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
             break;
         }
         group = cwbvh_next_group(group);
         if group.y == 0u {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
             break;
         }
     }

@@ -156,7 +156,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                     }
                 }
                 if !popped {
-                    traversal_done = true;
+                    // The stack is empty, or the driver cut this loop (traversal_end).
+                    traversal_end(bitcast<u32>(r.tmax));
                     break;
                 }
             }
