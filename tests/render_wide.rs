@@ -22,6 +22,7 @@ fn every_layout_renders_fifty_thousand_copies_as_the_cpu_does() {
     text.push_str(&"f 1 2 3\n".repeat(50_000));
     std::fs::write(&obj, text).unwrap();
     let scene = RenderScene::from_mesh(&obj, 24, 18).unwrap();
+    let software = (gpu_device().gpu_context()).is_some_and(|c| c.adapter.software);
     let mut failures = Vec::new();
     for &kind in LayoutKind::ALL {
         let options = RenderOptions {
@@ -39,7 +40,11 @@ fn every_layout_renders_fifty_thousand_copies_as_the_cpu_does() {
             "{kind:?}: {same} of {n} pixels agree, {} rendered again on the CPU",
             gpu.cpu_pixels
         );
-        if (same as f64) < 0.98 * n as f64 {
+        // On lavapipe this scene renders exactly the CPU's image (every cut sample is
+        // redone on the CPU; the rest has no arithmetic the two round differently): any
+        // pixel off is a lost sample. Elsewhere a fused multiply-add may move a few.
+        let needed = if software { n } else { n * 98 / 100 };
+        if same < needed {
             failures.push(format!("{kind:?}: only {same} of {n} pixels agree"));
         }
     }
