@@ -63,7 +63,8 @@ pub struct RenderOptions {
     pub build: BuildOptions,
     /// Acceleration structure, a BVH with its flattened layout (used by [`Renderer::new`]);
     /// None: a BVH in the device's fastest layout,
-    /// [`default_layout`](crate::trace::default_layout) (bvh8 on the CPU, dfs-sign on a GPU).
+    /// [`default_layout`](crate::trace::default_layout) (bvh8 on the CPU, cwbvh on
+    /// lavapipe, dfs-sign on a hardware GPU).
     pub accel: Option<AccelKind>,
     /// GPU: where the kernel reads the BVH from (used by [`Renderer::new`]).
     pub memory: BvhMemory,

@@ -10,12 +10,10 @@ use crate::device::Device;
 /// ray), 0.79× Embree 3 on primary rays against dfs-sign's 0.54× (2026-11-25).
 pub const CPU_LAYOUT: LayoutKind = LayoutKind::Bvh8;
 
-/// A software adapter's default (lavapipe: wgpu's device type `Cpu`): dfs-sign. cwbvh's
-/// per-ray kernel was the fastest of `bench layouts` on every ray set of the bunny on Mesa
-/// 25 (2026-11-25), but the 8-wide layouts' render kernel on Mesa 22 lost samples on a
-/// mesh of 50,000 coincident triangles (2026-12-02; docs/src/defaults.md): dfs-sign, whose
-/// kernel renders it right, stays the default until that is fixed.
-pub const SOFTWARE_GPU_LAYOUT: LayoutKind = LayoutKind::DfsSign;
+/// A software adapter's default (lavapipe: wgpu's device type `Cpu`): cwbvh, the fastest
+/// per-ray kernel of `bench layouts` on every ray set of the bunny on Mesa 25 (2026-11-25;
+/// docs/src/defaults.md gives the runs).
+pub const SOFTWARE_GPU_LAYOUT: LayoutKind = LayoutKind::Cwbvh;
 
 /// A hardware GPU's default: dfs-sign. No hardware GPU has run `bench layouts` here yet:
 /// the first that does decides this one.

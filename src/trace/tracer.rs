@@ -21,7 +21,8 @@ pub struct TracerOptions {
     /// BVH builder and its constants.
     pub build: BuildOptions,
     /// Flattened layout (GPU arrays and the CPU twin); None: the device's fastest,
-    /// [`default_layout`](super::default_layout) (bvh8 on the CPU, dfs-sign on a GPU).
+    /// [`default_layout`](super::default_layout) (bvh8 on the CPU, cwbvh on lavapipe,
+    /// dfs-sign on a hardware GPU).
     pub layout: Option<LayoutKind>,
     /// GPU: where the kernel reads the layout from.
     pub memory: BvhMemory,
