@@ -166,7 +166,14 @@ fn layouts_measures_every_layout_on_every_ray_set() {
     }
     assert_eq!(report.adapter, "none (CPU only)");
     assert_eq!(report.driver_build_ms, None);
+    // Embree 3 runs beside every timed run exactly with the `embree` feature.
     let embree = report.embree_version.is_some();
+    assert_eq!(embree, cfg!(feature = "embree"));
+    let embree_rows: Vec<_> = (report.runs.iter())
+        .filter(|r| r.layout == "embree")
+        .collect();
+    assert_eq!(embree_rows.len(), if embree { 4 } else { 0 });
+    assert!(embree_rows.iter().all(|r| r.cpu_mrays.unwrap() > 0.0));
     for kind in LayoutKind::ALL {
         let mine: Vec<_> = (report.runs.iter())
             .filter(|r| r.layout == kind.name())
