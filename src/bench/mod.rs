@@ -34,8 +34,6 @@ use std::path::Path;
 
 use crate::device::{Device, DeviceChoice};
 use crate::error::Result;
-use crate::mesh::{load_mesh, FileKind, Mesh};
-use crate::render::RenderScene;
 
 /// How far a bench has come: `done` of `total` steps (timed runs, samples or settings; the
 /// total can grow as the bench finds more to do), and what it is doing now.
@@ -140,15 +138,6 @@ pub fn open_device(choice: DeviceChoice) -> Result<Device> {
         );
     }
     Ok(device)
-}
-
-/// The mesh of a mesh file (.obj, .ply, .gltf, .glb) or of a scene (.toml: all its objects
-/// in one mesh).
-pub fn load_geometry(path: &Path) -> Result<Mesh> {
-    match FileKind::of(path)? {
-        FileKind::Scene => Ok(RenderScene::from_file(path)?.mesh),
-        _ => load_mesh(path),
-    }
 }
 
 /// CPU threads the benches run on (rayon's pool).

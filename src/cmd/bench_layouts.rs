@@ -9,8 +9,8 @@ use lancer::{DeviceChoice, Result};
 
 use super::bench::{with_bar, Outputs};
 use super::check::{layout_choice, LayoutChoice};
-use super::input::load_geometry;
 use super::BuilderArgs;
+use lancer::render::load_geometry;
 
 #[derive(Args)]
 pub struct BenchLayouts {

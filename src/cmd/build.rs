@@ -7,9 +7,9 @@ use lancer::accel::bvh::{build, BvhStats};
 use lancer::Result;
 use serde::Serialize;
 
-use super::input::load_geometry;
 use super::out::{print_json, say, Say};
 use super::{spelled, BuildArgs};
+use lancer::render::load_geometry;
 
 #[derive(Args)]
 pub struct BuildCmd {

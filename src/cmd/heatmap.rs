@@ -7,10 +7,10 @@ use lancer::trace::files::{default_light, shadow_rays};
 use lancer::{Error, Query, Ray, RayStats, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
 
-use super::input::load_geometry;
 use super::out::{print_json, say, Say};
 use super::{AccelArg, BuildArgs, DeviceArgs};
 use lancer::bench::colour_bar::{with_colour_bar, ColourBar};
+use lancer::render::load_geometry;
 
 /// The colour of a pixel with no count: its primary ray missed, so it has no shadow ray.
 /// A neutral grey, which the heat ramp (black, purple, orange, yellow) never takes.

@@ -1,19 +1,10 @@
-//! The geometry a command traces: a mesh file, or a scene's assembled mesh.
+//! A BVH file a command traces (`--bvh`), checked against the mesh it was built from.
 
 use std::path::Path;
 
 use lancer::accel::bvh::layouts::bvh_file::BvhFile;
-use lancer::mesh::{load_mesh, Mesh};
-use lancer::{RenderScene, Result};
-
-/// The mesh of a mesh file (.obj, .ply, .gltf, .glb) or of a scene (.toml, all its objects
-/// in one mesh); an unknown extension is refused by name.
-pub fn load_geometry(path: &Path) -> Result<Mesh> {
-    match lancer::mesh::FileKind::of(path)? {
-        lancer::mesh::FileKind::Scene => Ok(RenderScene::from_file(path)?.mesh),
-        _ => load_mesh(path),
-    }
-}
+use lancer::mesh::Mesh;
+use lancer::Result;
 
 /// The BVH file `path` (`--bvh`), refused unless it was built from `mesh`.
 pub fn load_bvh(path: &Path, mesh: &Mesh) -> Result<BvhFile> {

@@ -389,6 +389,19 @@ impl RenderCmd {
     }
 }
 
+/// `--time-limit`: seconds above 0 and at most a year (a Duration holds any such number; a
+/// longer limit is no limit a render can reach).
+fn time_limit(s: &str) -> std::result::Result<f64, String> {
+    const YEAR: f64 = 365.25 * 24.0 * 3600.0;
+    match s.parse::<f64>() {
+        Ok(t) if t > 0.0 && t <= YEAR => Ok(t),
+        Ok(t) => Err(format!(
+            "{t} is not a number of seconds above 0 and at most a year ({YEAR})"
+        )),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::image_size;
@@ -403,18 +416,5 @@ mod tests {
         );
         assert_eq!(image_size((256, 192), None, None, 0.25), (64, 48));
         assert_eq!(image_size((256, 192), None, None, 1e-9), (1, 1));
-    }
-}
-
-/// `--time-limit`: seconds above 0 and at most a year (a Duration holds any such number; a
-/// longer limit is no limit a render can reach).
-fn time_limit(s: &str) -> std::result::Result<f64, String> {
-    const YEAR: f64 = 365.25 * 24.0 * 3600.0;
-    match s.parse::<f64>() {
-        Ok(t) if t > 0.0 && t <= YEAR => Ok(t),
-        Ok(t) => Err(format!(
-            "{t} is not a number of seconds above 0 and at most a year ({YEAR})"
-        )),
-        Err(e) => Err(e.to_string()),
     }
 }

@@ -5,9 +5,10 @@ use lancer::trace::files::{decode_rays, encode_hits};
 use lancer::{Error, Query, RayStats, Result, Tracer, TracerOptions, TraversalMode};
 use serde::Serialize;
 
-use super::input::{load_bvh, load_geometry};
+use super::input::load_bvh;
 use super::out::{check_output, is_std, print_json, read_input, say, write_output, Say};
 use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
+use lancer::render::load_geometry;
 
 #[derive(Args)]
 pub struct TraceCmd {

@@ -30,6 +30,7 @@ pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
 pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
+pub use scene::load_geometry;
 pub use scene::{
     Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile, Settings, Texture,
 };

@@ -9,3 +9,12 @@ mod shapes;
 
 pub use assemble::{Light, Material, RenderScene, Settings, Texture};
 pub use file::{Integrator, LightKind, MaterialKind, SceneFile};
+
+/// The mesh of a mesh file (.obj, .ply, .gltf, .glb) or of a scene (.toml: all its objects
+/// in one mesh), chosen by the extension; an unknown extension is refused by name.
+pub fn load_geometry(path: &std::path::Path) -> crate::Result<crate::mesh::Mesh> {
+    match crate::mesh::FileKind::of(path)? {
+        crate::mesh::FileKind::Scene => Ok(RenderScene::from_file(path)?.mesh),
+        _ => crate::mesh::load_mesh(path),
+    }
+}
