@@ -20,6 +20,7 @@ pub mod accuracy;
 pub mod chart;
 #[cfg(feature = "charts")]
 pub mod colour_bar;
+pub mod heatmap;
 pub mod layouts;
 pub mod markdown;
 pub mod page;
