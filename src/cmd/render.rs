@@ -5,16 +5,15 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::ProgressStyle;
-use lancer::accel::bvh::BvhStats;
 use lancer::mesh::FileKind;
 use lancer::render::{
-    image_kind, AovSet, Crop, EffectSet, ImageKind, Progress, RenderOptions, Renderer, Stop,
+    image_kind, AovSet, Crop, EffectSet, ImageKind, Progress, RenderOptions, RenderStats, Renderer,
+    Stop,
 };
 use lancer::{Error, RenderScene, Result, TraversalMode};
-use serde::Serialize;
 
-use super::out::{say, Say};
-use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
+use super::out::{print_json, say, Say};
+use super::{AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -82,57 +81,6 @@ pub struct RenderCmd {
     mode: TraversalMode,
     #[command(flatten)]
     robustness: RobustnessArgs,
-}
-
-/// `render --stats --json`: one object on stdout. Times in milliseconds unless named
-/// seconds; null where a key does not apply.
-#[derive(Serialize)]
-struct RenderStats {
-    /// The image written.
-    output: String,
-    /// Its size in pixels (the tile's with --crop).
-    width: u32,
-    height: u32,
-    /// The full image's size.
-    full_width: u32,
-    full_height: u32,
-    /// [x0, y0, x1, y1] with --crop.
-    crop: Option<[u32; 4]>,
-    /// Samples per pixel taken and asked for.
-    samples: u32,
-    requested: u32,
-    /// "complete", "time-limit" or "cancelled".
-    stop: &'static str,
-    /// The device, in words.
-    device: String,
-    /// bvh, kdtree, octree, bih, grid, grid2 or hashgrid.
-    structure: &'static str,
-    /// The BVH's flattened layout (a BVH only).
-    layout: Option<&'static str>,
-    /// triangles, nodes, leaves, max_depth, sah_cost (a BVH only).
-    bvh: Option<BvhStats>,
-    /// The effects simulated, space-separated.
-    effects: String,
-    /// GPU: textures or buffers.
-    bvh_memory: Option<String>,
-    /// GPU: the traversal mode that ran, per-ray or subgroup.
-    mode: Option<&'static str>,
-    /// Building (and flattening) the structure.
-    build_ms: f64,
-    /// GPU: uploading the structure and scene, creating the shader module (0 on the CPU).
-    upload_ms: f64,
-    /// GPU: the driver compiling the pipeline before the first sample (0 on the CPU).
-    compile_ms: f64,
-    /// The first sample, compilation excluded.
-    first_sample_ms: f64,
-    /// Mean per sample per pixel.
-    ms_per_spp: f64,
-    /// All samples.
-    seconds: f64,
-    /// Camera rays (one per pixel per sample) per second.
-    camera_rays_per_s: f64,
-    /// GPU: pixels whose samples the driver cut short, rendered again on the CPU.
-    cpu_pixels: usize,
 }
 
 /// 8 or 16.
@@ -304,77 +252,12 @@ impl RenderCmd {
             done.seconds
         ));
         if self.stats {
-            let rays_per_s = done.samples as f64 * (w as f64 * h as f64) / done.seconds;
-            let ms_per_spp = done.seconds * 1e3 / done.samples as f64;
-            say(format!(
-                "structure: {}  build {:.1} ms",
-                renderer.structure(),
-                renderer.build_ms()
-            ));
-            if let Some(s) = renderer.bvh_stats() {
-                say(format!(
-                    "triangles {}  nodes {}  leaves {}  max depth {}  SAH {:.2}",
-                    s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost,
-                ));
-                say(format!("layout: {layout}"));
-            }
-            say(format!("effects: {}", done.effects));
-            if !device.is_cpu() {
-                say(format!("BVH memory: {}", spelled(self.device.bvh_memory)));
-                if done.mode == self.mode {
-                    say(format!("mode: {}", done.mode));
-                } else {
-                    say(format!(
-                        "mode: {} ({} asked for, see the warning)",
-                        done.mode, self.mode
-                    ));
-                }
-                say(format!(
-                    "upload + shader module {:.1} ms, pipeline compile {:.1} ms",
-                    renderer.upload_ms(),
-                    done.compile_ms
-                ));
-            }
-            say(format!(
-                "first sample {:.1} ms; {:.2} M camera rays/s, {ms_per_spp:.1} ms per spp",
-                done.first_sample_ms,
-                rays_per_s * 1e-6,
-            ));
+            let full = (scene.camera.width, scene.camera.height);
+            let stats =
+                RenderStats::new(&renderer, &done, &device, &options, full, layout, &self.out);
+            stats.text().into_iter().for_each(say);
             if self.json {
-                let stats = RenderStats {
-                    output: self.out.display().to_string(),
-                    width: w,
-                    height: h,
-                    full_width: scene.camera.width,
-                    full_height: scene.camera.height,
-                    crop: crop.map(|c| [c.x0, c.y0, c.x1, c.y1]),
-                    samples: done.samples,
-                    requested: done.requested,
-                    stop: match done.stop {
-                        Stop::Complete => "complete",
-                        Stop::TimeLimit => "time-limit",
-                        Stop::Cancelled => "cancelled",
-                    },
-                    device: device.to_string(),
-                    structure: renderer.structure().name(),
-                    layout: renderer.bvh_stats().map(|_| layout.name()),
-                    bvh: renderer.bvh_stats().copied(),
-                    effects: done.effects.to_string(),
-                    bvh_memory: (!device.is_cpu()).then(|| spelled(self.device.bvh_memory)),
-                    mode: (!device.is_cpu()).then(|| done.mode.name()),
-                    build_ms: renderer.build_ms(),
-                    upload_ms: renderer.upload_ms(),
-                    compile_ms: done.compile_ms,
-                    first_sample_ms: done.first_sample_ms,
-                    ms_per_spp,
-                    seconds: done.seconds,
-                    camera_rays_per_s: rays_per_s,
-                    cpu_pixels: done.cpu_pixels,
-                };
-                println!(
-                    "{}",
-                    serde_json::to_string(&stats).map_err(|e| Error::Usage(e.to_string()))?
-                );
+                print_json(&stats)?;
             }
         }
         if done.stop == Stop::Cancelled {
