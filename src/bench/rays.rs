@@ -4,37 +4,12 @@
 use crate::accel::{Accel, Query};
 use crate::accuracy::random_dir;
 use crate::camera::Camera;
-use crate::error::Result;
 use crate::geometry::{Ray, Robustness};
 use crate::mesh::Mesh;
 use crate::render::Rng;
-use crate::trace::files::{bounce_rays, default_light, shadow_rays};
+use crate::trace::files::{default_light, shadow_rays};
 
-/// A named ray set and the query it is traced with.
-pub type RaySet = (String, Query, Vec<Ray>);
-
-/// The rays benches and checks trace: the default view's primary rays (closest hit), shadow
-/// rays from their hits to the default light (any hit) and diffuse bounce rays from the same
-/// hits (closest hit, incoherent), named "primary", "shadow" and "bounce". `accel` finds the
-/// primary hits. Refuses a view too large for memory (about 200 bytes a pixel).
-pub fn view_ray_sets(
-    mesh: &Mesh,
-    accel: &dyn Accel,
-    width: u32,
-    height: u32,
-    robustness: &Robustness,
-) -> Result<Vec<RaySet>> {
-    crate::limits::check_image(width, height, 200, "use a smaller --width/--height")?;
-    let primary = Camera::default_view(&mesh.bounds(), width, height).primary_rays();
-    let (hits, _) = accel.trace_batch(&primary, Query::Closest, robustness);
-    let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
-    let bounce = bounce_rays(mesh, &primary, &hits, 1);
-    Ok(vec![
-        ("primary".into(), Query::Closest, primary),
-        ("shadow".into(), Query::Any, shadow),
-        ("bounce".into(), Query::Closest, bounce),
-    ])
-}
+pub use crate::trace::files::{view_ray_sets, RaySet};
 
 /// Primary rays of `camera` and the shadow rays from their hits (by `accel`, default
 /// robustness) to the default light of `mesh`.

@@ -5,63 +5,11 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::mesh::load_mesh;
 use lancer::render::{compare_images, load_image};
-use lancer::trace::compare::{compare_hits_judged, T_ULPS};
+use lancer::trace::compare::{compare_hits_judged, count_agreement, HitsReport, T_ULPS};
 use lancer::trace::files::{read_hits, read_rays};
 use lancer::{Error, Query, Result};
-use serde::Serialize;
 
 use super::out::{print_json, say, Say};
-
-/// `compare --json` on two images: one object a run.
-#[derive(Serialize)]
-struct ImagesReport {
-    /// "images".
-    kind: &'static str,
-    /// Width in pixels.
-    width: u32,
-    /// Height in pixels.
-    height: u32,
-    /// Largest difference of a channel (linear radiance).
-    max: f32,
-    /// Mean over pixels of each pixel's largest channel difference.
-    mean: f64,
-    /// Root mean square difference over every channel of every pixel.
-    rmse: f64,
-    /// Pixels whose difference exceeds --threshold.
-    over: usize,
-    /// Pixels not bit-identical in every channel (0: the images are bit-identical).
-    differing: usize,
-    /// `over` in % of the pixels.
-    over_percent: f64,
-    /// --threshold.
-    threshold: f32,
-    /// --tolerance (%).
-    tolerance: f32,
-    /// Whether more than --tolerance % of pixels differ (exit code 1).
-    differ: bool,
-    /// The difference PNG written (--out), or null.
-    out: Option<String>,
-}
-
-/// `compare --json` on two hit files: one object a run.
-#[derive(Serialize)]
-struct HitsReport {
-    /// "hits".
-    kind: &'static str,
-    /// Answers compared.
-    rays: usize,
-    /// Answers equal bit for bit.
-    identical: usize,
-    /// Same triangle, t within --t-ulps (with the oracle: or at a t it accepts); identical
-    /// ones included.
-    agree: usize,
-    /// Different answers the f64 oracle finds both right (null without --mesh and --rays).
-    genuine_ties: Option<usize>,
-    /// Wrong answers (without the oracle: every answer that does not agree).
-    disagree: usize,
-    /// Whether the f64 oracle judged the differences (--mesh and --rays given).
-    judged: bool,
-}
 
 #[derive(Args)]
 pub struct CompareCmd {
@@ -129,54 +77,15 @@ impl CompareCmd {
         let (a, b) = (load_image(&self.a)?, load_image(&self.b)?);
         let d = compare_images(&a, &b, self.threshold)?;
         let say = Say::new(self.json);
-        if d.differing == 0 {
-            say!(say, "{}×{} pixels: bit-identical", d.width, d.height);
-        } else {
-            let pixels = d.per_pixel.len().max(1) as f64;
-            say!(
-                say,
-                "{}×{} pixels: {} differ ({:.3} %), max difference {:.3e}, mean {:.3e}, RMSE \
-                 {:.3e}; {} pixels ({:.3} %) over the threshold {:e}",
-                d.width,
-                d.height,
-                d.differing,
-                100.0 * d.differing as f64 / pixels,
-                d.max,
-                d.mean,
-                d.rmse,
-                d.over,
-                d.over_percent(),
-                d.threshold
-            );
-        }
+        say!(say, "{}", d.summary());
         if let Some(out) = &self.out {
-            let picture = d.picture(self.threshold * 10.0);
-            lancer::output::write_atomic(out, |w| {
-                picture
-                    .write_to(w, image::ImageFormat::Png)
-                    .map_err(std::io::Error::other)
-            })?;
+            d.write_picture(out, self.threshold * 10.0)?;
             say!(say, "difference -> {}", out.display());
         }
-        let differ = d.over_percent() > self.tolerance as f64;
         if self.json {
-            print_json(&ImagesReport {
-                kind: "images",
-                width: d.width,
-                height: d.height,
-                max: d.max,
-                mean: d.mean,
-                rmse: d.rmse,
-                over: d.over,
-                differing: d.differing,
-                over_percent: d.over_percent(),
-                threshold: d.threshold,
-                tolerance: self.tolerance,
-                differ,
-                out: self.out.as_ref().map(|p| p.display().to_string()),
-            })?;
+            print_json(&d.report(self.tolerance, self.out.as_deref()))?;
         }
-        if differ {
+        if d.differ(self.tolerance) {
             return Err(Error::Differ(format!(
                 "the images differ: {:.3} % of pixels over {:e}, more than the tolerance of {} %",
                 d.over_percent(),
@@ -211,42 +120,22 @@ impl CompareCmd {
         let say = Say::new(self.json);
         let (Some(mesh), Some(rays)) = (&self.mesh, &self.rays) else {
             // No oracle: only identity and t within --t-ulps on the same triangle.
-            let same = |x: &lancer::Hit, y: &lancer::Hit| {
-                x.prim == y.prim
-                    && (!x.is_hit()
-                        || (x.t.to_bits() as i64 - y.t.to_bits() as i64).abs()
-                            <= self.t_ulps as i64)
-            };
-            let identical = (a.iter().zip(&b))
-                .filter(|(x, y)| {
-                    x.t.to_bits() == y.t.to_bits()
-                        && x.prim == y.prim
-                        && x.u.to_bits() == y.u.to_bits()
-                        && x.v.to_bits() == y.v.to_bits()
-                })
-                .count();
-            let agree = a.iter().zip(&b).filter(|(x, y)| same(x, y)).count();
+            let c = count_agreement(&a, &b, self.t_ulps);
             say!(
                 say,
-                "{} rays: {identical} identical, {agree} agree (same triangle, t within {} \
-                 ulp), {} differ (give --mesh and --rays to have the oracle judge them)",
-                a.len(),
+                "{} rays: {} identical, {} agree (same triangle, t within {} ulp), {} differ \
+                 (give --mesh and --rays to have the oracle judge them)",
+                c.rays,
+                c.identical,
+                c.agree,
                 self.t_ulps,
-                a.len() - agree
+                c.differ()
             );
             if self.json {
-                print_json(&HitsReport {
-                    kind: "hits",
-                    rays: a.len(),
-                    identical,
-                    agree,
-                    genuine_ties: None,
-                    disagree: a.len() - agree,
-                    judged: false,
-                })?;
+                print_json(&HitsReport::unjudged(&c))?;
             }
-            if agree < a.len() {
-                return Err(Error::Differ(format!("{} answers differ", a.len() - agree)));
+            if c.differ() > 0 {
+                return Err(Error::Differ(format!("{} answers differ", c.differ())));
             }
             return Ok(());
         };
@@ -284,15 +173,7 @@ impl CompareCmd {
             );
         }
         if self.json {
-            print_json(&HitsReport {
-                kind: "hits",
-                rays: rays.len(),
-                identical: c.identical,
-                agree: c.agree,
-                genuine_ties: Some(c.ties),
-                disagree: c.disagree.len(),
-                judged: true,
-            })?;
+            print_json(&HitsReport::judged(rays.len(), &c))?;
         }
         if !c.disagree.is_empty() {
             return Err(Error::Differ(format!(

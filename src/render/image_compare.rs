@@ -47,6 +47,92 @@ impl ImageDiff {
             image::Rgb(heat_ramp(if s > 0.0 { d / s } else { 0.0 }))
         })
     }
+
+    /// Writes [`picture`](Self::picture) at `scale` to `path` as a PNG (atomically).
+    pub fn write_picture(&self, path: &Path, scale: f32) -> Result<()> {
+        let picture = self.picture(scale);
+        crate::output::write_atomic(path, |w| {
+            (picture.write_to(w, image::ImageFormat::Png)).map_err(std::io::Error::other)
+        })
+    }
+
+    /// Whether more than `tolerance` % of the pixels are over the threshold.
+    pub fn differ(&self, tolerance: f32) -> bool {
+        self.over_percent() > tolerance as f64
+    }
+
+    /// One line saying how the images differ (or that they are bit-identical).
+    pub fn summary(&self) -> String {
+        if self.differing == 0 {
+            return format!("{}×{} pixels: bit-identical", self.width, self.height);
+        }
+        let pixels = self.per_pixel.len().max(1) as f64;
+        format!(
+            "{}×{} pixels: {} differ ({:.3} %), max difference {:.3e}, mean {:.3e}, RMSE \
+             {:.3e}; {} pixels ({:.3} %) over the threshold {:e}",
+            self.width,
+            self.height,
+            self.differing,
+            100.0 * self.differing as f64 / pixels,
+            self.max,
+            self.mean,
+            self.rmse,
+            self.over,
+            self.over_percent(),
+            self.threshold
+        )
+    }
+
+    /// The `compare --json` object of this difference, judged against `tolerance` (%), with
+    /// the difference picture written to `out`, if any.
+    pub fn report(&self, tolerance: f32, out: Option<&Path>) -> ImagesReport {
+        ImagesReport {
+            kind: "images",
+            width: self.width,
+            height: self.height,
+            max: self.max,
+            mean: self.mean,
+            rmse: self.rmse,
+            over: self.over,
+            differing: self.differing,
+            over_percent: self.over_percent(),
+            threshold: self.threshold,
+            tolerance,
+            differ: self.differ(tolerance),
+            out: out.map(|p| p.display().to_string()),
+        }
+    }
+}
+
+/// `compare --json` on two images: one object a run.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ImagesReport {
+    /// "images".
+    pub kind: &'static str,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Largest difference of a channel (linear radiance).
+    pub max: f32,
+    /// Mean over pixels of each pixel's largest channel difference.
+    pub mean: f64,
+    /// Root mean square difference over every channel of every pixel.
+    pub rmse: f64,
+    /// Pixels whose difference exceeds the threshold.
+    pub over: usize,
+    /// Pixels not bit-identical in every channel (0: the images are bit-identical).
+    pub differing: usize,
+    /// `over` in % of the pixels.
+    pub over_percent: f64,
+    /// The threshold.
+    pub threshold: f32,
+    /// The tolerance (%).
+    pub tolerance: f32,
+    /// Whether more than `tolerance` % of pixels differ (exit code 1).
+    pub differ: bool,
+    /// The difference PNG written, or null.
+    pub out: Option<String>,
 }
 
 /// Reads a PNG (8 or 16 bit, sRGB: linearised) or an EXR (linear) as linear radiance, chosen

@@ -156,3 +156,86 @@ fn compare(
     }
     c
 }
+
+/// How two hit files' answers compare without the oracle: identity, and the same triangle
+/// at a t within a number of ulps (`lancer compare` without `--mesh` and `--rays`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HitCounts {
+    /// Answers compared.
+    pub rays: usize,
+    /// Answers equal bit for bit (t, triangle, u, v).
+    pub identical: usize,
+    /// Answers on the same triangle with t within the ulps given (identical ones and
+    /// misses on both sides included).
+    pub agree: usize,
+}
+
+impl HitCounts {
+    /// Answers that do not agree.
+    pub fn differ(&self) -> usize {
+        self.rays - self.agree
+    }
+}
+
+/// Counts how `other` compares with `reference` without judging: identical answers, and
+/// those naming the same triangle (or both a miss) at a t at most `t_ulps` apart. Slices of
+/// different lengths compare up to the shorter.
+pub fn count_agreement(reference: &[Hit], other: &[Hit], t_ulps: u32) -> HitCounts {
+    let pairs = || reference.iter().zip(other);
+    HitCounts {
+        rays: pairs().count(),
+        identical: pairs().filter(|(a, b)| bits(a) == bits(b)).count(),
+        agree: pairs()
+            .filter(|(a, b)| a.prim == b.prim && (!a.is_hit() || ulps(a.t, b.t) <= t_ulps))
+            .count(),
+    }
+}
+
+/// `compare --json` on two hit files: one object a run.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HitsReport {
+    /// "hits".
+    pub kind: &'static str,
+    /// Answers compared.
+    pub rays: usize,
+    /// Answers equal bit for bit.
+    pub identical: usize,
+    /// Same triangle, t within --t-ulps (with the oracle: or at a t it accepts); identical
+    /// ones included.
+    pub agree: usize,
+    /// Different answers the f64 oracle finds both right (null without the oracle).
+    pub genuine_ties: Option<usize>,
+    /// Wrong answers (without the oracle: every answer that does not agree).
+    pub disagree: usize,
+    /// Whether the f64 oracle judged the differences.
+    pub judged: bool,
+}
+
+impl HitsReport {
+    /// The report of a comparison without the oracle.
+    pub fn unjudged(c: &HitCounts) -> HitsReport {
+        HitsReport {
+            kind: "hits",
+            rays: c.rays,
+            identical: c.identical,
+            agree: c.agree,
+            genuine_ties: None,
+            disagree: c.differ(),
+            judged: false,
+        }
+    }
+
+    /// The report of a comparison the oracle judged ([`compare_hits_judged`]) of `rays`
+    /// answers.
+    pub fn judged(rays: usize, c: &Comparison) -> HitsReport {
+        HitsReport {
+            kind: "hits",
+            rays,
+            identical: c.identical,
+            agree: c.agree,
+            genuine_ties: Some(c.ties),
+            disagree: c.disagree.len(),
+            judged: true,
+        }
+    }
+}

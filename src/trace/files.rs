@@ -177,3 +177,30 @@ pub fn bounce_rays(mesh: &crate::mesh::Mesh, primary: &[Ray], hits: &[Hit], seed
         })
         .collect()
 }
+
+/// A named ray set and the query it is traced with.
+pub type RaySet = (String, crate::accel::Query, Vec<Ray>);
+
+/// The rays benches and checks trace: the default view's primary rays (closest hit), shadow
+/// rays from their hits to the default light (any hit) and diffuse bounce rays from the same
+/// hits (closest hit, incoherent), named "primary", "shadow" and "bounce". `accel` finds the
+/// primary hits. Refuses a view too large for memory (about 200 bytes a pixel).
+pub fn view_ray_sets(
+    mesh: &crate::mesh::Mesh,
+    accel: &dyn crate::accel::Accel,
+    width: u32,
+    height: u32,
+    robustness: &crate::geometry::Robustness,
+) -> Result<Vec<RaySet>> {
+    use crate::accel::Query;
+    crate::limits::check_image(width, height, 200, "use a smaller --width/--height")?;
+    let primary = crate::camera::Camera::default_view(&mesh.bounds(), width, height).primary_rays();
+    let (hits, _) = accel.trace_batch(&primary, Query::Closest, robustness);
+    let shadow = shadow_rays(&primary, &hits, default_light(&mesh.bounds()));
+    let bounce = bounce_rays(mesh, &primary, &hits, 1);
+    Ok(vec![
+        ("primary".into(), Query::Closest, primary),
+        ("shadow".into(), Query::Any, shadow),
+        ("bounce".into(), Query::Closest, bounce),
+    ])
+}

@@ -1,6 +1,7 @@
 //! Tracing: one [`Tracer`] for the CPU and the GPU, the f64 oracle that judges both, and
 //! the ray and hit file formats.
 
+pub mod check;
 pub mod compare;
 pub mod defaults;
 pub mod files;
