@@ -314,3 +314,29 @@ fn an_image_difference_reports_the_book_keys() {
     );
     assert_eq!(r["out"].as_str(), Some("d.png"));
 }
+
+#[test]
+fn choices_by_name() {
+    use lancer::trace::check::{layout_choice, mode_choice, LayoutChoice, ModeChoice};
+    assert_eq!(
+        layout_choice("all").unwrap().kinds(),
+        LayoutKind::ALL.to_vec()
+    );
+    for &k in LayoutKind::ALL {
+        assert!(matches!(layout_choice(k.name()), Ok(LayoutChoice::One(x)) if x == k));
+    }
+    let err = layout_choice("bvh2").unwrap_err();
+    assert!(
+        err.starts_with("unknown layout \"bvh2\": use all or one of dfs-sign, "),
+        "{err}"
+    );
+    assert_eq!(mode_choice("all").unwrap().mode(), None);
+    assert!(matches!(
+        mode_choice("subgroup"),
+        Ok(ModeChoice::One(TraversalMode::Subgroup))
+    ));
+    assert_eq!(
+        mode_choice("x").unwrap_err(),
+        "unknown mode \"x\": use all or one of per-ray, subgroup"
+    );
+}

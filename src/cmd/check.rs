@@ -5,74 +5,16 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::accel::bvh::layouts::LayoutKind;
 use lancer::mesh::load_mesh;
 use lancer::trace::check::{self, CheckConfig, CheckProgress, CheckRays, TABLE_HEADER};
 use lancer::trace::files::decode_rays;
-use lancer::{Error, Result, TraversalMode};
+use lancer::{Error, Result};
 
 use super::input::load_bvh;
 use super::out::{is_std, print_json, read_input, say, Say};
 use super::{BuilderArgs, DeviceArgs, RobustnessArgs, BUILDER_IDS};
 
-/// A layout, or all of them.
-#[derive(Clone, Copy, Debug)]
-pub enum LayoutChoice {
-    /// Every registered layout.
-    All,
-    /// One layout.
-    One(LayoutKind),
-}
-
-/// `--layout NAME|all`.
-pub fn layout_choice(s: &str) -> std::result::Result<LayoutChoice, String> {
-    use clap::ValueEnum;
-    if s == "all" {
-        return Ok(LayoutChoice::All);
-    }
-    LayoutKind::from_str(s, false)
-        .map(LayoutChoice::One)
-        .map_err(|_| {
-            let names: Vec<&str> = LayoutKind::ALL.iter().map(|k| k.name()).collect();
-            format!(
-                "unknown layout {s:?}: use all or one of {}",
-                names.join(", ")
-            )
-        })
-}
-
-/// A traversal mode, or all of them.
-#[derive(Clone, Copy, Debug)]
-pub enum ModeChoice {
-    /// Every mode the layout and adapter offer.
-    All,
-    /// One mode.
-    One(TraversalMode),
-}
-
-/// `--mode NAME|all`.
-pub fn mode_choice(s: &str) -> std::result::Result<ModeChoice, String> {
-    use clap::ValueEnum;
-    if s == "all" {
-        return Ok(ModeChoice::All);
-    }
-    TraversalMode::from_str(s, false)
-        .map(ModeChoice::One)
-        .map_err(|_| {
-            let names: Vec<&str> = TraversalMode::ALL.iter().map(|m| m.name()).collect();
-            format!("unknown mode {s:?}: use all or one of {}", names.join(", "))
-        })
-}
-
-impl LayoutChoice {
-    /// The layouts chosen.
-    pub fn kinds(self) -> Vec<LayoutKind> {
-        match self {
-            LayoutChoice::All => LayoutKind::ALL.to_vec(),
-            LayoutChoice::One(k) => vec![k],
-        }
-    }
-}
+pub use lancer::trace::check::{layout_choice, mode_choice, LayoutChoice, ModeChoice};
 
 #[derive(Args)]
 pub struct CheckCmd {
@@ -140,10 +82,7 @@ impl CheckCmd {
         let config = CheckConfig {
             rays,
             layouts: self.layouts.kinds(),
-            mode: match self.modes {
-                ModeChoice::All => None,
-                ModeChoice::One(m) => Some(m),
-            },
+            mode: self.modes.mode(),
             build: self.build.options(),
             bvh,
             memory: self.device.bvh_memory(),

@@ -121,18 +121,10 @@ impl CompareCmd {
         let (Some(mesh), Some(rays)) = (&self.mesh, &self.rays) else {
             // No oracle: only identity and t within --t-ulps on the same triangle.
             let c = count_agreement(&a, &b, self.t_ulps);
-            say!(
-                say,
-                "{} rays: {} identical, {} agree (same triangle, t within {} ulp), {} differ \
-                 (give --mesh and --rays to have the oracle judge them)",
-                c.rays,
-                c.identical,
-                c.agree,
-                self.t_ulps,
-                c.differ()
-            );
+            let report = HitsReport::unjudged(&c);
+            say!(say, "{}", report.summary(self.t_ulps));
             if self.json {
-                print_json(&HitsReport::unjudged(&c))?;
+                print_json(&report)?;
             }
             if c.differ() > 0 {
                 return Err(Error::Differ(format!("{} answers differ", c.differ())));
@@ -151,17 +143,8 @@ impl CompareCmd {
         // Another kernel's t comes from other arithmetic: on the same triangle, the oracle
         // judges any t beyond --t-ulps.
         let c = compare_hits_judged(&mesh, &rays, query, &a, &b, self.t_ulps);
-        say!(
-            say,
-            "{} rays: {} identical, {} agree (same triangle, t within {} ulp or accepted by the \
-             f64 oracle), {} genuine ties (the oracle finds both right), {} disagree",
-            rays.len(),
-            c.identical,
-            c.agree,
-            self.t_ulps,
-            c.ties,
-            c.disagree.len()
-        );
+        let report = HitsReport::judged(rays.len(), &c);
+        say!(say, "{}", report.summary(self.t_ulps));
         for d in c.disagree.iter().take(10) {
             say!(
                 say,
@@ -173,7 +156,7 @@ impl CompareCmd {
             );
         }
         if self.json {
-            print_json(&HitsReport::judged(rays.len(), &c))?;
+            print_json(&report)?;
         }
         if !c.disagree.is_empty() {
             return Err(Error::Differ(format!(

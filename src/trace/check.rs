@@ -233,6 +233,73 @@ pub fn query_name(query: Query) -> &'static str {
     }
 }
 
+/// A layout, or all of them (`--layout NAME|all`).
+#[derive(Clone, Copy, Debug)]
+pub enum LayoutChoice {
+    /// Every registered layout.
+    All,
+    /// One layout.
+    One(LayoutKind),
+}
+
+impl LayoutChoice {
+    /// The layouts chosen.
+    pub fn kinds(self) -> Vec<LayoutKind> {
+        match self {
+            LayoutChoice::All => LayoutKind::ALL.to_vec(),
+            LayoutChoice::One(k) => vec![k],
+        }
+    }
+}
+
+/// `all` or a layout's name.
+pub fn layout_choice(s: &str) -> std::result::Result<LayoutChoice, String> {
+    if s == "all" {
+        return Ok(LayoutChoice::All);
+    }
+    (LayoutKind::ALL.iter().find(|k| k.name() == s))
+        .map(|&k| LayoutChoice::One(k))
+        .ok_or_else(|| {
+            let names: Vec<&str> = LayoutKind::ALL.iter().map(|k| k.name()).collect();
+            format!(
+                "unknown layout {s:?}: use all or one of {}",
+                names.join(", ")
+            )
+        })
+}
+
+/// A traversal mode, or all of them (`--mode NAME|all`).
+#[derive(Clone, Copy, Debug)]
+pub enum ModeChoice {
+    /// Every mode the layout and adapter offer.
+    All,
+    /// One mode.
+    One(TraversalMode),
+}
+
+impl ModeChoice {
+    /// The mode chosen, or `None` for all ([`CheckConfig::mode`]).
+    pub fn mode(self) -> Option<TraversalMode> {
+        match self {
+            ModeChoice::All => None,
+            ModeChoice::One(m) => Some(m),
+        }
+    }
+}
+
+/// `all` or a traversal mode's name.
+pub fn mode_choice(s: &str) -> std::result::Result<ModeChoice, String> {
+    if s == "all" {
+        return Ok(ModeChoice::All);
+    }
+    (TraversalMode::ALL.iter().find(|m| m.name() == s))
+        .map(|&m| ModeChoice::One(m))
+        .ok_or_else(|| {
+            let names: Vec<&str> = TraversalMode::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown mode {s:?}: use all or one of {}", names.join(", "))
+        })
+}
+
 /// What [`run`] reports as it goes.
 pub enum CheckProgress<'a> {
     /// The ray sets are ready and tracing starts, on this adapter.

@@ -225,6 +225,23 @@ impl HitsReport {
         }
     }
 
+    /// The line `lancer compare` prints: the counts, and what agreement meant (`t_ulps`).
+    pub fn summary(&self, t_ulps: u32) -> String {
+        match self.genuine_ties {
+            None => format!(
+                "{} rays: {} identical, {} agree (same triangle, t within {t_ulps} ulp), {} \
+                 differ (give --mesh and --rays to have the oracle judge them)",
+                self.rays, self.identical, self.agree, self.disagree
+            ),
+            Some(ties) => format!(
+                "{} rays: {} identical, {} agree (same triangle, t within {t_ulps} ulp or \
+                 accepted by the f64 oracle), {ties} genuine ties (the oracle finds both right), \
+                 {} disagree",
+                self.rays, self.identical, self.agree, self.disagree
+            ),
+        }
+    }
+
     /// The report of a comparison the oracle judged ([`compare_hits_judged`]) of `rays`
     /// answers.
     pub fn judged(rays: usize, c: &Comparison) -> HitsReport {
