@@ -2,12 +2,12 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::trace::files::{decode_rays, encode_hits};
-use lancer::{Error, Query, RayStats, Result, Tracer, TracerOptions, TraversalMode};
-use serde::Serialize;
+use lancer::trace::stats::{TraceReport, TraceStats};
+use lancer::{Error, Query, Result, Tracer, TracerOptions, TraversalMode};
 
 use super::input::load_bvh;
 use super::out::{check_output, is_std, print_json, read_input, say, write_output, Say};
-use super::{spelled, AccelArg, BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
+use super::{AccelArg, BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
 use lancer::render::load_geometry;
 
 #[derive(Args)]
@@ -51,47 +51,6 @@ pub struct TraceCmd {
     /// refused with it), and MESH must be the mesh it was built from.
     #[arg(long, value_name = "FILE", conflicts_with_all = BVH_CONFLICTS)]
     bvh: Option<PathBuf>,
-}
-
-/// `trace --json`: one object a run.
-#[derive(Serialize)]
-struct TraceReport {
-    /// Rays traced.
-    rays: usize,
-    /// Rays that hit something.
-    hits: usize,
-    /// The hit file written (`-`: stdout).
-    out: String,
-    /// The rest, with --stats only (else absent).
-    #[serde(flatten)]
-    stats: Option<TraceStats>,
-}
-
-/// `trace --stats --json`.
-#[derive(Serialize)]
-struct TraceStats {
-    /// "cpu" or "gpu".
-    device: &'static str,
-    /// The GPU adapter (null on the CPU).
-    adapter: Option<String>,
-    /// CPU threads (rayon's pool; --threads).
-    cpu_threads: usize,
-    /// `--accel` structure, e.g. "bvh (dfs-sign)".
-    structure: String,
-    /// `--layout`.
-    layout: String,
-    /// Traversal mode that ran (per-ray where subgroup could not).
-    mode: String,
-    /// Where the GPU read the BVH (null on the CPU).
-    bvh_memory: Option<String>,
-    /// GPU time of the dispatches in ms (null on the CPU or without timestamp queries).
-    gpu_ms: Option<f64>,
-    /// Wall time of the trace in ms (GPU: upload, dispatch and read-back).
-    wall_ms: f64,
-    /// Mean nodes (or cells) visited per ray.
-    nodes_per_ray: Option<f64>,
-    /// Mean triangles tested per ray.
-    triangles_per_ray: Option<f64>,
 }
 
 impl TraceCmd {
@@ -140,66 +99,20 @@ impl TraceCmd {
             None => Tracer::with_structure(&device, &mesh, kind, &options)?,
         };
         let result = tracer.trace(&rays, query)?;
-        let means = (result.stats.as_ref())
-            .filter(|s| !s.is_empty())
-            .map(|s| RayStats::means(s));
+        let stats = TraceStats::new(&result, &device, kind, layout, &options);
         if self.stats {
-            say!(say, "device    {device}");
-            say!(say, "structure {kind}");
-            say!(say, "layout    {layout}");
-            if result.mode == self.mode {
-                say!(say, "mode      {}", result.mode);
-            } else {
-                say!(
-                    say,
-                    "mode      {} ({} asked for, see the warning)",
-                    result.mode,
-                    self.mode
-                );
-            }
-            if !device.is_cpu() {
-                say!(say, "bvh       in {}", spelled(self.device.bvh_memory));
-                let gpu = (result.timings.gpu_ms)
-                    .map(|ms| format!("{ms:.2} ms"))
-                    .unwrap_or("n/a".into());
-                say!(
-                    say,
-                    "gpu time  {gpu} (dispatches)  wall {:.2} ms (upload+dispatch+readback)",
-                    result.timings.wall_ms
-                );
-            }
+            stats.text().into_iter().for_each(|l| say!(say, "{l}"));
         }
         write_output(&self.out, &encode_hits(&result.hits))?;
-        let hit_count = result.hits.iter().filter(|h| h.is_hit()).count();
-        say!(
-            say,
-            "{} rays, {} hits, written to {}",
-            rays.len(),
-            hit_count,
-            self.out.display()
-        );
-        if let Some((nodes, tris)) = means {
-            say!(say, "nodes/ray {nodes:.2}  triangles/ray {tris:.2}");
-        }
+        let report = TraceReport::new(&result, &self.out.display().to_string(), None);
+        report
+            .text(&result)
+            .into_iter()
+            .for_each(|l| say!(say, "{l}"));
         if self.json {
-            let gpu = device.gpu_context();
             print_json(&TraceReport {
-                rays: rays.len(),
-                hits: hit_count,
-                out: self.out.display().to_string(),
-                stats: self.stats.then(|| TraceStats {
-                    device: if gpu.is_some() { "gpu" } else { "cpu" },
-                    adapter: gpu.map(|c| c.adapter.to_string()),
-                    cpu_threads: rayon::current_num_threads(),
-                    structure: kind.to_string(),
-                    layout: layout.name().to_string(),
-                    mode: result.mode.name().to_string(),
-                    bvh_memory: gpu.map(|_| spelled(self.device.bvh_memory)),
-                    gpu_ms: result.timings.gpu_ms,
-                    wall_ms: result.timings.wall_ms,
-                    nodes_per_ray: means.map(|m| m.0),
-                    triangles_per_ray: means.map(|m| m.1),
-                }),
+                stats: self.stats.then_some(stats),
+                ..report
             })?;
         }
         Ok(())

@@ -6,6 +6,7 @@ pub mod compare;
 pub mod defaults;
 pub mod files;
 pub mod oracle;
+pub mod stats;
 mod tracer;
 
 pub use defaults::default_layout;
