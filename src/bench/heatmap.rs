@@ -253,7 +253,7 @@ pub fn run(device: &Device, mesh: &Mesh, config: &HeatmapConfig) -> Result<Heatm
     let rays = Camera::default_view(&mesh.bounds(), w, h).primary_rays();
     let options = TracerOptions {
         stats: true,
-        ..config.options.clone()
+        ..config.options
     };
     let mut tracer = match &config.bvh {
         Some(layout) => Tracer::with_layout(device, layout.clone(), &options)?,
