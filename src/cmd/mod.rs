@@ -297,8 +297,6 @@ fn non_negative_finite(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
-pub use lancer::bench::rays::view_ray_sets;
-
 /// A value as the command line spells it.
 pub fn spelled<T: clap::ValueEnum + std::fmt::Debug>(v: T) -> String {
     v.to_possible_value()

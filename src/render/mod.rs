@@ -32,7 +32,7 @@ pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Render
 pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
 pub use scene::load_geometry;
-pub use stats::RenderStats;
 pub use scene::{
     Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile, Settings, Texture,
 };
+pub use stats::RenderStats;
