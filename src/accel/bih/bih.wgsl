@@ -116,7 +116,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         } else {
             let first = node.link >> BIH_LINK_SHIFT;
             if test_leaf(first, node.count, r, w, any_hit, &best, &hit_prune) {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 return best;
             }
             prune = plane_scaled(pr, hit_prune);
@@ -138,7 +138,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
         }
         if !popped {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
             break;
         }
     }

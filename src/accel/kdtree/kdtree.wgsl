@@ -187,7 +187,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 }
             }
             if any_found {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
         }
@@ -208,7 +208,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
         }
         if !popped {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
             break;
         }
     }

@@ -43,7 +43,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             n_nodes += 1u;
         }
         if !slab_hit(bitcast<vec3<f32>>(h0.xyz), bitcast<vec3<f32>>(h1.xyz), r.origin, inv, r.tmin, prune) {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
         } else {
             // Stack entries are references; at most one per level (mod.rs: the stack bound).
             var stack: array<vec2<u32>, STACK_SIZE>;
@@ -89,7 +89,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 }
                 if !next {
                     if sp == 0u {
-                        traversal_done = true;
+                        traversal_end(bitcast<u32>(r.tmax));
                         break;
                     }
                     sp -= 1u;

@@ -23,7 +23,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     var node = dfs_distance_load(0u);
     let root = slab_interval(node.lo, node.hi, r.origin, inv, r.tmin, prune);
     if !(root.x <= root.y) {
-        traversal_done = true;
+        traversal_end(bitcast<u32>(r.tmax));
         return best;
     }
     var stack_node: array<u32, STACK_SIZE>;
@@ -68,7 +68,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 descended = true;
             }
         } else if test_leaf(node.a, node.b >> 2u, r, w, any_hit, &best, &prune) {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
             break;
         }
         if !descended {
@@ -84,7 +84,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 }
             }
             if !found {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
         }

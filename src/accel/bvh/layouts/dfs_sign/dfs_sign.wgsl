@@ -38,7 +38,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
             if !descended {
                 if sp == 0u {
-                    traversal_done = true;
+                    traversal_end(bitcast<u32>(r.tmax));
                     break;
                 }
                 sp -= 1u;

@@ -98,7 +98,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             // Asked of every lane (any_hit may differ between lanes: the render kernel's
             // path and shadow rays); a closest-hit lane's valid ray stays live.
             if !subgroupAny(live) {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
         }
@@ -190,7 +190,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 cur = stack_i[sp];
                 cur_a = stack_a[sp];
             } else if t0 >= e0 {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
         }

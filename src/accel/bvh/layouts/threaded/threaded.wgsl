@@ -67,7 +67,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 idx = end;
             }
             if idx >= end {
-                traversal_done = true;
+                traversal_end(bitcast<u32>(r.tmax));
                 break;
             }
         }

@@ -44,7 +44,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let end = idx + n;
     loop {
         if idx >= end {
-            traversal_done = true;
+            traversal_end(bitcast<u32>(r.tmax));
             break;
         }
         let word = node_word(2u * idx + (lane & 1u));
@@ -72,7 +72,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                     }
                 }
                 if !subgroupAny(live) {
-                    traversal_done = true;
+                    traversal_end(bitcast<u32>(r.tmax));
                     break;
                 }
             }
