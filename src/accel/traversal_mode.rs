@@ -3,8 +3,8 @@
 
 /// The traversal mode of the GPU trace and render kernels (the CPU twin always traces one
 /// ray at a time). A mode a layout, adapter or workgroup size cannot run falls back to
-/// [`TraversalMode::PerRay`], with a warning; [`TraceResult::mode`](crate::trace::TraceResult)
-/// and [`Rendered::mode`](crate::render::Rendered) say which ran. A render is the same
+/// [`TraversalMode::PerRay`], with a warning; [`TraceResult::mode`](crate::TraceResult)
+/// and [`Rendered::mode`](crate::Rendered) say which ran. A render is the same
 /// image in every mode.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]

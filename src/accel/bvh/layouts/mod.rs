@@ -69,7 +69,7 @@ pub(crate) fn has_avx2() -> bool {
 /// The registry of layouts: one variant per folder.
 ///
 /// No layout is the default everywhere: the fastest depends on the device
-/// ([`trace::default_layout`](crate::trace::default_layout)).
+/// (`lancer::trace::default_layout`, above this module in the house).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LayoutKind {
