@@ -125,6 +125,21 @@ impl Device {
         self.fallback.as_deref()
     }
 
+    /// Logs where work runs, as info lines (the CPU is a normal place to run, and reports
+    /// name their adapter): why `Auto` chose the CPU, and that a software adapter's GPU
+    /// timings are a CPU's.
+    pub fn log_choice(&self) {
+        if let Some(why) = self.fallback() {
+            log::info!("using the CPU: {why}");
+        }
+        if let Some(g) = self.gpu.as_ref().filter(|g| g.adapter.software) {
+            log::info!(
+                "{} is a software adapter (CPU); GPU timings are not a GPU's",
+                g.adapter
+            );
+        }
+    }
+
     /// A software adapter: its GPU timings are a CPU's.
     pub fn is_software(&self) -> bool {
         self.gpu.as_ref().is_some_and(|g| g.adapter.software)

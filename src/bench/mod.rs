@@ -129,15 +129,7 @@ pub fn open_device(choice: DeviceChoice) -> Result<Device> {
         DeviceChoice::Auto => Device::open_any()?,
         other => Device::open(other)?,
     };
-    if let Some(why) = device.fallback() {
-        log::info!("using the CPU: {why}");
-    }
-    if let Some(ctx) = device.gpu_context().filter(|c| c.adapter.software) {
-        log::info!(
-            "{} is a software adapter (CPU); GPU timings are not a GPU's",
-            ctx.adapter
-        );
-    }
+    device.log_choice();
     Ok(device)
 }
 

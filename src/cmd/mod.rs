@@ -212,7 +212,9 @@ impl DeviceArgs {
 
     /// Opens the device, saying why `auto` chose the CPU.
     pub fn open(&self) -> Result<Device> {
-        told(Device::open(self.device)?)
+        let device = Device::open(self.device)?;
+        device.log_choice();
+        Ok(device)
     }
 
     /// Opens the device for a command that needs a GPU: `auto` takes any adapter, a
@@ -226,23 +228,6 @@ impl DeviceArgs {
 /// opens, a software one included (the bench times its kernels); `cpu`: none.
 pub fn open_bench_device(choice: DeviceChoice) -> Result<Device> {
     lancer::bench::open_device(choice)
-}
-
-/// The device, once the CLI has said why it is the CPU and when GPU timings come from a
-/// software adapter.
-fn told(device: Device) -> Result<Device> {
-    // Info, not warnings: the CPU is a normal place to run (the summary line says where),
-    // and a bench's report names its adapter.
-    if let Some(why) = device.fallback() {
-        log::info!("using the CPU: {why}");
-    }
-    if let Some(ctx) = device.gpu_context().filter(|c| c.adapter.software) {
-        log::info!(
-            "{} is a software adapter (CPU); GPU timings are not a GPU's",
-            ctx.adapter
-        );
-    }
-    Ok(device)
 }
 
 /// The robustness knobs on the command line.
