@@ -183,6 +183,23 @@ fn models_primary_random_and_inside_rays() {
 }
 
 #[test]
+fn rays_starting_on_a_surface_with_tmin_zero_or_below() {
+    // The near-hit rule applies to tmin ≥ 0 only: rays from the centroids of a soup's
+    // triangles, half of them asking for hits behind their origin (tmin = -1), the same on
+    // every GPU form as on its twin, and judged by the oracle.
+    let mut rng = Rng::new(45);
+    let mesh = soup(&mut rng, 1500, 0.2);
+    let rays: Vec<Ray> = (0..4000)
+        .map(|i| {
+            let t = &mesh.triangles[rng.u64() as usize % mesh.len()];
+            let c = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
+            Ray::new(c, rng.dir(), if i % 2 == 0 { -1.0 } else { 0.0 }, 3.4e38)
+        })
+        .collect();
+    compare("on a surface", &mesh, &rays, TraceKernel::default());
+}
+
+#[test]
 fn shadow_rays_from_primary_hits() {
     let Some(mesh) = load_model("stanford-bunny.obj") else {
         return;

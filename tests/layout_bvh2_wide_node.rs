@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::accel_check::brute_force;
 use common::hard::edge_rays;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
@@ -17,7 +18,7 @@ use lancer::accel::bvh::{build as build_bvh, BuildOptions, Bvh, Node, MAX_DEPTH}
 use lancer::accel::GpuForm;
 use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
-use lancer::geometry::{intersect_triangle_bounded, Aabb, Hit, Ray, Triangle, WatertightRay};
+use lancer::geometry::{Aabb, Ray, Triangle};
 use lancer::gpu::BvhMemory;
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{self, judge, judge_any, Verdict};
@@ -63,39 +64,6 @@ fn check(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> usize {
         }
     }
     exact
-}
-
-/// Every triangle in index order with the tracers' own f32 test, tie rule and near-hit
-/// rejection: the closest hit a traversal must return bit for bit when no box it needs is
-/// cut (BVH boxes hold their triangles whole, and the slab test is conservative).
-fn brute_force(mesh: &Mesh, rays: &[Ray]) -> Vec<Hit> {
-    let rob = Robustness::default();
-    rays.iter()
-        .map(|r| {
-            let mut best = Hit::miss(r.tmax);
-            if !r.is_valid() {
-                return best;
-            }
-            let wr = WatertightRay::new(r.dir);
-            for i in mesh.included() {
-                let tri = &mesh.triangles[i as usize];
-                let h = intersect_triangle_bounded(rob.triangle_test, tri, r, &wr, r.tmin, best.t);
-                if let Some(h) = h {
-                    if Hit::beats(h.t, i, best.t, best.prim)
-                        && !(rob.rejects_near_hits() && h.maybe_behind_origin())
-                    {
-                        best = Hit {
-                            t: h.t,
-                            prim: i,
-                            u: h.u,
-                            v: h.v,
-                        };
-                    }
-                }
-            }
-            best
-        })
-        .collect()
 }
 
 fn assert_closest_is_brute_force(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) {

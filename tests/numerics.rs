@@ -87,6 +87,44 @@ fn a_known_hit() {
     assert_eq!((mt.prim, mt.t), (0, 2.0));
 }
 
+#[test]
+fn a_ray_asking_for_hits_behind_its_origin_gets_the_surface_it_starts_on() {
+    // A ray starting on a triangle: the near-hit rule (error-bound offset) rejects the hit
+    // at t = 0 for tmin = 0, the surface a secondary ray leaves; for tmin = -1 the ray asks
+    // for hits behind its origin and gets it, from every structure.
+    let mesh = Mesh::from_triangles(vec![Triangle::new(
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    )]);
+    let on = |tmin| {
+        Ray::new(
+            Vec3::new(0.25, 0.5, 0.0),
+            Vec3::new(0.0, 0.0, -0.5),
+            tmin,
+            10.0,
+        )
+    };
+    let none = Robustness {
+        ray_offset: lancer::geometry::RayOffset::None,
+        ..Robustness::default()
+    };
+    for &kind in AccelKind::ALL {
+        let a = build(kind, &mesh, &BuildOptions::default()).unwrap();
+        let hit = |r: Ray, rob: &Robustness| {
+            a.intersect(&r, Query::Closest, rob, &mut RayStats::default())
+        };
+        let behind = hit(on(-1.0), &Robustness::default());
+        assert_eq!((behind.prim, behind.t), (0, 0.0), "{kind}: tmin = -1");
+        assert_eq!(
+            hit(on(0.0), &Robustness::default()).prim,
+            MISS,
+            "{kind}: tmin = 0"
+        );
+        assert_eq!(hit(on(0.0), &none).prim, 0, "{kind}: tmin = 0, no offset");
+    }
+}
+
 /// A grid of quads (two triangles each) with many shared edges and vertices.
 fn grid(n: usize) -> Mesh {
     let mut tris = Vec::new();

@@ -152,12 +152,19 @@ struct TriHit {
     det: f32,
 }
 
-// TriHit::maybe_behind_origin for hit h of triangle (v0, v1, v2). The Rust test computes
-// in_front (geometry::grazing_in_front) inside the watertight test; here it is computed
-// from the same values, in the same operations, only for the rare hit that needs it, so
-// that kernels without the near-hit rule, and every other hit, don't carry it.
-fn maybe_behind_origin(h: TriHit, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, origin: vec3<f32>,
-                       w: Watertight) -> bool {
+// Whether the near-hit rule rejects hit h of triangle (v0, v1, v2) for ray r
+// (Robustness::rejects_near_hits_of and TriHit::maybe_behind_origin): under REJECT_NEAR_HITS,
+// for a ray whose interval starts at its origin or ahead (tmin ≥ 0), a hit whose t is within
+// its error bound of 0. The Rust test computes in_front (geometry::grazing_in_front) inside
+// the watertight test; here it is computed from the same values, in the same operations,
+// only for the rare hit that needs it, so that kernels without the near-hit rule, and every
+// other hit, don't carry it.
+fn rejects_near_hit(h: TriHit, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray,
+                    w: Watertight) -> bool {
+    if !REJECT_NEAR_HITS || !(r.tmin >= 0.0) {
+        return false;
+    }
+    let origin = r.origin;
     if !(abs(h.t) * h.det <= h.num) {
         return false;
     }

@@ -57,7 +57,7 @@ fn test_tri(tri: Tri, r: Ray, w: Watertight, best: ptr<function, Hit>,
             prune: ptr<function, f32>) -> bool {
     let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, (*best).t);
     if h.ok && beats(h.t, tri.prim, (*best).t, (*best).prim)
-        && !(REJECT_NEAR_HITS && maybe_behind_origin(h, tri.v0, tri.v1, tri.v2, r.origin, w)) {
+        && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
         *best = Hit(h.t, tri.prim, h.u, h.v);
         *prune = hit_prune(h);
         return true;

@@ -113,8 +113,10 @@ pub(crate) struct LeafRay<'a> {
     /// The ray and its set-up in four lanes (the triangle tests' verdict for four triangles
     /// at once).
     pub ray4: TriangleRay4,
-    /// Whether a hit that may lie behind the origin is dropped.
+    /// Whether a hit that may lie behind the origin is dropped (for this ray).
     pub reject_near: bool,
+    /// The settings, for the next ray's `reject_near`.
+    robustness: Robustness,
 }
 
 /// Triangles tested at once by the four-lane verdicts ([`TriangleRay4`]).
@@ -145,7 +147,8 @@ impl<'a> LeafRay<'a> {
             ray,
             wr,
             ray4: TriangleRay4::new(ray.origin, ray.dir, &wr, ray.tmin),
-            reject_near: robustness.rejects_near_hits(),
+            reject_near: robustness.rejects_near_hits_of(ray),
+            robustness: *robustness,
         }
     }
 
@@ -155,6 +158,7 @@ impl<'a> LeafRay<'a> {
         self.ray = ray;
         self.wr = WatertightRay::new(ray.dir);
         self.ray4 = TriangleRay4::new(ray.origin, ray.dir, &self.wr, ray.tmin);
+        self.reject_near = self.robustness.rejects_near_hits_of(ray);
     }
 
     /// The leaf step every twin takes (WGSL `test_leaf` in shaders/lib/traversal.wgsl):

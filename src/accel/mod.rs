@@ -161,6 +161,38 @@ impl AccelKind {
             AccelKind::Octree => "octree",
         }
     }
+
+    /// The structure of this [name](AccelKind::name), the BVH in dfs-sign (see
+    /// [`with_layout`](AccelKind::with_layout)), if any.
+    pub fn from_name(name: &str) -> Option<AccelKind> {
+        AccelKind::ALL.iter().copied().find(|k| k.name() == name)
+    }
+
+    /// This structure, the BVH in `layout` (the others have no layout).
+    pub fn with_layout(self, layout: LayoutKind) -> AccelKind {
+        match self {
+            AccelKind::Bvh(_) => AccelKind::Bvh(layout),
+            other => other,
+        }
+    }
+
+    /// Whether it has a GPU kernel ([`build_gpu`] builds its GPU form).
+    pub fn has_gpu_form(self) -> bool {
+        matches!(self, AccelKind::Bvh(_) | AccelKind::KdTree | AccelKind::Bih)
+    }
+
+    /// What it is, in a few words (the command line's help).
+    pub fn describe(self) -> &'static str {
+        match self {
+            AccelKind::Bvh(_) => "Bounding volume hierarchy (CPU and GPU)",
+            AccelKind::KdTree => "SAH kd-tree (CPU and GPU)",
+            AccelKind::UniformGrid => "Uniform grid (CPU)",
+            AccelKind::TwoLevelGrid => "Two-level grid (CPU)",
+            AccelKind::HashedGrid => "Hashed grid (CPU)",
+            AccelKind::Bih => "Bounding interval hierarchy (CPU and GPU)",
+            AccelKind::Octree => "Octree (CPU)",
+        }
+    }
 }
 
 impl std::fmt::Display for AccelKind {

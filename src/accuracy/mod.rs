@@ -53,7 +53,7 @@ pub fn triangle_test_hits(mesh: &Mesh, ray: &Ray, robustness: &Robustness) -> bo
                     intersect_triangle_bounded(test, tri, ray, &wr, ray.tmin, ray.tmax)
                 }
             };
-            h.is_some_and(|h| !(robustness.rejects_near_hits() && h.maybe_behind_origin()))
+            h.is_some_and(|h| !(robustness.rejects_near_hits_of(ray) && h.maybe_behind_origin()))
         })
 }
 

@@ -21,7 +21,7 @@ use crate::mesh::Mesh;
 use crate::trace::{Tracer, TracerOptions};
 
 use super::markdown::{dash, Table};
-use super::rays::{random_rays, view_ray_sets, RaySet};
+use super::rays::{random_rays, view_ray_sets, RaySet, BENCH_SEED};
 use super::timing::{runs_per_repeat, time_paired, time_tracer, Paired, Reference};
 use super::{BenchReport, Progress, Ticker};
 
@@ -245,8 +245,12 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         &rob,
     )?;
     // Incoherent rays, as many as primary rays (view_ray_sets checked the count).
-    let n_random = sets.first().map_or(0, |s| s.2.len()) as u32;
-    sets.push(("random".into(), Query::Closest, random_rays(mesh, n_random)));
+    let n_random = sets.first().map_or(0, |s| s.2.len());
+    sets.push((
+        "random".into(),
+        Query::Closest,
+        random_rays(mesh, n_random, BENCH_SEED),
+    ));
     let device = super::open_device(config.device)?;
     let reference = reference(mesh)?;
     let kinds = &config.layouts;

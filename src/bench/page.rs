@@ -177,6 +177,23 @@ pub fn markdown<R: BenchReport>(
     page
 }
 
+/// A command line as a shell takes it: `lancer` and the arguments `args`, each quoted
+/// where a shell would read it otherwise (the page's "command" line).
+pub fn shell_command(args: impl IntoIterator<Item = String>) -> String {
+    let quote = |a: String| {
+        let plain = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
+        match !a.is_empty() && a.chars().all(plain) {
+            true => a,
+            false => format!("'{}'", a.replace('\'', r"'\''")),
+        }
+    };
+    let args = args.into_iter().map(quote);
+    std::iter::once("lancer".to_string())
+        .chain(args)
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// Writes the results page `path` (atomically, replacing it) and, with the `charts`
 /// feature, its charts beside it ([`beside`]).
 pub fn write<R: BenchReport>(path: &Path, report: &R, command: &str) -> Result<()> {
@@ -192,6 +209,22 @@ pub fn write<R: BenchReport>(path: &Path, report: &R, command: &str) -> Result<(
 mod tests {
     use super::*;
     use std::time::Duration;
+
+    #[test]
+    fn the_command_is_quoted_as_a_shell_reads_it() {
+        let args = [
+            "bench",
+            "layouts",
+            "my scene.obj",
+            "--report",
+            "it's.md",
+            "",
+        ];
+        assert_eq!(
+            shell_command(args.map(String::from)),
+            r"lancer bench layouts 'my scene.obj' --report 'it'\''s.md' ''"
+        );
+    }
 
     #[test]
     fn dates_are_utc_days() {

@@ -20,16 +20,31 @@ pub fn primary_and_shadow(mesh: &Mesh, accel: &dyn Accel, camera: &Camera) -> (V
     (primary, shadow)
 }
 
-/// `n` rays from origins uniform in the mesh's bounds, directions uniform on the sphere
-/// (the same rays every run).
-pub fn random_rays(mesh: &Mesh, n: u32) -> Vec<Ray> {
+/// The seed of the benches' random rays, so every run traces the same ones.
+pub const BENCH_SEED: u32 = 0x5eed;
+
+/// `n` incoherent rays through `mesh`'s bounds, the same for the same `seed`. Ray `i` draws
+/// from its own stream ([`Rng::new`]`(seed, i, 0)`): it starts on a shell around the bounds'
+/// centre, 0.2 to 2 half-diagonals out (so some start inside and most enter from outside),
+/// and aims at a point uniform in the bounds. The one random-ray generator of the benches
+/// and the tests.
+pub fn random_rays(mesh: &Mesh, n: usize, seed: u32) -> Vec<Ray> {
     let b = mesh.bounds();
+    let centre = b.center();
+    let radius = 0.5 * b.extent().length();
     (0..n)
         .map(|i| {
-            let mut rng = Rng::new(0x5eed, i, 0);
+            let mut rng = Rng::new(seed, i as u32, 0);
+            let o = centre + random_dir(&mut rng) * radius * (0.2 + 1.8 * rng.next_f32());
             let f = glam::Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-            let o = b.lo + (b.hi - b.lo) * f;
-            Ray::new(o, random_dir(&mut rng), 0.0, f32::MAX)
+            let target = b.lo + (b.hi - b.lo) * f;
+            let d = (target - o).normalize_or_zero();
+            let d = if d == glam::Vec3::ZERO {
+                glam::Vec3::X
+            } else {
+                d
+            };
+            Ray::new(o, d, 0.0, f32::MAX)
         })
         .collect()
 }

@@ -27,7 +27,7 @@ use crate::render::RenderScene;
 use crate::trace::{Tracer, TracerOptions};
 
 use super::markdown::Table;
-use super::rays::{primary_and_shadow, random_rays};
+use super::rays::{primary_and_shadow, random_rays, BENCH_SEED};
 use super::timing::median;
 use super::{BenchReport, Progress, Ticker};
 
@@ -239,7 +239,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         mesh,
     );
     let (primary, shadow) = primary_and_shadow(mesh, bvh.as_ref(), &camera);
-    let random = random_rays(mesh, n_random as u32);
+    let random = random_rays(mesh, n_random as usize, BENCH_SEED);
     let sets: [(&'static str, Query, &[Ray]); 3] = [
         ("primary", Query::Closest, &primary),
         ("shadow", Query::Any, &shadow),

@@ -12,7 +12,7 @@ use lancer::{DeviceChoice, Result};
 use serde::Serialize;
 
 use super::out::{check_output, json_to, say, JsonTo, Say};
-use super::{AccelArg, BuildArgs};
+use super::BuildArgs;
 
 #[derive(Args)]
 pub struct BenchCmd {
@@ -69,8 +69,8 @@ struct BenchTrace {
     #[command(flatten)]
     build: BuildArgs,
     /// Acceleration structure: one with a GPU kernel (the BVH in --layout, the kd-tree, the BIH).
-    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
-    accel: AccelArg,
+    #[arg(long, value_parser = super::accel_arg(), default_value = "bvh")]
+    accel: lancer::AccelKind,
     #[command(flatten)]
     out: Outputs,
 }
@@ -88,7 +88,7 @@ impl BenchTrace {
             device: self.device,
             repeat: self.repeat as usize,
             // A GPU kernel's bench: the GPU's default layout unless one is named.
-            accel: (self.accel).kind(
+            accel: (self.accel).with_layout(
                 self.build
                     .layout
                     .unwrap_or(lancer::trace::defaults::GPU_LAYOUT),
@@ -201,7 +201,8 @@ impl ReportArg {
     /// Writes the page and its charts; says where.
     pub fn write<R: BenchReport>(&self, report: &R, say: Say) -> Result<()> {
         if let Some(path) = &self.report {
-            page::write(path, report, &command_line())?;
+            let command = page::shell_command(std::env::args().skip(1));
+            page::write(path, report, &command)?;
             say!(say, "report -> {}", path.display());
         }
         Ok(())
@@ -215,20 +216,4 @@ fn md_file(s: &str) -> std::result::Result<PathBuf, String> {
         Some(e) if e.eq_ignore_ascii_case("md") => Ok(path),
         _ => Err(format!("{s} is not a .md file name: give FILE.md")),
     }
-}
-
-/// This run's command line as a shell would take it (`lancer` for the program).
-fn command_line() -> String {
-    let quote = |a: String| {
-        let plain = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
-        match !a.is_empty() && a.chars().all(plain) {
-            true => a,
-            false => format!("'{}'", a.replace('\'', r"'\''")),
-        }
-    };
-    let args = std::env::args().skip(1).map(quote);
-    std::iter::once("lancer".to_string())
-        .chain(args)
-        .collect::<Vec<_>>()
-        .join(" ")
 }

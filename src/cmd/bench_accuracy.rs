@@ -6,11 +6,11 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::bench::accuracy::{run, Config, Report};
 use lancer::bench::{page, BenchReport};
+use lancer::render::{ImageSize, RenderScene};
 use lancer::{DeviceChoice, Result};
 
 use super::bench::{print_text, with_bar, ReportArg};
 use super::out::{json_to, say, JsonTo, Say};
-use super::render::load_scene;
 
 #[derive(Args)]
 pub struct BenchAccuracy {
@@ -69,7 +69,10 @@ impl BenchAccuracy {
             .collect();
         let mut inputs: Vec<PathBuf> = self.scene.iter().cloned().collect();
         let (scene, name) = match &self.scene {
-            Some(path) => (load_scene(path, None, None)?, path.display().to_string()),
+            Some(path) => (
+                RenderScene::open(path, &ImageSize::default())?,
+                path.display().to_string(),
+            ),
             None => (
                 lancer::render::builtin::cornell_box()?,
                 lancer::render::builtin::CORNELL_NAME.to_string(),

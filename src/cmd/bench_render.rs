@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::bench::render::{run, Config, Report};
+use lancer::render::{ImageSize, RenderScene};
 use lancer::{DeviceChoice, Result};
 
 use super::bench::{with_bar, Outputs};
-use super::render::load_scene;
 use super::BuildArgs;
 
 #[derive(Args)]
@@ -40,7 +40,14 @@ impl BenchRender {
         self.out
             .check::<Report>(std::slice::from_ref(&self.scene), None)?;
         let config = Config {
-            scene: load_scene(&self.scene, self.width, self.height)?,
+            scene: RenderScene::open(
+                &self.scene,
+                &ImageSize {
+                    width: self.width,
+                    height: self.height,
+                    scale: None,
+                },
+            )?,
             name: self.scene.display().to_string(),
             spp: self.spp,
             device: self.device,

@@ -7,11 +7,10 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::mesh::load_mesh;
 use lancer::trace::check::{self, CheckConfig, CheckProgress, CheckRays, TABLE_HEADER};
-use lancer::trace::files::decode_rays;
 use lancer::{Error, Result};
 
 use super::input::load_bvh;
-use super::out::{is_std, print_json, read_input, say, Say};
+use super::out::{is_std, print_json, read_rays, say, Say};
 use super::{BuilderArgs, DeviceArgs, RobustnessArgs, BUILDER_IDS};
 
 pub use lancer::trace::check::{layout_choice, mode_choice, LayoutChoice, ModeChoice};
@@ -65,15 +64,13 @@ impl CheckCmd {
             .map(|p| load_bvh(p, &mesh))
             .transpose()?;
         let rays = match &self.rays {
-            Some(path) => {
-                let name = match is_std(path) {
-                    true => PathBuf::from("<stdin>"),
-                    false => path.clone(),
-                };
-                let rays = decode_rays(&name, &read_input(path)?)?;
-                let name = name.display().to_string();
-                CheckRays::Given { name, rays }
-            }
+            Some(path) => CheckRays::Given {
+                name: match is_std(path) {
+                    true => "<stdin>".into(),
+                    false => path.display().to_string(),
+                },
+                rays: read_rays(path)?,
+            },
             None => CheckRays::View {
                 width: self.width,
                 height: self.height,

@@ -6,7 +6,7 @@ use lancer::render::load_geometry;
 use lancer::{Result, TracerOptions, TraversalMode};
 
 use super::out::{print_json, say, Say};
-use super::{AccelArg, BuildArgs, DeviceArgs};
+use super::{BuildArgs, DeviceArgs};
 
 #[derive(Args)]
 pub struct HeatmapCmd {
@@ -27,8 +27,8 @@ pub struct HeatmapCmd {
     build: BuildArgs,
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH run on the CPU); the map
     /// counts its nodes or cells visited.
-    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
-    accel: AccelArg,
+    #[arg(long, value_parser = super::accel_arg(), default_value = "bvh")]
+    accel: lancer::AccelKind,
     /// GPU traversal: one ray per invocation, or the lanes of a subgroup together (falls
     /// back to per-ray, with a warning, where the adapter or layout has no subgroup mode).
     #[arg(long, value_enum, default_value_t = TraversalMode::PerRay)]
@@ -69,7 +69,7 @@ impl HeatmapCmd {
             &[&mesh.sources[..], self.bvh.as_slice()].concat(),
         )?;
         check_size(self.width, self.height)?;
-        let device = self.accel.open(&self.device)?;
+        let device = self.device.open_for(self.accel)?;
         let layout = self.build.layout_on(&device);
         let bvh = match &self.bvh {
             Some(path) => Some(super::input::load_bvh(path, &mesh)?.layout),
@@ -78,7 +78,7 @@ impl HeatmapCmd {
         let config = HeatmapConfig {
             width: self.width,
             height: self.height,
-            structure: self.accel.kind(layout),
+            structure: self.accel.with_layout(layout),
             layout,
             options: TracerOptions {
                 build: self.build.options(),

@@ -146,50 +146,12 @@ impl BuildArgs {
     }
 }
 
-/// The acceleration structure on the command line (the BVH in the chosen `--layout`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum AccelArg {
-    /// Bounding volume hierarchy (CPU and GPU).
-    #[default]
-    Bvh,
-    /// SAH kd-tree (CPU and GPU).
-    Kdtree,
-    /// Uniform grid (CPU).
-    Grid,
-    /// Two-level grid (CPU).
-    Grid2,
-    /// Hashed grid (CPU).
-    Hashgrid,
-    /// Bounding interval hierarchy (CPU and GPU).
-    Bih,
-    /// Octree (CPU).
-    Octree,
-}
-
-impl AccelArg {
-    /// The structure to build, the BVH in `layout`.
-    pub fn kind(self, layout: LayoutKind) -> AccelKind {
-        match self {
-            AccelArg::Bvh => AccelKind::Bvh(layout),
-            AccelArg::Kdtree => AccelKind::KdTree,
-            AccelArg::Grid => AccelKind::UniformGrid,
-            AccelArg::Grid2 => AccelKind::TwoLevelGrid,
-            AccelArg::Hashgrid => AccelKind::HashedGrid,
-            AccelArg::Bih => AccelKind::Bih,
-            AccelArg::Octree => AccelKind::Octree,
-        }
-    }
-
-    /// Opens the device for this structure: only the BVH, the kd-tree and the BIH have GPU
-    /// kernels, so `auto` runs the others on the CPU (`gpu` is left to the library, which
-    /// refuses it by name).
-    pub fn open(self, device: &DeviceArgs) -> Result<Device> {
-        let gpu = matches!(self, AccelArg::Bvh | AccelArg::Kdtree | AccelArg::Bih);
-        if !gpu && device.device == DeviceChoice::Auto {
-            return Ok(Device::cpu());
-        }
-        device.open()
-    }
+/// `--accel NAME`: a structure of the registry ([`AccelKind::ALL`]), the BVH's layout
+/// left to `--layout` ([`AccelKind::with_layout`]).
+fn accel_arg() -> impl clap::builder::TypedValueParser<Value = AccelKind> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    let values = (AccelKind::ALL.iter()).map(|k| PossibleValue::new(k.name()).help(k.describe()));
+    PossibleValuesParser::new(values).map(|s| AccelKind::from_name(&s).expect("a listed name"))
 }
 
 /// Where to run, and how the GPU reads the BVH.
@@ -210,6 +172,15 @@ impl DeviceArgs {
         self.bvh_memory
     }
 
+    /// Opens the device for structure `accel`: only some have GPU kernels, so `auto` runs
+    /// the others on the CPU (`gpu` is left to the library, which refuses it by name).
+    pub fn open_for(&self, accel: AccelKind) -> Result<Device> {
+        match !accel.has_gpu_form() && self.device == DeviceChoice::Auto {
+            true => Ok(Device::cpu()),
+            false => self.open(),
+        }
+    }
+
     /// Opens the device, saying why `auto` chose the CPU.
     pub fn open(&self) -> Result<Device> {
         let device = Device::open(self.device)?;
@@ -220,14 +191,8 @@ impl DeviceArgs {
     /// Opens the device for a command that needs a GPU: `auto` takes any adapter, a
     /// software one included.
     pub fn open_any_gpu(&self) -> Result<Device> {
-        open_bench_device(self.device)
+        lancer::bench::open_device(self.device)
     }
-}
-
-/// Opens the device a bench measures beside the CPU: with `auto`, any GPU adapter that
-/// opens, a software one included (the bench times its kernels); `cpu`: none.
-pub fn open_bench_device(choice: DeviceChoice) -> Result<Device> {
-    lancer::bench::open_device(choice)
 }
 
 /// The robustness knobs on the command line.
@@ -280,12 +245,6 @@ fn non_negative_finite(s: &str) -> std::result::Result<f32, String> {
         Ok(x) => Err(format!("{x} is not a finite number at or above 0")),
         Err(e) => Err(e.to_string()),
     }
-}
-
-/// A value as the command line spells it.
-pub fn spelled<T: clap::ValueEnum + std::fmt::Debug>(v: T) -> String {
-    v.to_possible_value()
-        .map_or(format!("{v:?}"), |p| p.get_name().to_string())
 }
 
 pub use out::set_quiet;

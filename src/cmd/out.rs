@@ -90,6 +90,16 @@ pub fn read_input(path: &Path) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// The rays of a ray file, or of stdin for `-` (named `<stdin>` in errors and warnings).
+pub fn read_rays(path: &Path) -> Result<Vec<lancer::geometry::Ray>> {
+    let name = if is_std(path) {
+        Path::new("<stdin>")
+    } else {
+        path
+    };
+    lancer::trace::files::decode_rays(name, &read_input(path)?)
+}
+
 /// Writes `bytes` to a file atomically, or to stdout for `-`.
 pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     if !is_std(path) {

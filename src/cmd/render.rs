@@ -5,15 +5,14 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::ProgressStyle;
-use lancer::mesh::FileKind;
 use lancer::render::{
-    image_kind, AovSet, Crop, EffectSet, ImageKind, Progress, RenderOptions, RenderStats, Renderer,
-    Stop,
+    image_kind, AovSet, Crop, EffectSet, ImageKind, ImageSize, Progress, RenderOptions,
+    RenderStats, Renderer, Stop,
 };
 use lancer::{Error, RenderScene, Result, TraversalMode};
 
 use super::out::{print_json, say, Say};
-use super::{AccelArg, BuildArgs, DeviceArgs, RobustnessArgs};
+use super::{BuildArgs, DeviceArgs, RobustnessArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -25,11 +24,11 @@ pub struct RenderCmd {
     out: PathBuf,
     /// Image width (default: the scene's, 640 for a mesh); alone, the height follows the
     /// scene's aspect ratio.
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     width: Option<u32>,
     /// Image height (default: the scene's, 480 for a mesh); alone, the width follows the
     /// scene's aspect ratio.
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     height: Option<u32>,
     /// Scale the image size (the scene's, or --width/--height) by this factor, e.g. 0.25 for
     /// a quick preview.
@@ -72,8 +71,8 @@ pub struct RenderCmd {
     #[command(flatten)]
     build: BuildArgs,
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH render on the CPU).
-    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
-    accel: AccelArg,
+    #[arg(long, value_parser = super::accel_arg(), default_value = "bvh")]
+    accel: lancer::AccelKind,
     /// GPU traversal: one ray per invocation, or the lanes of a subgroup together (falls
     /// back to per-ray, with a warning, where the adapter or layout has no subgroup mode);
     /// the image is the same.
@@ -90,63 +89,6 @@ fn png_bits(s: &str) -> std::result::Result<u8, String> {
         "16" => Ok(16),
         _ => Err(format!("{s}: PNG bits are 8 or 16")),
     }
-}
-
-/// Loads a scene with the command line's overrides applied.
-pub fn load_scene(
-    path: &std::path::Path,
-    width: Option<u32>,
-    height: Option<u32>,
-) -> Result<RenderScene> {
-    load_scene_scaled(path, width, height, None)
-}
-
-/// [`load_scene`] with the image size also scaled by `scale`.
-pub fn load_scene_scaled(
-    path: &std::path::Path,
-    width: Option<u32>,
-    height: Option<u32>,
-    scale: Option<f32>,
-) -> Result<RenderScene> {
-    if width == Some(0) || height == Some(0) {
-        return Err(Error::input(
-            path,
-            None,
-            "--width and --height must be positive",
-        ));
-    }
-    let mut scene = if FileKind::of(path)? == FileKind::Scene {
-        RenderScene::from_file(path)?
-    } else {
-        RenderScene::from_mesh(path, 640, 480)?
-    };
-    let (w, h) = image_size(
-        (scene.camera.width, scene.camera.height),
-        width,
-        height,
-        scale.unwrap_or(1.0),
-    );
-    (scene.camera.width, scene.camera.height) = (w, h);
-    Ok(scene)
-}
-
-/// The image size from the scene's and the command line's: one side given alone keeps the
-/// scene's aspect ratio; `scale` multiplies the result (never below 1 pixel).
-fn image_size(
-    scene: (u32, u32),
-    width: Option<u32>,
-    height: Option<u32>,
-    scale: f32,
-) -> (u32, u32) {
-    let aspect = scene.0 as f64 / scene.1.max(1) as f64;
-    let (w, h) = match (width, height) {
-        (Some(w), Some(h)) => (w as f64, h as f64),
-        (Some(w), None) => (w as f64, w as f64 / aspect),
-        (None, Some(h)) => (h as f64 * aspect, h as f64),
-        (None, None) => (scene.0 as f64, scene.1 as f64),
-    };
-    let side = |x: f64| (x * scale as f64).round().clamp(1.0, u32::MAX as f64) as u32;
-    (side(w), side(h))
 }
 
 impl RenderCmd {
@@ -170,7 +112,12 @@ impl RenderCmd {
             )));
         }
         let time_limit = self.time_limit.map(Duration::from_secs_f64);
-        let scene = load_scene_scaled(&self.scene, self.width, self.height, self.scale)?;
+        let size = ImageSize {
+            width: self.width,
+            height: self.height,
+            scale: self.scale,
+        };
+        let scene = RenderScene::open(&self.scene, &size)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
         let crop = match self.crop.as_deref() {
             Some(&[x0, y0, x1, y1]) => Some(Crop { x0, y0, x1, y1 }),
@@ -179,7 +126,7 @@ impl RenderCmd {
         if let Some(c) = crop {
             c.check(scene.camera.width, scene.camera.height)?;
         }
-        let device = self.accel.open(&self.device)?;
+        let device = self.device.open_for(self.accel)?;
         let layout = self.build.layout_on(&device);
         let cancel = Arc::new(AtomicBool::new(false));
         {
@@ -208,7 +155,7 @@ impl RenderCmd {
             cancel: Some(cancel),
             progress: Some(progress),
             build: self.build.options(),
-            accel: Some(self.accel.kind(layout)),
+            accel: Some(self.accel.with_layout(layout)),
             memory: self.device.bvh_memory,
             robustness: self.robustness.robustness(),
             crop,
@@ -282,22 +229,5 @@ fn time_limit(s: &str) -> std::result::Result<f64, String> {
             "{t} is not a number of seconds above 0 and at most a year ({YEAR})"
         )),
         Err(e) => Err(e.to_string()),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::image_size;
-
-    #[test]
-    fn one_side_keeps_the_aspect_ratio_and_scale_multiplies() {
-        assert_eq!(image_size((640, 480), Some(320), None, 1.0), (320, 240));
-        assert_eq!(image_size((640, 480), None, Some(96), 1.0), (128, 96));
-        assert_eq!(
-            image_size((640, 480), Some(100), Some(100), 1.0),
-            (100, 100)
-        );
-        assert_eq!(image_size((256, 192), None, None, 0.25), (64, 48));
-        assert_eq!(image_size((256, 192), None, None, 1e-9), (1, 1));
     }
 }

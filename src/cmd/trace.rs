@@ -1,13 +1,13 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::trace::files::{decode_rays, encode_hits};
+use lancer::trace::files::encode_hits;
 use lancer::trace::stats::{TraceReport, TraceStats};
 use lancer::{Error, Query, Result, Tracer, TracerOptions, TraversalMode};
 
 use super::input::load_bvh;
-use super::out::{check_output, is_std, print_json, read_input, say, write_output, Say};
-use super::{AccelArg, BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
+use super::out::{check_output, is_std, print_json, read_rays, say, write_output, Say};
+use super::{BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
 use lancer::render::load_geometry;
 
 #[derive(Args)]
@@ -44,8 +44,8 @@ pub struct TraceCmd {
     #[command(flatten)]
     build: BuildArgs,
     /// Acceleration structure (all but the BVH, the kd-tree and the BIH run on the CPU).
-    #[arg(long, value_enum, default_value_t = AccelArg::Bvh)]
-    accel: AccelArg,
+    #[arg(long, value_parser = super::accel_arg(), default_value = "bvh")]
+    accel: lancer::AccelKind,
     /// Trace the BVH in this file (`build --out`; docs/src/reference/file-formats.md) instead of
     /// building one: its layout is the file's (--accel, --layout and the builder options are
     /// refused with it), and MESH must be the mesh it was built from.
@@ -67,15 +67,11 @@ impl TraceCmd {
         inputs.push(self.rays.clone());
         inputs.extend(self.bvh.clone());
         check_output(&self.out, &inputs)?;
-        let rays_name = match is_std(&self.rays) {
-            true => PathBuf::from("<stdin>"),
-            false => self.rays.clone(),
-        };
-        let rays = decode_rays(&rays_name, &read_input(&self.rays)?)?;
+        let rays = read_rays(&self.rays)?;
         let bvh = (self.bvh.as_ref())
             .map(|p| load_bvh(p, &mesh))
             .transpose()?;
-        let device = self.accel.open(&self.device)?;
+        let device = self.device.open_for(self.accel)?;
         let layout = bvh
             .as_ref()
             .map_or(self.build.layout_on(&device), |f| f.kind);
@@ -93,7 +89,7 @@ impl TraceCmd {
         } else {
             Query::Closest
         };
-        let kind = self.accel.kind(layout);
+        let kind = self.accel.with_layout(layout);
         let mut tracer = match &bvh {
             Some(file) => Tracer::with_layout(&device, file.layout.clone(), &options)?,
             None => Tracer::with_structure(&device, &mesh, kind, &options)?,

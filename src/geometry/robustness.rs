@@ -135,6 +135,14 @@ impl Robustness {
         self.ray_offset == RayOffset::ErrorBound
     }
 
+    /// Whether traversals reject near hits ([`rejects_near_hits`](Self::rejects_near_hits))
+    /// of `ray`: only of a ray whose interval starts at its origin or ahead (tmin ≥ 0). One
+    /// that asks for hits behind its origin (tmin < 0) gets the surface it starts on.
+    #[inline(always)]
+    pub fn rejects_near_hits_of(&self, ray: &super::Ray) -> bool {
+        self.rejects_near_hits() && ray.tmin >= 0.0
+    }
+
     /// Refuses the settings no GPU kernel has (f64 precision), naming the fix.
     pub fn check_gpu(&self) -> crate::Result<()> {
         if self.precision == Precision::F64 {

@@ -33,6 +33,7 @@ pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
 pub use scene::load_geometry;
 pub use scene::{
-    Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile, Settings, Texture,
+    ImageSize, Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile,
+    Settings, Texture,
 };
 pub use stats::RenderStats;

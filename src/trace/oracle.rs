@@ -5,11 +5,25 @@
 
 use glam::DVec3;
 
-use crate::geometry::{d3, intersect_f64, Hit, Ray, MISS};
+use crate::geometry::{
+    d3, intersect_f64, intersect_watertight_bounded, Hit, Ray, WatertightRay, MISS,
+};
 use crate::mesh::{Mesh, TriStatus};
 
 /// Relative size of "tiny": 32 f32 ulps of the coordinates involved.
 const TIE_REL: f64 = 32.0 * f32::EPSILON as f64;
+
+/// The f32 watertight test's own bound on the error of its t for triangle `p` on `ray`
+/// ([`TriHit::t_error`](crate::geometry::TriHit::t_error)), 0 where that test misses the
+/// triangle: within it of an interval's end, the f32 test cannot tell which side the hit is
+/// on (the near-hit rule, `Robustness::rejects_near_hits`, rejects such a hit at the
+/// origin).
+fn f32_t_error(mesh: &Mesh, ray: &Ray, p: u32) -> f64 {
+    let wr = WatertightRay::new(ray.dir);
+    let tri = &mesh.triangles[p as usize];
+    intersect_watertight_bounded(tri, ray.origin, &wr, -f32::MAX, f32::MAX)
+        .map_or(0.0, |h| h.t_error() as f64)
+}
 
 /// Every hit in [tmin, tmax] as (t, prim), in index order.
 pub fn all_hits(mesh: &Mesh, ray: &Ray) -> Vec<(f64, u32)> {
@@ -95,14 +109,18 @@ pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
             .normalize()
             .dot(d / dl)
             .abs();
-        tol(p, t) / (dl * cos.max(1e-12))
+        // Below f32's normal range t keeps no relative precision (its intermediate values
+        // underflow too, as for a direction of 1e38): there the tolerance is the same 32
+        // ulps, of the subnormal spacing.
+        (tol(p, t) / (dl * cos.max(1e-12))).max(TIE_REL * f32::MIN_POSITIVE as f64)
     };
     let near_edge = |p: u32, t: f64| edge_distance(&tri(p), o, d) <= tol(p, t);
     // A hit whose point lies within `tol` of where the interval starts or ends, measured
     // across its plane as every other tolerance here is: the f32 test cannot tell which side
-    // of the bound it is on (a ray starting that close to a surface).
+    // of the bound it is on (a ray starting that close to a surface); nor within the f32
+    // test's own bound on t's error ([`f32_t_error`]).
     let near_bound = |p: u32, t: f64| {
-        let tt = tol_t(p, t);
+        let tt = tol_t(p, t).max(f32_t_error(mesh, ray, p));
         (t - ray.tmin as f64).abs() <= tt || (t - ray.tmax as f64).abs() <= tt
     };
     if got.prim != MISS && got.prim as usize >= mesh.len() {
@@ -185,7 +203,11 @@ pub fn judge_any(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
             .normalize()
             .dot(d / dl)
             .abs();
-        let near_bound = |b: f32| (t - b as f64).abs() * dl * cos.max(1e-12) <= tol;
+        let t_err = f32_t_error(mesh, ray, p);
+        let near_bound = |b: f32| {
+            let dt = (t - b as f64).abs();
+            dt * dl * cos.max(1e-12) <= tol || dt <= t_err
+        };
         edge_distance(&v, o, d) <= tol || near_bound(ray.tmin) || near_bound(ray.tmax)
     };
     if got.prim == MISS {

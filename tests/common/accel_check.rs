@@ -107,7 +107,7 @@ pub fn brute_force(mesh: &Mesh, rays: &[Ray]) -> Vec<Hit> {
                 let h = intersect_triangle_bounded(rob.triangle_test, tri, r, &wr, r.tmin, best.t);
                 if let Some(h) = h {
                     if Hit::beats(h.t, i, best.t, best.prim)
-                        && !(rob.rejects_near_hits() && h.maybe_behind_origin())
+                        && !(rob.rejects_near_hits_of(r) && h.maybe_behind_origin())
                     {
                         best = Hit {
                             t: h.t,

@@ -15,22 +15,27 @@ use lancer::gpu::GpuContext;
 use lancer::mesh::{load_obj, Mesh};
 use lancer::Device;
 
-/// xorshift64*: small, seeded, reproducible.
-pub struct Rng(u64);
+/// The library's random stream ([`lancer::render::Rng`], the renderer's PCG hash) with the
+/// draws the tests need: one RNG in the crate, seeded per test.
+pub struct Rng(lancer::render::Rng);
 
 impl Rng {
     pub fn new(seed: u64) -> Rng {
-        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+        Rng(lancer::render::Rng::new(
+            seed as u32,
+            (seed >> 32) as u32,
+            0x7e57,
+        ))
+    }
+    pub fn u32(&mut self) -> u32 {
+        self.0.next_u32()
     }
     pub fn u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        (u64::from(self.u32()) << 32) | u64::from(self.u32())
     }
     /// Uniform in [0, 1).
     pub fn f32(&mut self) -> f32 {
-        (self.u64() >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.f32()
@@ -40,13 +45,7 @@ impl Rng {
     }
     /// Uniform direction on the sphere.
     pub fn dir(&mut self) -> Vec3 {
-        loop {
-            let v = self.vec3(-1.0, 1.0);
-            let l = v.length_squared();
-            if l > 1e-4 && l <= 1.0 {
-                return v / l.sqrt();
-            }
-        }
+        lancer::accuracy::random_dir(&mut self.0)
     }
 }
 
@@ -65,18 +64,9 @@ pub fn soup(rng: &mut Rng, n: usize, size: f32) -> Mesh {
     Mesh::from_triangles(tris)
 }
 
-/// Rays from random points around the scene towards random points inside it.
+/// `n` random rays through `mesh` ([`lancer::bench::rays::random_rays`]), seeded from `rng`.
 pub fn random_rays(rng: &mut Rng, n: usize, mesh: &Mesh) -> Vec<Ray> {
-    let b = mesh.bounds();
-    let c = b.center();
-    let r = 0.5 * b.extent().length();
-    (0..n)
-        .map(|_| {
-            let o = c + rng.dir() * r * rng.range(0.2, 2.0);
-            let target = b.lo + (b.hi - b.lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
-            Ray::new(o, (target - o).normalize(), 0.0, 3.4e38)
-        })
-        .collect()
+    lancer::bench::rays::random_rays(mesh, n, rng.u32())
 }
 
 /// Path of a shared test model, or None (with a printed reason) when ../shared is absent.

@@ -16,6 +16,17 @@ pub enum Builder {
     Median,
 }
 
+impl Builder {
+    /// The name the command line, the JSON and the benches use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Builder::Sweep => "sweep",
+            Builder::Binned => "binned",
+            Builder::Median => "median",
+        }
+    }
+}
+
 /// How to build a BVH: the builder, the SAH cost constants, leaf and depth limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildOptions {

@@ -214,7 +214,7 @@ impl Accel for HashedGrid {
         robustness: &Robustness,
         stats: &mut RayStats,
     ) -> Hit {
-        let near = robustness.rejects_near_hits();
+        let near = robustness.rejects_near_hits_of(ray);
         match robustness.triangle_test {
             TriangleTest::Watertight => self.walk::<false>(ray, query, near, stats),
             TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, stats),

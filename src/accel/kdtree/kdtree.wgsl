@@ -177,7 +177,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 }
                 let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
                 if h.ok && beats(h.t, tri.prim, best.t, best.prim)
-                    && !(REJECT_NEAR_HITS && maybe_behind_origin(h, tri.v0, tri.v1, tri.v2, r.origin, w)) {
+                    && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
                     best = Hit(h.t, tri.prim, h.u, h.v);
                     if any_hit {
                         any_found = true;

@@ -140,7 +140,7 @@ impl KdTree {
             return best;
         };
         let wr = WatertightRay::new(ray.dir);
-        let reject_near = robustness.rejects_near_hits();
+        let reject_near = robustness.rejects_near_hits_of(ray);
         let mut prune = tmax;
         // Pending far children with their intervals: at most one per level.
         let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_KD_DEPTH];

@@ -5,10 +5,12 @@ mod assemble;
 pub mod builtin;
 mod file;
 mod imported;
+mod open;
 mod shapes;
 
 pub use assemble::{Light, Material, RenderScene, Settings, Texture};
 pub use file::{Integrator, LightKind, MaterialKind, SceneFile};
+pub use open::ImageSize;
 
 /// The mesh of a mesh file (.obj, .ply, .gltf, .glb) or of a scene (.toml: all its objects
 /// in one mesh), chosen by the extension; an unknown extension is refused by name.

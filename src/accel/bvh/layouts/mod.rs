@@ -34,6 +34,7 @@
 //! the kernels' stack size; a layout whose traversal needs more entries per level must
 //! say so in `validate`.
 
+mod build_report;
 mod bvh2_wide_node;
 pub mod bvh_file;
 mod cwbvh;
@@ -49,6 +50,7 @@ use crate::accel::gpu_form::records;
 use crate::accel::{GpuArrays, GpuForm, LeafTri};
 use crate::mesh::Mesh;
 
+pub use build_report::{build_and_flatten, BuildReport};
 pub use bvh2_wide_node::Bvh2WideNode;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;

@@ -37,7 +37,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 // best and prune, measured 0.93x shadow rays/s on Mesa 25 lavapipe (7 rounds).
                 let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
                 if h.ok && beats(h.t, tri.prim, best.t, best.prim)
-                    && !(REJECT_NEAR_HITS && maybe_behind_origin(h, tri.v0, tri.v1, tri.v2, r.origin, w)) {
+                    && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
                     best = Hit(h.t, tri.prim, h.u, h.v);
                     prune = hit_prune(h);
                     if any_hit {

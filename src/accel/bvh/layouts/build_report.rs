@@ -1,0 +1,72 @@
+//! `lancer build`: a BVH built and flattened into a layout, with its shape, cost, build
+//! time and size.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::{try_flatten, LayoutKind};
+use crate::accel::bvh::{build, BuildOptions, Builder, BvhStats};
+use crate::accel::GpuForm;
+use crate::mesh::Mesh;
+
+/// What a build made (`lancer build`, and its `--json` object).
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildReport {
+    /// The builder (`--builder`).
+    pub builder: Builder,
+    /// The layout's name (`--layout`).
+    pub layout: &'static str,
+    /// The tree's shape and SAH cost (triangles: those with NaN, zero area or out of range
+    /// are left out).
+    #[serde(flatten)]
+    pub stats: BvhStats,
+    /// Wall time to build and flatten, in ms.
+    pub build_ms: f64,
+    /// Bytes of the flattened layout (what the GPU holds).
+    pub bytes: usize,
+    /// The BVH file written, if any (set by the caller that writes it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub out: Option<String>,
+}
+
+/// Builds a BVH over `mesh` with `options`, flattens it into `layout`, and reports.
+pub fn build_and_flatten(
+    mesh: &Mesh,
+    options: &BuildOptions,
+    layout: LayoutKind,
+) -> crate::Result<(Box<dyn GpuForm>, BuildReport)> {
+    let t0 = Instant::now();
+    let bvh = build(mesh, options);
+    let flat = try_flatten(layout, &bvh, mesh)?;
+    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let report = BuildReport {
+        builder: options.builder,
+        layout: layout.name(),
+        stats: BvhStats::of(&bvh, options),
+        build_ms,
+        bytes: flat.bytes(),
+        out: None,
+    };
+    Ok((flat, report))
+}
+
+impl BuildReport {
+    /// The report as aligned lines of text.
+    pub fn text(&self) -> Vec<String> {
+        let s = &self.stats;
+        let mut lines = vec![
+            format!("builder     {}", self.builder.name()),
+            format!("layout      {}", self.layout),
+            format!("triangles   {}", s.triangles),
+            format!("nodes       {}", s.nodes),
+            format!("leaves      {}", s.leaves),
+            format!("max depth   {}", s.max_depth),
+            format!("SAH cost    {:.3}", s.sah_cost),
+            format!("build ms    {:.2}", self.build_ms),
+            format!("GPU bytes   {}", self.bytes),
+        ];
+        lines.extend(self.out.iter().map(|o| format!("written to  {o}")));
+        lines
+    }
+}
