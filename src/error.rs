@@ -60,12 +60,6 @@ impl Error {
         Error::input(file, Some(line), "not UTF-8 text: save the file as UTF-8")
     }
 
-    /// Reads a whole UTF-8 text file, with [`Error::read`] and [`Error::not_utf8`] errors.
-    pub fn read_text(file: &Path) -> Result<String> {
-        let bytes = std::fs::read(file).map_err(|e| Error::read(file, e))?;
-        String::from_utf8(bytes).map_err(|e| Error::not_utf8(file, e.as_bytes(), &e.utf8_error()))
-    }
-
     /// An I/O error writing `file`: exit code 1.
     pub fn io(file: &Path, source: std::io::Error) -> Error {
         Error::Io {

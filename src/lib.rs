@@ -60,6 +60,7 @@ pub mod embree;
 pub mod error;
 pub mod geometry;
 pub mod gpu;
+pub mod input;
 pub mod limits;
 pub mod mesh;
 pub mod output;

@@ -25,13 +25,32 @@ pub const MIN_DIR: f32 = 1e-20;
 /// below it those products fall below f32's normal range and hits are lost.
 pub const MIN_EXTENT: f32 = 1e-12;
 
-/// Memory this process may still allocate: `MemAvailable` on Linux, None where unknown.
+/// Memory this process may still allocate: `MemAvailable` on Linux, or less where the
+/// process's cgroup (v2) caps it lower (`memory.max` − `memory.current`, as in a container);
+/// None where unknown.
 pub fn available_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    let machine = kib * 1024;
+    Some(cgroup_headroom().map_or(machine, |c| c.min(machine)))
 }
+
+/// What the cgroup v2 this process is in may still allocate, where it sets a limit.
+fn cgroup_headroom() -> Option<u64> {
+    // "0::/PATH" names the process's cgroup under the unified hierarchy.
+    let own = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let rel = own.lines().find_map(|l| l.strip_prefix("0::"))?;
+    let dir = std::path::Path::new("/sys/fs/cgroup").join(rel.trim_start_matches('/'));
+    let read = |name: &str| std::fs::read_to_string(dir.join(name)).ok();
+    let max: u64 = read("memory.max")?.trim().parse().ok()?; // "max": no limit
+    let current: u64 = read("memory.current")?.trim().parse().ok()?;
+    Some(max.saturating_sub(current))
+}
+
+/// The largest texture side lancer decodes: what GPUs take as a 2D texture side (16384);
+/// a larger texture is refused by its header, before it is decoded.
+pub const MAX_TEXTURE_SIDE: u32 = 16_384;
 
 /// Refuses work that needs `bytes` of memory (what for, in `what`) when that is more than the
 /// machine has available; `hint` says what to do instead.

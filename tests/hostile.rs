@@ -467,6 +467,23 @@ fn scene(name: &str) -> PathBuf {
 const QUAD: &str = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n";
 
 /// A ray file of the quad's kind of view: rays from z = 5 towards the origin region.
+/// A PNG of `w`×`h` 8-bit grey pixels, its header and the start of its data only: what a
+/// reader learns before decoding.
+fn png_header(w: u32, h: u32) -> Vec<u8> {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8], data: &[u8]| {
+        png.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let body = [kind, data].concat();
+        png.extend_from_slice(&body);
+        png.extend_from_slice(&crc32fast::hash(&body).to_be_bytes());
+    };
+    let ihdr = [&w.to_be_bytes()[..], &h.to_be_bytes(), &[8, 0, 0, 0, 0]].concat();
+    chunk(b"IHDR", &ihdr);
+    chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00]);
+    chunk(b"IEND", &[]);
+    png
+}
+
 fn write_ray_file(path: &Path) {
     let rays: Vec<Ray> = (0..16)
         .map(|i| {
@@ -1303,6 +1320,156 @@ fn hostile_command_lines() {
         )
         .names(&["latin1.obj:2"])
         .lacks(&["offset"]),
+    ]);
+
+    // ---- files named inside inputs: devices, FIFOs, huge textures, outputs over them
+    let fifo = |rel: &str| {
+        let p = s.path(rel);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        let made = Command::new("mkfifo")
+            .arg(&p)
+            .status()
+            .expect("mkfifo runs");
+        assert!(made.success(), "mkfifo {}", p.display());
+        p
+    };
+    let zero_mtl = s.write(
+        "named/zero.obj",
+        format!("mtllib /dev/zero\nusemtl a\n{QUAD}"),
+    );
+    fifo("named/fifo.mtl");
+    let fifo_mtl = s.write(
+        "named/fifomtl.obj",
+        format!("mtllib fifo.mtl\nusemtl a\n{QUAD}"),
+    );
+    let fifo_mesh = fifo("named/fifo.obj");
+    let zero_link = s.path("named/zero-link.obj");
+    std::os::unix::fs::symlink("/dev/zero", &zero_link).unwrap();
+    fifo("named/fifo.png");
+    let fifo_tex_scene = s.write(
+        "named/fifotex.toml",
+        std::fs::read_to_string(&textured)
+            .unwrap()
+            .replace("checker.png", "fifo.png"),
+    );
+    s.write("named/big.png", png_header(22_000, 22_000));
+    let big_tex_scene = s.write(
+        "named/bigtex.toml",
+        std::fs::read_to_string(&textured)
+            .unwrap()
+            .replace("checker.png", "big.png"),
+    );
+    // An OBJ whose MTL names a texture: every command's output refuses the texture's name.
+    let tex_obj = s.write("named/tex.obj", format!("mtllib tex.mtl\nusemtl a\n{QUAD}"));
+    s.write(
+        "named/tex.mtl",
+        "newmtl a\nKd 0.5 0.5 0.5\nmap_Kd tex.png\n",
+    );
+    let tex_png = s.copy_scene("checker.png", "named/tex.png");
+    rows.extend([
+        row_args(
+            "render: mtllib /dev/zero",
+            Want::Ok,
+            r(&[&"render", &zero_mtl, &"-o", &"zero-mtl.png"]),
+        )
+        .warns(&["/dev/zero", "not a regular file"])
+        .within(60.0),
+        row_args(
+            "render: mtllib a FIFO",
+            Want::Ok,
+            r(&[&"render", &fifo_mtl, &"-o", &"fifo-mtl.png"]),
+        )
+        .warns(&["fifo.mtl", "not a regular file"])
+        .within(60.0),
+        Row::new("build: mtllib a FIFO", Want::Ok, &[&"build", &fifo_mtl]).within(30.0),
+        Row::new(
+            "build: the mesh a FIFO",
+            Want::Fail(2),
+            &[&"build", &fifo_mesh],
+        )
+        .names(&["fifo.obj", "not a regular file"])
+        .within(30.0),
+        Row::new(
+            "build: the mesh a link to /dev/zero",
+            Want::Fail(2),
+            &[&"build", &zero_link],
+        )
+        .names(&["zero-link.obj", "not a regular file"])
+        .within(30.0),
+        row_args(
+            "render: a texture that is a FIFO",
+            Want::Fail(2),
+            r(&[&"render", &fifo_tex_scene, &"-o", &"fifo-tex.png"]),
+        )
+        .names(&["fifo.png", "not a regular file"])
+        .within(60.0),
+        row_args(
+            "render: a 22000×22000 texture (its PNG header)",
+            Want::Fail(2),
+            r(&[&"render", &big_tex_scene, &"-o", &"big-tex.png"]),
+        )
+        .names(&["big.png", "22000×22000", "16384"])
+        .within(60.0),
+        Row::new(
+            "heatmap: output = the MTL's texture",
+            Want::Fail(2),
+            &[&"heatmap", &tex_obj, &"-o", &tex_png, &"--device", &"cpu"],
+        )
+        .names(&["tex.png"])
+        .unchanged(&[&tex_png]),
+        Row::new(
+            "build: output = the MTL's texture",
+            Want::Fail(2),
+            &[&"build", &tex_obj, &"--out", &tex_png],
+        )
+        .names(&["tex.png"])
+        .unchanged(&[&tex_png]),
+        Row::new(
+            "rays: output = the MTL's texture",
+            Want::Fail(2),
+            &[&"rays", &tex_obj, &"-o", &tex_png],
+        )
+        .names(&["tex.png"])
+        .unchanged(&[&tex_png]),
+        Row::new(
+            "trace: output = the MTL's texture",
+            Want::Fail(2),
+            &[
+                &"trace",
+                &tex_obj,
+                &"--rays",
+                &rays,
+                &"-o",
+                &tex_png,
+                &"--device",
+                &"cpu",
+            ],
+        )
+        .names(&["tex.png"])
+        .unchanged(&[&tex_png]),
+        Row::new(
+            "bench structures: --chart = the MTL's texture",
+            Want::Fail(2),
+            &[&"bench", &"structures", &tex_obj, &"--chart", &tex_png],
+        )
+        .names(&["tex.png"])
+        .unchanged(&[&tex_png]),
+        Row::new(
+            "bench structures: --json and --chart one file",
+            Want::Fail(2),
+            &[
+                &"bench",
+                &"structures",
+                &quad,
+                &"--json",
+                &"same.json",
+                &"--chart",
+                &"same.json",
+            ],
+        )
+        .names(&["same.json", "two outputs"])
+        .absent(&s.path("same.json"))
+        .within(30.0),
     ]);
 
     // The albedo row accepts either policy: refused with FILE:LINE, or clamped with a warning.

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 /// The top-level modules from the bottom of the house to the top.
 const ORDER: &[&str] = &[
-    "error", "util", "limits", "output", // leaves
+    "error", "util", "limits", "input", "output", // leaves
     "geometry", "mesh", "camera", "accel", "embree", "gpu", "device", "trace", "render",
     "accuracy", "bench",
 ];

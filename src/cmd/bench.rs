@@ -77,11 +77,10 @@ struct BenchTrace {
 
 impl BenchTrace {
     fn run(self) -> Result<()> {
-        let inputs = [self.mesh.clone()];
-        self.out
-            .check::<lancer::bench::trace::Report>(&inputs, None)?;
+        let mesh = load_mesh(&self.mesh)?;
+        (self.out).check::<lancer::bench::trace::Report>(&mesh.sources, None)?;
         let config = lancer::bench::trace::Config {
-            mesh: load_mesh(&self.mesh)?,
+            mesh,
             name: self.mesh.display().to_string(),
             width: self.width,
             height: self.height,
@@ -147,6 +146,31 @@ impl Outputs {
     /// Checks every output path before work starts: the JSON file, the report and its
     /// charts, and `chart`.
     pub fn check<R: BenchReport>(&self, inputs: &[PathBuf], chart: Option<&Path>) -> Result<()> {
+        // One file for two outputs would keep only the last written.
+        let json = match &self.json {
+            Some(JsonTo::File(p)) => Some(p.as_path()),
+            _ => None,
+        };
+        let pages = self
+            .report
+            .report
+            .iter()
+            .flat_map(|p| page::outputs::<R>(p));
+        let mut all: Vec<PathBuf> = json
+            .into_iter()
+            .chain(chart)
+            .map(Path::to_path_buf)
+            .collect();
+        all.extend(pages);
+        for (i, a) in all.iter().enumerate() {
+            if all[..i].contains(a) {
+                return Err(lancer::Error::Usage(format!(
+                    "{} is named for two outputs (--json, --chart, --report and its charts): \
+                     give each its own file",
+                    a.display()
+                )));
+            }
+        }
         self.json.as_ref().map_or(Ok(()), |j| j.check(inputs))?;
         if let Some(c) = chart {
             check_output(c, inputs)?;

@@ -48,10 +48,11 @@ pub struct BenchLayouts {
 impl BenchLayouts {
     pub fn run(self) -> Result<()> {
         let chart = self.chart.as_deref();
-        self.out
-            .check::<Report>(std::slice::from_ref(&self.mesh), chart)?;
+        // Loaded first: every file the mesh names (an MTL library, its textures) is an input.
+        let mesh = load_geometry(&self.mesh)?;
+        self.out.check::<Report>(&mesh.sources, chart)?;
         let config = Config {
-            mesh: load_geometry(&self.mesh)?,
+            mesh,
             name: self.mesh.display().to_string(),
             width: self.width,
             height: self.height,

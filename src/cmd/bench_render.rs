@@ -37,17 +37,15 @@ pub struct BenchRender {
 
 impl BenchRender {
     pub fn run(self) -> Result<()> {
-        self.out
-            .check::<Report>(std::slice::from_ref(&self.scene), None)?;
+        let size = ImageSize {
+            width: self.width,
+            height: self.height,
+            scale: None,
+        };
+        let scene = RenderScene::open(&self.scene, &size)?;
+        self.out.check::<Report>(&scene.mesh.sources, None)?;
         let config = Config {
-            scene: RenderScene::open(
-                &self.scene,
-                &ImageSize {
-                    width: self.width,
-                    height: self.height,
-                    scale: None,
-                },
-            )?,
+            scene,
             name: self.scene.display().to_string(),
             spp: self.spp,
             device: self.device,

@@ -46,9 +46,8 @@ pub struct BenchStructures {
 impl BenchStructures {
     pub fn run(self) -> Result<()> {
         let chart = self.chart.as_deref();
-        self.out
-            .check::<Report>(std::slice::from_ref(&self.mesh), chart)?;
         let (mesh, camera) = load(&self.mesh)?;
+        self.out.check::<Report>(&mesh.sources, chart)?;
         let config = Config {
             mesh,
             camera,

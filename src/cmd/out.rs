@@ -2,7 +2,7 @@
 //! (`-`), and the human summary to stdout, or to stderr when stdout carries data, so that
 //! `lancer … --json | jq` and `lancer rays … -o - | lancer trace … --rays -` see data only.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -77,17 +77,12 @@ pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
     lancer::output::check_output(out, inputs)
 }
 
-/// The bytes of a file, or of stdin for `-`.
+/// The bytes of a file, or of stdin for `-` (both bounded: [`lancer::input`]).
 pub fn read_input(path: &Path) -> Result<Vec<u8>> {
-    if !is_std(path) {
-        return std::fs::read(path).map_err(|e| Error::read(path, e));
+    match is_std(path) {
+        true => lancer::input::read_stream(Path::new("<stdin>"), std::io::stdin().lock()),
+        false => lancer::input::read(path),
     }
-    let mut bytes = Vec::new();
-    std::io::stdin()
-        .lock()
-        .read_to_end(&mut bytes)
-        .map_err(|e| Error::read(Path::new("<stdin>"), e))?;
-    Ok(bytes)
 }
 
 /// The rays of a ray file, or of stdin for `-` (named `<stdin>` in errors and warnings).

@@ -71,7 +71,7 @@ pub struct GltfScene {
 /// Loads a glTF 2.0 file's default scene (or its first; or every root node when it has no
 /// scene) as world-space triangles, without materials' textures decoded.
 pub fn load_gltf(path: &Path) -> Result<GltfScene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    let bytes = crate::input::read(path)?;
     let bad = |msg: String| Error::input(path, None, msg);
     let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(&bytes)
         .map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
@@ -202,9 +202,7 @@ fn read_uri(
             .map_err(|e| format!("its data URI is not valid base64 ({e})"));
     }
     let file = dir.join(percent_decode(uri));
-    let len = std::fs::metadata(&file)
-        .map_err(|e| format!("cannot read {}: {e}", file.display()))?
-        .len();
+    let len = crate::input::regular_file(&file).map_err(|e| e.to_string())?;
     if len < expect as u64 {
         return Err(format!(
             "{} is {len} bytes, shorter than the {expect} declared",
@@ -221,7 +219,7 @@ fn read_uri(
         return Err("names the glTF file itself as its buffer".into());
     }
     sources.push(file.clone());
-    std::fs::read(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))
+    crate::input::read(&file).map_err(|e| e.to_string())
 }
 
 /// `%20` and the like in relative URIs (glTF URIs are percent-encoded).

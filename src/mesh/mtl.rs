@@ -6,9 +6,8 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
-/// Checks the colour and scalar statements of an MTL file.
-pub(crate) fn check(path: &Path) -> Result<()> {
-    let text = Error::read_text(path)?;
+/// Checks the colour and scalar statements of an MTL file's text (read from `path`).
+pub(crate) fn check(path: &Path, text: &str) -> Result<()> {
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         let Some(key) = words.next() else { continue };

@@ -132,7 +132,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
 
 /// Loads an OBJ file with its texture coordinates and MTL materials.
 pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
-    let src = Error::read_text(path)?;
+    let src = crate::input::read_text(path)?;
     let scan = scan(path, &src)?;
     let opts = tobj::LoadOptions {
         single_index: false,
@@ -148,18 +148,20 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
     let loaded = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
         let file = dir.join(p);
         mtl_files.borrow_mut().push(file.clone());
-        match std::fs::metadata(&file) {
-            Ok(m) if m.is_file() => {
-                if let Err(e) = mtl::check(&file) {
-                    // Checked first: tobj panics on some malformed lines (a short colour).
-                    mtl_bad.borrow_mut().get_or_insert(e);
-                    return Err(tobj::LoadError::MaterialParseError);
-                }
+        // Read once, bounded (a device or a FIFO is refused, not read), and checked first:
+        // tobj panics on some malformed lines (a short colour).
+        let text = match crate::input::read_text(&file) {
+            Ok(text) => text,
+            Err(e) => {
+                *mtl_unread.borrow_mut() = Some(e.to_string());
+                return Err(tobj::LoadError::OpenFileFailed);
             }
-            Ok(_) => *mtl_unread.borrow_mut() = Some(format!("{}: not a file", file.display())),
-            Err(e) => *mtl_unread.borrow_mut() = Some(format!("{}: {e}", file.display())),
+        };
+        if let Err(e) = mtl::check(&file, &text) {
+            mtl_bad.borrow_mut().get_or_insert(e);
+            return Err(tobj::LoadError::MaterialParseError);
         }
-        tobj::load_mtl(&file)
+        tobj::load_mtl_buf(&mut text.as_bytes())
     });
     if let Some(e) = mtl_bad.into_inner() {
         return Err(e);
@@ -224,6 +226,18 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
     }
     let mut sources = vec![path.to_path_buf()];
     sources.extend(mtl_files.into_inner());
+    // The texture files the MTL libraries name are inputs too: no output may replace one.
+    for m in &materials {
+        let maps = [
+            &m.diffuse_texture,
+            &m.ambient_texture,
+            &m.specular_texture,
+            &m.normal_texture,
+            &m.shininess_texture,
+            &m.dissolve_texture,
+        ];
+        sources.extend(maps.into_iter().flatten().map(|t| dir.join(t)));
+    }
     Ok(ObjScene {
         mesh: Mesh {
             triangles,

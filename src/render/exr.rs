@@ -62,7 +62,7 @@ impl ExrImage {
     /// coordinates, a display window not at the origin, non-float channels.
     pub fn read(path: &Path) -> Result<ExrImage> {
         let bad = |msg: String| Error::input(path, None, msg);
-        let open = || std::fs::File::open(path).map_err(|e| Error::read(path, e));
+        let open = || crate::input::open(path).map(|(file, _)| file);
         // Sizes from the header first: a hostile header must not size an allocation.
         let meta = exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(open()?), false)
             .map_err(|e| bad(format!("not a readable OpenEXR image: {e}")))?;

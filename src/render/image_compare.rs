@@ -139,12 +139,18 @@ pub struct ImagesReport {
 /// by the extension.
 pub fn load_image(path: &Path) -> Result<Image> {
     let kind = image_kind(path)?;
-    let decoded = image::ImageReader::open(path)
-        .map_err(|e| Error::read(path, e))?
-        .with_guessed_format()
-        .map_err(|e| Error::read(path, e))?
-        .decode()
-        .map_err(|e| Error::input(path, None, format!("not a readable image: {e}")))?;
+    let bytes = crate::input::read(path)?;
+    let bad = |e: image::ImageError| Error::input(path, None, format!("not a readable image: {e}"));
+    let reader = || {
+        image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
+            .with_guessed_format()
+            .map_err(|e| Error::read(path, e))
+    };
+    // The size from the header first: the decoded image (at most 16 bytes a pixel) and
+    // its f32 copy must fit before anything is decoded.
+    let (w, h) = reader()?.into_dimensions().map_err(bad)?;
+    crate::limits::check_image(w, h, 16 + 12, "not an image this machine can compare")?;
+    let decoded = reader()?.decode().map_err(bad)?;
     let rgb = decoded.to_rgb32f();
     let linear = |c: f32| match kind {
         ImageKind::Exr => c,

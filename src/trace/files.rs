@@ -10,7 +10,7 @@ const RAY_BYTES: usize = std::mem::size_of::<Ray>();
 
 /// Reads a ray file (32 little-endian bytes a ray); refuses a size not a multiple of 32.
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    let bytes = crate::input::read(path)?;
     decode_rays(path, &bytes)
 }
 
@@ -95,7 +95,7 @@ pub fn encode_hits(hits: &[Hit]) -> Vec<u8> {
 
 /// Reads a hit file (16 little-endian bytes a hit); refuses a size not a multiple of 16.
 pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::read(path, e))?;
+    let bytes = crate::input::read(path)?;
     if bytes.len() % 16 != 0 {
         return Err(Error::input(
             path,

@@ -133,23 +133,41 @@ fn srgb_to_linear(c: u8) -> f32 {
 }
 
 fn load_texture(path: &Path) -> Result<Texture> {
-    let img = image::open(path)
-        .map_err(|e| Error::input(path, None, format!("cannot read texture: {e}")))?;
-    Ok(decode_texture(img))
+    let bytes = crate::input::read(path)?;
+    decode_texture(&bytes)
+        .map_err(|e| Error::input(path, None, format!("cannot read texture: {e}")))
 }
 
-/// A decoded sRGB image as a linear texture.
-pub(super) fn decode_texture(img: image::DynamicImage) -> Texture {
-    let img = img.to_rgb8();
+/// An image file's bytes (PNG, JPEG, … by their content) decoded as a linear texture from
+/// sRGB. Its size is read from its header and checked first — at most
+/// [`MAX_TEXTURE_SIDE`](crate::limits::MAX_TEXTURE_SIDE) a side, and the memory decoding
+/// takes (the decoded image, its RGB8 copy, the f32 texels) — so nothing is decoded that
+/// would not fit.
+pub(super) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, String> {
+    let reader = || {
+        image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())
+    };
+    let (width, height) = reader()?.into_dimensions().map_err(|e| e.to_string())?;
+    let side = crate::limits::MAX_TEXTURE_SIDE;
+    if width > side || height > side {
+        return Err(format!(
+            "a {width}×{height} texture is larger than {side} a side: scale it down"
+        ));
+    }
+    crate::limits::check_image(width, height, 16 + 3 + 12, "scale the texture down")
+        .map_err(|e| e.to_string())?;
+    let img = reader()?.decode().map_err(|e| e.to_string())?.to_rgb8();
     let lut: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
-    Texture {
+    Ok(Texture {
         width: img.width(),
         height: img.height(),
         texels: img
             .pixels()
             .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
             .collect(),
-    }
+    })
 }
 
 /// Accumulates objects into one mesh.
@@ -400,7 +418,7 @@ impl RenderScene {
 impl RenderScene {
     /// Reads a TOML scene file and everything it names.
     pub fn from_file(path: &Path) -> Result<RenderScene> {
-        let src = Error::read_text(path)?;
+        let src = crate::input::read_text(path)?;
         let f = SceneFile::parse(path, &src)?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let line = |span: std::ops::Range<usize>| line_of(&src, span.start);

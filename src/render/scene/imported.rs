@@ -130,10 +130,12 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
         let key = PathBuf::from(format!("{}#image{index}*{base}", path.display()));
         let texture = b.texture_with(key, || {
             let decoded = match image {
-                GltfImage::Bytes(bytes) => image::load_from_memory(bytes),
-                GltfImage::File(f) => image::open(f),
+                GltfImage::Bytes(bytes) => decode_texture(bytes),
+                GltfImage::File(f) => crate::input::read(f)
+                    .map_err(|e| e.to_string())
+                    .and_then(|bytes| decode_texture(&bytes)),
             };
-            let decoded = decoded.map_err(|e| {
+            let mut t = decoded.map_err(|e| {
                 Error::input(
                     path,
                     None,
@@ -143,7 +145,6 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
                     ),
                 )
             })?;
-            let mut t = decode_texture(decoded);
             for x in &mut t.texels {
                 *x *= base;
             }

@@ -230,8 +230,7 @@ fn refuse_big_endian() -> Result<()> {
 /// available) before the payload is read, then everything [`decode`] checks.
 pub fn read(path: &Path) -> Result<BvhFile> {
     let bad = |msg: String| Error::input(path, None, msg);
-    let mut file = std::fs::File::open(path).map_err(|e| Error::read(path, e))?;
-    let len = file.metadata().map_err(|e| Error::read(path, e))?.len();
+    let (mut file, len) = crate::input::open(path)?;
     let mut head = [0u8; HEADER_BYTES];
     if len < HEADER_BYTES as u64 {
         return Err(bad(truncated(len, HEADER_BYTES as u64)));
@@ -248,7 +247,8 @@ pub fn read(path: &Path) -> Result<BvhFile> {
     )?;
     let mut bytes = Vec::with_capacity(len as usize);
     bytes.extend_from_slice(&head);
-    file.read_to_end(&mut bytes)
+    (file.take(len - HEADER_BYTES as u64))
+        .read_to_end(&mut bytes)
         .map_err(|e| Error::read(path, e))?;
     decode(path, &bytes)
 }
