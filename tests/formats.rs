@@ -660,8 +660,46 @@ fn malformed_gltf_is_refused_with_the_reason() {
         "cycle.glb",
         &|d| d["nodes"] = json!([{ "mesh": 0, "children": [1] }, { "children": [0] }]),
         None,
-        "reached twice",
+        "the nodes 0 → 1 → 0 form a cycle",
     );
+    // A cycle the scene does not reach is named too (it was "no usable triangle").
+    case(
+        "unreached-cycle.glb",
+        &|d| d["nodes"] = json!([{ "mesh": 0 }, { "children": [2] }, { "children": [1] }]),
+        None,
+        "the nodes 1 → 2 → 1 form a cycle",
+    );
+    case(
+        "version-3.glb",
+        &|d| d["asset"]["version"] = json!("3.0"),
+        None,
+        "asset.version \"3.0\"",
+    );
+    case(
+        "position-5.glb",
+        &|d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(5),
+        None,
+        "POSITION: index 5, but there are 2 accessors",
+    );
+    case(
+        "image-without-mime.glb",
+        &|d| d["images"] = json!([{ "bufferView": 1 }]),
+        None,
+        "needs a mimeType",
+    );
+    case(
+        "image-empty.glb",
+        &|d| d["images"] = json!([{}]),
+        None,
+        "neither uri nor bufferView",
+    );
+    // A GLB whose header gives a length other than the file's.
+    let (doc, bin) = base_gltf();
+    let mut glb = writers::glb(&doc, Some(&bin));
+    glb[8..12].copy_from_slice(&12u32.to_le_bytes());
+    let p = dir.path().join("glb-length.glb");
+    std::fs::write(&p, glb).unwrap();
+    refused(&p, "the GLB header gives a length of 12 bytes");
     case(
         "parents.glb",
         &|d| {

@@ -956,6 +956,160 @@ fn ply_and_gltf_readers_survive_mutated_and_random_files() {
     );
 }
 
+/// A glTF document with a reference of every kind the crate follows: the sample mesh's
+/// accessors, views and buffer (a data URI), a material with a base-colour texture, its
+/// sampler and image (a data-URI PNG), a camera, a node tree, a scene.
+fn rich_gltf() -> serde_json::Value {
+    use common::writers::{self, Indexed};
+    let m = Indexed {
+        verts: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.5],
+            [0.0, 1.0, 0.5],
+        ],
+        faces: vec![vec![0, 1, 2, 3]],
+    };
+    let bin = writers::gltf_buffer(&m);
+    let mut doc = writers::gltf_json(&m, Some(writers::data_uri(&bin)));
+    let mut png = Vec::new();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([200, 100, 50]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let png_uri = writers::data_uri(&png).replace("application/octet-stream", "image/png");
+    doc["images"] = serde_json::json!([{ "uri": png_uri }]);
+    doc["samplers"] = serde_json::json!([{}]);
+    doc["textures"] = serde_json::json!([{ "source": 0, "sampler": 0 }]);
+    doc["materials"] =
+        serde_json::json!([{ "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } } }]);
+    doc["meshes"][0]["primitives"][0]["material"] = serde_json::json!(0);
+    doc["cameras"] = serde_json::json!([{ "type": "perspective",
+        "perspective": { "yfov": 0.8, "znear": 0.1 } }]);
+    doc["nodes"] = serde_json::json!([{ "children": [1] }, { "mesh": 0, "camera": 0 }]);
+    doc
+}
+
+/// The JSON pointers of every value in `v` (the root included).
+fn pointers(v: &serde_json::Value, at: String, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Object(o) => o
+            .iter()
+            .for_each(|(k, x)| pointers(x, format!("{at}/{k}"), out)),
+        serde_json::Value::Array(a) => {
+            (a.iter().enumerate()).for_each(|(i, x)| pointers(x, format!("{at}/{i}"), out))
+        }
+        _ => {}
+    }
+    out.push(at);
+}
+
+/// Keys the crate follows as references, inserted by the structure-aware mutations.
+const REFERENCE_KEYS: [&str; 14] = [
+    "bufferView",
+    "buffer",
+    "mimeType",
+    "uri",
+    "children",
+    "mesh",
+    "camera",
+    "skin",
+    "sampler",
+    "source",
+    "index",
+    "material",
+    "indices",
+    "scene",
+];
+
+/// One structure-aware change to a glTF document: (kind, where, what).
+fn apply_json(doc: &mut serde_json::Value, (kind, at, what): (u8, usize, u64)) {
+    use serde_json::{json, Value};
+    let mut all = Vec::new();
+    pointers(doc, String::new(), &mut all);
+    let target = all[at % all.len()].clone();
+    let Some(v) = doc.pointer_mut(&target) else {
+        return;
+    };
+    let index = [0, 1, 2, 5, 255, u32::MAX as u64, u64::MAX][what as usize % 7];
+    match kind % 5 {
+        // An index moved, in range or far out.
+        0 => *v = json!(index),
+        // A value of the wrong kind.
+        1 => {
+            *v = [
+                json!({}),
+                json!([]),
+                json!("x"),
+                json!(-1),
+                json!(0.5),
+                Value::Null,
+            ][what as usize % 6]
+                .clone()
+        }
+        // A key removed.
+        2 => {
+            if let Some(o) = v.as_object_mut() {
+                if let Some(k) = o.keys().nth(what as usize % o.len().max(1)).cloned() {
+                    o.remove(&k);
+                }
+            }
+        }
+        // A reference key added (or replaced) with an index.
+        3 => {
+            if let Some(o) = v.as_object_mut() {
+                o.insert(
+                    REFERENCE_KEYS[what as usize % REFERENCE_KEYS.len()].into(),
+                    json!(index % 8),
+                );
+            }
+        }
+        // An array element duplicated (cycles in children, repeated nodes).
+        _ => {
+            if let Some(a) = v.as_array_mut() {
+                if let Some(x) = a.get(what as usize % a.len().max(1)).cloned() {
+                    a.push(x);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_gltf_reader_survives_structure_aware_mutations() {
+    let base = rich_gltf();
+    let dir = scratch();
+    let case = |name: &str, bytes: Vec<u8>| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes).unwrap();
+        let files = vec![(name.to_string(), bytes)];
+        mesh_readers(name, &path, &files)?;
+        guarded(
+            &format!("{name}: RenderScene::from_mesh"),
+            &files,
+            move || outcome(RenderScene::from_mesh(&path, 4, 4)),
+        )?;
+        Ok(())
+    };
+    // The unmutated document loads: the mutations start from a working file.
+    let path = dir.path().join("rich.gltf");
+    std::fs::write(&path, serde_json::to_vec(&base).unwrap()).unwrap();
+    RenderScene::from_mesh(&path, 4, 4).expect("the base document loads");
+    let changes = proptest::collection::vec((any::<u8>(), any::<usize>(), any::<u64>()), 1..5);
+    run_property(
+        "glTF (structure-aware)",
+        400,
+        (changes, any::<bool>()),
+        |(changes, glb)| {
+            let mut doc = base.clone();
+            changes.into_iter().for_each(|c| apply_json(&mut doc, c));
+            match glb {
+                true => case("case.glb", common::writers::glb(&doc, None)),
+                false => case("case.gltf", serde_json::to_vec(&doc).unwrap()),
+            }
+        },
+    );
+}
+
 /// The OBJ folder: the fuzzed case.obj beside the MTL the corpus names.
 fn obj_dir() -> tempfile::TempDir {
     let dir = scratch();

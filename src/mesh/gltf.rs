@@ -73,6 +73,9 @@ pub struct GltfScene {
 pub fn load_gltf(path: &Path) -> Result<GltfScene> {
     let bytes = crate::input::read(path)?;
     let bad = |msg: String| Error::input(path, None, msg);
+    // Checked first: the crate panics on some references out of range.
+    let json = super::gltf_check::json_of(&bytes).map_err(bad)?;
+    super::gltf_check::check(json).map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
     let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(&bytes)
         .map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
     drop(bytes);

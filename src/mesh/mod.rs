@@ -4,6 +4,7 @@
 
 mod format;
 mod gltf;
+mod gltf_check;
 mod indexed;
 mod load;
 mod mtl;
