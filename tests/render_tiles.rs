@@ -198,7 +198,7 @@ fn the_command_line_renders_and_merges_tiles() {
     let out = s(&merged);
     refused(
         &["merge", t0, t1, t2, "-o", out],
-        "no tile covers pixel (17, 11)",
+        "no tile covers pixel (17, 11), the tiles cover",
     );
     refused(&["merge", t0, t1, t2, t3, t0, "-o", out], "overlaps");
     refused(&["merge", t0, t1, t2, t3, "-o", t2], "is an input");
@@ -220,6 +220,16 @@ fn the_command_line_renders_and_merges_tiles() {
     refused(
         &["merge", t0, t1, t2, s(&extra_path), "-o", out],
         "has channels [B, G, R, depth.Z]",
+    );
+    // A small tile of a huge image: refused from the headers, before the 30001² image is
+    // allocated (14 GB).
+    let mut huge = ExrImage::read(&tiles[0]).unwrap();
+    (huge.tile.full_width, huge.tile.full_height) = (30_001, 30_001);
+    let huge_path = dir.path().join("huge.exr");
+    huge.write(&huge_path).unwrap();
+    refused(
+        &["merge", s(&huge_path), "-o", out],
+        "no tile covers pixel (17, 0), the tiles cover 187 of the 30001×30001 image's 900060001 pixels",
     );
     let junk = dir.path().join("junk.exr");
     std::fs::write(&junk, b"not an exr").unwrap();

@@ -20,25 +20,15 @@ pub fn merge_tiles(tiles: &[(PathBuf, ExrImage)]) -> Result<ExrImage> {
     };
     let (w, h) = (first.tile.full_width, first.tile.full_height);
     let names: Vec<&str> = first.channels.iter().map(|c| c.0.as_str()).collect();
-    // The owner map and the output channels.
-    crate::limits::check_image(
-        w,
-        h,
-        4 + 4 * names.len() as u64,
-        "the tiles' full image is too large to merge here",
-    )?;
-    let pixels = w as usize * h as usize;
     if tiles.len() > NONE as usize {
         return Err(Error::Usage(format!(
             "merge: {} tiles is too many",
             tiles.len()
         )));
     }
-    let mut owner = vec![NONE; pixels];
-    let mut out: Vec<(String, Vec<f32>)> = (names.iter())
-        .map(|n| (n.to_string(), vec![0.0; pixels]))
-        .collect();
-    for (k, (path, t)) in tiles.iter().enumerate() {
+    // Everything the tiles' headers and sizes tell, before the full image is allocated.
+    let mut covered: u64 = 0;
+    for (path, t) in tiles {
         let bad = |msg: String| Error::input(path, None, msg);
         if (t.tile.full_width, t.tile.full_height) != (w, h) {
             return Err(bad(format!(
@@ -73,14 +63,46 @@ pub fn merge_tiles(tiles: &[(PathBuf, ExrImage)]) -> Result<ExrImage> {
                 )));
             }
         }
+        covered += b.pixels() as u64;
+    }
+    // Tiles inside the image that do not overlap cover it exactly when their pixels add up
+    // to its own: fewer means a tile is missing, found here without the full image.
+    let full = w as u64 * h as u64;
+    if covered < full {
+        let at = uncovered(tiles)
+            .map(|(x, y)| format!("no tile covers pixel ({x}, {y}), "))
+            .unwrap_or_default();
+        return Err(Error::Usage(format!(
+            "merge: {at}the tiles cover {covered} of the {w}×{h} image's {full} pixels: a tile \
+             is missing"
+        )));
+    }
+    // The owner map and the output channels.
+    crate::limits::check_image(
+        w,
+        h,
+        4 + 4 * names.len() as u64,
+        "the tiles' full image is too large to merge here",
+    )?;
+    let pixels = w as usize * h as usize;
+    let mut owner = vec![NONE; pixels];
+    let mut out: Vec<(String, Vec<f32>)> = (names.iter())
+        .map(|n| (n.to_string(), vec![0.0; pixels]))
+        .collect();
+    for (k, (path, t)) in tiles.iter().enumerate() {
+        let b = t.tile.bounds;
         for i in 0..b.pixels() {
             let (x, y) = b.pixel(i);
             let at = y as usize * w as usize + x as usize;
             if owner[at] != NONE {
-                return Err(bad(format!(
-                    "overlaps {} at pixel ({x}, {y}): give tiles that do not overlap",
-                    tiles[owner[at] as usize].0.display()
-                )));
+                return Err(Error::input(
+                    path,
+                    None,
+                    format!(
+                        "overlaps {} at pixel ({x}, {y}): give tiles that do not overlap",
+                        tiles[owner[at] as usize].0.display()
+                    ),
+                ));
             }
             owner[at] = k as u32;
             for (o, (_, values)) in out.iter_mut().zip(&t.channels) {
@@ -101,5 +123,38 @@ pub fn merge_tiles(tiles: &[(PathBuf, ExrImage)]) -> Result<ExrImage> {
             full_height: h,
         },
         channels: out,
+    })
+}
+
+/// The first pixel (by row, then column) no tile covers, found from the tiles' rectangles
+/// alone: it lies at column 0 or just right of a tile, and at row 0 or just below one. None
+/// when every pixel is covered, or for more tiles than this search is quick for.
+fn uncovered(tiles: &[(PathBuf, ExrImage)]) -> Option<(u32, u32)> {
+    if tiles.len() > 256 {
+        return None;
+    }
+    let (w, h) = tiles
+        .first()
+        .map(|(_, t)| (t.tile.full_width, t.tile.full_height))?;
+    let bounds: Vec<Crop> = tiles.iter().map(|(_, t)| t.tile.bounds).collect();
+    let mut xs: Vec<u32> = bounds
+        .iter()
+        .map(|b| b.x1)
+        .chain([0])
+        .filter(|&x| x < w)
+        .collect();
+    let mut ys: Vec<u32> = bounds
+        .iter()
+        .map(|b| b.y1)
+        .chain([0])
+        .filter(|&y| y < h)
+        .collect();
+    xs.sort_unstable();
+    ys.sort_unstable();
+    let inside = |b: &Crop, x: u32, y: u32| (b.x0..b.x1).contains(&x) && (b.y0..b.y1).contains(&y);
+    ys.iter().find_map(|&y| {
+        xs.iter()
+            .find(|&&x| !bounds.iter().any(|b| inside(b, x, y)))
+            .map(|&x| (x, y))
     })
 }
