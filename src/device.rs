@@ -72,6 +72,8 @@ impl Device {
         match opened {
             Ok(ctx) => Ok(Device::gpu(ctx)),
             Err(e) if std::env::var_os("WGPU_ADAPTER_NAME").is_some() => Err(e),
+            // A bad WGPU_BACKEND or WGPU_POWER_PREF is the user's to fix, under auto too.
+            Err(e @ crate::Error::Usage(_)) => Err(e),
             Err(e) => {
                 log::info!("no GPU: {e}");
                 Ok(Device {

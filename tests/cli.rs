@@ -763,6 +763,37 @@ fn adapters_lists_lavapipe_and_an_unmatched_adapter_name_is_an_error_with_auto_t
     assert!(!hits.exists());
 }
 
+#[test]
+fn bad_wgpu_environment_is_refused_under_auto_too() {
+    // A misspelt WGPU_BACKEND or WGPU_POWER_PREF is the user's to fix: exit 2 naming it,
+    // not a fallback to the CPU (exit 0) nor a silently ignored setting.
+    let d = Scratch::new();
+    let quad = d.quad();
+    let rays = d.path("r.bin");
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "-o",
+        s(&rays),
+    ]);
+    for (var, value) in [("WGPU_BACKEND", "vulkn"), ("WGPU_POWER_PREF", "weird")] {
+        let hits = d.path("h.bin");
+        let out = Command::new(env!("CARGO_BIN_EXE_lancer"))
+            .args(["trace", s(&quad), "--rays", s(&rays), "--out", s(&hits)])
+            .env(var, value)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{var}={value}: {err}");
+        assert!(err.contains(&format!("{var}={value}")), "{err}");
+        assert!(!hits.exists());
+    }
+}
+
 /// `trace --stats --json` on `quad` with `args` before and after the subcommand and
 /// `env`: the JSON object and stderr.
 fn trace_json(

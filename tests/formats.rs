@@ -606,6 +606,32 @@ fn malformed_ply_headers_are_refused_with_the_reason() {
         b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar float vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
     );
     refused(&float_idx, "PLY parse error");
+    // What ply-rs read past without a word: a property twice (the columns shifted), a value
+    // too many on an ASCII line, a list counted by floats (refused only in binary before).
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    let twice = w("twice.ply", ascii.replace("float y", "float x").as_bytes());
+    refused(
+        &twice,
+        "twice.ply:5: the 'vertex' element names property 'x' twice",
+    );
+    let extra = w(
+        "extra.ply",
+        format!("{ascii}0 0 0\n1 0 0 5\n0 1 0\n3 0 1 2\n").as_bytes(),
+    );
+    refused(
+        &extra,
+        "extra.ply:11: 1 more values than the 'vertex' element",
+    );
+    for format in ["ascii", "binary_little_endian"] {
+        let text = ascii
+            .replace("ascii", format)
+            .replace("list uchar", "list float");
+        let counted = w("floatcount.ply", text.as_bytes());
+        refused(
+            &counted,
+            "floatcount.ply:8: list vertex_indices: its count is a float",
+        );
+    }
     let garbage = w("garbage.ply", b"solid ascii stl\nfacet normal 0 0 1\n");
     refused(&garbage, "PLY parse error");
     let bad_number = w(

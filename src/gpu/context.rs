@@ -336,13 +336,11 @@ fn report_of(info: &wgpu::AdapterInfo) -> AdapterReport {
     }
 }
 
-/// Refuses a `WGPU_BACKEND` naming no backend wgpu knows (wgpu would only log it and find
-/// no adapter).
 /// The wgpu instance every adapter comes from: `WGPU_BACKEND` honoured, else the primary
 /// APIs only (the GL backend probes window systems and prints noise on headless machines;
 /// `WGPU_BACKEND=gl` still selects it).
 pub(crate) fn instance() -> Result<wgpu::Instance> {
-    check_backend_variable()?;
+    check_environment()?;
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
     if std::env::var_os("WGPU_BACKEND").is_none() {
         desc.backends = wgpu::Backends::PRIMARY;
@@ -350,7 +348,16 @@ pub(crate) fn instance() -> Result<wgpu::Instance> {
     Ok(wgpu::Instance::new(desc))
 }
 
-fn check_backend_variable() -> Result<()> {
+/// Refuses a `WGPU_BACKEND` naming no backend wgpu knows (wgpu would only log it and find
+/// no adapter), and a `WGPU_POWER_PREF` other than low, high or none (wgpu would ignore it).
+fn check_environment() -> Result<()> {
+    if let Ok(pref) = std::env::var("WGPU_POWER_PREF") {
+        if !["low", "high", "none"].contains(&pref.to_lowercase().as_str()) {
+            return Err(Error::Usage(format!(
+                "WGPU_POWER_PREF={pref}: use low, high or none, or unset it"
+            )));
+        }
+    }
     let Ok(value) = std::env::var("WGPU_BACKEND") else {
         return Ok(());
     };

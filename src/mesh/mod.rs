@@ -10,6 +10,7 @@ mod load;
 mod mtl;
 mod obj;
 mod ply;
+mod ply_layout;
 
 pub use format::{FileKind, KNOWN_EXTENSIONS};
 pub use gltf::{load_gltf, GltfImage, GltfMaterial, GltfScene};

@@ -148,6 +148,8 @@ fn check_element(path: &Path, e: &ElementDef) -> Result<()> {
 /// Loads every triangle of a PLY file in file order (polygons fan-triangulated).
 pub fn load_ply(path: &Path) -> Result<Mesh> {
     let (file, _) = crate::input::open(path)?;
+    super::ply_layout::check(path, BufReader::new(file))?;
+    let (file, _) = crate::input::open(path)?;
     let mut reader = Reader::new(BufReader::new(file));
     let header = Parser::<Skip>::new()
         .read_header(&mut reader)
