@@ -84,7 +84,6 @@ pub fn check(path: &Path, mut reader: impl BufRead) -> Result<()> {
             _ => {}
         }
     }
-    drop(header);
     if !ascii {
         return Ok(());
     }
