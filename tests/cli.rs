@@ -1354,3 +1354,71 @@ fn every_subcommand_has_help_and_every_option_says_what_it_does() {
         }
     }
 }
+
+#[test]
+fn compare_counts_nan_and_infinite_pixels_by_their_bits() {
+    use lancer::render::{Crop, ExrImage, Tile};
+    let d = Scratch::new();
+    let exr = |name: &str, r: f32| {
+        let (w, h) = (4u32, 3u32);
+        let n = (w * h) as usize;
+        let img = ExrImage {
+            tile: Tile {
+                bounds: Crop::full(w, h),
+                full_width: w,
+                full_height: h,
+            },
+            channels: vec![
+                ("B".into(), vec![0.25; n]),
+                ("G".into(), vec![0.5; n]),
+                ("R".into(), vec![r; n]),
+            ],
+        };
+        let p = d.path(name);
+        img.write(&p).unwrap();
+        p
+    };
+    let (clean, nan, inf) = (
+        exr("clean.exr", 0.5),
+        exr("nan.exr", f32::NAN),
+        exr("inf.exr", f32::INFINITY),
+    );
+    // NaN everywhere in R is no match for a clean image (the max over channels dropped it).
+    let out = lancer(&["compare", s(&clean), s(&nan)]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("12 pixels"), "{text}");
+    // +∞ against itself is bit-identical (it was "100 % over").
+    let out = lancer(&["compare", s(&inf), s(&inf)]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(text.contains("bit-identical"), "{text}");
+    assert_eq!(
+        lancer(&["compare", s(&inf), s(&clean)]).status.code(),
+        Some(1)
+    );
+}
+
+#[test]
+fn a_closed_stdout_ends_quietly_not_in_a_panic() {
+    // `lancer build … | true`: the reader is gone before lancer prints.
+    let d = Scratch::new();
+    let quad = d.quad();
+    for args in [vec!["build", s(&quad)], vec!["adapters"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_lancer"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            matches!(out.status.code(), Some(0 | 1)),
+            "{args:?}: {:?} {err}",
+            out.status
+        );
+    }
+}

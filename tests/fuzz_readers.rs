@@ -1110,6 +1110,93 @@ fn the_gltf_reader_survives_structure_aware_mutations() {
     );
 }
 
+/// The regression cases of the coverage-guided fuzz targets (scripts/fuzz.sh keeps each
+/// crash it finds in tests/fuzz-regressions/TARGET/), with the crashes reported before the
+/// fuzz targets existed: each fed to its target's reader ([`common::readers::run`], the
+/// targets' own entry point) must return.
+#[test]
+fn fuzz_regressions_stay_fixed() {
+    let root = repo("tests/fuzz-regressions");
+    let mut cases = 0;
+    for target in common::readers::TARGETS {
+        let Ok(entries) = std::fs::read_dir(root.join(target)) else {
+            continue;
+        };
+        let mut paths: Vec<PathBuf> = entries.map(|e| e.unwrap().path()).collect();
+        paths.sort();
+        for path in paths {
+            let bytes = std::fs::read(&path).unwrap();
+            let name = format!("{target}/{}", path.file_name().unwrap().to_string_lossy());
+            let files = vec![(name.clone(), bytes.clone())];
+            if let Err(e) = guarded(&name, &files, move || common::readers::run(target, &bytes)) {
+                panic!("{e}");
+            }
+            cases += 1;
+        }
+    }
+    assert!(cases > 0, "no regression case in {}", root.display());
+}
+
+/// Writes the fuzz targets' seed corpus into `$LANCER_FUZZ_SEEDS/TARGET/` (scripts/fuzz.sh
+/// runs it): the repository's scenes and OBJ/MTL, and PLY, glTF, GLB, EXR, BVH, ray and hit
+/// files made here.
+#[test]
+#[ignore = "scripts/fuzz.sh writes the fuzz seeds with it"]
+fn write_fuzz_seeds() {
+    let Some(out) = std::env::var_os("LANCER_FUZZ_SEEDS").map(PathBuf::from) else {
+        panic!("set LANCER_FUZZ_SEEDS to the corpus folder");
+    };
+    let put = |target: &str, name: &str, bytes: &[u8]| {
+        let d = out.join(target);
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join(name), bytes).unwrap();
+    };
+    for (target, ext) in [("scene", "toml"), ("obj", "obj"), ("mtl", "mtl")] {
+        for (name, bytes) in scene_files(ext) {
+            put(target, &name, &bytes);
+        }
+    }
+    for (k, (name, bytes)) in ply_gltf_corpus().into_iter().enumerate() {
+        let target = name.rsplit('.').next().unwrap().to_string();
+        put(&target, &format!("{k}-{name}"), &bytes);
+    }
+    put(
+        "gltf",
+        "rich.gltf",
+        &serde_json::to_vec(&rich_gltf()).unwrap(),
+    );
+    let dir = scratch();
+    let mesh = load_obj(&repo("scenes/cornell-box.obj")).unwrap();
+    let rays = Camera::default_view(&mesh.bounds(), 8, 8).primary_rays();
+    put("rays", "view.rays", bytemuck::cast_slice(&rays));
+    let cpu = Device::cpu();
+    let mut tracer = Tracer::new(&cpu, &mesh, &TracerOptions::default()).unwrap();
+    let hits = tracer.trace(&rays, Query::Closest).unwrap().hits;
+    put(
+        "hits",
+        "view.hits",
+        &lancer::trace::files::encode_hits(&hits),
+    );
+    for &kind in lancer::LayoutKind::ALL {
+        let bvh = lancer::accel::bvh::build(&mesh, &Default::default());
+        let layout = lancer::accel::bvh::layouts::flatten(kind, &bvh, &mesh);
+        let p = dir.path().join("seed.bvh");
+        lancer::accel::bvh::layouts::bvh_file::write(&p, layout.as_ref(), mesh.len()).unwrap();
+        put("bvh", &format!("{kind}.bvh"), &std::fs::read(&p).unwrap());
+    }
+    let scene = RenderScene::from_file(&repo("scenes/cornell.toml")).unwrap();
+    let options = RenderOptions {
+        spp: Some(1),
+        ..RenderOptions::default()
+    };
+    let mut scene = scene;
+    (scene.camera.width, scene.camera.height) = (8, 6);
+    let done = lancer::render::render(&scene, &cpu, &options).unwrap();
+    let p = dir.path().join("seed.exr");
+    done.image.to_exr().write(&p).unwrap();
+    put("exr", "cornell.exr", &std::fs::read(&p).unwrap());
+}
+
 /// The OBJ folder: the fuzzed case.obj beside the MTL the corpus names.
 fn obj_dir() -> tempfile::TempDir {
     let dir = scratch();

@@ -4,6 +4,7 @@
 pub mod accel_check;
 pub mod gpu_twin;
 pub mod hard;
+pub mod readers;
 pub mod writers;
 
 use std::path::PathBuf;
