@@ -59,9 +59,12 @@ pub trait GpuForm: Accel {
         Vec::new()
     }
 
-    /// Checks every invariant the traversal relies on (indices in range, depth within the
-    /// stack). Run before trusted (unchecked) shader modules see the arrays; the error
-    /// names the first bad node.
+    /// Checks every invariant the traversal relies on: structure (indices in range, depth
+    /// within the stack, every node reached once) and, for the BVH layouts, geometry
+    /// (every box holds every triangle vertex below it, exactly in f32 on the boxes as the
+    /// traversal reads them; the leaves refer to every triangle record once), so that the
+    /// arrays trace right answers, not only safely. Run before trusted (unchecked) shader
+    /// modules see the arrays; the error names the first bad node.
     fn validate(&self) -> Result<(), String>;
 
     /// Bytes of one node record: what a traversal loads per node it counts in

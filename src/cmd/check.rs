@@ -109,7 +109,8 @@ impl CheckCmd {
         }
         if report.disagree > 0 {
             return Err(Error::Differ(format!(
-                "{} answers disagree between the GPU and the CPU twin (listed above)",
+                "{} answers disagree (the GPU with the CPU twin, or a BVH file's with the f64 \
+                 oracle; listed above)",
                 report.disagree
             )));
         }

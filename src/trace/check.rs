@@ -2,6 +2,11 @@
 //! CPU twin and its GPU kernel (in each traversal mode), and on the driver's own traversal
 //! where the adapter has ray queries; per layout, mode, ray set and query, how many answers
 //! are identical, agree, are genuine ties (named by the f64 oracle) or disagree.
+//!
+//! A BVH file's answers are judged too ([`ORACLE_MODE`] rows): a twin and a kernel that
+//! read the same wrong arrays agree with each other, so the file's CPU-twin answers are
+//! compared with those of a tree built here from the mesh, and every difference is judged
+//! by the f64 oracle; an answer it finds wrong is a disagreement.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -23,6 +28,10 @@ use crate::mesh::Mesh;
 
 /// Disagreements a row keeps for its report (the first ones).
 pub const KEPT_DISAGREEMENTS: usize = 3;
+
+/// The mode of the rows that judge a BVH file's answers: its CPU twin's answers against a
+/// tree built here from the mesh, the differences judged by the f64 oracle.
+pub const ORACLE_MODE: &str = "oracle";
 
 /// The rays a check traces.
 #[derive(Clone, Debug)]
@@ -56,7 +65,8 @@ pub struct CheckConfig {
     pub mode: Option<TraversalMode>,
     /// How the tree is built before each layout is flattened.
     pub build: BuildOptions,
-    /// A BVH file (built from the mesh) to check instead of building one.
+    /// A BVH file (built from the mesh) to check instead of building one; its answers are
+    /// also judged by the f64 oracle ([`ORACLE_MODE`] rows).
     pub bvh: Option<BvhFile>,
     /// Where the GPU kernels read the BVH from.
     pub memory: BvhMemory,
@@ -104,7 +114,8 @@ pub struct CheckReport {
 pub struct CheckRow {
     /// `--layout` name ("driver" for the driver's own traversal).
     pub layout: &'static str,
-    /// Traversal mode ("ray-query" for the driver's).
+    /// Traversal mode ("ray-query" for the driver's; [`ORACLE_MODE`] for a BVH file's
+    /// answers against a tree built here, judged by the oracle).
     pub mode: &'static str,
     /// primary, shadow, bounce, or the ray file.
     pub rays: String,
@@ -198,17 +209,18 @@ impl CheckRow {
     }
 
     /// One line for each of the first disagreements: the ray, the CPU twin's answer and the
-    /// other side's (the GPU's, or the driver's), and what the oracle found wrong.
+    /// other side's (the GPU's, or the driver's), and what the oracle found wrong; on an
+    /// [`ORACLE_MODE`] row, the answer of the tree built here and the file's.
     pub fn disagreement_lines(&self) -> Vec<String> {
-        let other = if self.layout == "driver" {
-            "driver"
-        } else {
-            "GPU"
+        let (reference, other) = match (self.layout, self.mode) {
+            ("driver", _) => ("CPU", "driver"),
+            (_, ORACLE_MODE) => ("built here", "file"),
+            _ => ("CPU", "GPU"),
         };
         (self.first_disagreements.iter())
             .map(|d| {
                 format!(
-                    "  {} {} {} ray {}: CPU {:?}, {other} {:?}: {}",
+                    "  {} {} {} ray {}: {reference} {:?}, {other} {:?}: {}",
                     self.layout, self.mode, self.rays, d.ray, d.reference, d.other, d.why
                 )
             })
@@ -323,8 +335,9 @@ pub fn require_gpu(device: &Device) -> Result<&GpuContext> {
 }
 
 /// Checks each layout's GPU kernel against its CPU twin on `device` (a GPU; a CPU device
-/// is refused), and the driver's own traversal where the adapter has ray queries. Errors
-/// only where something cannot run at all; disagreements are counted in the report.
+/// is refused), and the driver's own traversal where the adapter has ray queries; a BVH
+/// file's answers are also judged by the f64 oracle ([`ORACLE_MODE`]). Errors only where
+/// something cannot run at all; disagreements are counted in the report.
 pub fn run(
     device: &Device,
     mesh: &Mesh,
@@ -418,6 +431,22 @@ pub fn run(
                 add(
                     &mut report,
                     CheckRow::ran(kind.name(), mode.name(), name, *query, rays.len(), &cmp),
+                );
+            }
+        }
+        // A file's twin and kernel read the same arrays, so they agree on wrong answers
+        // too: the twin's answers against a tree built here, each difference judged by
+        // the f64 oracle (brute force only where they differ).
+        if config.bvh.is_some() {
+            let here: Arc<dyn GpuForm> =
+                try_flatten(kind, &build(mesh, &config.build), mesh)?.into();
+            let mut here = Tracer::with_layout(&cpu, here, &options)?;
+            for ((name, query, rays), c) in sets.iter().zip(&twin_hits) {
+                let h = here.trace(rays, *query)?.hits;
+                let cmp = compare_hits(mesh, rays, *query, &h, c);
+                add(
+                    &mut report,
+                    CheckRow::ran(kind.name(), ORACLE_MODE, name, *query, rays.len(), &cmp),
                 );
             }
         }

@@ -1,6 +1,7 @@
 //! BVH files: a flattened [`GpuForm`] saved with `lancer build --out` and traced with
-//! `--bvh`, so a flattener of one's own can be traced (and checked against the f64 oracle)
-//! without building a tree here.
+//! `--bvh`, so a flattener of one's own can be traced without building a tree here, and
+//! checked: `lancer check --bvh` compares its GPU kernel with its CPU twin and judges the
+//! file's answers by the f64 oracle (`lancer::trace::check`).
 //!
 //! # Format (version 1)
 //!
@@ -27,8 +28,12 @@
 //! allocated, and against the memory available), a wrong magic, an unknown version or
 //! layout, a record size that is not the layout's, a bad checksum, a triangle index not
 //! below the mesh's count, and arrays that fail the layout's `validate` (indices out of
-//! range, a tree deeper than the traversal stack, unreachable nodes), so a hostile file
-//! cannot make the CPU twin or a GPU kernel read out of bounds or loop.
+//! range, a tree deeper than the traversal stack, unreachable nodes; a box that does not
+//! hold every triangle vertex below it, exactly in f32 (`cwbvh`: its dequantised boxes); a
+//! triangle record in two leaves or in none), so a hostile file cannot make the CPU twin or
+//! a GPU kernel read out of bounds or loop, and a checksum recomputed over moved boxes does
+//! not make it trace wrong answers. [`BvhFile::check_mesh`] then refuses a mesh the file
+//! was not built from (its triangles, each once, vertex for vertex).
 
 use std::io::{Read, Write};
 use std::path::Path;
@@ -349,10 +354,11 @@ fn leaf_tris(bytes: &[u8]) -> impl Iterator<Item = LeafTri> + '_ {
 }
 
 impl BvhFile {
-    /// Refuses a mesh the file was not built from: another triangle count, or a leaf
-    /// triangle whose vertices are not those of the mesh's triangle of the same index (so
-    /// answers judged against `mesh` are about the structure traced). `file` names the BVH
-    /// file in the error.
+    /// Refuses a mesh the file was not built from: another triangle count, a leaf triangle
+    /// whose vertices are not those of the mesh's triangle of the same index, a mesh
+    /// triangle in two leaves, or one the mesh's BVH would hold ([`Mesh::included`]) in
+    /// none (so answers judged against `mesh` are about the structure traced). `file` names
+    /// the BVH file in the error.
     pub fn check_mesh(&self, file: &Path, mesh: &Mesh) -> Result<()> {
         let bad = |msg: String| {
             Error::input(
@@ -368,6 +374,7 @@ impl BvhFile {
                 mesh.triangles.len()
             )));
         }
+        let mut held = vec![false; mesh.triangles.len()];
         for t in leaf_tris(self.layout.arrays().tris) {
             let same = mesh.triangles.get(t.prim as usize).is_some_and(|m| {
                 let v: [[f32; 3]; 3] = [t.v0, t.v1, t.v2];
@@ -380,6 +387,19 @@ impl BvhFile {
                     t.prim, t.prim
                 )));
             }
+            if std::mem::replace(&mut held[t.prim as usize], true) {
+                return Err(bad(format!(
+                    "the mesh's triangle {} is in two of its leaves",
+                    t.prim
+                )));
+            }
+        }
+        let left_out = (held.iter().zip(&mesh.status))
+            .position(|(&h, &s)| !h && s == crate::mesh::TriStatus::Ok);
+        if let Some(p) = left_out {
+            return Err(bad(format!(
+                "the mesh's triangle {p} is in none of its leaves"
+            )));
         }
         Ok(())
     }

@@ -24,7 +24,9 @@
 //!    child order, same stack discipline, same tests in the same operation order — so the
 //!    GPU and the twin agree bit for bit (the equivalence tests in `tests/gpu_vs_cpu.rs`
 //!    run over every entry of [`LayoutKind::ALL`]).
-//! 4. `impl GpuForm`: name, arrays, WGSL source, overrides, validation; and
+//! 4. `impl GpuForm`: name, arrays, WGSL source, overrides, validation (its structural
+//!    checks, then `validate_boxes::check_boxes` on its `BoxTree`: the node and slot
+//!    walk every layout's geometric check shares); and
 //!    `from_arrays(GpuArrays) -> Result<Self, String>`, which rebuilds it from its arrays
 //!    (with `records`) and runs `validate` (a [BVH file](bvh_file) is read through it).
 //! 5. Register it: a variant of [`LayoutKind`] and its arms in [`flatten`] and
@@ -43,6 +45,7 @@ mod dfs_sign;
 mod interleave;
 mod sah_collapse;
 mod threaded;
+mod validate_boxes;
 mod wide_bvh;
 
 use crate::accel::bvh::Bvh;

@@ -29,6 +29,7 @@ use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
+use super::validate_boxes::{check_boxes, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// A child reference whose `b` has this bit set is a leaf: `a` = first triangle,
@@ -79,6 +80,30 @@ impl WideNode {
             lo: self.lo0.into(),
             hi: self.hi0.into(),
         }
+    }
+    pub fn box1(&self) -> Aabb {
+        Aabb {
+            lo: self.lo1.into(),
+            hi: self.hi1.into(),
+        }
+    }
+}
+
+/// Slot `slot` of record `record`, holding `bbox` and the reference `c` (for [`BoxTree`]).
+fn slot(record: usize, slot: u32, bbox: Aabb, c: ChildRef) -> Slot {
+    Slot {
+        bbox: Some(bbox),
+        child: match is_leaf(c) {
+            true => Child::Tris {
+                first: c.0,
+                count: c.1 >> COUNT_SHIFT,
+            },
+            false => Child::Node(c.0),
+        },
+        at: At::Slot {
+            node: record as u32,
+            slot,
+        },
     }
 }
 
@@ -199,8 +224,38 @@ impl super::GpuForm for Bvh2WideNode {
     /// A header; inner references strictly forward and within their parent's pre-order
     /// range (so the records form one tree, each reached once: no cycle can hang the
     /// kernel); leaf ranges within the triangles; every record at depth < `MAX_DEPTH` (the
-    /// stack bound, see the module doc); every record reachable.
+    /// stack bound, see the module doc); every record reachable. Then every slot's box holds
+    /// the triangles below it and the leaves cover the triangle array once (`check_boxes`).
     fn validate(&self) -> Result<(), String> {
+        self.check_structure()?;
+        check_boxes(self)
+    }
+}
+
+impl BoxTree for Bvh2WideNode {
+    /// The header's first slot.
+    fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
+        let head = &self.nodes[0];
+        std::iter::once(slot(0, 0, head.box0(), head.child0()))
+    }
+
+    fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
+        let (i, n) = (node as usize, &self.nodes[node as usize]);
+        [
+            slot(i, 0, n.box0(), n.child0()),
+            slot(i, 1, n.box1(), n.child1()),
+        ]
+        .into_iter()
+    }
+
+    fn tris(&self) -> &[LeafTri] {
+        &self.tris
+    }
+}
+
+impl Bvh2WideNode {
+    /// [`validate`](super::GpuForm::validate)'s structural checks.
+    fn check_structure(&self) -> Result<(), String> {
         let Some(head) = self.nodes.first() else {
             return Err("no header record".into());
         };

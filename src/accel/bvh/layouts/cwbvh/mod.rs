@@ -28,6 +28,7 @@ use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
+use super::validate_boxes::{check_boxes, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 use crate::accel::bvh::layouts::sah_collapse::Plan;
@@ -188,13 +189,16 @@ impl Cwbvh {
     /// Node `i`'s occupied slots: (slot, its box as the traversal dequantises it, what it
     /// holds). Panics if `i` is not below [`node_count`](Self::node_count).
     pub fn children(&self, i: usize) -> Vec<(usize, Aabb, CwChild)> {
+        self.occupied(i).collect()
+    }
+
+    /// [`children`](Self::children) as an iterator.
+    fn occupied(&self, i: usize) -> impl Iterator<Item = (usize, Aabb, CwChild)> + '_ {
         let n = &self.nodes[i];
         let mut next_inner = n.child_base;
-        let mut out = Vec::new();
-        for s in 0..WIDTH {
+        (0..WIDTH).filter_map(move |s| {
             let m = n.child_meta[s] as u32;
-            let inner = n.imask >> s & 1 == 1;
-            let child = if inner {
+            let child = if n.imask >> s & 1 == 1 {
                 next_inner += 1;
                 CwChild::Node(next_inner - 1)
             } else if m != 0 {
@@ -203,19 +207,45 @@ impl Cwbvh {
                     count: (m >> COUNT_SHIFT).count_ones(),
                 }
             } else {
-                continue;
+                return None;
             };
             let (lo, hi) = n.child_box(s);
-            out.push((
-                s,
-                Aabb {
-                    lo: lo.into(),
-                    hi: hi.into(),
-                },
-                child,
-            ));
-        }
-        out
+            let bbox = Aabb {
+                lo: lo.into(),
+                hi: hi.into(),
+            };
+            Some((s, bbox, child))
+        })
+    }
+}
+
+impl BoxTree for Cwbvh {
+    /// Node 0, whose children the traversal tests first.
+    fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
+        std::iter::once(Slot {
+            bbox: None,
+            child: Child::Node(0),
+            at: At::Root,
+        })
+    }
+
+    /// The occupied slots with their dequantised boxes.
+    fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
+        self.occupied(node as usize).map(move |(s, bbox, c)| Slot {
+            bbox: Some(bbox),
+            child: match c {
+                CwChild::Node(i) => Child::Node(i),
+                CwChild::Tris { first, count } => Child::Tris { first, count },
+            },
+            at: At::Slot {
+                node,
+                slot: s as u32,
+            },
+        })
+    }
+
+    fn tris(&self) -> &[LeafTri] {
+        &self.tris
     }
 }
 
@@ -310,8 +340,9 @@ impl super::GpuForm for Cwbvh {
 
     /// Every node reached once from the root, children after their parent, depth ≤ the
     /// group stack; meta bytes well formed (internal slots match `imask`, leaves of 1–3
-    /// triangles within the node's 24 triangle bits); every triangle in exactly one leaf;
-    /// steps normal; no child box inverted.
+    /// triangles within the node's 24 triangle bits, within the triangle array); steps
+    /// normal; no child box inverted. Then every slot's dequantised box holds the triangles
+    /// below it and the leaves cover the triangle array once (`check_boxes`).
     fn validate(&self) -> Result<(), String> {
         self.checked_depth().map(|_| ())
     }
@@ -345,13 +376,13 @@ impl Cwbvh {
         self.deepest.max(STACK_REGISTERS + 1) - STACK_REGISTERS
     }
 
-    /// [`validate`](super::GpuForm::validate)'s checks; returns the depth of the deepest node.
+    /// [`validate`](super::GpuForm::validate)'s checks, the structural ones first; returns
+    /// the depth of the deepest node.
     fn checked_depth(&self) -> Result<usize, String> {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }
         let mut reached = vec![false; self.nodes.len()];
-        let mut covered = vec![false; self.tris.len()];
         reached[0] = true;
         let mut stack = vec![(0usize, 0usize)];
         let mut deepest = 0;
@@ -387,11 +418,6 @@ impl Cwbvh {
                             self.tris.len()
                         ));
                     }
-                    for c in &mut covered[start..end] {
-                        if std::mem::replace(c, true) {
-                            return Err(format!("node {i} slot {s}: a triangle in two leaves"));
-                        }
-                    }
                 }
                 if m != 0 && (0..3).any(|a| n.q_lo[a][s] > n.q_hi[a][s]) {
                     return Err(format!("node {i} slot {s}: inverted box"));
@@ -417,9 +443,7 @@ impl Cwbvh {
         if let Some(i) = reached.iter().position(|r| !r) {
             return Err(format!("node {i} is unreachable"));
         }
-        if let Some(t) = covered.iter().position(|c| !c) {
-            return Err(format!("triangle {t} is in no leaf"));
-        }
+        check_boxes(self)?;
         Ok(deepest)
     }
 }

@@ -10,6 +10,7 @@ use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
+use super::validate_boxes::{check_boxes, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 pub(crate) use node_ray::DfsNodeRay;
@@ -46,6 +47,23 @@ impl DfsNode {
             lo: self.lo.into(),
             hi: self.hi.into(),
         }
+    }
+}
+
+/// Node `i` of `nodes` as the slot its parent enters it through: its own box, and its
+/// triangles (a leaf) or itself (an inner node). For [`BoxTree`] (dfs-sign, threaded).
+pub(crate) fn node_slot(nodes: &[DfsNode], i: usize) -> Slot {
+    let n = &nodes[i];
+    Slot {
+        bbox: Some(n.bbox()),
+        child: match n.is_leaf() {
+            true => Child::Tris {
+                first: n.a,
+                count: n.count(),
+            },
+            false => Child::Node(i as u32),
+        },
+        at: At::Node(i as u32),
     }
 }
 
@@ -112,8 +130,35 @@ impl super::GpuForm for DfsSign {
     }
 
     /// Child indices in range and forward, leaf ranges in range, depth ≤ MAX_DEPTH, every
-    /// node reachable.
+    /// node reachable; then every node's box holds the triangles below it and the leaves
+    /// cover the triangle array once (`check_boxes`).
     fn validate(&self) -> Result<(), String> {
+        self.check_structure()?;
+        check_boxes(self)
+    }
+}
+
+impl BoxTree for DfsSign {
+    fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
+        std::iter::once(node_slot(&self.nodes, 0))
+    }
+
+    /// An inner node's children: the next node and its second child.
+    fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
+        let i = node as usize;
+        [i + 1, self.nodes[i].a as usize]
+            .into_iter()
+            .map(move |c| node_slot(&self.nodes, c))
+    }
+
+    fn tris(&self) -> &[LeafTri] {
+        &self.tris
+    }
+}
+
+impl DfsSign {
+    /// [`validate`](super::GpuForm::validate)'s structural checks.
+    fn check_structure(&self) -> Result<(), String> {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }

@@ -14,7 +14,8 @@ use rayon::prelude::*;
 use crate::accel::bvh::{Bvh, Node};
 use crate::mesh::Mesh;
 
-use super::dfs_sign::{node_wgsl, DfsNode, LEAF_TAG};
+use super::dfs_sign::{node_slot, node_wgsl, DfsNode, LEAF_TAG};
+use super::validate_boxes::{check_boxes, BoxTree, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// Copies of the tree: one per ray-direction octant.
@@ -104,8 +105,44 @@ impl super::GpuForm for Threaded {
 
     /// Eight copies of copy 0's root's size; in each, every subtree is whole (an inner node's
     /// skip index ends its subtree, two children partition it, a leaf is one node) and every
-    /// leaf range is in range. Skip indices then only move forward, so traversal ends.
+    /// leaf range is in range. Skip indices then only move forward, so traversal ends. Then
+    /// in each copy every node's box holds the triangles below it and the leaves cover the
+    /// triangle array once (`check_boxes`).
     fn validate(&self) -> Result<(), String> {
+        self.check_structure()?;
+        check_boxes(self)
+    }
+}
+
+impl BoxTree for Threaded {
+    /// The root of each copy.
+    fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
+        let n = self.copy_len();
+        (0..OCTANTS).map(move |o| node_slot(&self.nodes, o * n))
+    }
+
+    /// An inner node's children: the next node, and the node after that one's subtree.
+    fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
+        let first = node as usize + 1;
+        let near = &self.nodes[first];
+        let far = if near.is_leaf() {
+            first + 1
+        } else {
+            near.a as usize
+        };
+        [first, far]
+            .into_iter()
+            .map(move |c| node_slot(&self.nodes, c))
+    }
+
+    fn tris(&self) -> &[LeafTri] {
+        &self.tris
+    }
+}
+
+impl Threaded {
+    /// [`validate`](super::GpuForm::validate)'s structural checks.
+    fn check_structure(&self) -> Result<(), String> {
         let total = self.nodes.len();
         if total == 0 {
             return Err("BVH has no nodes".into());

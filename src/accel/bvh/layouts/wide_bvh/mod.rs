@@ -37,6 +37,7 @@ use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
+use super::validate_boxes::{check_boxes, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// A 4-wide BVH (the `bvh4` layout); its [`Accel`](crate::accel::Accel) is the CPU twin of
@@ -244,9 +245,57 @@ where
     }
 
     /// Every node reached once from the root through forward child indices, at a depth whose
-    /// W − 1 pushes per level fit the stack; used slots have finite boxes holding their
-    /// leaves' triangles; leaf ranges tile the triangle array.
+    /// W − 1 pushes per level fit the stack; used slots have finite boxes; then every slot's
+    /// box holds the triangles below it and the leaves cover the triangle array once
+    /// (`check_boxes`).
     fn validate(&self) -> Result<(), String> {
+        self.check_structure()?;
+        check_boxes(self)
+    }
+}
+
+impl<const W: usize> BoxTree for WideBvh<W>
+where
+    WideNode<W>: bytemuck::Pod,
+{
+    /// Node 0, whose slots the traversal tests first.
+    fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
+        std::iter::once(Slot {
+            bbox: None,
+            child: Child::Node(0),
+            at: At::Root,
+        })
+    }
+
+    fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
+        let n = &self.nodes[node as usize];
+        (0..W).filter(move |&k| n.kind[k] != 0).map(move |k| Slot {
+            bbox: Some(n.bbox(k)),
+            child: match n.kind[k] {
+                INNER => Child::Node(n.child[k]),
+                count => Child::Tris {
+                    first: n.child[k],
+                    count,
+                },
+            },
+            at: At::Slot {
+                node,
+                slot: k as u32,
+            },
+        })
+    }
+
+    fn tris(&self) -> &[LeafTri] {
+        &self.tris
+    }
+}
+
+impl<const W: usize> WideBvh<W>
+where
+    WideNode<W>: bytemuck::Pod,
+{
+    /// [`validate`](super::GpuForm::validate)'s structural checks.
+    fn check_structure(&self) -> Result<(), String> {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }
@@ -260,7 +309,6 @@ where
         }
         let stack_size = stack_size(W);
         let mut reached = vec![false; self.nodes.len()];
-        let mut ranges = Vec::new();
         let mut stack = vec![(0usize, 0usize)];
         while let Some((i, depth)) = stack.pop() {
             if reached[i] {
@@ -295,45 +343,18 @@ where
                     continue;
                 }
                 let end = child + kind as usize;
-                let Some(tris) = self.tris.get(child..end) else {
+                if end > self.tris.len() {
                     return Err(format!(
                         "node {i} slot {k} refers to triangles {child}..{end} of {}",
                         self.tris.len()
                     ));
-                };
-                if let Some(t) = tris.iter().find(|t| {
-                    let tb = Aabb::from_points(&t.triangle().v);
-                    !b.contains(&tb)
-                }) {
-                    return Err(format!(
-                        "node {i} slot {k}: triangle {} lies outside the box {b:?}",
-                        t.prim
-                    ));
                 }
-                ranges.push((child, end));
             }
         }
         if let Some(i) = reached.iter().position(|&r| !r) {
             return Err(format!(
                 "node {i} (one of {} nodes) is unreachable",
                 self.nodes.len()
-            ));
-        }
-        ranges.sort_unstable();
-        let mut next = 0;
-        for (first, end) in ranges {
-            if first < next {
-                return Err(format!("triangles {first}..{next} are in two leaves"));
-            }
-            if first > next {
-                return Err(format!("triangles {next}..{first} are in no leaf"));
-            }
-            next = end;
-        }
-        if next != self.tris.len() {
-            return Err(format!(
-                "triangles {next}..{} are in no leaf",
-                self.tris.len()
             ));
         }
         Ok(())

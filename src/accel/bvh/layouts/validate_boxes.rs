@@ -1,0 +1,368 @@
+//! The geometric half of every layout's [`validate`](super::GpuForm::validate), one walk for
+//! all of them: each layout describes its tree as nodes with slots ([`BoxTree`]), and
+//! [`check_boxes`] checks that
+//!
+//! - every slot's box holds everything below it: a leaf slot every vertex of its triangles,
+//!   an inner slot every vertex under the node it refers to. Exactly, in f32 with no
+//!   tolerance: the boxes as the traversal reads them (for `cwbvh`, dequantised), so a ray
+//!   that meets a triangle passes every box on the way to it;
+//! - the leaves under each root refer to every record of the triangle array exactly once
+//!   (`threaded`'s eight copies each on their own).
+//!
+//! A slot is checked against what lies below it, not against the slot boxes of the node it
+//! refers to: a `cwbvh` child node's dequantised boxes may reach up to a step past its
+//! parent's (each is rounded outwards on its own grid), while both hold the triangles.
+//!
+//! The structural checks run first (indices in range, a tree: each node reached once), so
+//! the walk meets every node once: linear in nodes and triangles, with one flag per
+//! triangle and one frame per level as its only allocations.
+
+use crate::accel::LeafTri;
+use crate::geometry::Aabb;
+
+/// What a slot refers to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Child {
+    /// An inner node, by the index [`BoxTree::slots`] takes.
+    Node(u32),
+    /// A leaf: records `first..first + count` of the triangle array.
+    Tris {
+        /// First record.
+        first: u32,
+        /// Records.
+        count: u32,
+    },
+}
+
+/// Where a slot's box is stored, for messages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum At {
+    /// In slot `slot` of node `node` (wide nodes: `bvh2-wide-node`, `cwbvh`, `bvh4`/`bvh8`).
+    Slot {
+        /// The node holding the slot.
+        node: u32,
+        /// The slot.
+        slot: u32,
+    },
+    /// In the node itself (`dfs-sign`, `threaded`: a node's box is its own).
+    Node(u32),
+    /// Nowhere: a root the traversal enters without a box test.
+    Root,
+}
+
+impl std::fmt::Display for At {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            At::Slot { node, slot } => write!(f, "node {node} slot {slot}"),
+            At::Node(node) => write!(f, "node {node}"),
+            At::Root => f.write_str("the root"),
+        }
+    }
+}
+
+/// One slot: a box (none for a root entered without one), what it holds, where it is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Slot {
+    /// The box the traversal tests before it enters `child`.
+    pub bbox: Option<Aabb>,
+    /// What it refers to.
+    pub child: Child,
+    /// Where the box is stored.
+    pub at: At,
+}
+
+/// A layout's tree as [`check_boxes`] walks it.
+pub(crate) trait BoxTree {
+    /// The root slots, each the entry to a whole tree over the triangle array (one;
+    /// `threaded`: one per copy).
+    fn roots(&self) -> impl Iterator<Item = Slot> + '_;
+
+    /// The occupied slots of inner node `node` (one a [`Child::Node`] names), in any
+    /// order. Called only after the layout's structural checks passed, so indices are in
+    /// range.
+    fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_;
+
+    /// The triangle array leaves refer to.
+    fn tris(&self) -> &[LeafTri];
+}
+
+/// `[lo]..[hi]`, for messages.
+fn show(b: &Aabb) -> String {
+    format!("{:?}..{:?}", b.lo.to_array(), b.hi.to_array())
+}
+
+/// Whether `b` holds `p`: f32 comparisons, faces included; a NaN is held by nothing.
+#[inline(always)]
+fn holds_point(b: &Aabb, p: glam::Vec3) -> bool {
+    b.lo.cmple(p).all() && p.cmple(b.hi).all()
+}
+
+/// One inner node being walked: the slot it was entered through, its slots still to walk,
+/// and the union of the vertices below the slots walked so far.
+struct Frame<I> {
+    entered: Slot,
+    slots: I,
+    below: Aabb,
+}
+
+/// Checks that every slot's box holds the triangles below it and that the leaves under
+/// each root refer to every triangle record once; the error names the first bad slot.
+pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
+    let tris = tree.tris();
+    let roots: Vec<Slot> = tree.roots().collect();
+    let several = roots.len() > 1;
+    let mut seen = vec![false; tris.len()];
+    let mut stack = Vec::new();
+    for root in roots {
+        seen.fill(false);
+        let below = match root.child {
+            Child::Tris { first, count } => leaf(&root, first, count, tris, &mut seen)?,
+            Child::Node(n) => {
+                stack.push(Frame {
+                    entered: root,
+                    slots: tree.slots(n),
+                    below: Aabb::EMPTY,
+                });
+                let mut below = Aabb::EMPTY;
+                while let Some(top) = stack.last_mut() {
+                    let Some(slot) = top.slots.next() else {
+                        // Every slot walked: the box it was entered through must hold it all.
+                        let Some(done) = stack.pop() else { break };
+                        inner(&done.entered, &done.below)?;
+                        match stack.last_mut() {
+                            Some(parent) => parent.below = parent.below.union(done.below),
+                            None => below = done.below,
+                        }
+                        continue;
+                    };
+                    match slot.child {
+                        Child::Tris { first, count } => {
+                            let b = leaf(&slot, first, count, tris, &mut seen)?;
+                            top.below = top.below.union(b);
+                        }
+                        Child::Node(n) => stack.push(Frame {
+                            entered: slot,
+                            slots: tree.slots(n),
+                            below: Aabb::EMPTY,
+                        }),
+                    }
+                }
+                below
+            }
+        };
+        inner(&root, &below)?;
+        if let Some(t) = seen.iter().position(|s| !s) {
+            let end = (seen[t..].iter().position(|&s| s)).map_or(seen.len(), |k| t + k);
+            let under = match several {
+                true => format!(" under {}", root.at),
+                false => String::new(),
+            };
+            return Err(format!("triangles {t}..{end} are in no leaf{under}"));
+        }
+    }
+    Ok(())
+}
+
+/// Marks a leaf's triangles seen and checks their vertices against its box; returns the
+/// box of those vertices.
+fn leaf(
+    slot: &Slot,
+    first: u32,
+    count: u32,
+    tris: &[LeafTri],
+    seen: &mut [bool],
+) -> Result<Aabb, String> {
+    let (first, end) = (first as usize, first as usize + count as usize);
+    let (Some(ts), Some(flags)) = (tris.get(first..end), seen.get_mut(first..end)) else {
+        return Err(format!(
+            "{} refers to triangles {first}..{end} of {}",
+            slot.at,
+            tris.len()
+        ));
+    };
+    let mut below = Aabb::EMPTY;
+    for (k, (t, flag)) in ts.iter().zip(flags).enumerate() {
+        if std::mem::replace(flag, true) {
+            return Err(format!(
+                "{}: triangle {} is in two leaves",
+                slot.at,
+                first + k
+            ));
+        }
+        for v in [t.v0, t.v1, t.v2].map(glam::Vec3::from) {
+            if let Some(b) = &slot.bbox {
+                if !holds_point(b, v) {
+                    return Err(format!(
+                        "{}: triangle {} (prim {}) lies outside the box {}: its vertex {:?}",
+                        slot.at,
+                        first + k,
+                        t.prim,
+                        show(b),
+                        v.to_array()
+                    ));
+                }
+            }
+            below = below.grow(v);
+        }
+    }
+    Ok(below)
+}
+
+/// Checks that an inner slot's box holds `below`, the box of the vertices under it (each
+/// vertex was checked against its leaf's box, so none is NaN; nothing below is held by any
+/// box).
+fn inner(slot: &Slot, below: &Aabb) -> Result<(), String> {
+    let Some(b) = &slot.bbox else {
+        return Ok(());
+    };
+    if below.is_empty() || (holds_point(b, below.lo) && holds_point(b, below.hi)) {
+        return Ok(());
+    }
+    Err(format!(
+        "{}: the triangles below it span {}, outside the box {}",
+        slot.at,
+        show(below),
+        show(b)
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+
+    /// A tree given as lists: node i's slots are `nodes[i]`.
+    struct Lists {
+        roots: Vec<Slot>,
+        nodes: Vec<Vec<Slot>>,
+        tris: Vec<LeafTri>,
+    }
+
+    impl BoxTree for Lists {
+        fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
+            self.roots.iter().copied()
+        }
+        fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
+            self.nodes[node as usize].iter().copied()
+        }
+        fn tris(&self) -> &[LeafTri] {
+            &self.tris
+        }
+    }
+
+    fn slot(lo: f32, hi: f32, child: Child, at: At) -> Slot {
+        Slot {
+            bbox: Some(Aabb {
+                lo: Vec3::splat(lo),
+                hi: Vec3::splat(hi),
+            }),
+            child,
+            at,
+        }
+    }
+
+    /// Triangle i spans i..i + 1 on every axis.
+    fn tri(i: u32) -> LeafTri {
+        let p = Vec3::splat(i as f32);
+        LeafTri::new([p, p + Vec3::X + Vec3::Y, p + Vec3::ONE], i)
+    }
+
+    /// Node 0 holds a leaf of triangles 0..2 and node 1, which holds a leaf of triangle 2.
+    fn good() -> Lists {
+        let at = |node, slot| At::Slot { node, slot };
+        Lists {
+            roots: vec![Slot {
+                bbox: None,
+                child: Child::Node(0),
+                at: At::Root,
+            }],
+            nodes: vec![
+                vec![
+                    slot(0.0, 2.0, Child::Tris { first: 0, count: 2 }, at(0, 0)),
+                    slot(2.0, 3.0, Child::Node(1), at(0, 1)),
+                ],
+                vec![slot(2.0, 3.0, Child::Tris { first: 2, count: 1 }, at(1, 0))],
+            ],
+            tris: (0..3).map(tri).collect(),
+        }
+    }
+
+    #[test]
+    fn boxes_hold_their_triangles_exactly_and_leaves_cover_every_triangle_once() {
+        // Faces included: the boxes are the triangles' exact bounds.
+        check_boxes(&good()).unwrap();
+        let refused = |what: &str, want: &str, f: &dyn Fn(&mut Lists)| {
+            let mut t = good();
+            f(&mut t);
+            let e = check_boxes(&t).expect_err(what);
+            assert!(e.contains(want), "{what}: {e}");
+        };
+        refused(
+            "a leaf box one step short",
+            "node 0 slot 0: triangle 1 (prim 1) lies outside the box",
+            &|t| {
+                t.nodes[0][0].bbox.as_mut().unwrap().hi.z = 2f32.next_down();
+            },
+        );
+        refused(
+            "an inner box one step short",
+            "node 0 slot 1: the triangles below it span",
+            &|t| {
+                t.nodes[0][1].bbox.as_mut().unwrap().lo.y = 2f32.next_up();
+            },
+        );
+        refused("a NaN vertex", "triangle 2 (prim 2) lies outside", &|t| {
+            t.tris[2].v1[0] = f32::NAN;
+        });
+        refused(
+            "a triangle in two leaves",
+            "node 1 slot 0: triangle 1 is in two leaves",
+            &|t| {
+                t.nodes[1][0].child = Child::Tris { first: 1, count: 2 };
+            },
+        );
+        refused(
+            "a triangle in no leaf",
+            "triangles 1..2 are in no leaf",
+            &|t| {
+                t.nodes[0][0].child = Child::Tris { first: 0, count: 1 };
+            },
+        );
+        refused(
+            "a leaf past the end",
+            "node 1 slot 0 refers to triangles 2..4 of 3",
+            &|t| {
+                t.nodes[1][0].child = Child::Tris { first: 2, count: 2 };
+            },
+        );
+        // Each root covers every triangle (threaded's copies): a second root over node 1
+        // leaves triangles 0..2 out.
+        refused(
+            "a root short of triangles",
+            "triangles 0..2 are in no leaf under node 1",
+            &|t| {
+                t.roots.push(slot(2.0, 3.0, Child::Node(1), At::Node(1)));
+            },
+        );
+        // A root box is checked too; nothing below is held by any box.
+        refused(
+            "a root box",
+            "the root: the triangles below it span",
+            &|t| {
+                t.roots[0].bbox = Some(Aabb::EMPTY);
+            },
+        );
+        let empty = Lists {
+            roots: vec![slot(
+                0.0,
+                0.0,
+                Child::Tris { first: 0, count: 0 },
+                At::Node(0),
+            )],
+            nodes: Vec::new(),
+            tris: Vec::new(),
+        };
+        check_boxes(&empty).unwrap();
+    }
+}
