@@ -38,6 +38,9 @@ cargo test --release "$@"
 # The book (docs/): built with mdBook, failing on a broken internal link.
 scripts/book.sh
 
+# The API docs: every intra-doc link resolves (rustdoc's warnings are errors).
+RUSTDOCFLAGS="-D warnings" cargo doc --release --no-deps --quiet
+
 # The examples a newcomer runs first (docs/src/library.md): each prints a few lines and
 # checks its own results (CPU and GPU hits bit for bit); seconds each on the CPU or lavapipe.
 for example in trace_arrays render_scene custom_layout; do

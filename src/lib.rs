@@ -45,7 +45,7 @@
 //! [`accel::bvh::layouts`], each with its CPU twin), [`gpu`] (the wgpu plumbing and the WGSL
 //! sources), [`trace`] ([`Tracer`], the f64 oracle, ray and hit files), [`render`] (scenes
 //! and the [`Renderer`]), [`accuracy`] (the error each robustness setting leaves),
-//! [`bench`] (every `lancer bench` as `run(&Config, progress) -> Report`, its tables, charts
+//! [`bench`](mod@bench) (every `lancer bench` as `run(&Config, progress) -> Report`, its tables, charts
 //! and results pages).
 
 #![warn(missing_docs)]

@@ -48,7 +48,7 @@ pub struct ColourBar {
 }
 
 /// The map with the colour bar below it: the map in the top-left corner, unchanged; the
-/// image is at least [`MIN_WIDTH`] wide, the room right of a narrow map left white. `path`
+/// image is at least `MIN_WIDTH` pixels wide, the room right of a narrow map left white. `path`
 /// names the file in errors.
 pub fn with_colour_bar(path: &Path, map: &RgbImage, bar: &ColourBar) -> Result<RgbImage> {
     register_font().map_err(|e| chart_error(path, e))?;

@@ -44,7 +44,8 @@ pub struct CheckCmd {
     build: BuilderArgs,
     /// Check the BVH in this file (`build --out`; docs/src/reference/file-formats.md) instead of
     /// building one: only its layout is checked (--layout and the builder options are
-    /// refused with it), and MESH must be the mesh it was built from.
+    /// refused with it), its answers are also judged by the f64 oracle (`oracle` rows), and
+    /// MESH must be the mesh it was built from.
     #[arg(long, value_name = "FILE", conflicts_with_all = BUILDER_IDS, conflicts_with = "layouts")]
     bvh: Option<PathBuf>,
     /// Print the results as one JSON object on stdout, the table on stderr (keys: the

@@ -67,7 +67,7 @@ impl TriangleRay4 {
     }
 
     /// [`TriangleRay4::watertight`] with the lanes' values kept, from which
-    /// [`Watertight4::hit`] gives a passing lane's hit.
+    /// [`Watertight4::hits`] gives the passing lanes' hits.
     #[inline(always)]
     pub fn watertight_lanes(&self, v: &[[Vec4; 3]; 3], tmax: f32) -> Watertight4 {
         // The permutation as constants: a branch per call that a ray always takes the same
@@ -187,7 +187,7 @@ pub struct TriHits4 {
     pub err_num: [f32; 4],
     /// |det|.
     pub det: [f32; 4],
-    /// [`TriHit::prune`].
+    /// [`TriHit::prune`](super::TriHit::prune).
     pub prune: [f32; 4],
     /// The lanes whose `in_front` the single test has to decide, as a bit set.
     pub near: u32,
