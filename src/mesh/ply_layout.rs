@@ -95,21 +95,20 @@ pub fn check(path: &Path, mut reader: impl BufRead) -> Result<()> {
                 return Ok(()); // a short file: ply-rs names it
             };
             n += 1;
-            let mut tokens = line.split_whitespace();
+            // Where the element's values end on the line, by its properties (a list count
+            // is arithmetic here, never a loop over a count the file claims).
+            let tokens: Vec<&str> = line.split_whitespace().collect();
+            let mut end = 0usize;
             for p in &e.props {
-                match p {
-                    Prop::Scalar => {
-                        tokens.next();
-                    }
+                end = match p {
+                    Prop::Scalar => end.saturating_add(1),
                     Prop::List => {
-                        let count = tokens.next().and_then(|t| t.parse::<usize>().ok());
-                        for _ in 0..count.unwrap_or(0) {
-                            tokens.next();
-                        }
+                        let count = tokens.get(end).and_then(|t| t.parse::<usize>().ok());
+                        end.saturating_add(1).saturating_add(count.unwrap_or(0))
                     }
-                }
+                };
             }
-            let extra = tokens.count();
+            let extra = tokens.len().saturating_sub(end);
             if extra > 0 {
                 return Err(bad(
                     n,
