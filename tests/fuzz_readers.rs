@@ -926,23 +926,26 @@ fn ply_gltf_corpus() -> Vec<(String, Vec<u8>)> {
     ]
 }
 
+/// One mesh file (`name` in `dir`) through the mesh readers, and as `lancer render FILE`
+/// reads it: materials and textures too.
+fn mesh_file_case(dir: &Path, name: &str, bytes: Vec<u8>) -> Result<(), TestCaseError> {
+    let path = dir.join(name);
+    std::fs::write(&path, &bytes).unwrap();
+    let files = vec![(name.to_string(), bytes)];
+    mesh_readers(name, &path, &files)?;
+    guarded(
+        &format!("{name}: RenderScene::from_mesh"),
+        &files,
+        move || outcome(RenderScene::from_mesh(&path, 4, 4)),
+    )?;
+    Ok(())
+}
+
 #[test]
 fn ply_and_gltf_readers_survive_mutated_and_random_files() {
     let corpus = ply_gltf_corpus();
     let dir = scratch();
-    let case = |name: &str, bytes: Vec<u8>| {
-        let path = dir.path().join(name);
-        std::fs::write(&path, &bytes).unwrap();
-        let files = vec![(name.to_string(), bytes)];
-        mesh_readers(name, &path, &files)?;
-        // As `lancer render FILE` reads it: materials and textures too.
-        guarded(
-            &format!("{name}: RenderScene::from_mesh"),
-            &files,
-            move || outcome(RenderScene::from_mesh(&path, 4, 4)),
-        )?;
-        Ok(())
-    };
+    let case = |name: &str, bytes: Vec<u8>| mesh_file_case(dir.path(), name, bytes);
     run_property("PLY/glTF (mutated)", 400, mutations(), |(which, muts)| {
         let bytes = mutated(&corpus, which, &muts);
         case(&corpus[which % corpus.len()].0, bytes)
@@ -1078,18 +1081,7 @@ fn apply_json(doc: &mut serde_json::Value, (kind, at, what): (u8, usize, u64)) {
 fn the_gltf_reader_survives_structure_aware_mutations() {
     let base = rich_gltf();
     let dir = scratch();
-    let case = |name: &str, bytes: Vec<u8>| {
-        let path = dir.path().join(name);
-        std::fs::write(&path, &bytes).unwrap();
-        let files = vec![(name.to_string(), bytes)];
-        mesh_readers(name, &path, &files)?;
-        guarded(
-            &format!("{name}: RenderScene::from_mesh"),
-            &files,
-            move || outcome(RenderScene::from_mesh(&path, 4, 4)),
-        )?;
-        Ok(())
-    };
+    let case = |name: &str, bytes: Vec<u8>| mesh_file_case(dir.path(), name, bytes);
     // The unmutated document loads: the mutations start from a working file.
     let path = dir.path().join("rich.gltf");
     std::fs::write(&path, serde_json::to_vec(&base).unwrap()).unwrap();
