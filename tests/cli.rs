@@ -737,18 +737,8 @@ fn adapters_lists_lavapipe_and_an_unmatched_adapter_name_is_an_error_with_auto_t
         "{text}"
     );
     let d = Scratch::new();
-    let quad = d.quad();
-    let (rays, hits) = (d.path("r.bin"), d.path("h.bin"));
-    lancer_ok(&[
-        "rays",
-        s(&quad),
-        "--width",
-        "4",
-        "--height",
-        "4",
-        "-o",
-        s(&rays),
-    ]);
+    let (quad, rays) = quad_with_rays(&d);
+    let hits = d.path("h.bin");
     let out = Command::new(env!("CARGO_BIN_EXE_lancer"))
         .args(["trace", s(&quad), "--rays", s(&rays), "--out", s(&hits)])
         .env("WGPU_ADAPTER_NAME", "no-such-adapter")
@@ -768,18 +758,7 @@ fn bad_wgpu_environment_is_refused_under_auto_too() {
     // A misspelt WGPU_BACKEND or WGPU_POWER_PREF is the user's to fix: exit 2 naming it,
     // not a fallback to the CPU (exit 0) nor a silently ignored setting.
     let d = Scratch::new();
-    let quad = d.quad();
-    let rays = d.path("r.bin");
-    lancer_ok(&[
-        "rays",
-        s(&quad),
-        "--width",
-        "4",
-        "--height",
-        "4",
-        "-o",
-        s(&rays),
-    ]);
+    let (quad, rays) = quad_with_rays(&d);
     for (var, value) in [("WGPU_BACKEND", "vulkn"), ("WGPU_POWER_PREF", "weird")] {
         let hits = d.path("h.bin");
         let out = Command::new(env!("CARGO_BIN_EXE_lancer"))
@@ -792,6 +771,22 @@ fn bad_wgpu_environment_is_refused_under_auto_too() {
         assert!(err.contains(&format!("{var}={value}")), "{err}");
         assert!(!hits.exists());
     }
+}
+
+/// The quad mesh and a ray file of its default view, 4×4 (r.bin), in `d`.
+fn quad_with_rays(d: &Scratch) -> (PathBuf, PathBuf) {
+    let (quad, rays) = (d.quad(), d.path("r.bin"));
+    lancer_ok(&[
+        "rays",
+        s(&quad),
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "-o",
+        s(&rays),
+    ]);
+    (quad, rays)
 }
 
 /// `trace --stats --json` on `quad` with `args` before and after the subcommand and

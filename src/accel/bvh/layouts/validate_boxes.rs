@@ -86,6 +86,16 @@ pub(crate) trait BoxTree {
     fn tris(&self) -> &[LeafTri];
 }
 
+/// The one root of a layout whose node 0 is the root and holds no box of its own (the wide
+/// layouts: their boxes are the slots').
+pub(crate) fn node_zero() -> impl Iterator<Item = Slot> {
+    std::iter::once(Slot {
+        bbox: None,
+        child: Child::Node(0),
+        at: At::Root,
+    })
+}
+
 /// `[lo]..[hi]`, for messages.
 fn show(b: &Aabb) -> String {
     format!("{:?}..{:?}", b.lo.to_array(), b.hi.to_array())

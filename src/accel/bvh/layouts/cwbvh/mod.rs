@@ -28,7 +28,7 @@ use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
-use super::validate_boxes::{check_boxes, At, BoxTree, Child, Slot};
+use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 use crate::accel::bvh::layouts::sah_collapse::Plan;
@@ -222,11 +222,7 @@ impl Cwbvh {
 impl BoxTree for Cwbvh {
     /// Node 0, whose children the traversal tests first.
     fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
-        std::iter::once(Slot {
-            bbox: None,
-            child: Child::Node(0),
-            at: At::Root,
-        })
+        node_zero()
     }
 
     /// The occupied slots with their dequantised boxes.

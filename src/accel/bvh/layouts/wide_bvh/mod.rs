@@ -37,7 +37,7 @@ use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
-use super::validate_boxes::{check_boxes, At, BoxTree, Child, Slot};
+use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 /// A 4-wide BVH (the `bvh4` layout); its [`Accel`](crate::accel::Accel) is the CPU twin of
@@ -260,11 +260,7 @@ where
 {
     /// Node 0, whose slots the traversal tests first.
     fn roots(&self) -> impl Iterator<Item = Slot> + '_ {
-        std::iter::once(Slot {
-            bbox: None,
-            child: Child::Node(0),
-            at: At::Root,
-        })
+        node_zero()
     }
 
     fn slots(&self, node: u32) -> impl Iterator<Item = Slot> + '_ {
