@@ -5,7 +5,9 @@
 //! partition), the partition also yielding the children's centroid bounds. The split
 //! candidates of the three axes are evaluated together in SIMD lanes.
 
-use glam::{Mat3A, Vec3, Vec3A, Vec4};
+use glam::{Mat3A, Vec3A};
+
+use super::prim_ref::{box_area, bounds, BoxA, Ref};
 
 use super::prims::{join, Prims, PARALLEL_MIN};
 use super::tree::{leaf, Node};
@@ -14,95 +16,6 @@ use crate::geometry::Aabb;
 
 /// Most bins per axis the builder supports (the CLI refuses more).
 pub const MAX_BINS: usize = 64;
-
-/// A box in SIMD lanes. Operands are never NaN (the mesh excludes non-finite triangles), so
-/// the lane-wise min/max are exact.
-#[derive(Clone, Copy)]
-struct BoxA {
-    lo: Vec3A,
-    hi: Vec3A,
-}
-
-impl BoxA {
-    const EMPTY: BoxA = BoxA {
-        lo: Vec3A::splat(f32::MAX),
-        hi: Vec3A::splat(-f32::MAX),
-    };
-
-    #[inline(always)]
-    fn union(self, o: BoxA) -> BoxA {
-        BoxA {
-            lo: self.lo.min(o.lo),
-            hi: self.hi.max(o.hi),
-        }
-    }
-
-    #[inline(always)]
-    fn grow(self, p: Vec3A) -> BoxA {
-        BoxA {
-            lo: self.lo.min(p),
-            hi: self.hi.max(p),
-        }
-    }
-
-    fn aabb(self) -> Aabb {
-        Aabb {
-            lo: Vec3::from(self.lo),
-            hi: Vec3::from(self.hi),
-        }
-    }
-}
-
-impl From<Aabb> for BoxA {
-    fn from(b: Aabb) -> BoxA {
-        BoxA {
-            lo: b.lo.into(),
-            hi: b.hi.into(),
-        }
-    }
-}
-
-/// A primitive reference: its box, with the primitive's index in the spare `w` lanes as two
-/// 16-bit halves stored as small whole floats (raw index bits would be denormals, which the
-/// lane-wise arithmetic on `w` would make very slow).
-#[derive(Clone, Copy)]
-struct Ref {
-    lo: Vec4,
-    hi: Vec4,
-}
-
-impl Ref {
-    fn new(b: &Aabb, id: u32) -> Ref {
-        Ref {
-            lo: b.lo.extend((id & 0xffff) as f32),
-            hi: b.hi.extend((id >> 16) as f32),
-        }
-    }
-
-    fn id(&self) -> u32 {
-        self.lo.w as u32 | (self.hi.w as u32) << 16
-    }
-
-    #[inline(always)]
-    fn bbox(&self) -> BoxA {
-        BoxA {
-            lo: Vec3A::from_vec4(self.lo),
-            hi: Vec3A::from_vec4(self.hi),
-        }
-    }
-
-    /// Same value as [`Aabb::center`].
-    #[inline(always)]
-    fn centroid(&self) -> Vec3A {
-        (Vec3A::from_vec4(self.lo) + Vec3A::from_vec4(self.hi)) * 0.5
-    }
-}
-
-fn bounds(refs: &[Ref]) -> (BoxA, BoxA) {
-    refs.iter().fold((BoxA::EMPTY, BoxA::EMPTY), |(b, c), r| {
-        (b.union(r.bbox()), c.grow(r.centroid()))
-    })
-}
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
     let mut refs: Vec<Ref> = (prims.boxes.iter().enumerate())
@@ -389,13 +302,6 @@ fn best_split_small(
     best
 }
 
-/// Surface area, with the operations of [`Lanes::area`].
-#[inline(always)]
-fn box_area(b: BoxA) -> f32 {
-    let e = b.hi - b.lo;
-    2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
-}
-
 /// Bins every reference on all three axes (a flat axis all into bin 0, never chosen), so
 /// there is no branch per axis.
 fn fill_bins(refs: &[Ref], nbins: usize, lo: Vec3A, scale: Vec3A) -> Vec<[Bin; 3]> {
@@ -440,6 +346,7 @@ fn partition(idx: &mut [Ref], left: impl Fn(Vec3A) -> bool) -> (usize, BoxA, Box
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
     use proptest::prelude::*;
 
     fn same_box(a: BoxA, b: BoxA) -> bool {

@@ -5,6 +5,7 @@ mod binned;
 pub mod layouts;
 mod median;
 mod options;
+mod prim_ref;
 mod prims;
 mod stats;
 mod sweep;

@@ -1,124 +1,242 @@
 //! The seed's full-sweep SAH build. Primitives are sorted by centroid once per axis at the
 //! root; every node sweeps each sorted list right→left (areas of the right parts) and
 //! left→right (areas of the left parts, and the cost of every candidate). After the split
-//! the other two lists are partitioned stably by a side flag, so they stay sorted without
-//! re-sorting: O(N log N) in all.
+//! the other two lists are partitioned stably, so they stay sorted without re-sorting:
+//! O(N log N) in all.
+//!
+//! How it goes fast: the lists hold 32-byte references (box and index, [`Ref`]) instead of
+//! indices, so sweeps and partitions stream through memory rather than gather boxes; the
+//! three axes are swept in one loop (three independent chains of box unions); a list is
+//! sorted by (centroid, index), so a reference's side is decided by its own centroid against
+//! the first reference right of the split, with no side flags looked up; a partition copies
+//! into a spare array of the same length and the two swap roles, so every node works in its
+//! own slices of arrays split alongside the lists and nothing is allocated below the root.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use glam::Vec3A;
 
+use super::prim_ref::{bounds, box_area, BoxA, Ref};
 use super::prims::{join, Prims, PARALLEL_MIN};
 use super::tree::{leaf, Node};
 use super::BuildOptions;
 use crate::geometry::Aabb;
 
-struct Ctx<'a> {
-    prims: &'a Prims,
-    opts: &'a BuildOptions,
-    /// Side flag per primitive, true = left. Disjoint subtrees touch disjoint entries.
-    left: Vec<AtomicBool>,
-}
-
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
     let n = prims.boxes.len();
-    let sorted = |axis: usize| {
-        let mut keyed: Vec<(f32, u32)> = (0..n as u32)
-            .map(|i| (prims.centroids[i as usize][axis], i))
-            .collect();
-        // Equal centroids ordered by index: deterministic, same as a stable sort.
-        keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        keyed.into_iter().map(|(_, i)| i).collect::<Vec<u32>>()
-    };
+    let refs: Vec<Ref> = (prims.boxes.iter().enumerate())
+        .map(|(i, b)| Ref::new(b, i as u32))
+        .collect();
     let par = opts.parallel && n >= PARALLEL_MIN;
+    let sorted = |axis: usize| sorted_by_centroid(&refs, axis);
     let (mut x, (mut y, mut z)) = join(par, || sorted(0), || join(par, || sorted(1), || sorted(2)));
-    let ctx = Ctx {
-        prims,
-        opts,
-        left: (0..n).map(|_| AtomicBool::new(false)).collect(),
+    // The unsorted references are no longer needed: they become the spare array.
+    let mut spare = refs;
+    let mut right_areas = vec![Vec3A::ZERO; n];
+    let mut order = vec![0u32; n];
+    let bbox = bounds(&x).0;
+    let work = Work {
+        lists: [&mut x, &mut y, &mut z],
+        spare: &mut spare,
+        right_areas: &mut right_areas,
+        order: &mut order,
     };
-    let root = node(&ctx, [&mut x, &mut y, &mut z], 0, 0);
-    (root, x)
+    let root = node(opts, work, bbox, 0, 0);
+    (root, order)
 }
 
-/// Best split found by the sweep: (cost, axis, number of primitives on the left).
-fn sweep(ctx: &Ctx, lists: &[&mut [u32]; 3], area: f32) -> (f32, usize, usize) {
-    let n = lists[0].len();
-    let mut best = (f32::INFINITY, 0, n / 2);
-    let mut right_area = vec![0.0f32; n];
-    for (axis, list) in lists.iter().enumerate() {
-        // right_area[k] = area of the box of list[k..].
-        let mut b = Aabb::EMPTY;
-        for k in (1..n).rev() {
-            b = b.union(ctx.prims.boxes[list[k] as usize]);
-            right_area[k] = b.area();
-        }
-        let mut b = Aabb::EMPTY;
-        for k in 1..n {
-            b = b.union(ctx.prims.boxes[list[k - 1] as usize]);
-            let cost = ctx.opts.split_cost(area, b.area(), k, right_area[k], n - k);
-            if cost < best.0 {
-                best = (cost, axis, k);
-            }
-        }
-    }
-    best
+/// A node's working memory: the three lists sorted on x, y, z, a spare array, the right
+/// parts' areas and the leaf order it writes, all the same length (the node's primitives).
+struct Work<'a> {
+    lists: [&'a mut [Ref]; 3],
+    spare: &'a mut [Ref],
+    right_areas: &'a mut [Vec3A],
+    order: &'a mut [u32],
 }
 
-fn node(ctx: &Ctx, lists: [&mut [u32]; 3], offset: usize, depth: usize) -> Node {
-    let n = lists[0].len();
-    let (bbox, cbox) = ctx.prims.bounds(lists[0]);
-    if n == 1 || (ctx.opts.leaf_beats_any_split(n) && !ctx.opts.depth_forces_median(depth, n)) {
-        return leaf(bbox, offset, n);
+impl Work<'_> {
+    /// A leaf of the node's primitives, in x order.
+    fn leaf(self, bbox: Aabb, offset: usize) -> Node {
+        for (o, r) in self.order.iter_mut().zip(self.lists[0].iter()) {
+            *o = r.id();
+        }
+        leaf(bbox, offset, self.order.len())
     }
-    let (axis, k) = if ctx.opts.depth_forces_median(depth, n) || cbox.extent() == glam::Vec3::ZERO {
+}
+
+/// A centroid coordinate as an unsigned key ordered like `f32::total_cmp`.
+#[inline(always)]
+fn sortable(c: f32) -> u32 {
+    let b = c.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 1 << 31
+    }
+}
+
+/// The order of the list on `axis`: centroid, then index (deterministic, unique).
+#[inline(always)]
+fn order_key(r: &Ref, axis: usize) -> u64 {
+    (sortable(r.centroid()[axis]) as u64) << 32 | r.id() as u64
+}
+
+/// The references in list order on `axis`. A radix sort of (centroid key, index) pairs:
+/// it is stable and `refs` is in index order, so equal centroids stay in index order.
+fn sorted_by_centroid(refs: &[Ref], axis: usize) -> Vec<Ref> {
+    let mut keys: Vec<(u32, u32)> = (refs.iter().enumerate())
+        .map(|(i, r)| (sortable(r.centroid()[axis]), i as u32))
+        .collect();
+    radsort::sort_by_key(&mut keys, |k| k.0);
+    keys.iter().map(|&(_, i)| refs[i as usize]).collect()
+}
+
+fn node(opts: &BuildOptions, w: Work, bbox: BoxA, offset: usize, depth: usize) -> Node {
+    let n = w.lists[0].len();
+    let aabb = bbox.aabb();
+    let forced = opts.depth_forces_median(depth, n);
+    if n == 1 || (opts.leaf_beats_any_split(n) && !forced) {
+        return w.leaf(aabb, offset);
+    }
+    // Each list is sorted on its axis: the centroid bounds are its ends.
+    let cbox = Aabb {
+        lo: glam::Vec3::from_array(std::array::from_fn(|a| w.lists[a][0].centroid()[a])),
+        hi: glam::Vec3::from_array(std::array::from_fn(|a| w.lists[a][n - 1].centroid()[a])),
+    };
+    let (axis, k, lbox) = if forced || cbox.extent() == glam::Vec3::ZERO {
         // Depth cap, or identical centroids (no SAH candidate separates them): the object
         // median keeps the tree balanced. A leaf is still taken when the SAH prefers it.
-        let cost = ctx.opts.split_cost(1.0, 1.0, n / 2, 1.0, n - n / 2);
-        if !ctx.opts.depth_forces_median(depth, n) && ctx.opts.prefers_leaf(n, cost) {
-            return leaf(bbox, offset, n);
+        let cost = opts.split_cost(1.0, 1.0, n / 2, 1.0, n - n / 2);
+        if !forced && opts.prefers_leaf(n, cost) {
+            return w.leaf(aabb, offset);
         }
-        (cbox.longest_axis(), n / 2)
+        let axis = cbox.longest_axis();
+        (axis, n / 2, bounds(&w.lists[axis][..n / 2]).0)
     } else {
-        let (cost, axis, k) = sweep(ctx, &lists, bbox.area());
-        if ctx.opts.prefers_leaf(n, cost) {
-            return leaf(bbox, offset, n);
+        match sweep(opts, &w.lists, w.right_areas, aabb.area()) {
+            Some(s) if !opts.prefers_leaf(n, s.cost) => (s.axis, s.k, s.left),
+            Some(_) => return w.leaf(aabb, offset),
+            // Every candidate's cost overflowed (boxes near f32::MAX): halve the node.
+            None if n > opts.max_leaf => (0, n / 2, bounds(&w.lists[0][..n / 2]).0),
+            None => return w.leaf(aabb, offset),
         }
-        (axis, k)
     };
 
-    for (i, &p) in lists[axis].iter().enumerate() {
-        ctx.left[p as usize].store(i < k, Ordering::Relaxed);
-    }
-    let mut scratch = Vec::with_capacity(n);
-    let [a, b, c] = lists;
-    for (i, list) in [&mut *a, &mut *b, &mut *c].into_iter().enumerate() {
+    let Work {
+        lists,
+        mut spare,
+        right_areas,
+        order,
+    } = w;
+    let pivot = order_key(&lists[axis][k], axis);
+    let rbox = bounds(&lists[axis][k..]).0;
+    let [mut a, mut b, mut c] = lists;
+    for (i, list) in [&mut a, &mut b, &mut c].into_iter().enumerate() {
         if i != axis {
-            stable_partition(list, &ctx.left, &mut scratch);
+            partition_into(list, spare, k, |r| order_key(r, axis) < pivot);
+            std::mem::swap(list, &mut spare);
         }
     }
     let (a0, a1) = a.split_at_mut(k);
     let (b0, b1) = b.split_at_mut(k);
     let (c0, c1) = c.split_at_mut(k);
-    let par = ctx.opts.parallel && n >= PARALLEL_MIN;
+    let (s0, s1) = spare.split_at_mut(k);
+    let (r0, r1) = right_areas.split_at_mut(k);
+    let (o0, o1) = order.split_at_mut(k);
+    let left = Work {
+        lists: [a0, b0, c0],
+        spare: s0,
+        right_areas: r0,
+        order: o0,
+    };
+    let right = Work {
+        lists: [a1, b1, c1],
+        spare: s1,
+        right_areas: r1,
+        order: o1,
+    };
     let (l, r) = join(
-        par,
-        || node(ctx, [a0, b0, c0], offset, depth + 1),
-        || node(ctx, [a1, b1, c1], offset + k, depth + 1),
+        opts.parallel && n >= PARALLEL_MIN,
+        || node(opts, left, lbox, offset, depth + 1),
+        || node(opts, right, rbox, offset + k, depth + 1),
     );
-    Node::inner(bbox, axis, [l, r])
+    Node::inner(aabb, axis, [l, r])
 }
 
-/// Left-flagged entries first, both groups in their original order.
-fn stable_partition(list: &mut [u32], left: &[AtomicBool], scratch: &mut Vec<u32>) {
-    scratch.clear();
-    let mut w = 0;
-    for i in 0..list.len() {
-        let p = list[i];
-        if left[p as usize].load(Ordering::Relaxed) {
-            list[w] = p;
-            w += 1;
-        } else {
-            scratch.push(p);
+/// The best split of a node.
+struct Split {
+    cost: f32,
+    axis: usize,
+    /// Primitives on the left.
+    k: usize,
+    /// Their bounds.
+    left: BoxA,
+}
+
+/// Best split found by the sweep (None when no position separates two centroids). Per axis
+/// the first position with the smallest A_L·N_L + A_R·N_R wins (it orders the candidates as
+/// the cost does, without a division each); then the axes by cost, in order.
+fn sweep(
+    opts: &BuildOptions,
+    lists: &[&mut [Ref]; 3],
+    right_areas: &mut [Vec3A],
+    area: f32,
+) -> Option<Split> {
+    let n = lists[0].len();
+    let [x, y, z] = [&lists[0][..n], &lists[1][..n], &lists[2][..n]];
+    let right_areas = &mut right_areas[..n];
+    let mut b = [BoxA::EMPTY; 3];
+    for k in (1..n).rev() {
+        b = [b[0].union(x[k].bbox()), b[1].union(y[k].bbox()), b[2].union(z[k].bbox())];
+        right_areas[k] = Vec3A::new(box_area(b[0]), box_area(b[1]), box_area(b[2]));
+    }
+    let mut best_key = [f32::INFINITY; 3];
+    let mut best_k = [0usize; 3];
+    let mut best_left = [BoxA::EMPTY; 3];
+    let mut b = [BoxA::EMPTY; 3];
+    for k in 1..n {
+        b = [
+            b[0].union(x[k - 1].bbox()),
+            b[1].union(y[k - 1].bbox()),
+            b[2].union(z[k - 1].bbox()),
+        ];
+        let left_area = Vec3A::new(box_area(b[0]), box_area(b[1]), box_area(b[2]));
+        let key = left_area * k as f32 + right_areas[k] * (n - k) as f32;
+        for a in 0..3 {
+            if key[a] < best_key[a] {
+                best_key[a] = key[a];
+                best_k[a] = k;
+                best_left[a] = b[a];
+            }
         }
     }
-    list[w..].copy_from_slice(scratch);
+    let mut best: Option<Split> = None;
+    for a in 0..3 {
+        let k = best_k[a];
+        if k == 0 {
+            continue;
+        }
+        let cost = opts.split_cost(area, box_area(best_left[a]), k, right_areas[k][a], n - k);
+        if best.as_ref().is_none_or(|b| cost < b.cost) {
+            best = Some(Split {
+                cost,
+                axis: a,
+                k,
+                left: best_left[a],
+            });
+        }
+    }
+    best
+}
+
+/// Copies `list` into `out`, the references `is_left` picks first (exactly `k` of them),
+/// both groups in their original order. Branch-free: the side picks the cursor (a
+/// conditional move), not the path.
+fn partition_into(list: &[Ref], out: &mut [Ref], k: usize, is_left: impl Fn(&Ref) -> bool) {
+    let (mut l, mut r) = (0, k);
+    for &x in list {
+        let left = is_left(&x);
+        out[if left { l } else { r }] = x;
+        l += left as usize;
+        r += !left as usize;
+    }
+    debug_assert_eq!((l, r), (k, list.len()));
 }
