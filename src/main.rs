@@ -44,6 +44,10 @@ fn usage_error(e: clap::Error) -> ! {
     std::process::exit(2);
 }
 
+/// Counts heap bytes so that `bench builders` can report each build's peak memory.
+#[global_allocator]
+static ALLOC: lancer::bench::memory::PeakAlloc = lancer::bench::memory::PeakAlloc;
+
 fn main() {
     quiet_window_system_probe();
     let cli = match cmd::Cli::try_parse() {

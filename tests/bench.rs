@@ -392,3 +392,91 @@ fn report_writes_a_dated_page_with_its_chart_beside_it() {
         ]
     );
 }
+
+fn builders_config(device: DeviceChoice) -> bench::builders::Config {
+    let teapot = load_mesh(Path::new("../shared/models/teapot.obj")).expect("../shared/models");
+    bench::builders::Config {
+        meshes: vec![
+            ("scenes/cornell-box.obj".into(), cornell()),
+            ("teapot".into(), teapot),
+        ],
+        builders: lancer::accel::bvh::Builder::ALL.to_vec(),
+        build: Default::default(),
+        width: 8,
+        height: 8,
+        device,
+        bvh_memory: Default::default(),
+        repeat: 1,
+    }
+}
+
+#[test]
+fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
+    let config = builders_config(DeviceChoice::Cpu);
+    let report = with_progress(|p| bench::builders::run(&config, p));
+    let embree = cfg!(feature = "embree");
+    assert_eq!(report.embree_version.is_some(), embree);
+    assert_eq!(report.builds.len(), 2 * (3 + embree as usize));
+    for b in report
+        .builds
+        .iter()
+        .filter(|b| b.builder != "embree-medium")
+    {
+        let (sah, epo) = (b.sah.unwrap(), b.epo.unwrap());
+        assert!(b.build_ms > 0.0 && sah > 0.0 && epo >= 0.0, "{b:?}");
+        // The library's tests run without the counting allocator: no peak is made up.
+        assert_eq!(b.peak_mib, None, "{b:?}");
+        assert!(
+            b.nodes.unwrap() >= 1 && b.flatten_ms.unwrap() >= 0.0,
+            "{b:?}"
+        );
+    }
+    assert_eq!(report.runs.len(), 2 * 3 * 4);
+    for r in &report.runs {
+        assert!(
+            r.cpu_mrays > 0.0 && r.nodes_per_ray >= 1.0 && r.gpu_mrays.is_none(),
+            "{r:?}"
+        );
+    }
+    // SAH, EPO and measured work × four ray sets, on the CPU: one ρ per mesh each.
+    assert_eq!(report.correlations.len(), 3 * 4);
+    for c in &report.correlations {
+        assert_eq!(c.device, "CPU");
+        assert_eq!(c.rho.len(), 2);
+        assert!(
+            c.rho.iter().flatten().all(|r| (-1.0..=1.0).contains(r)),
+            "{c:?}"
+        );
+        assert!(c.picks_fastest <= 2);
+    }
+    let text = report.text();
+    assert!(
+        text.contains("| mesh | builder | build ms | ÷ Embree |"),
+        "{text}"
+    );
+    assert!(
+        text.contains("| cornell-box.obj | median | random |"),
+        "{text}"
+    );
+    assert!(text.contains("| SAH | primary | CPU |"), "{text}");
+    let v = json(&report);
+    for key in ["build_ms", "peak_mib", "sah", "epo"] {
+        assert!(v["builds"][0].get(key).is_some(), "{key}: {v}");
+    }
+    assert!(v["correlations"][0].get("mean_rho").is_some(), "{v}");
+}
+
+#[test]
+fn builders_on_the_gpu_give_every_run_a_gpu_speed() {
+    let config = bench::builders::Config {
+        builders: vec![
+            lancer::accel::bvh::Builder::Sweep,
+            lancer::accel::bvh::Builder::Median,
+        ],
+        ..builders_config(DeviceChoice::Gpu)
+    };
+    let report = bench::builders::run(&config, &bench::silent).unwrap();
+    assert!(report.gpu_layout.is_some());
+    assert!(report.runs.iter().all(|r| r.gpu_mrays.unwrap() > 0.0));
+    assert!(report.correlations.iter().any(|c| c.device == "GPU"));
+}

@@ -7,15 +7,19 @@
 //! - [`layouts`]: every flattened BVH layout on one mesh (CPU twin and GPU kernel; the
 //!   driver's ray queries and, with the `embree` feature, Embree 3 in the same run);
 //! - [`structures`]: every acceleration structure on one mesh or scene;
+//! - [`builders`]: every BVH builder on several meshes, and which a-priori cost predicts
+//!   the measured speed;
 //! - [`accuracy`]: what each robustness knob costs in time and the error it leaves;
 //! - [`render`]: milliseconds per sample, specialised and all-effects kernels;
 //! - [`trace`]: one structure's GPU kernel over BVH memory × workgroup × module.
 //!
 //! Shared pieces: [`timing`] (medians, paired runs), [`rays`] (the ray sets every bench
-//! traces), [`markdown`] (tables), [`page`] (a dated results page, `--report`), and with the
+//! traces), [`markdown`] (tables), [`memory`] (peak heap bytes), [`rank`] (rank
+//! correlation), [`page`] (a dated results page, `--report`), and with the
 //! `charts` feature [`chart`] (PNG charts, plotters) and [`colour_bar`] (the heatmap's bar).
 
 pub mod accuracy;
+pub mod builders;
 #[cfg(feature = "charts")]
 pub mod chart;
 #[cfg(feature = "charts")]
@@ -23,7 +27,9 @@ pub mod colour_bar;
 pub mod heatmap;
 pub mod layouts;
 pub mod markdown;
+pub mod memory;
 pub mod page;
+pub mod rank;
 pub mod rays;
 pub mod render;
 pub mod structures;

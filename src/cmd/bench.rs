@@ -34,6 +34,9 @@ enum BenchWhat {
     Layouts(super::bench_layouts::BenchLayouts),
     /// What each robustness knob costs in time and the error it leaves, CPU and GPU.
     Accuracy(super::bench_accuracy::BenchAccuracy),
+    /// Every BVH builder on one or more meshes: build time, peak memory, SAH and EPO, work
+    /// and speed per ray, and which a-priori cost predicts the speed.
+    Builders(super::bench_builders::BenchBuilders),
 }
 
 impl BenchCmd {
@@ -44,6 +47,7 @@ impl BenchCmd {
             BenchWhat::Structures(b) => b.run(),
             BenchWhat::Layouts(b) => b.run(),
             BenchWhat::Accuracy(b) => b.run(),
+            BenchWhat::Builders(b) => b.run(),
         }
     }
 }

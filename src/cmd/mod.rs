@@ -3,6 +3,7 @@
 mod adapters;
 mod bench;
 mod bench_accuracy;
+mod bench_builders;
 mod bench_layouts;
 mod bench_render;
 mod bench_structures;
@@ -18,7 +19,7 @@ mod render;
 mod trace;
 
 use clap::{Args, Parser, Subcommand};
-use lancer::accel::bvh::{BuildOptions, Builder, MAX_BINS};
+use lancer::accel::bvh::{BuildOptions, Builder, EXACT_BELOW, MAX_BINS};
 use lancer::geometry::{Precision, RayOffset, SlabTest, TriangleTest};
 use lancer::gpu::BvhMemory;
 use lancer::{AccelKind, Device, DeviceChoice, LayoutKind, Result, Robustness};
@@ -92,6 +93,10 @@ pub struct BuilderArgs {
     /// SAH cost of one triangle test (finite, > 0).
     #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
     t_obj: f32,
+    /// Sweep builder: nodes of more triangles than this split by 64 bins per axis, smaller
+    /// ones by the exact sweep; 0 sweeps every node (the seed's build, about half as fast).
+    #[arg(long, default_value_t = EXACT_BELOW as u64, value_name = "N")]
+    exact_below: u64,
 }
 
 impl BuilderArgs {
@@ -102,6 +107,10 @@ impl BuilderArgs {
             t_obj: self.t_obj,
             max_leaf: self.max_leaf as usize,
             bins: self.bins as usize,
+            exact_below: match self.exact_below {
+                0 => usize::MAX,
+                n => usize::try_from(n).unwrap_or(usize::MAX),
+            },
             ..BuildOptions::default()
         }
     }
@@ -109,11 +118,18 @@ impl BuilderArgs {
 
 /// The builder options `--bvh FILE` is refused with (by their argument ids): the file holds
 /// the structure, built already.
-pub const BUILDER_IDS: [&str; 5] = ["builder", "bins", "max_leaf", "t_cube", "t_obj"];
+pub const BUILDER_IDS: [&str; 6] = [
+    "builder",
+    "bins",
+    "max_leaf",
+    "t_cube",
+    "t_obj",
+    "exact_below",
+];
 
 /// The options `--bvh FILE` is refused with where a command has `--accel` and `--layout`:
 /// the file holds the structure, its layout and how it was built.
-pub const BVH_CONFLICTS: [&str; 7] = [
+pub const BVH_CONFLICTS: [&str; 8] = [
     "accel",
     "layout",
     BUILDER_IDS[0],
@@ -121,6 +137,7 @@ pub const BVH_CONFLICTS: [&str; 7] = [
     BUILDER_IDS[2],
     BUILDER_IDS[3],
     BUILDER_IDS[4],
+    BUILDER_IDS[5],
 ];
 
 /// BVH builder options and the flattened layout.

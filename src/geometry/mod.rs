@@ -2,6 +2,7 @@
 //! boxes, rays, hits, triangle tests and the robustness settings.
 
 mod aabb;
+mod clip;
 mod hit;
 mod ray;
 mod robustness;
@@ -12,6 +13,7 @@ mod triangle_f64;
 mod vector;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
+pub(crate) use clip::{clip_bounds, clipped_area};
 pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{

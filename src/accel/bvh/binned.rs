@@ -7,22 +7,44 @@
 
 use glam::{Mat3A, Vec3A};
 
-use super::prim_ref::{box_area, bounds, BoxA, Ref};
+use super::prim_ref::{bounds, box_area, BoxA, Ref};
 
 use super::prims::{join, Prims, PARALLEL_MIN};
 use super::tree::{leaf, Node};
 use super::BuildOptions;
-use crate::geometry::Aabb;
 
 /// Most bins per axis the builder supports (the CLI refuses more).
 pub const MAX_BINS: usize = 64;
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
-    let mut refs: Vec<Ref> = (prims.boxes.iter().enumerate())
-        .map(|(i, b)| Ref::new(b, i as u32))
-        .collect();
+    let top = Top {
+        bins: opts.bins.clamp(2, MAX_BINS),
+        handover: None,
+    };
+    build_with(prims, opts, &top)
+}
+
+/// Builds the subtree over a node's references (leaving them in leaf order), given their
+/// bounds, the subtree's first leaf-order position and its depth.
+pub(crate) type SubtreeBuilder<'a> = &'a (dyn Fn(&mut [Ref], BoxA, usize, usize) -> Node + Sync);
+
+/// A builder that takes over the nodes of at most `below` primitives.
+pub(crate) struct Handover<'a> {
+    pub below: usize,
+    pub build: SubtreeBuilder<'a>,
+}
+
+/// How the binned recursion runs: its bins per axis, and where it hands over.
+pub(crate) struct Top<'a> {
+    pub bins: usize,
+    pub handover: Option<Handover<'a>>,
+}
+
+/// The binned build with `top`'s bins, handing small nodes over where it says.
+pub(crate) fn build_with(prims: &Prims, opts: &BuildOptions, top: &Top) -> (Node, Vec<u32>) {
+    let mut refs = prims.refs();
     let (bbox, cbox) = bounds(&refs);
-    let root = node(opts, &mut refs, bbox.aabb(), cbox, 0, 0);
+    let root = node(opts, top, &mut refs, bbox, cbox, 0, 0);
     (root, refs.iter().map(Ref::id).collect())
 }
 
@@ -67,17 +89,22 @@ fn bin_of(c: Vec3A, lo: Vec3A, scale: Vec3A, last: usize) -> [usize; 3] {
 
 fn node(
     opts: &BuildOptions,
+    top: &Top,
     idx: &mut [Ref],
-    bbox: Aabb,
+    bbox_simd: BoxA,
     cbox: BoxA,
     offset: usize,
     depth: usize,
 ) -> Node {
     let n = idx.len();
+    if let Some(h) = top.handover.as_ref().filter(|h| n <= h.below) {
+        return (h.build)(idx, bbox_simd, offset, depth);
+    }
+    let bbox = bbox_simd.aabb();
     if n == 1 || (opts.leaf_beats_any_split(n) && !opts.depth_forces_median(depth, n)) {
         return leaf(bbox, offset, n);
     }
-    let nbins = opts.bins.clamp(2, MAX_BINS);
+    let nbins = top.bins;
     let ext = cbox.hi - cbox.lo;
     let scale = nbins as f32 / ext;
     // A flat axis, or one so thin that K/extent overflows, is not binned.
@@ -111,7 +138,7 @@ fn node(
             }
             let (lo, scale) = (cbox.lo[axis], scale[axis]);
             let (k, lc, rc) = partition(idx, |c| bin_index(c[axis], lo, scale, nbins - 1) < s);
-            (k, axis, lbox.aabb(), rbox.aabb(), lc, rc)
+            (k, axis, lbox, rbox, lc, rc)
         }
         None => {
             // Depth cap or identical centroids: object median.
@@ -127,14 +154,14 @@ fn node(
             });
             let (lbox, lc) = bounds(&idx[..k]);
             let (rbox, rc) = bounds(&idx[k..]);
-            (k, axis, lbox.aabb(), rbox.aabb(), lc, rc)
+            (k, axis, lbox, rbox, lc, rc)
         }
     };
     let (l, r) = idx.split_at_mut(k);
     let (a, b) = join(
         opts.parallel && n >= PARALLEL_MIN,
-        || node(opts, l, lbox, lc, offset, depth + 1),
-        || node(opts, r, rbox, rc, offset + k, depth + 1),
+        || node(opts, top, l, lbox, lc, offset, depth + 1),
+        || node(opts, top, r, rbox, rc, offset + k, depth + 1),
     );
     Node::inner(bbox, axis, [a, b])
 }
@@ -346,6 +373,7 @@ fn partition(idx: &mut [Ref], left: impl Fn(Vec3A) -> bool) -> (usize, BoxA, Box
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Aabb;
     use glam::Vec3;
     use proptest::prelude::*;
 

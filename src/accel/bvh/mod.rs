@@ -2,6 +2,7 @@
 //! statistics. Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
 
 mod binned;
+mod epo;
 pub mod layouts;
 mod median;
 mod options;
@@ -17,7 +18,8 @@ use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
 pub use binned::MAX_BINS;
-pub use options::{BuildOptions, Builder};
+pub use epo::epo_cost;
+pub use options::{BuildOptions, Builder, EXACT_BELOW};
 pub use stats::BvhStats;
 pub use tree::{Bvh, Node, MAX_DEPTH};
 

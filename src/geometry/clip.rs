@@ -1,7 +1,8 @@
-//! The part of a triangle inside a cell: Sutherland–Hodgman clipping of the triangle's
-//! polygon against the cell's six planes, and the bounds of what is left.
+//! The part of a triangle inside a box: Sutherland–Hodgman clipping of the triangle's
+//! polygon against the box's six planes; the bounds of what is left (the kd-tree's and the
+//! spatial splits' references) and its area (the end-point overlap metric).
 //!
-//! Conservative: the cell is first grown by a margin above the clipping's rounding, the
+//! The bounds are conservative: the cell is first grown by a margin above the clipping's rounding, the
 //! result's bounds grown by it again, then cut back to the triangle's own (exact) bounds and
 //! to the cell. So a triangle is never left out of a cell it touches (a sliver too thin to
 //! see is kept, at the cost of an extra reference), and a triangle whose vertex lies exactly
@@ -91,6 +92,35 @@ pub(crate) fn clip_bounds(tri: &Triangle, cell: &Aabb) -> Option<Aabb> {
     Some(Aabb { lo, hi })
 }
 
+/// Area of the part of `tri` inside `cell` (exact clipping, no margin: a metric, not a
+/// bound). 0 when they do not overlap.
+pub(crate) fn clipped_area(tri: &Triangle, cell: &Aabb) -> f64 {
+    let tb = tri.bbox();
+    let mut poly = Poly {
+        v: [Vec3::ZERO; MAX_VERTS],
+        n: 3,
+    };
+    poly.v[..3].copy_from_slice(&tri.v);
+    for axis in 0..3 {
+        if tb.lo[axis] < cell.lo[axis] {
+            poly = poly.clip(axis, cell.lo[axis], true);
+        }
+        if tb.hi[axis] > cell.hi[axis] {
+            poly = poly.clip(axis, cell.hi[axis], false);
+        }
+        if poly.n < 3 {
+            return 0.0;
+        }
+    }
+    // A convex polygon: a fan from its first vertex, in f64.
+    let p = |i: usize| poly.v[i].as_dvec3();
+    let mut twice = glam::DVec3::ZERO;
+    for i in 1..poly.n - 1 {
+        twice += (p(i) - p(0)).cross(p(i + 1) - p(0));
+    }
+    0.5 * twice.length()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -100,6 +130,21 @@ mod tests {
             lo: Vec3::from(lo),
             hi: Vec3::from(hi),
         }
+    }
+
+    #[test]
+    fn the_clipped_area_is_the_part_inside() {
+        // The right triangle (0,0)-(2,0)-(0,2), area 2: x ≤ 1 keeps 2 − 0.5 = 1.5; inside
+        // a bigger box all of it; beside the hypotenuse nothing.
+        let t = Triangle::new(
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        );
+        let area = |lo, hi| clipped_area(&t, &cell(lo, hi));
+        assert!((area([-1.0; 3], [1.0, 3.0, 1.0]) - 1.5).abs() < 1e-6);
+        assert!((area([-1.0; 3], [3.0; 3]) - 2.0).abs() < 1e-6);
+        assert_eq!(area([1.5, 1.5, -1.0], [3.0, 3.0, 1.0]), 0.0);
     }
 
     #[test]

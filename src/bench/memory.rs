@@ -1,0 +1,83 @@
+//! Peak heap memory of a piece of work: [`PeakAlloc`], a counting wrapper around the system
+//! allocator that a program installs as its global allocator (the `lancer` binary does), and
+//! [`peak_during`], which reads it. Exact bytes requested from the allocator, unlike the
+//! process's resident set, which an allocator keeping freed pages hides.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicIsize, Ordering};
+
+/// Bytes allocated minus bytes freed since [`peak_during`] started (counted only then).
+static NET: AtomicIsize = AtomicIsize::new(0);
+static PEAK: AtomicIsize = AtomicIsize::new(0);
+static COUNTING: AtomicBool = AtomicBool::new(false);
+
+/// The system allocator, counting bytes allocated and freed inside [`peak_during`]. Install
+/// it with `#[global_allocator] static ALLOC: PeakAlloc = PeakAlloc;` to make
+/// [`peak_during`] measure. Outside it, the cost is one relaxed load of a flag that never
+/// changes there (no shared cache line is written).
+pub struct PeakAlloc;
+
+// SAFETY: every call is passed on unchanged to `System`; the counters only observe.
+unsafe impl GlobalAlloc for PeakAlloc {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let p = System.alloc(layout);
+        if !p.is_null() {
+            grew(layout.size());
+        }
+        p
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        let p = System.alloc_zeroed(layout);
+        if !p.is_null() {
+            grew(layout.size());
+        }
+        p
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout);
+        shrank(layout.size());
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let p = System.realloc(ptr, layout, new_size);
+        if !p.is_null() {
+            shrank(layout.size());
+            grew(new_size);
+        }
+        p
+    }
+}
+
+#[inline]
+fn grew(bytes: usize) {
+    if COUNTING.load(Ordering::Relaxed) {
+        let net = NET.fetch_add(bytes as isize, Ordering::Relaxed) + bytes as isize;
+        PEAK.fetch_max(net, Ordering::Relaxed);
+    }
+}
+
+#[inline]
+fn shrank(bytes: usize) {
+    if COUNTING.load(Ordering::Relaxed) {
+        NET.fetch_sub(bytes as isize, Ordering::Relaxed);
+    }
+}
+
+/// Runs `work` and returns its result with the most heap bytes it held at once beyond what
+/// was live when it started (what it returns included; memory it frees that was allocated
+/// before counts against it), or None when [`PeakAlloc`] is not
+/// the global allocator. Other threads' allocations meanwhile count too: measure alone.
+pub fn peak_during<T>(work: impl FnOnce() -> T) -> (T, Option<u64>) {
+    NET.store(0, Ordering::Relaxed);
+    PEAK.store(0, Ordering::Relaxed);
+    COUNTING.store(true, Ordering::Relaxed);
+    // A probe allocation tells whether the counter is the global allocator.
+    drop(std::hint::black_box(Box::new(0u64)));
+    let installed = PEAK.swap(0, Ordering::Relaxed) > 0;
+    let out = work();
+    COUNTING.store(false, Ordering::Relaxed);
+    let peak = PEAK.load(Ordering::Relaxed).max(0) as u64;
+    (out, installed.then_some(peak))
+}

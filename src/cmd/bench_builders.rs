@@ -1,0 +1,75 @@
+//! `lancer bench builders`: parses, runs `lancer::bench::builders`, prints.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use lancer::accel::bvh::{BuildOptions, Builder};
+use lancer::bench::builders::{run, Config, Report};
+use lancer::gpu::BvhMemory;
+use lancer::render::load_geometry;
+use lancer::{DeviceChoice, Result};
+
+use super::bench::{with_bar, Outputs};
+
+#[derive(Args)]
+pub struct BenchBuilders {
+    /// Meshes (.obj, .ply, .gltf, .glb) or scenes (.toml: the assembled mesh), one or more.
+    #[arg(required = true)]
+    meshes: Vec<PathBuf>,
+    /// A builder to compare (sweep, binned, median); repeat the option for several. Default:
+    /// all.
+    #[arg(long = "builder", value_enum, hide_possible_values = true)]
+    builders: Vec<Builder>,
+    /// Width of the default view (primary rays; shadow and bounce rays start at their hits;
+    /// as many random rays).
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
+    width: u32,
+    /// Height of the default view.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
+    height: u32,
+    /// auto, gpu or cpu, as for `bench layouts`; the GPU traces its default layout.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
+    device: DeviceChoice,
+    /// GPU: where the kernel reads the BVH from.
+    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
+    bvh_memory: BvhMemory,
+    /// Timed builds and traversals per builder, mesh and ray set (medians are reported).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+    repeat: u64,
+    #[command(flatten)]
+    out: Outputs,
+    /// Also draw the build times as a PNG bar chart here, and each tree's SAH against its
+    /// time per ray beside it (FILE-sah.png).
+    #[arg(long, value_name = "FILE.png")]
+    chart: Option<PathBuf>,
+}
+
+impl BenchBuilders {
+    pub fn run(self) -> Result<()> {
+        let chart = self.chart.as_deref();
+        let mut meshes = Vec::new();
+        let mut sources = Vec::new();
+        for path in &self.meshes {
+            let mesh = load_geometry(path)?;
+            sources.extend(mesh.sources.iter().cloned());
+            meshes.push((path.display().to_string(), mesh));
+        }
+        self.out.check::<Report>(&sources, chart)?;
+        let builders = match self.builders.is_empty() {
+            true => Builder::ALL.to_vec(),
+            false => self.builders,
+        };
+        let config = Config {
+            meshes,
+            builders,
+            build: BuildOptions::default(),
+            width: self.width,
+            height: self.height,
+            device: self.device,
+            bvh_memory: self.bvh_memory,
+            repeat: self.repeat as usize,
+        };
+        let report = with_bar("", |p| run(&config, p))?;
+        self.out.finish(&report, chart)
+    }
+}
