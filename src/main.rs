@@ -44,9 +44,12 @@ fn usage_error(e: clap::Error) -> ! {
     std::process::exit(2);
 }
 
-/// Counts heap bytes so that `bench builders` can report each build's peak memory.
+/// mimalloc: the builders and flattening allocate big arrays and many small nodes, which the
+/// system allocator hands back to the kernel and faults in again on every build. Counted,
+/// so that `bench builders` can report each build's peak memory.
 #[global_allocator]
-static ALLOC: lancer::bench::memory::PeakAlloc = lancer::bench::memory::PeakAlloc;
+static ALLOC: lancer::bench::memory::PeakAlloc<mimalloc::MiMalloc> =
+    lancer::bench::memory::PeakAlloc(mimalloc::MiMalloc);
 
 fn main() {
     quiet_window_system_probe();

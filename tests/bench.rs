@@ -451,7 +451,7 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
     }
     let text = report.text();
     assert!(
-        text.contains("| mesh | builder | build ms | ÷ Embree |"),
+        text.contains("| mesh | builder | build ms | flatten ms | (build + flatten) ÷ Embree |"),
         "{text}"
     );
     assert!(

@@ -58,10 +58,15 @@ pub struct BuildRow {
     pub mesh: String,
     /// The builder (`--builder`), or "embree-medium".
     pub builder: String,
-    /// Wall time of the tree's build, median of `repeat` (Embree: its scene commit).
+    /// Wall time of the tree's build, median of `repeat` (Embree: its scene build, buffers
+    /// filled and committed, median of all its builds on the mesh).
     pub build_ms: f64,
-    /// Wall time to flatten the tree into the CPU layout traced.
+    /// Wall time to flatten the tree into the CPU layout traced, median of `repeat`.
     pub flatten_ms: Option<f64>,
+    /// (build + flatten) ÷ Embree's build: the medians, Embree's over all its builds on the
+    /// mesh (one right after each timed build of every builder; its times are bimodal on a
+    /// 2-core machine, a pair alone says little). None without Embree.
+    pub vs_embree: Option<f64>,
     /// Most heap bytes the build held at once, in MiB (None where not measured).
     pub peak_mib: Option<f64>,
     /// SAH cost of the tree (T_cube = T_obj = 1 unless set; root area normalised).
@@ -159,17 +164,98 @@ fn ray_sets(mesh: &Mesh, config: &Config) -> Result<Vec<RaySet>> {
     Ok(sets)
 }
 
-/// Times `repeat` builds (the median, ms), then one more under the peak-memory count.
-fn timed_build(mesh: &Mesh, opts: &BuildOptions, repeat: usize) -> (Bvh, f64, Option<u64>) {
+/// Embree's builds beside lancer's: one timed right after each timed lancer build (the
+/// `embree` feature; a stand-in that times nothing without it).
+struct EmbreePair<'m> {
+    #[cfg(feature = "embree")]
+    builds: crate::embree::EmbreeBuilds<'m>,
+    #[cfg(not(feature = "embree"))]
+    builds: std::marker::PhantomData<&'m Mesh>,
+    /// Every Embree build time on this mesh, ms.
+    times: Vec<f64>,
+}
+
+impl<'m> EmbreePair<'m> {
+    #[cfg(feature = "embree")]
+    fn new(mesh: &'m Mesh) -> Result<Option<Self>> {
+        let builds = crate::embree::EmbreeBuilds::new(mesh, rayon::current_num_threads())?;
+        Ok(Some(EmbreePair {
+            builds,
+            times: Vec::new(),
+        }))
+    }
+
+    #[cfg(not(feature = "embree"))]
+    fn new(_: &'m Mesh) -> Result<Option<Self>> {
+        Ok(None)
+    }
+
+    /// Times one more Embree build.
+    #[cfg(feature = "embree")]
+    fn time(&mut self) -> Result<()> {
+        self.times.push(self.builds.time()?);
+        Ok(())
+    }
+
+    #[cfg(not(feature = "embree"))]
+    fn time(&mut self) -> Result<()> {
+        Ok(())
+    }
+
+    #[cfg(feature = "embree")]
+    fn version(&self) -> String {
+        self.builds.version().to_string()
+    }
+
+    #[cfg(not(feature = "embree"))]
+    fn version(&self) -> String {
+        String::new()
+    }
+}
+
+/// A pause before each timed build, so that the other side's worker threads (rayon's, or
+/// Embree's) have stopped spinning: on a machine of few cores they would take turns with the
+/// build being timed.
+fn settle() {
+    std::thread::sleep(std::time::Duration::from_millis(20));
+}
+
+/// A builder's timed builds on one mesh.
+struct Timed {
+    /// The tree (of the last, untimed build).
+    bvh: Bvh,
+    /// Each timed build, ms.
+    ms: Vec<f64>,
+    /// Peak heap bytes of the untimed build.
+    peak: Option<u64>,
+}
+
+/// `repeat` timed builds, each followed by a timed Embree build where there is one (into
+/// `embree`'s times); then one more under the peak-memory count.
+fn timed_build(
+    mesh: &Mesh,
+    opts: &BuildOptions,
+    repeat: usize,
+    mut embree: Option<&mut EmbreePair>,
+) -> Result<Timed> {
     let mut times = Vec::new();
     for _ in 0..repeat {
+        settle();
         let start = Instant::now();
         let bvh = build(mesh, opts);
         times.push(start.elapsed().as_secs_f64() * 1e3);
         drop(bvh);
+        if let Some(e) = embree.as_deref_mut() {
+            settle();
+            e.time()?;
+        }
     }
     let (bvh, peak) = peak_during(|| build(mesh, opts));
-    (bvh, median(times), peak)
+    Ok(Timed {
+        bvh,
+        ms: times,
+        peak,
+    })
 }
 
 /// Runs the bench.
@@ -180,32 +266,49 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     let repeat = config.repeat.max(1);
     let sets_per_mesh = 4;
     let per_builder = 1 + sets_per_mesh * repeat * (1 + gpu_layout.is_some() as usize);
-    let embree = cfg!(feature = "embree") as usize;
     let ticker = Ticker::new(
         progress,
-        (config.meshes.len() * (config.builders.len() * per_builder + embree)) as u64,
+        (config.meshes.len() * config.builders.len() * per_builder) as u64,
     );
     let (mut builds, mut runs) = (Vec::new(), Vec::new());
     let mut embree_version = None;
     for (name, mesh) in &config.meshes {
         ticker.say(format!("{name}: rays"));
         let sets = ray_sets(mesh, config)?;
+        let mut embree = EmbreePair::new(mesh)?;
         for &builder in &config.builders {
             ticker.say(format!("{name}: {}", builder.name()));
             let opts = BuildOptions {
                 builder,
                 ..config.build
             };
-            let (bvh, build_ms, peak) = timed_build(mesh, &opts, repeat);
+            let Timed {
+                bvh,
+                ms: times,
+                peak,
+            } = timed_build(mesh, &opts, repeat, embree.as_mut())?;
             let stats = BvhStats::of(&bvh, &opts);
-            let start = Instant::now();
-            let layout: Arc<dyn GpuForm> = try_flatten(defaults::CPU_LAYOUT, &bvh, mesh)?.into();
-            let flatten_ms = start.elapsed().as_secs_f64() * 1e3;
+            // Flattened `repeat` times: the median time, the last layout.
+            let mut flatten_times = Vec::new();
+            let mut layout = None;
+            for _ in 0..repeat {
+                drop(layout.take());
+                settle();
+                let start = Instant::now();
+                layout = Some(try_flatten(defaults::CPU_LAYOUT, &bvh, mesh)?);
+                flatten_times.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+            let flatten_ms = median(flatten_times);
+            let layout: Arc<dyn GpuForm> = match layout {
+                Some(l) => l.into(),
+                None => try_flatten(defaults::CPU_LAYOUT, &bvh, mesh)?.into(),
+            };
             builds.push(BuildRow {
                 mesh: name.clone(),
                 builder: builder.name().into(),
-                build_ms,
+                build_ms: median(times),
                 flatten_ms: Some(flatten_ms),
+                vs_embree: None,
                 peak_mib: peak.map(|b| b as f64 / (1u64 << 20) as f64),
                 sah: Some(stats.sah_cost),
                 epo: Some(epo_cost(&bvh, mesh, &opts)),
@@ -245,10 +348,24 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
                 });
             }
         }
-        if let Some((row, version)) = embree_build(name, mesh, repeat)? {
-            builds.push(row);
-            embree_version = Some(version);
-            ticker.inc(1);
+        if let Some(e) = embree {
+            let theirs = median(e.times.clone());
+            for b in builds.iter_mut().filter(|b| &b.mesh == name) {
+                b.vs_embree = Some((b.build_ms + b.flatten_ms.unwrap_or(0.0)) / theirs);
+            }
+            embree_version = Some(e.version());
+            builds.push(BuildRow {
+                mesh: name.clone(),
+                builder: EMBREE_MEDIUM.into(),
+                build_ms: median(e.times),
+                flatten_ms: None,
+                vs_embree: None,
+                peak_mib: None,
+                sah: None,
+                epo: None,
+                nodes: None,
+                max_depth: None,
+            });
         }
     }
     let correlations = correlations(config, &builds, &runs, gpu_layout.is_some());
@@ -273,38 +390,6 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
 
 /// The name of Embree's row.
 pub const EMBREE_MEDIUM: &str = "embree-medium";
-
-/// Embree's medium-quality build of the same triangles on rayon's thread count: the median
-/// of `repeat` scene builds.
-#[cfg(feature = "embree")]
-fn embree_build(name: &str, mesh: &Mesh, repeat: usize) -> Result<Option<(BuildRow, String)>> {
-    let threads = rayon::current_num_threads();
-    let mut times = Vec::new();
-    let mut version = String::new();
-    for _ in 0..repeat {
-        let e = crate::embree::EmbreeTracer::new(mesh, threads)?;
-        times.push(e.build_ms());
-        version = e.version().to_string();
-    }
-    let row = BuildRow {
-        mesh: name.into(),
-        builder: EMBREE_MEDIUM.into(),
-        build_ms: median(times),
-        flatten_ms: None,
-        peak_mib: None,
-        sah: None,
-        epo: None,
-        nodes: None,
-        max_depth: None,
-    };
-    Ok(Some((row, version)))
-}
-
-/// Without the `embree` feature: no Embree row.
-#[cfg(not(feature = "embree"))]
-fn embree_build(_: &str, _: &Mesh, _: usize) -> Result<Option<(BuildRow, String)>> {
-    Ok(None)
-}
 
 /// For each predictor, ray set and device: Spearman's ρ over the builders between the
 /// predictor and the seconds per ray, per mesh; and on how many meshes the predictor's best
@@ -400,8 +485,8 @@ impl BenchReport for Report {
             "mesh",
             "builder",
             "build ms",
-            "÷ Embree",
             "flatten ms",
+            "(build + flatten) ÷ Embree",
             "peak MiB",
             "SAH",
             "EPO",
@@ -409,15 +494,12 @@ impl BenchReport for Report {
             "depth",
         ]);
         for b in &self.builds {
-            let embree = (self.builds.iter())
-                .find(|e| e.mesh == b.mesh && e.builder == EMBREE_MEDIUM)
-                .map(|e| b.build_ms / e.build_ms);
             t.row(vec![
                 super::file_name(&b.mesh),
                 b.builder.clone(),
                 format!("{:.1}", b.build_ms),
-                dash(embree, 2),
                 dash(b.flatten_ms, 1),
+                dash(b.vs_embree, 2),
                 dash(b.peak_mib, 1),
                 dash(b.sah, 2),
                 dash(b.epo, 2),
@@ -469,7 +551,11 @@ impl BenchReport for Report {
             t.row(cells);
         }
         out += &t.text();
-        out += "\nρ: Spearman's rank correlation over the builders between the predictor and the \
+        out += "\n(build + flatten) ÷ Embree: lancer's tree built and flattened into the CPU \
+                layout it traces, against Embree 3's medium-quality scene build (its BVH is \
+                ready to trace) of the same triangles on the same threads, timed right after \
+                each build; the medians (Embree's over all its builds on the mesh).\n";
+        out += "ρ: Spearman's rank correlation over the builders between the predictor and the \
                 time per ray (1 = it orders the trees exactly as their speed does). SAH and \
                 EPO are known before tracing; measured work (nodes + triangles per ray) is \
                 shown for scale.\n";

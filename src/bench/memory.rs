@@ -11,16 +11,17 @@ static NET: AtomicIsize = AtomicIsize::new(0);
 static PEAK: AtomicIsize = AtomicIsize::new(0);
 static COUNTING: AtomicBool = AtomicBool::new(false);
 
-/// The system allocator, counting bytes allocated and freed inside [`peak_during`]. Install
-/// it with `#[global_allocator] static ALLOC: PeakAlloc = PeakAlloc;` to make
-/// [`peak_during`] measure. Outside it, the cost is one relaxed load of a flag that never
-/// changes there (no shared cache line is written).
-pub struct PeakAlloc;
+/// An allocator (the system's by default) counting bytes allocated and freed inside
+/// [`peak_during`]. Install it with `#[global_allocator] static ALLOC: PeakAlloc =
+/// PeakAlloc(std::alloc::System);` to make [`peak_during`] measure. Outside it, the cost is
+/// one relaxed load of a flag that never changes there (no shared cache line is written).
+pub struct PeakAlloc<A = System>(pub A);
 
-// SAFETY: every call is passed on unchanged to `System`; the counters only observe.
-unsafe impl GlobalAlloc for PeakAlloc {
+// SAFETY: every call is passed on unchanged to the inner allocator; the counters only
+// observe.
+unsafe impl<A: GlobalAlloc> GlobalAlloc for PeakAlloc<A> {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let p = System.alloc(layout);
+        let p = self.0.alloc(layout);
         if !p.is_null() {
             grew(layout.size());
         }
@@ -28,7 +29,7 @@ unsafe impl GlobalAlloc for PeakAlloc {
     }
 
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        let p = System.alloc_zeroed(layout);
+        let p = self.0.alloc_zeroed(layout);
         if !p.is_null() {
             grew(layout.size());
         }
@@ -36,12 +37,12 @@ unsafe impl GlobalAlloc for PeakAlloc {
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout);
+        self.0.dealloc(ptr, layout);
         shrank(layout.size());
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let p = System.realloc(ptr, layout, new_size);
+        let p = self.0.realloc(ptr, layout, new_size);
         if !p.is_null() {
             shrank(layout.size());
             grew(new_size);

@@ -33,67 +33,80 @@ pub(crate) struct SahCosts {
     pub max_leaf: u32,
 }
 
-/// The programme's decisions for every binary node, for W slots.
-pub(crate) struct Plan<const W: usize> {
+/// The programme's decisions for one binary node, for W slots.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Entry<const W: usize> {
     /// cost(n, i + 1).
-    cost: Vec<[f32; W]>,
+    cost: [f32; W],
     /// `[0]`: the left share k of spread(n, W) (an internal node's children); `[i − 1]`
     /// for i ≥ 2: the k of spread(n, i) when it beats cost(n, i − 1), else 0.
-    split: Vec<[u8; W]>,
+    split: [u8; W],
     /// Whether cost(n, 1) is the leaf's.
-    leaf: Vec<bool>,
+    leaf: bool,
+}
+
+impl<const W: usize> Entry<W> {
+    /// The decisions for a node of this box area and triangle count, from its children's
+    /// entries (none for a binary leaf).
+    pub fn new(area: f32, n_tris: u32, kids: Option<[&Entry<W>; 2]>, costs: SahCosts) -> Self {
+        let leaf_cost = costs.tri * area * n_tris as f32;
+        let Some([l, r]) = kids else {
+            return Entry {
+                cost: [leaf_cost; W],
+                split: [0; W],
+                leaf: true,
+            };
+        };
+        let (cl, cr) = (&l.cost, &r.cost);
+        let spread = |j: usize| {
+            let mut best = (f32::INFINITY, 0u8);
+            for k in 1..j {
+                let c = cl[k - 1] + cr[j - k - 1];
+                if c < best.0 {
+                    best = (c, k as u8);
+                }
+            }
+            best
+        };
+        let mut cost = [0.0; W];
+        let mut split = [0u8; W];
+        let (c_all, k_all) = spread(W);
+        let internal = costs.node * area + c_all;
+        let leaf = n_tris <= costs.max_leaf && leaf_cost <= internal;
+        cost[0] = if leaf { leaf_cost } else { internal };
+        split[0] = k_all;
+        for i in 2..=W {
+            let (c, k) = spread(i);
+            if c < cost[i - 2] {
+                (cost[i - 1], split[i - 1]) = (c, k);
+            } else {
+                cost[i - 1] = cost[i - 2];
+            }
+        }
+        Entry { cost, split, leaf }
+    }
+}
+
+/// The programme's decisions for every binary node, for W slots.
+pub(crate) struct Plan<const W: usize> {
+    entries: Vec<Entry<W>>,
 }
 
 impl<const W: usize> Plan<W> {
     /// Runs the programme bottom-up.
     pub fn new(tree: &impl BinaryTree, costs: SahCosts) -> Plan<W> {
-        let len = tree.len();
-        let mut plan = Plan {
-            cost: Vec::with_capacity(len),
-            split: Vec::with_capacity(len),
-            leaf: Vec::with_capacity(len),
-        };
-        for n in 0..len as u32 {
-            let area = tree.area(n);
-            let n_tris = tree.tris(n);
-            let leaf_cost = costs.tri * area * n_tris as f32;
-            let Some([l, r]) = tree.kids(n) else {
-                plan.cost.push([leaf_cost; W]);
-                plan.split.push([0; W]);
-                plan.leaf.push(true);
-                continue;
-            };
-            let (cl, cr) = (plan.cost[l as usize], plan.cost[r as usize]);
-            let spread = |j: usize| {
-                let mut best = (f32::INFINITY, 0u8);
-                for k in 1..j {
-                    let c = cl[k - 1] + cr[j - k - 1];
-                    if c < best.0 {
-                        best = (c, k as u8);
-                    }
-                }
-                best
-            };
-            let mut cost = [0.0; W];
-            let mut split = [0u8; W];
-            let (c_all, k_all) = spread(W);
-            let internal = costs.node * area + c_all;
-            let leaf = n_tris <= costs.max_leaf && leaf_cost <= internal;
-            cost[0] = if leaf { leaf_cost } else { internal };
-            split[0] = k_all;
-            for i in 2..=W {
-                let (c, k) = spread(i);
-                if c < cost[i - 2] {
-                    (cost[i - 1], split[i - 1]) = (c, k);
-                } else {
-                    cost[i - 1] = cost[i - 2];
-                }
-            }
-            plan.cost.push(cost);
-            plan.split.push(split);
-            plan.leaf.push(leaf);
+        let mut entries: Vec<Entry<W>> = Vec::with_capacity(tree.len());
+        for n in 0..tree.len() as u32 {
+            let kids = tree.kids(n).map(|k| k.map(|c| &entries[c as usize]));
+            let e = Entry::new(tree.area(n), tree.tris(n), kids, costs);
+            entries.push(e);
         }
-        plan
+        Plan { entries }
+    }
+
+    /// A plan from every node's entry, indexed as the tree's nodes.
+    pub fn from_entries(entries: Vec<Entry<W>>) -> Plan<W> {
+        Plan { entries }
     }
 
     /// The children of the wide internal node made from `n`: (binary node, is a wide
@@ -103,7 +116,7 @@ impl<const W: usize> Plan<W> {
         match tree.kids(n) {
             None => out.push((n, true)),
             Some([l, r]) => {
-                let k = self.split[n as usize][0] as usize;
+                let k = self.entries[n as usize].split[0] as usize;
                 self.collect(tree, l, k, &mut out);
                 self.collect(tree, r, W - k, &mut out);
             }
@@ -113,14 +126,14 @@ impl<const W: usize> Plan<W> {
 
     /// The at most `slots` subtrees that hold `n`'s subtree.
     fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Vec<(u32, bool)>) {
-        let split = &self.split[n as usize];
+        let split = &self.entries[n as usize].split;
         let mut i = slots;
         while i > 1 && split[i - 1] == 0 {
             i -= 1;
         }
         let kids = tree.kids(n);
         let (Some([l, r]), true) = (kids, i > 1) else {
-            out.push((n, self.leaf[n as usize]));
+            out.push((n, self.entries[n as usize].leaf));
             return;
         };
         let k = split[i - 1] as usize;

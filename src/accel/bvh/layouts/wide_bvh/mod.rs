@@ -176,9 +176,14 @@ where
     /// Collapses a built binary tree into W-wide nodes, in depth-first pre-order (the root
     /// at 0).
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> WideBvh<W> {
-        let tris = LeafTri::gather(bvh, mesh);
-        let nodes = sah_collapse::collapse(&bvh.root, max_wide_depth(W))
-            .unwrap_or_else(|| greedy_collapse::collapse(&bvh.root));
+        // The triangles and the nodes are independent: gathered and collapsed side by side.
+        let (tris, nodes) = rayon::join(
+            || LeafTri::gather(bvh, mesh),
+            || {
+                sah_collapse::collapse(&bvh.root, max_wide_depth(W))
+                    .unwrap_or_else(|| greedy_collapse::collapse(&bvh.root))
+            },
+        );
         WideBvh { nodes, tris }
     }
 

@@ -4,7 +4,7 @@
 //! range) or a binary leaf of any size. `collapse` gives up (and the greedy collapse is used)
 //! where the tree would be deeper than the stack holds.
 
-use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan, SahCosts};
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
 
 use super::{WideNode, INNER};
@@ -16,26 +16,124 @@ pub(super) const C_TRI: f32 = 0.3;
 /// Most triangles a leaf made of several binary leaves holds.
 pub(super) const MAX_LEAF_TRIS: u32 = 4;
 
-/// The binary tree in arrays, children before parents.
+/// The binary tree in arrays, children before parents (post-order, the root last).
 struct Arena<'a> {
     nodes: Vec<&'a Node>,
     kids: Vec<Option<[u32; 2]>>,
     tris: Vec<u32>,
 }
 
-impl<'a> Arena<'a> {
-    fn add(&mut self, node: &'a Node) -> u32 {
-        let (kids, tris) = match node {
-            Node::Leaf { count, .. } => (None, *count),
-            Node::Inner { children, .. } => {
-                let (l, r) = (self.add(&children[0]), self.add(&children[1]));
-                (Some([l, r]), self.tris[l as usize] + self.tris[r as usize])
-            }
+/// A subtree's share of the arena and of the plan: its nodes' slots, children before
+/// parents, the subtree's root last.
+struct Share<'s, 'a, const W: usize> {
+    nodes: &'s mut [&'a Node],
+    kids: &'s mut [Option<[u32; 2]>],
+    tris: &'s mut [u32],
+    entries: &'s mut [Entry<W>],
+}
+
+impl<'s, 'a, const W: usize> Share<'s, 'a, W> {
+    /// The first `at` slots, the rest before the last, and the last slot's parts.
+    #[allow(clippy::type_complexity)] // four parallel arrays, split alike
+    fn split(
+        self,
+        at: usize,
+    ) -> (
+        Self,
+        Self,
+        (
+            &'s mut &'a Node,
+            &'s mut Option<[u32; 2]>,
+            &'s mut u32,
+            &'s mut Entry<W>,
+        ),
+    ) {
+        let last = self.nodes.len() - 1;
+        let (n, n_own) = self.nodes.split_at_mut(last);
+        let (k, k_own) = self.kids.split_at_mut(last);
+        let (t, t_own) = self.tris.split_at_mut(last);
+        let (e, e_own) = self.entries.split_at_mut(last);
+        let (n0, n1) = n.split_at_mut(at);
+        let (k0, k1) = k.split_at_mut(at);
+        let (t0, t1) = t.split_at_mut(at);
+        let (e0, e1) = e.split_at_mut(at);
+        (
+            Share {
+                nodes: n0,
+                kids: k0,
+                tris: t0,
+                entries: e0,
+            },
+            Share {
+                nodes: n1,
+                kids: k1,
+                tris: t1,
+                entries: e1,
+            },
+            (&mut n_own[0], &mut k_own[0], &mut t_own[0], &mut e_own[0]),
+        )
+    }
+}
+
+/// Subtrees of at least this many nodes fill their two halves on two threads.
+const PARALLEL_NODES: u32 = 8192;
+
+/// Fills `share` with `node`'s subtree in post-order, its first slot at index `base`, and
+/// the programme's entries bottom-up (each subtree on its own thread where big).
+fn fill<'a, const W: usize>(node: &'a Node, base: u32, share: Share<'_, 'a, W>, costs: SahCosts) {
+    let area = node.bbox().area();
+    let Node::Inner { children, .. } = node else {
+        let count = match node {
+            Node::Leaf { count, .. } => *count,
+            Node::Inner { .. } => 0,
         };
-        self.nodes.push(node);
-        self.kids.push(kids);
-        self.tris.push(tris);
-        self.nodes.len() as u32 - 1
+        share.nodes[0] = node;
+        share.kids[0] = None;
+        share.tris[0] = count;
+        share.entries[0] = Entry::new(area, count, None, costs);
+        return;
+    };
+    let nl = children[0].nodes();
+    let (left, right, own) = share.split(nl as usize);
+    let (l, r) = (nl as usize - 1, right.nodes.len() - 1);
+    let go = |c: &'a Node, b: u32, s: Share<'_, 'a, W>| fill(c, b, s, costs);
+    let (left, right) = if node.nodes() >= PARALLEL_NODES {
+        rayon::join(
+            || {
+                let mut s = left;
+                go(&children[0], base, reborrow(&mut s));
+                s
+            },
+            || {
+                let mut s = right;
+                go(&children[1], base + nl, reborrow(&mut s));
+                s
+            },
+        )
+    } else {
+        let (mut a, mut b) = (left, right);
+        go(&children[0], base, reborrow(&mut a));
+        go(&children[1], base + nl, reborrow(&mut b));
+        (a, b)
+    };
+    let tris = left.tris[l] + right.tris[r];
+    *own.0 = node;
+    *own.1 = Some([base + l as u32, base + nl + r as u32]);
+    *own.2 = tris;
+    *own.3 = Entry::new(
+        area,
+        tris,
+        Some([&left.entries[l], &right.entries[r]]),
+        costs,
+    );
+}
+
+fn reborrow<'t, 'a, const W: usize>(s: &'t mut Share<'_, 'a, W>) -> Share<'t, 'a, W> {
+    Share {
+        nodes: s.nodes,
+        kids: s.kids,
+        tris: s.tris,
+        entries: s.entries,
     }
 }
 
@@ -105,18 +203,27 @@ where
     if matches!(root, Node::Leaf { .. }) {
         return None;
     }
-    let mut arena = Arena {
-        nodes: Vec::new(),
-        kids: Vec::new(),
-        tris: Vec::new(),
-    };
-    let r = arena.add(root);
     let costs = SahCosts {
         node: C_NODE,
         tri: C_TRI,
         max_leaf: MAX_LEAF_TRIS,
     };
-    let plan = Plan::<W>::new(&arena, costs);
+    let len = root.nodes() as usize;
+    let mut arena = Arena {
+        nodes: vec![root; len],
+        kids: vec![None; len],
+        tris: vec![0; len],
+    };
+    let mut entries = vec![Entry::new(0.0, 0, None, costs); len];
+    let share = Share {
+        nodes: &mut arena.nodes,
+        kids: &mut arena.kids,
+        tris: &mut arena.tris,
+        entries: &mut entries,
+    };
+    fill(root, 0, share, costs);
+    let plan = Plan::<W>::from_entries(entries);
+    let r = len as u32 - 1;
     let mut out = Vec::new();
     emit(&arena, &plan, r, 0, max_depth, &mut out)?;
     Some(out)
