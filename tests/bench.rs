@@ -401,6 +401,7 @@ fn builders_config(device: DeviceChoice) -> bench::builders::Config {
             ("teapot".into(), teapot),
         ],
         builders: lancer::accel::bvh::Builder::ALL.to_vec(),
+        optimize: false,
         build: Default::default(),
         width: 8,
         height: 8,
@@ -469,14 +470,18 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
 #[test]
 fn builders_on_the_gpu_give_every_run_a_gpu_speed() {
     let config = bench::builders::Config {
-        builders: vec![
-            lancer::accel::bvh::Builder::Sweep,
-            lancer::accel::bvh::Builder::Median,
-        ],
+        builders: vec![lancer::accel::bvh::Builder::Median],
+        optimize: true,
         ..builders_config(DeviceChoice::Gpu)
     };
     let report = bench::builders::run(&config, &bench::silent).unwrap();
     assert!(report.gpu_layout.is_some());
     assert!(report.runs.iter().all(|r| r.gpu_mrays.unwrap() > 0.0));
     assert!(report.correlations.iter().any(|c| c.device == "GPU"));
+    let names: Vec<_> = report.builds.iter().map(|b| b.builder.as_str()).collect();
+    let expected = ["median", "median+reinsert"];
+    assert_eq!(names[..2], expected);
+    // Reinsertion never raises the SAH.
+    let sah: Vec<f64> = report.builds[..2].iter().map(|b| b.sah.unwrap()).collect();
+    assert!(sah[1] <= sah[0], "{sah:?}");
 }

@@ -66,15 +66,23 @@ proptest! {
     #![proptest_config(common::proptest_config("bvh_props", 48))]
     #[test]
     fn invariants_hold_on_random_soups(seed in any::<u64>(), n in 1usize..600, size in 0.001f32..0.5,
-                                      max_leaf in 1usize..20, exact_below in 1usize..300) {
+                                      max_leaf in 1usize..20, exact_below in 1usize..300,
+                                      optimize in any::<bool>()) {
         let mesh = soup(&mut Rng::new(seed), n, size);
         for b in Builder::ALL {
             // exact_below: the sweep's handover from binned top levels, exercised here.
-            let o = BuildOptions { builder: b, max_leaf, exact_below, ..BuildOptions::default() };
+            let o = BuildOptions { builder: b, max_leaf, exact_below, optimize, ..BuildOptions::default() };
             let f = build(&mesh, &o);
             check_invariants(&mesh, &f);
             // No leaf above max_leaf.
             prop_assert!(largest_leaf(&f.root) <= max_leaf);
+            if optimize {
+                // Reinsertion never raises the SAH.
+                let plain = BuildOptions { optimize: false, ..o };
+                let before = BvhStats::of(&build(&mesh, &plain), &plain).sah_cost;
+                let after = BvhStats::of(&f, &o).sah_cost;
+                prop_assert!(after <= before * (1.0 + 1e-9), "{b:?}: {before} → {after}");
+            }
         }
     }
 
@@ -206,14 +214,21 @@ fn excluded_triangles_stay_out() {
 #[test]
 fn build_is_deterministic_and_parallel_equals_serial() {
     let mesh = soup(&mut Rng::new(11), 30_000, 0.05);
-    for b in Builder::ALL {
-        let par = build(&mesh, &opts(b));
-        let again = build(&mesh, &opts(b));
+    let variants = Builder::ALL.into_iter().flat_map(|b| {
+        [false, true].map(|optimize| BuildOptions {
+            optimize,
+            ..opts(b)
+        })
+    });
+    for o in variants {
+        let b = (o.builder, o.optimize);
+        let par = build(&mesh, &o);
+        let again = build(&mesh, &o);
         let ser = build(
             &mesh,
             &BuildOptions {
                 parallel: false,
-                ..opts(b)
+                ..o
             },
         );
         assert_eq!(par, again, "{b:?} not deterministic");
@@ -246,14 +261,20 @@ fn depth_cap_bounds_every_leaf() {
         };
         let uncapped = BvhStats::of(&build(&mesh, &free), &free).max_depth;
         assert!(uncapped > 13, "{b:?}: uncapped depth {uncapped}");
-        let capped = BuildOptions {
-            max_depth: 13,
-            ..free
-        };
-        let f = build(&mesh, &capped);
-        check_invariants(&mesh, &f);
-        let d = BvhStats::of(&f, &capped).max_depth;
-        assert!(d <= 13, "{b:?}: depth {d} above the cap of 13");
+        for optimize in [false, true] {
+            let capped = BuildOptions {
+                max_depth: 13,
+                optimize,
+                ..free
+            };
+            let f = build(&mesh, &capped);
+            check_invariants(&mesh, &f);
+            let d = BvhStats::of(&f, &capped).max_depth;
+            assert!(
+                d <= 13,
+                "{b:?} optimize {optimize}: depth {d} above the cap of 13"
+            );
+        }
     }
 }
 
@@ -316,4 +337,23 @@ fn sweep_beats_binned_beats_median_on_models() {
         assert!(s <= b && b <= m, "{name}: sweep {s} binned {b} median {m}");
         check_invariants(&mesh, &build(&mesh, &BuildOptions::default()));
     }
+}
+
+#[test]
+fn reinsertion_lowers_the_median_trees_sah_by_far() {
+    let Some(mesh) = load_model("stanford-bunny.obj") else {
+        return;
+    };
+    let o = opts(Builder::Median);
+    let optimized = BuildOptions {
+        optimize: true,
+        ..o
+    };
+    let before = BvhStats::of(&build(&mesh, &o), &o).sah_cost;
+    let after = BvhStats::of(&build(&mesh, &optimized), &optimized).sah_cost;
+    println!("median {before:.3} → reinserted {after:.3}");
+    assert!(
+        after < 0.95 * before,
+        "median {before} → reinserted {after}"
+    );
 }

@@ -36,6 +36,8 @@ pub struct Config {
     pub meshes: Vec<(String, Mesh)>,
     /// The builders compared, in the report's order.
     pub builders: Vec<Builder>,
+    /// Also each builder's tree optimised by reinsertion (a row named `BUILDER+reinsert`).
+    pub optimize: bool,
     /// The other build options (SAH constants, leaf size, bins), the same for every builder.
     pub build: BuildOptions,
     /// Width of the default view (primary rays; shadow and bounce rays start at their hits;
@@ -56,7 +58,7 @@ pub struct Config {
 pub struct BuildRow {
     /// The mesh's name.
     pub mesh: String,
-    /// The builder (`--builder`), or "embree-medium".
+    /// The builder (`--builder`; `+reinsert` when optimised), or "embree-medium".
     pub builder: String,
     /// Wall time of the tree's build, median of `repeat` (Embree: its scene build, buffers
     /// filled and committed, median of all its builds on the mesh).
@@ -266,9 +268,13 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     let repeat = config.repeat.max(1);
     let sets_per_mesh = 4;
     let per_builder = 1 + sets_per_mesh * repeat * (1 + gpu_layout.is_some() as usize);
+    let variants: Vec<(Builder, bool)> = (config.builders.iter())
+        .flat_map(|&b| [(b, false), (b, true)])
+        .filter(|&(_, o)| !o || config.optimize)
+        .collect();
     let ticker = Ticker::new(
         progress,
-        (config.meshes.len() * config.builders.len() * per_builder) as u64,
+        (config.meshes.len() * variants.len() * per_builder) as u64,
     );
     let (mut builds, mut runs) = (Vec::new(), Vec::new());
     let mut embree_version = None;
@@ -276,12 +282,14 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         ticker.say(format!("{name}: rays"));
         let sets = ray_sets(mesh, config)?;
         let mut embree = EmbreePair::new(mesh)?;
-        for &builder in &config.builders {
-            ticker.say(format!("{name}: {}", builder.name()));
+        for &(builder, optimize) in &variants {
             let opts = BuildOptions {
                 builder,
+                optimize,
                 ..config.build
             };
+            let label = variant_name(&opts);
+            ticker.say(format!("{name}: {label}"));
             let Timed {
                 bvh,
                 ms: times,
@@ -305,7 +313,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
             };
             builds.push(BuildRow {
                 mesh: name.clone(),
-                builder: builder.name().into(),
+                builder: label.clone(),
                 build_ms: median(times),
                 flatten_ms: Some(flatten_ms),
                 vs_embree: None,
@@ -338,7 +346,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
                     .transpose()?;
                 runs.push(Run {
                     mesh: name.clone(),
-                    builder: builder.name().into(),
+                    builder: label.clone(),
                     rays: set.clone(),
                     count: rays.len(),
                     nodes_per_ray: nodes,
@@ -386,6 +394,14 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         correlations,
         gpu_driver: ctx.map(|c| c.adapter.driver.clone()),
     })
+}
+
+/// A tree's name in the report: the builder's, `+reinsert` when optimised.
+pub fn variant_name(opts: &BuildOptions) -> String {
+    match opts.optimize {
+        true => format!("{}+reinsert", opts.builder.name()),
+        false => opts.builder.name().to_string(),
+    }
 }
 
 /// The name of Embree's row.

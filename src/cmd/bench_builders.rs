@@ -20,6 +20,9 @@ pub struct BenchBuilders {
     /// all.
     #[arg(long = "builder", value_enum, hide_possible_values = true)]
     builders: Vec<Builder>,
+    /// Also measure each builder's tree optimised by reinsertion (rows `BUILDER+reinsert`).
+    #[arg(long)]
+    optimize: bool,
     /// Width of the default view (primary rays; shadow and bounce rays start at their hits;
     /// as many random rays).
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
@@ -62,6 +65,7 @@ impl BenchBuilders {
         let config = Config {
             meshes,
             builders,
+            optimize: self.optimize,
             build: BuildOptions::default(),
             width: self.width,
             height: self.height,

@@ -1,5 +1,5 @@
-//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median) and its
-//! statistics. Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
+//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median), the
+//! reinsertion optimiser and its statistics (SAH, end-point overlap). Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
 
 mod binned;
 mod epo;
@@ -8,6 +8,7 @@ mod median;
 mod options;
 mod prim_ref;
 mod prims;
+mod reinsert;
 mod stats;
 mod sweep;
 mod tree;
@@ -20,6 +21,7 @@ use crate::mesh::Mesh;
 pub use binned::MAX_BINS;
 pub use epo::epo_cost;
 pub use options::{BuildOptions, Builder, EXACT_BELOW};
+pub use reinsert::optimize;
 pub use stats::BvhStats;
 pub use tree::{Bvh, Node, MAX_DEPTH};
 
@@ -46,8 +48,12 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
         Builder::Binned => binned::build(&prims, opts),
         Builder::Median => median::build(&prims, opts),
     };
-    Bvh {
+    let mut bvh = Bvh {
         root,
         order: local.par_iter().map(|&l| ids[l as usize]).collect(),
+    };
+    if opts.optimize {
+        optimize(&mut bvh, opts);
     }
+    bvh
 }

@@ -1,0 +1,306 @@
+//! Reinsertion optimisation (Bittner, Hapala & Havran 2013, "Fast insertion-based
+//! optimization of bounding volume hierarchies"): a post-pass on any builder's tree. Each
+//! round takes the nodes whose boxes are largest, and for each one removes it (its sibling
+//! takes its parent's place), searches the whole tree by branch and bound for the position
+//! where putting it back costs least, and moves it there when that lowers the SAH.
+//!
+//! Leaves move whole, so their boxes and triangle counts never change: the SAH changes only
+//! by the inner nodes' areas (each weighs 2·T_cube), which is all the search weighs. Moves
+//! that would put a leaf deeper than `max_depth` are not made. The result is deterministic
+//! (one candidate at a time, ties broken by node index).
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use super::tree::{leaf, Node};
+use super::{BuildOptions, Bvh};
+use crate::geometry::Aabb;
+
+const NONE: u32 = u32::MAX;
+
+/// Rounds of reinsertion; each takes the largest [`SHARE`] of the nodes.
+pub const ROUNDS: usize = 3;
+/// The share of nodes a round reinserts (the largest boxes first).
+pub const SHARE: f64 = 1.0;
+
+/// The tree in arrays with parent links.
+struct Arena {
+    bbox: Vec<Aabb>,
+    parent: Vec<u32>,
+    /// Children of an inner node; `[NONE; 2]` for a leaf.
+    kids: Vec<[u32; 2]>,
+    /// A leaf's range in the old leaf order.
+    range: Vec<(u32, u32)>,
+    /// Levels below the node (0 for a leaf).
+    height: Vec<u32>,
+    root: u32,
+}
+
+impl Arena {
+    fn of(root: &Node) -> Arena {
+        let mut a = Arena {
+            bbox: Vec::new(),
+            parent: Vec::new(),
+            kids: Vec::new(),
+            range: Vec::new(),
+            height: Vec::new(),
+            root: 0,
+        };
+        a.root = a.add(root, NONE);
+        a
+    }
+
+    fn add(&mut self, node: &Node, parent: u32) -> u32 {
+        let i = self.bbox.len() as u32;
+        self.bbox.push(*node.bbox());
+        self.parent.push(parent);
+        self.kids.push([NONE; 2]);
+        self.range.push((0, 0));
+        self.height.push(0);
+        match node {
+            Node::Leaf { start, count, .. } => self.range[i as usize] = (*start, *count),
+            Node::Inner { children, .. } => {
+                let l = self.add(&children[0], i);
+                let r = self.add(&children[1], i);
+                self.kids[i as usize] = [l, r];
+                self.height[i as usize] = 1 + self.height[l as usize].max(self.height[r as usize]);
+            }
+        }
+        i
+    }
+
+    fn is_leaf(&self, n: u32) -> bool {
+        self.kids[n as usize][0] == NONE
+    }
+
+    fn area(&self, n: u32) -> f32 {
+        self.bbox[n as usize].area()
+    }
+
+    fn depth(&self, mut n: u32) -> u32 {
+        let mut d = 0;
+        while self.parent[n as usize] != NONE {
+            n = self.parent[n as usize];
+            d += 1;
+        }
+        d
+    }
+
+    /// Recomputes boxes and heights from `n` up to the root.
+    fn refit_from(&mut self, mut n: u32) {
+        while n != NONE {
+            let [l, r] = self.kids[n as usize];
+            if l != NONE {
+                self.bbox[n as usize] = self.bbox[l as usize].union(self.bbox[r as usize]);
+                self.height[n as usize] = 1 + self.height[l as usize].max(self.height[r as usize]);
+            }
+            n = self.parent[n as usize];
+        }
+    }
+
+    /// Σ of the areas of the inner nodes above `n` (its ancestors).
+    fn ancestors_area(&self, mut n: u32) -> f64 {
+        let mut sum = 0.0;
+        while self.parent[n as usize] != NONE {
+            n = self.parent[n as usize];
+            sum += self.area(n) as f64;
+        }
+        sum
+    }
+
+    /// Takes `n` (not the root, nor a child of the root) out: its sibling takes its parent's
+    /// place. Returns the freed parent node and the sibling.
+    fn remove(&mut self, n: u32) -> (u32, u32) {
+        let p = self.parent[n as usize];
+        let [a, b] = self.kids[p as usize];
+        let s = if a == n { b } else { a };
+        let g = self.parent[p as usize];
+        let slot = (self.kids[g as usize][1] == p) as usize;
+        self.kids[g as usize][slot] = s;
+        self.parent[s as usize] = g;
+        self.refit_from(g);
+        (p, s)
+    }
+
+    /// Puts `n` back as the sibling of `x`, under the free node `p` (which takes `x`'s place,
+    /// the root's too).
+    fn insert(&mut self, n: u32, x: u32, p: u32) {
+        let g = self.parent[x as usize];
+        if g == NONE {
+            self.root = p;
+        } else {
+            let slot = (self.kids[g as usize][1] == x) as usize;
+            self.kids[g as usize][slot] = p;
+        }
+        self.parent[p as usize] = g;
+        self.kids[p as usize] = [x, n];
+        self.parent[x as usize] = p;
+        self.parent[n as usize] = p;
+        self.refit_from(p);
+    }
+
+    /// The node whose sibling `n` costs least to become, by branch and bound: putting `n`
+    /// beside `x` adds a node of area A(x ∪ n) and grows every ancestor of x to hold n.
+    /// Returns (x, the added area). Only positions where every leaf stays within `max_depth`.
+    fn best_sibling(&self, n: u32, max_depth: u32) -> (u32, f64) {
+        let nb = self.bbox[n as usize];
+        let an = nb.area() as f64;
+        let mut best = (self.root, f64::INFINITY);
+        let mut heap = BinaryHeap::new();
+        heap.push(Candidate {
+            induced: 0.0,
+            node: self.root,
+            depth: 0,
+        });
+        while let Some(Candidate {
+            induced,
+            node,
+            depth,
+        }) = heap.pop()
+        {
+            // Any position in this subtree adds at least A(n) beyond what is induced here.
+            if induced + an >= best.1 {
+                break;
+            }
+            let merged = self.bbox[node as usize].union(nb).area() as f64;
+            let cost = induced + merged;
+            // n and x both go one level below x's place.
+            let below = self.height[n as usize].max(self.height[node as usize]);
+            let fits = depth + 1 + below <= max_depth;
+            if fits && (cost < best.1 || (cost == best.1 && node < best.0)) {
+                best = (node, cost);
+            }
+            if !self.is_leaf(node) {
+                let induced = cost - self.area(node) as f64;
+                for c in self.kids[node as usize] {
+                    heap.push(Candidate {
+                        induced,
+                        node: c,
+                        depth: depth + 1,
+                    });
+                }
+            }
+        }
+        best
+    }
+
+    /// The tree as nodes, its leaves in depth-first order, and the leaf order they refer to;
+    /// each inner node's axis and child order set by its children's centres (the low side
+    /// first on the axis where they lie farthest apart).
+    fn into_tree(self, order: &[u32]) -> (Node, Vec<u32>) {
+        let mut out = Vec::with_capacity(order.len());
+        let root = self.emit(self.root, order, &mut out);
+        (root, out)
+    }
+
+    fn emit(&self, n: u32, order: &[u32], out: &mut Vec<u32>) -> Node {
+        let bbox = self.bbox[n as usize];
+        if self.is_leaf(n) {
+            let (start, count) = self.range[n as usize];
+            let at = out.len();
+            out.extend_from_slice(&order[start as usize..(start + count) as usize]);
+            return leaf(bbox, at, count as usize);
+        }
+        let [a, b] = self.kids[n as usize];
+        let (ca, cb) = (
+            self.bbox[a as usize].center(),
+            self.bbox[b as usize].center(),
+        );
+        let gap = (cb - ca).abs();
+        let axis = if gap.x >= gap.y && gap.x >= gap.z {
+            0
+        } else if gap.y >= gap.z {
+            1
+        } else {
+            2
+        };
+        let (first, second) = if cb[axis] < ca[axis] { (b, a) } else { (a, b) };
+        let l = self.emit(first, order, out);
+        let r = self.emit(second, order, out);
+        Node::inner(bbox, axis, [l, r])
+    }
+}
+
+/// A search position: its node, the area its ancestors grow by to hold the node being
+/// placed, and its depth. The heap pops the smallest induced area first (then the lowest
+/// node index: deterministic).
+struct Candidate {
+    induced: f64,
+    node: u32,
+    depth: u32,
+}
+
+impl PartialEq for Candidate {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == Ordering::Equal
+    }
+}
+
+impl Eq for Candidate {}
+
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for Candidate {
+    fn cmp(&self, o: &Self) -> Ordering {
+        // Reversed: BinaryHeap pops the greatest.
+        (o.induced.total_cmp(&self.induced)).then(o.node.cmp(&self.node))
+    }
+}
+
+/// Optimises `bvh` in place by [`ROUNDS`] rounds of reinsertion. The SAH never rises; the
+/// leaves and their triangles are the same (in a new leaf order).
+pub fn optimize(bvh: &mut Bvh, opts: &BuildOptions) {
+    if matches!(bvh.root, Node::Leaf { .. }) {
+        return;
+    }
+    let max_depth = opts.max_depth.min(super::MAX_DEPTH) as u32;
+    let mut arena = Arena::of(&bvh.root);
+    let len = arena.bbox.len();
+    for _ in 0..ROUNDS {
+        // The largest boxes first, ties by index; the root and its children stay.
+        let mut candidates: Vec<u32> = (0..len as u32)
+            .filter(|&n| {
+                let p = arena.parent[n as usize];
+                p != NONE && arena.parent[p as usize] != NONE
+            })
+            .collect();
+        candidates.sort_by(|&a, &b| arena.area(b).total_cmp(&arena.area(a)).then(a.cmp(&b)));
+        candidates.truncate(((len as f64 * SHARE).ceil() as usize).max(1));
+        let mut moved = 0;
+        for n in candidates {
+            let p = arena.parent[n as usize];
+            if p == NONE || arena.parent[p as usize] == NONE {
+                continue; // an earlier move made it a child of the root
+            }
+            // Inner area before: the parent and every ancestor above it.
+            let before = arena.area(p) as f64 + arena.ancestors_area(p);
+            let [a, _] = arena.kids[p as usize];
+            let was_first = a == n;
+            let (p, s) = arena.remove(n);
+            // After removal, the sibling's ancestors hold what the parent's did less n.
+            let after_removal = arena.ancestors_area(s);
+            let (x, added) = arena.best_sibling(n, max_depth);
+            if after_removal + added < before - 1e-6 * before.abs() && x != s {
+                arena.insert(n, x, p);
+                moved += 1;
+            } else {
+                arena.insert(n, s, p);
+                if was_first {
+                    arena.kids[p as usize] = [n, s];
+                }
+            }
+            debug_assert!(arena.depth(n) + arena.height[n as usize] <= max_depth);
+        }
+        log::debug!("reinsertion: {moved} nodes moved");
+        if moved == 0 {
+            break;
+        }
+    }
+    let (root, order) = arena.into_tree(&bvh.order);
+    bvh.root = root;
+    bvh.order = order;
+}
