@@ -417,7 +417,8 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
     let report = with_progress(|p| bench::builders::run(&config, p));
     let embree = cfg!(feature = "embree");
     assert_eq!(report.embree_version.is_some(), embree);
-    assert_eq!(report.builds.len(), 2 * (3 + embree as usize));
+    let builders = lancer::accel::bvh::Builder::ALL.len();
+    assert_eq!(report.builds.len(), 2 * (builders + embree as usize));
     for b in report
         .builds
         .iter()
@@ -432,7 +433,7 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
             "{b:?}"
         );
     }
-    assert_eq!(report.runs.len(), 2 * 3 * 4);
+    assert_eq!(report.runs.len(), 2 * builders * 4);
     for r in &report.runs {
         assert!(
             r.cpu_mrays > 0.0 && r.nodes_per_ray >= 1.0 && r.gpu_mrays.is_none(),

@@ -16,8 +16,8 @@ pub struct BenchBuilders {
     /// Meshes (.obj, .ply, .gltf, .glb) or scenes (.toml: the assembled mesh), one or more.
     #[arg(required = true)]
     meshes: Vec<PathBuf>,
-    /// A builder to compare (sweep, binned, median); repeat the option for several. Default:
-    /// all.
+    /// A builder to compare (sweep, binned, median, ploc); repeat the option for several.
+    /// Default: all.
     #[arg(long = "builder", value_enum, hide_possible_values = true)]
     builders: Vec<Builder>,
     /// Also measure each builder's tree optimised by reinsertion (rows `BUILDER+reinsert`).

@@ -1,4 +1,4 @@
-//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median), the
+//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median, PLOC), the
 //! reinsertion optimiser and its statistics (SAH, end-point overlap). Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
 
 mod binned;
@@ -6,6 +6,7 @@ mod epo;
 pub mod layouts;
 mod median;
 mod options;
+mod ploc;
 mod prim_ref;
 mod prims;
 mod reinsert;
@@ -47,6 +48,7 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
         Builder::Sweep => sweep::build(&prims, opts),
         Builder::Binned => binned::build(&prims, opts),
         Builder::Median => median::build(&prims, opts),
+        Builder::Ploc => ploc::build(&prims, opts).unwrap_or_else(|| binned::build(&prims, opts)),
     };
     let mut bvh = Bvh {
         root,

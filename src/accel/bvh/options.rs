@@ -14,11 +14,19 @@ pub enum Builder {
     Binned,
     /// Object median on the longest centroid axis.
     Median,
+    /// PLOC: parallel locally-ordered clustering along a Morton curve (Meister & Bittner
+    /// 2018), leaves where the SAH prefers them.
+    Ploc,
 }
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 3] = [Builder::Sweep, Builder::Binned, Builder::Median];
+    pub const ALL: [Builder; 4] = [
+        Builder::Sweep,
+        Builder::Binned,
+        Builder::Median,
+        Builder::Ploc,
+    ];
 
     /// The name the command line, the JSON and the benches use.
     pub fn name(self) -> &'static str {
@@ -26,6 +34,7 @@ impl Builder {
             Builder::Sweep => "sweep",
             Builder::Binned => "binned",
             Builder::Median => "median",
+            Builder::Ploc => "ploc",
         }
     }
 }

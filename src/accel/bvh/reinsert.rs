@@ -12,7 +12,7 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use super::tree::{leaf, Node};
+use super::tree::{children_order, leaf, Node};
 use super::{BuildOptions, Bvh};
 use crate::geometry::Aabb;
 
@@ -202,19 +202,8 @@ impl Arena {
             return leaf(bbox, at, count as usize);
         }
         let [a, b] = self.kids[n as usize];
-        let (ca, cb) = (
-            self.bbox[a as usize].center(),
-            self.bbox[b as usize].center(),
-        );
-        let gap = (cb - ca).abs();
-        let axis = if gap.x >= gap.y && gap.x >= gap.z {
-            0
-        } else if gap.y >= gap.z {
-            1
-        } else {
-            2
-        };
-        let (first, second) = if cb[axis] < ca[axis] { (b, a) } else { (a, b) };
+        let (axis, swap) = children_order(&self.bbox[a as usize], &self.bbox[b as usize]);
+        let (first, second) = if swap { (b, a) } else { (a, b) };
         let l = self.emit(first, order, out);
         let r = self.emit(second, order, out);
         Node::inner(bbox, axis, [l, r])

@@ -86,6 +86,22 @@ impl Drop for Bvh {
     }
 }
 
+/// For a node whose children were not made by a split (merged or moved): the axis on which
+/// their centres lie farthest apart, and whether `b` is the low side there (then it goes
+/// first).
+pub(crate) fn children_order(a: &Aabb, b: &Aabb) -> (usize, bool) {
+    let (ca, cb) = (a.center(), b.center());
+    let gap = (cb - ca).abs();
+    let axis = if gap.x >= gap.y && gap.x >= gap.z {
+        0
+    } else if gap.y >= gap.z {
+        1
+    } else {
+        2
+    };
+    (axis, cb[axis] < ca[axis])
+}
+
 pub(crate) fn leaf(bbox: Aabb, start: usize, count: usize) -> Node {
     Node::Leaf {
         bbox,
