@@ -16,7 +16,7 @@ use super::BuildOptions;
 /// Most bins per axis the builder supports (the CLI refuses more).
 pub const MAX_BINS: usize = 64;
 
-pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
+pub(crate) fn build(prims: Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
     let top = Top {
         bins: opts.bins.clamp(2, MAX_BINS),
         handover: None,
@@ -41,8 +41,8 @@ pub(crate) struct Top<'a> {
 }
 
 /// The binned build with `top`'s bins, handing small nodes over where it says.
-pub(crate) fn build_with(prims: &Prims, opts: &BuildOptions, top: &Top) -> (Node, Vec<u32>) {
-    let mut refs = prims.refs();
+pub(crate) fn build_with(prims: Prims, opts: &BuildOptions, top: &Top) -> (Node, Vec<u32>) {
+    let mut refs = prims.refs;
     let (bbox, cbox) = bounds(&refs);
     let root = node(opts, top, &mut refs, bbox, cbox, 0, 0);
     (root, refs.iter().map(Ref::id).collect())

@@ -6,7 +6,7 @@ use super::tree::{leaf, Node};
 use super::BuildOptions;
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
-    let mut idx: Vec<u32> = (0..prims.boxes.len() as u32).collect();
+    let mut idx: Vec<u32> = (0..prims.len() as u32).collect();
     let root = node(prims, opts, &mut idx, 0);
     (root, idx)
 }

@@ -32,12 +32,7 @@ use tree::leaf;
 /// Builds a BVH over the mesh's included triangles. Deterministic for a given input.
 pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
     let ids = mesh.included();
-    let boxes: Vec<Aabb> = ids
-        .par_iter()
-        .map(|&i| mesh.triangles[i as usize].bbox())
-        .collect();
-    let centroids = boxes.par_iter().map(Aabb::center).collect();
-    let prims = Prims { boxes, centroids };
+    let prims = Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()));
     if ids.is_empty() {
         return Bvh {
             root: leaf(Aabb::EMPTY, 0, 0),
@@ -45,10 +40,13 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
         };
     }
     let (root, local) = match opts.builder {
-        Builder::Sweep => sweep::build(&prims, opts),
-        Builder::Binned => binned::build(&prims, opts),
+        Builder::Sweep => sweep::build(prims, opts),
+        Builder::Binned => binned::build(prims, opts),
         Builder::Median => median::build(&prims, opts),
-        Builder::Ploc => ploc::build(&prims, opts).unwrap_or_else(|| binned::build(&prims, opts)),
+        Builder::Ploc => match ploc::build(&prims, opts) {
+            Some(tree) => tree,
+            None => binned::build(prims, opts),
+        },
     };
     let mut bvh = Bvh {
         root,

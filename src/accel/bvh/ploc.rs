@@ -60,17 +60,17 @@ struct Clusters {
 }
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> Option<(Node, Vec<u32>)> {
-    let n = prims.boxes.len();
+    let n = prims.len();
     let par = opts.parallel;
-    let cbox = prims.centroids.iter().fold(Aabb::EMPTY, |b, &c| b.grow(c));
+    let cbox = (0..n as u32).fold(Aabb::EMPTY, |b, i| b.grow(prims.centroid(i)));
     // Morton order; the sort is stable and starts in index order, so equal codes stay in
     // index order.
     let mut keys: Vec<(u64, u32)> = (0..n as u32)
-        .map(|i| (morton(prims.centroids[i as usize], &cbox), i))
+        .map(|i| (morton(prims.centroid(i), &cbox), i))
         .collect();
     radsort::sort_by_key(&mut keys, |k| k.0);
     let mut tree = Clusters {
-        bbox: prims.boxes.clone(),
+        bbox: (0..n as u32).map(|i| prims.bbox(i)).collect(),
         kids: vec![[u32::MAX; 2]; n],
     };
     tree.bbox.reserve(n.saturating_sub(1));

@@ -1,4 +1,4 @@
-//! The builders' shared kit: per-primitive boxes and centroids, parallel joins, median split.
+//! The builders' shared kit: the primitives as references, parallel joins, median split.
 
 use glam::Vec3;
 
@@ -8,25 +8,39 @@ use crate::geometry::Aabb;
 /// Nodes with at least this many primitives build their two subtrees in parallel.
 pub(crate) const PARALLEL_MIN: usize = 4096;
 
-/// Per-primitive input of the builders, indexed by position in `ids`.
+/// Per-primitive input of the builders: one reference (box and index) per primitive, in
+/// index order (positions in the mesh's included triangles). The streaming builders take the
+/// references over; the others read boxes and centroids from them.
 pub(crate) struct Prims {
-    pub boxes: Vec<Aabb>,
-    pub centroids: Vec<Vec3>,
+    pub refs: Vec<Ref>,
 }
 
 impl Prims {
-    /// One reference per primitive, in index order, made on all threads.
-    pub fn refs(&self) -> Vec<Ref> {
+    /// The references of these triangle boxes, made on all threads.
+    pub fn new(boxes: impl rayon::iter::IndexedParallelIterator<Item = Aabb>) -> Prims {
         use rayon::prelude::*;
-        (self.boxes.par_iter().enumerate())
-            .map(|(i, b)| Ref::new(b, i as u32))
-            .collect()
+        let refs = boxes
+            .enumerate()
+            .map(|(i, b)| Ref::new(&b, i as u32))
+            .collect();
+        Prims { refs }
+    }
+
+    pub fn len(&self) -> usize {
+        self.refs.len()
+    }
+
+    pub fn bbox(&self, i: u32) -> Aabb {
+        self.refs[i as usize].bbox().aabb()
+    }
+
+    pub fn centroid(&self, i: u32) -> Vec3 {
+        self.refs[i as usize].centroid().into()
     }
 
     pub fn bounds(&self, idx: &[u32]) -> (Aabb, Aabb) {
         idx.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &i| {
-            let i = i as usize;
-            (b.union(self.boxes[i]), c.grow(self.centroids[i]))
+            (b.union(self.bbox(i)), c.grow(self.centroid(i)))
         })
     }
 }
@@ -48,10 +62,7 @@ pub(crate) fn join<A: Send, B: Send>(
 pub(crate) fn median_split(prims: &Prims, idx: &mut [u32], axis: usize) -> usize {
     let k = idx.len() / 2;
     idx.select_nth_unstable_by(k, |&a, &b| {
-        let (ca, cb) = (
-            prims.centroids[a as usize][axis],
-            prims.centroids[b as usize][axis],
-        );
+        let (ca, cb) = (prims.centroid(a)[axis], prims.centroid(b)[axis]);
         ca.total_cmp(&cb).then(a.cmp(&b))
     });
     k

@@ -29,7 +29,7 @@ use super::tree::{leaf, Node};
 use super::BuildOptions;
 use crate::geometry::Aabb;
 
-pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
+pub(crate) fn build(prims: Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
     let exact = |refs: &mut [Ref], bbox: BoxA, offset: usize, depth: usize| {
         subtree(opts, refs, bbox, offset, depth)
     };
