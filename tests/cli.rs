@@ -1417,3 +1417,46 @@ fn a_closed_stdout_ends_quietly_not_in_a_panic() {
         );
     }
 }
+
+#[test]
+fn bench_builders_counts_each_builds_peak_memory_and_takes_several_meshes() {
+    let dir = Scratch::new();
+    let q = dir.quad();
+    let cornell = Path::new("scenes/cornell-box.obj");
+    let json = dir.path("builders.json");
+    let out = lancer_ok(&[
+        "bench",
+        "builders",
+        s(&q),
+        s(cornell),
+        "--builder",
+        "median",
+        "--optimize",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--repeat",
+        "1",
+        "--device",
+        "cpu",
+        "--json",
+        s(&json),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("| cornell-box.obj | median+reinsert |"),
+        "{text}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let builds = v["builds"].as_array().unwrap();
+    let lancer_rows: Vec<_> = builds
+        .iter()
+        .filter(|b| b["builder"] != "embree-medium")
+        .collect();
+    assert_eq!(lancer_rows.len(), 4, "{v}");
+    // The binary counts its heap: every build held some memory, and says how much.
+    for b in lancer_rows {
+        assert!(b["peak_mib"].as_f64().unwrap() > 0.0, "{b}");
+    }
+}
