@@ -243,6 +243,7 @@ fn structures_measures_every_structure_with_a_gpu_flag_that_matches_the_registry
         device: DeviceChoice::Cpu,
         bvh_memory: Default::default(),
         repeat: 1,
+        build: Default::default(),
     };
     let report = with_progress(|p| bench::structures::run(&config, p));
     assert_eq!(report.triangles, 32);

@@ -55,6 +55,8 @@ pub struct Config {
     pub bvh_memory: BvhMemory,
     /// Timed runs per structure and ray set (the median is reported), at least 1.
     pub repeat: usize,
+    /// How the BVH is built (`--builder`, `--optimize`, …).
+    pub build: BuildOptions,
 }
 
 /// The triangles of a mesh file or of a scene (.toml: all its objects), and the scene's
@@ -143,7 +145,7 @@ struct Built {
     size: Size,
 }
 
-fn build_one(kind: AccelKind, mesh: &Mesh) -> Result<Built> {
+fn build_one(kind: AccelKind, mesh: &Mesh, opts: &BuildOptions) -> Result<Built> {
     let start = Instant::now();
     let grid = |s: GridStats| (s.bytes, s.duplicated, None);
     let (accel, layout, (bytes, duplicated, max_depth)): (
@@ -152,9 +154,8 @@ fn build_one(kind: AccelKind, mesh: &Mesh) -> Result<Built> {
         _,
     ) = match kind {
         AccelKind::Bvh(layout) => {
-            let opts = BuildOptions::default();
-            let tree = build(mesh, &opts);
-            let depth = BvhStats::of(&tree, &opts).max_depth;
+            let tree = build(mesh, opts);
+            let depth = BvhStats::of(&tree, opts).max_depth;
             let flat: Arc<dyn GpuForm> = try_flatten(layout, &tree, mesh)?.into();
             let info = (flat.bytes() as u64, 0, Some(depth));
             (flat.clone(), Some(flat), info)
@@ -262,7 +263,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     let (mut sizes, mut runs) = (Vec::new(), Vec::new());
     for &kind in kinds {
         ticker.say(format!("building {kind}"));
-        let b = build_one(kind, mesh)?;
+        let b = build_one(kind, mesh, &config.build)?;
         ticker.inc(1);
         let mut gpu = match (&b.layout, device.is_cpu()) {
             (Some(layout), false) => Some(Tracer::with_layout(&device, layout.clone(), &options)?),

@@ -41,6 +41,8 @@ pub struct BenchStructures {
     /// by default).
     #[arg(long, value_name = "FILE.png")]
     chart: Option<PathBuf>,
+    #[command(flatten)]
+    build: super::BuilderArgs,
 }
 
 impl BenchStructures {
@@ -58,6 +60,7 @@ impl BenchStructures {
             device: self.device,
             bvh_memory: self.bvh_memory,
             repeat: self.repeat as usize,
+            build: self.build.options(),
         };
         let report = with_bar("", |p| run(&config, p))?;
         self.out.finish(&report, chart)
