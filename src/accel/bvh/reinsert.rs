@@ -6,11 +6,18 @@
 //!
 //! Leaves move whole, so their boxes and triangle counts never change: the SAH changes only
 //! by the inner nodes' areas (each weighs 2·T_cube), which is all the search weighs. Moves
-//! that would put a leaf deeper than `max_depth` are not made. The result is deterministic
-//! (one candidate at a time, ties broken by node index).
+//! that would put a leaf deeper than `max_depth` are not made.
+//!
+//! The searches run in batches on all threads (as Meister & Bittner 2022 do), each reading
+//! the tree as it is before its batch, with the node taken out in thought only; the moves
+//! are then made one at a time in candidate order, each only if, with the tree as it is by
+//! then, it lowers the SAH exactly. So the result does not depend on the number of threads,
+//! and the SAH never rises.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
+
+use rayon::prelude::*;
 
 use super::tree::{children_order, leaf, Node};
 use super::{BuildOptions, Bvh};
@@ -22,6 +29,9 @@ const NONE: u32 = u32::MAX;
 pub const ROUNDS: usize = 3;
 /// The share of nodes a round reinserts (the largest boxes first).
 pub const SHARE: f64 = 1.0;
+/// Candidates whose positions are searched at once, on all threads (Meister & Bittner 2022
+/// search many in parallel too); the moves are then made one by one.
+const BATCH: usize = 256;
 
 /// The tree in arrays with parent links.
 struct Arena {
@@ -77,15 +87,6 @@ impl Arena {
         self.bbox[n as usize].area()
     }
 
-    fn depth(&self, mut n: u32) -> u32 {
-        let mut d = 0;
-        while self.parent[n as usize] != NONE {
-            n = self.parent[n as usize];
-            d += 1;
-        }
-        d
-    }
-
     /// Recomputes boxes and heights from `n` up to the root.
     fn refit_from(&mut self, mut n: u32) {
         while n != NONE {
@@ -139,13 +140,36 @@ impl Arena {
         self.refit_from(p);
     }
 
-    /// The node whose sibling `n` costs least to become, by branch and bound: putting `n`
-    /// beside `x` adds a node of area A(x ∪ n) and grows every ancestor of x to hold n.
-    /// Returns (x, the added area). Only positions where every leaf stays within `max_depth`.
-    fn best_sibling(&self, n: u32, max_depth: u32) -> (u32, f64) {
+    /// The node whose sibling `n` costs least to become once `n` is taken out, by branch and
+    /// bound: putting `n` beside `x` adds a node of area A(x ∪ n) and grows every ancestor
+    /// of x to hold n. The tree is read as it would be without `n` — its parent spliced out,
+    /// the parent's ancestors shrunk to what remains — without changing it, so that many
+    /// searches can run at once. Only positions where every leaf stays within `max_depth`.
+    fn propose(&self, n: u32, max_depth: u32) -> u32 {
+        let p = self.parent[n as usize];
+        let [a, b] = self.kids[p as usize];
+        let s = if a == n { b } else { a };
+        // The ancestors of p with their boxes once n is gone, the root first: the path's
+        // node at depth d is shrunk[d].
+        let mut shrunk: Vec<(u32, Aabb)> = Vec::new();
+        let (mut below, mut cur) = (p, self.bbox[s as usize]);
+        while self.parent[below as usize] != NONE {
+            let up = self.parent[below as usize];
+            let [l, r] = self.kids[up as usize];
+            let other = if l == below { r } else { l };
+            cur = cur.union(self.bbox[other as usize]);
+            shrunk.push((up, cur));
+            below = up;
+        }
+        shrunk.reverse();
+        let on_path = |k: u32, depth: u32| shrunk.get(depth as usize).filter(|e| e.0 == k);
+        let bbox = |k: u32, depth: u32| match on_path(k, depth) {
+            Some(e) => e.1,
+            None => self.bbox[k as usize],
+        };
         let nb = self.bbox[n as usize];
         let an = nb.area() as f64;
-        let mut best = (self.root, f64::INFINITY);
+        let mut best = (NONE, f64::INFINITY);
         let mut heap = BinaryHeap::new();
         heap.push(Candidate {
             induced: 0.0,
@@ -162,17 +186,21 @@ impl Arena {
             if induced + an >= best.1 {
                 break;
             }
-            let merged = self.bbox[node as usize].union(nb).area() as f64;
-            let cost = induced + merged;
-            // n and x both go one level below x's place.
+            let node_box = bbox(node, depth);
+            let cost = induced + node_box.union(nb).area() as f64;
+            // n and x both go one level below x's place (heights on the path may be stale
+            // by one: the check is then stricter, never looser).
             let below = self.height[n as usize].max(self.height[node as usize]);
-            let fits = depth + 1 + below <= max_depth;
-            if fits && (cost < best.1 || (cost == best.1 && node < best.0)) {
+            if depth + 1 + below <= max_depth
+                && (cost < best.1 || (cost == best.1 && node < best.0))
+            {
                 best = (node, cost);
             }
             if !self.is_leaf(node) {
-                let induced = cost - self.area(node) as f64;
+                let induced = cost - node_box.area() as f64;
                 for c in self.kids[node as usize] {
+                    // The parent is spliced out: its place is the sibling's.
+                    let c = if c == p { s } else { c };
                     heap.push(Candidate {
                         induced,
                         node: c,
@@ -181,7 +209,59 @@ impl Arena {
                 }
             }
         }
-        best
+        best.0
+    }
+
+    /// The inner area putting `n` (taken out, its freed parent `p`) beside `x` adds, as
+    /// [`Self::propose`] counts it; None where `x` is not in the tree any more (a move since
+    /// the proposal put it in n's subtree: its way up passes n or p) or the move would pass
+    /// the depth cap.
+    fn added_beside(&self, n: u32, p: u32, x: u32, max_depth: u32) -> Option<f64> {
+        let nb = self.bbox[n as usize];
+        let mut added = self.bbox[x as usize].union(nb).area() as f64;
+        let (mut a, mut depth) = (x, 0);
+        while self.parent[a as usize] != NONE {
+            if a == n || a == p {
+                return None;
+            }
+            a = self.parent[a as usize];
+            let box_a = self.bbox[a as usize];
+            added += (box_a.union(nb).area() - box_a.area()) as f64;
+            depth += 1;
+        }
+        let below = self.height[n as usize].max(self.height[x as usize]);
+        (a == self.root && depth + 1 + below <= max_depth).then_some(added)
+    }
+
+    /// Moves `n` beside `x` if that lowers the SAH, as the tree now is; else leaves it where
+    /// it was. Whether it moved.
+    fn try_move(&mut self, n: u32, x: u32, max_depth: u32) -> bool {
+        let p = self.parent[n as usize];
+        if p == NONE || self.parent[p as usize] == NONE || x == NONE {
+            return false; // an earlier move made it a child of the root
+        }
+        // Inner area before: the parent and every ancestor above it.
+        let before = self.area(p) as f64 + self.ancestors_area(p);
+        let was_first = self.kids[p as usize][0] == n;
+        let (p, s) = self.remove(n);
+        // After removal, the sibling's ancestors hold what the parent's did less n.
+        let after_removal = self.ancestors_area(s);
+        let added = (x != s && x != p)
+            .then(|| self.added_beside(n, p, x, max_depth))
+            .flatten();
+        match added {
+            Some(added) if after_removal + added < before - 1e-6 * before.abs() => {
+                self.insert(n, x, p);
+                true
+            }
+            _ => {
+                self.insert(n, s, p);
+                if was_first {
+                    self.kids[p as usize] = [n, s];
+                }
+                false
+            }
+        }
     }
 
     /// The tree as nodes, its leaves in depth-first order, and the leaf order they refer to;
@@ -240,7 +320,7 @@ impl Ord for Candidate {
     }
 }
 
-/// Optimises `bvh` in place by [`ROUNDS`] rounds of reinsertion. The SAH never rises; the
+/// Optimises `bvh` in place by up to three rounds of reinsertion. The SAH never rises; the
 /// leaves and their triangles are the same (in a new leaf order).
 pub fn optimize(bvh: &mut Bvh, opts: &BuildOptions) {
     if matches!(bvh.root, Node::Leaf { .. }) {
@@ -260,29 +340,20 @@ pub fn optimize(bvh: &mut Bvh, opts: &BuildOptions) {
         candidates.sort_by(|&a, &b| arena.area(b).total_cmp(&arena.area(a)).then(a.cmp(&b)));
         candidates.truncate(((len as f64 * SHARE).ceil() as usize).max(1));
         let mut moved = 0;
-        for n in candidates {
-            let p = arena.parent[n as usize];
-            if p == NONE || arena.parent[p as usize] == NONE {
-                continue; // an earlier move made it a child of the root
-            }
-            // Inner area before: the parent and every ancestor above it.
-            let before = arena.area(p) as f64 + arena.ancestors_area(p);
-            let [a, _] = arena.kids[p as usize];
-            let was_first = a == n;
-            let (p, s) = arena.remove(n);
-            // After removal, the sibling's ancestors hold what the parent's did less n.
-            let after_removal = arena.ancestors_area(s);
-            let (x, added) = arena.best_sibling(n, max_depth);
-            if after_removal + added < before - 1e-6 * before.abs() && x != s {
-                arena.insert(n, x, p);
-                moved += 1;
+        for batch in candidates.chunks(BATCH) {
+            // Where each candidate would go, searched on all threads in the tree as it is
+            // before the batch; then the moves made one by one, each checked exactly.
+            let proposals: Vec<u32> = if opts.parallel {
+                batch
+                    .par_iter()
+                    .map(|&n| arena.propose(n, max_depth))
+                    .collect()
             } else {
-                arena.insert(n, s, p);
-                if was_first {
-                    arena.kids[p as usize] = [n, s];
-                }
+                batch.iter().map(|&n| arena.propose(n, max_depth)).collect()
+            };
+            for (&n, &x) in batch.iter().zip(&proposals) {
+                moved += arena.try_move(n, x, max_depth) as usize;
             }
-            debug_assert!(arena.depth(n) + arena.height[n as usize] <= max_depth);
         }
         log::debug!("reinsertion: {moved} nodes moved");
         if moved == 0 {
