@@ -62,12 +62,10 @@ impl Poly {
     }
 }
 
-/// Bounds of the part of `tri` inside `cell` (a subset of both the cell and the triangle's
-/// bounds), or `None` when the triangle misses the cell by more than the margin.
-pub(crate) fn clip_bounds(tri: &Triangle, cell: &Aabb) -> Option<Aabb> {
+/// The part of `tri` inside the box [`lo`, `hi`]: the triangle clipped by the planes its
+/// bounds cross (empty when nothing is left).
+fn clipped(tri: &Triangle, lo: Vec3, hi: Vec3) -> Poly {
     let tb = tri.bbox();
-    let margin = tb.lo.abs().max(tb.hi.abs()) * MARGIN;
-    let (lo, hi) = (cell.lo - margin, cell.hi + margin);
     let mut poly = Poly {
         v: [Vec3::ZERO; MAX_VERTS],
         n: 3,
@@ -81,8 +79,20 @@ pub(crate) fn clip_bounds(tri: &Triangle, cell: &Aabb) -> Option<Aabb> {
             poly = poly.clip(axis, hi[axis], false);
         }
         if poly.n == 0 {
-            return None;
+            break;
         }
+    }
+    poly
+}
+
+/// Bounds of the part of `tri` inside `cell` (a subset of both the cell and the triangle's
+/// bounds), or `None` when the triangle misses the cell by more than the margin.
+pub(crate) fn clip_bounds(tri: &Triangle, cell: &Aabb) -> Option<Aabb> {
+    let tb = tri.bbox();
+    let margin = tb.lo.abs().max(tb.hi.abs()) * MARGIN;
+    let poly = clipped(tri, cell.lo - margin, cell.hi + margin);
+    if poly.n == 0 {
+        return None;
     }
     let b = Aabb::from_points(&poly.v[..poly.n]);
     // Grown by the margin, cut back to the exact triangle bounds, then clamped into the cell
@@ -95,27 +105,11 @@ pub(crate) fn clip_bounds(tri: &Triangle, cell: &Aabb) -> Option<Aabb> {
 /// Area of the part of `tri` inside `cell` (exact clipping, no margin: a metric, not a
 /// bound). 0 when they do not overlap.
 pub(crate) fn clipped_area(tri: &Triangle, cell: &Aabb) -> f64 {
-    let tb = tri.bbox();
-    let mut poly = Poly {
-        v: [Vec3::ZERO; MAX_VERTS],
-        n: 3,
-    };
-    poly.v[..3].copy_from_slice(&tri.v);
-    for axis in 0..3 {
-        if tb.lo[axis] < cell.lo[axis] {
-            poly = poly.clip(axis, cell.lo[axis], true);
-        }
-        if tb.hi[axis] > cell.hi[axis] {
-            poly = poly.clip(axis, cell.hi[axis], false);
-        }
-        if poly.n < 3 {
-            return 0.0;
-        }
-    }
+    let poly = clipped(tri, cell.lo, cell.hi);
     // A convex polygon: a fan from its first vertex, in f64.
     let p = |i: usize| poly.v[i].as_dvec3();
     let mut twice = glam::DVec3::ZERO;
-    for i in 1..poly.n - 1 {
+    for i in 1..poly.n.saturating_sub(1) {
         twice += (p(i) - p(0)).cross(p(i + 1) - p(0));
     }
     0.5 * twice.length()
