@@ -87,6 +87,21 @@ impl Arena {
         self.bbox[n as usize].area()
     }
 
+    /// Whether every node is reached exactly once from the root, no deeper than `max_depth`.
+    fn is_tree_within(&self, max_depth: u32) -> bool {
+        let mut seen = vec![false; self.bbox.len()];
+        let mut stack = vec![(self.root, 0u32)];
+        while let Some((n, depth)) = stack.pop() {
+            if depth > max_depth || std::mem::replace(&mut seen[n as usize], true) {
+                return false;
+            }
+            if !self.is_leaf(n) {
+                stack.extend(self.kids[n as usize].map(|c| (c, depth + 1)));
+            }
+        }
+        seen.iter().all(|&s| s)
+    }
+
     /// Recomputes boxes and heights from `n` up to the root.
     fn refit_from(&mut self, mut n: u32) {
         while n != NONE {
@@ -359,6 +374,13 @@ pub fn optimize(bvh: &mut Bvh, opts: &BuildOptions) {
         if moved == 0 {
             break;
         }
+    }
+    // A safety net before the recursive conversion: the moves keep the arena a tree within
+    // the depth cap; were that ever broken, the built tree is kept rather than recursing
+    // into a cycle.
+    if !arena.is_tree_within(max_depth) {
+        log::error!("reinsertion broke the tree (a bug): the tree is kept as built");
+        return;
     }
     let (root, order) = arena.into_tree(&bvh.order);
     bvh.root = root;
