@@ -1424,9 +1424,12 @@ fn bench_builders_counts_each_builds_peak_memory_and_takes_several_meshes() {
     let q = dir.quad();
     let cornell = Path::new("scenes/cornell-box.obj");
     let json = dir.path("builders.json");
+    let chart = dir.path("builders.png");
     let out = lancer_ok(&[
         "bench",
         "builders",
+        "--chart",
+        s(&chart),
         s(&q),
         s(cornell),
         "--builder",

@@ -578,10 +578,14 @@ impl BenchReport for Report {
         out
     }
 
-    /// Build time per mesh (one bar per builder and Embree); and each tree's SAH against its
-    /// CPU time per ray, both relative to the first builder's on the same mesh.
+    /// Build time per mesh (one bar per builder and Embree); and, where a second path is
+    /// given, each tree's SAH against its CPU time per ray, both relative to the first
+    /// builder's on the same mesh.
     #[cfg(feature = "charts")]
     fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>> {
+        let Some(build_chart) = paths.first() else {
+            return Ok(Vec::new());
+        };
         let meshes: Vec<String> = self.meshes.iter().map(|m| super::file_name(&m.0)).collect();
         let mut names: Vec<String> = Vec::new();
         for b in &self.builds {
@@ -602,7 +606,10 @@ impl BenchReport for Report {
             })
             .collect();
         let title = format!("BVH build, {} CPU threads", self.cpu_threads);
-        super::chart::bar_chart(&paths[0], &title, "build time (ms)", &meshes, &series)?;
+        super::chart::bar_chart(build_chart, &title, "build time (ms)", &meshes, &series)?;
+        let Some(sah_chart) = paths.get(1) else {
+            return Ok(vec![build_chart.clone()]);
+        };
         let mut sets: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
         for r in &self.runs {
             let first = self
@@ -628,7 +635,7 @@ impl BenchReport for Report {
         }
         let title = "SAH vs CPU time per ray, relative to the first builder";
         super::chart::xy_chart(
-            &paths[1],
+            sah_chart,
             title,
             "SAH ÷ first builder's",
             "time per ray ÷ first builder's",
@@ -637,6 +644,6 @@ impl BenchReport for Report {
             &sets,
             true,
         )?;
-        Ok(paths.to_vec())
+        Ok(vec![build_chart.clone(), sah_chart.clone()])
     }
 }

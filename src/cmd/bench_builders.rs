@@ -41,8 +41,8 @@ pub struct BenchBuilders {
     repeat: u64,
     #[command(flatten)]
     out: Outputs,
-    /// Also draw the build times as a PNG bar chart here, and each tree's SAH against its
-    /// time per ray beside it (FILE-sah.png).
+    /// Also draw the build times as a PNG bar chart here (a --report page also draws each
+    /// tree's SAH against its time per ray beside itself).
     #[arg(long, value_name = "FILE.png")]
     chart: Option<PathBuf>,
 }
