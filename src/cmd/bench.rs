@@ -103,6 +103,20 @@ impl BenchTrace {
     }
 }
 
+/// `--device` and `--bvh-memory`, shared by the benches that time the CPU twins and the GPU
+/// kernels side by side.
+#[derive(Args)]
+pub struct BenchDevice {
+    /// auto, gpu or cpu. auto and gpu measure the GPU kernels and the CPU side by side, on any
+    /// adapter (a software one such as lavapipe included); without one, auto measures the CPU
+    /// alone and gpu is an error; cpu measures the CPU alone.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
+    pub device: DeviceChoice,
+    /// GPU: where the kernels read the BVH (or other structure) from.
+    #[arg(long, value_enum, default_value_t = lancer::gpu::BvhMemory::default())]
+    pub bvh_memory: lancer::gpu::BvhMemory,
+}
+
 /// Runs a bench with a progress bar on stderr (`unit`: what its steps are), cleared when
 /// the bench ends.
 pub fn with_bar<R>(unit: &str, run: impl FnOnce(&dyn Fn(Progress)) -> Result<R>) -> Result<R> {

@@ -5,11 +5,10 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::accel::bvh::{BuildOptions, Builder};
 use lancer::bench::builders::{run, Config, Report};
-use lancer::gpu::BvhMemory;
 use lancer::render::load_geometry;
-use lancer::{DeviceChoice, Result};
+use lancer::Result;
 
-use super::bench::{with_bar, Outputs};
+use super::bench::{with_bar, BenchDevice, Outputs};
 
 #[derive(Args)]
 pub struct BenchBuilders {
@@ -30,12 +29,8 @@ pub struct BenchBuilders {
     /// Height of the default view.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// auto, gpu or cpu, as for `bench layouts`; the GPU traces its default layout.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
-    device: DeviceChoice,
-    /// GPU: where the kernel reads the BVH from.
-    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
-    bvh_memory: BvhMemory,
+    #[command(flatten)]
+    gpu: BenchDevice,
     /// Timed builds and traversals per builder, mesh and ray set (medians are reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
@@ -69,8 +64,8 @@ impl BenchBuilders {
             build: BuildOptions::default(),
             width: self.width,
             height: self.height,
-            device: self.device,
-            bvh_memory: self.bvh_memory,
+            device: self.gpu.device,
+            bvh_memory: self.gpu.bvh_memory,
             repeat: self.repeat as usize,
         };
         let report = with_bar("", |p| run(&config, p))?;

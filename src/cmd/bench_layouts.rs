@@ -4,10 +4,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::bench::layouts::{run, Config, Report};
-use lancer::gpu::BvhMemory;
-use lancer::{DeviceChoice, Result};
+use lancer::Result;
 
-use super::bench::{with_bar, Outputs};
+use super::bench::{with_bar, BenchDevice, Outputs};
 use super::check::{layout_choice, LayoutChoice};
 use super::BuilderArgs;
 use lancer::render::load_geometry;
@@ -22,14 +21,8 @@ pub struct BenchLayouts {
     /// Height of the default view.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// auto, gpu or cpu. auto and gpu measure the GPU kernels and the CPU twins side by side, on any adapter
-    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
-    /// and gpu is an error; cpu measures the CPU alone.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
-    device: DeviceChoice,
-    /// GPU: where the kernels read the layout from.
-    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
-    bvh_memory: BvhMemory,
+    #[command(flatten)]
+    gpu: BenchDevice,
     /// Layouts to measure: a name or all.
     #[arg(long = "layout", value_name = "NAME|all", default_value = "all", value_parser = layout_choice)]
     layouts: LayoutChoice,
@@ -56,8 +49,8 @@ impl BenchLayouts {
             name: self.mesh.display().to_string(),
             width: self.width,
             height: self.height,
-            device: self.device,
-            bvh_memory: self.bvh_memory,
+            device: self.gpu.device,
+            bvh_memory: self.gpu.bvh_memory,
             layouts: self.layouts.kinds(),
             // The driver's rows beside all the layouts only.
             driver: matches!(self.layouts, LayoutChoice::All),

@@ -4,10 +4,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::bench::structures::{load, run, Config, Report};
-use lancer::gpu::BvhMemory;
-use lancer::{DeviceChoice, Result};
+use lancer::Result;
 
-use super::bench::{with_bar, Outputs};
+use super::bench::{with_bar, BenchDevice, Outputs};
 
 #[derive(Args)]
 pub struct BenchStructures {
@@ -24,14 +23,8 @@ pub struct BenchStructures {
     /// primary rays).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     random: Option<u32>,
-    /// auto, gpu or cpu. auto and gpu measure the GPU kernels of the BVH, the kd-tree and the BIH and the CPU side by side, on any adapter
-    /// (a software one such as lavapipe included); without one, auto measures the CPU alone
-    /// and gpu is an error; cpu measures the CPU alone.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
-    device: DeviceChoice,
-    /// GPU: where the kernels read the structure from.
-    #[arg(long, value_enum, default_value_t = BvhMemory::default())]
-    bvh_memory: BvhMemory,
+    #[command(flatten)]
+    gpu: BenchDevice,
     /// Timed runs per structure and ray set (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     repeat: u64,
@@ -57,8 +50,8 @@ impl BenchStructures {
             width: self.width,
             height: self.height,
             random: self.random,
-            device: self.device,
-            bvh_memory: self.bvh_memory,
+            device: self.gpu.device,
+            bvh_memory: self.gpu.bvh_memory,
             repeat: self.repeat as usize,
             build: self.build.options(),
         };
