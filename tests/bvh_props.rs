@@ -23,16 +23,36 @@ fn opts(builder: Builder) -> BuildOptions {
 /// Checks every structural invariant of a BVH over `mesh`, and that every layout
 /// flattens it into arrays its own validation accepts.
 fn check_invariants(mesh: &Mesh, bvh: &Bvh) {
+    check_tree(mesh, bvh, false);
+}
+
+/// [`check_invariants`], for a tree whose leaves may hold parts of triangles (`split`,
+/// spatial splits): then a triangle may be in several leaves (at most once in each, within
+/// the duplication budget), each leaf's box meets the triangle's bounds (its part lies
+/// inside both), and points all over the triangle — vertices, edge midpoints, random points
+/// — lie in the box of one of its leaves (the layouts' validation checks the whole
+/// triangle, in f64).
+fn check_tree(mesh: &Mesh, bvh: &Bvh, split: bool) {
     let mut seen = vec![0u32; mesh.len()];
+    let mut leaves_of: Vec<Vec<Aabb>> = vec![Vec::new(); mesh.len()];
     let mut stack = vec![(&bvh.root, 0usize)];
     while let Some((n, depth)) = stack.pop() {
         assert!(depth <= MAX_DEPTH);
         match n {
             Node::Leaf { bbox, start, count } => {
-                for &prim in &bvh.order[*start as usize..(start + count) as usize] {
+                let ids = &bvh.order[*start as usize..(start + count) as usize];
+                for &prim in ids {
                     seen[prim as usize] += 1;
-                    // The leaf box holds its triangles.
-                    assert!(bbox.contains(&mesh.triangles[prim as usize].bbox()));
+                    let tb = mesh.triangles[prim as usize].bbox();
+                    if split {
+                        // Its part: inside the leaf's box and the triangle's bounds.
+                        assert!(bbox.lo.cmple(tb.hi).all() && tb.lo.cmple(bbox.hi).all());
+                        assert_eq!(ids.iter().filter(|&&p| p == prim).count(), 1);
+                        leaves_of[prim as usize].push(*bbox);
+                    } else {
+                        // The leaf box holds its triangles.
+                        assert!(bbox.contains(&tb));
+                    }
                 }
             }
             Node::Inner { bbox, children, .. } => {
@@ -45,7 +65,43 @@ fn check_invariants(mesh: &Mesh, bvh: &Bvh) {
     }
     for (i, &s) in seen.iter().enumerate() {
         let included = mesh.status[i] == TriStatus::Ok;
-        assert_eq!(s, included as u32, "triangle {i} appears {s} times");
+        if split && included {
+            assert!(s >= 1, "triangle {i} is in no leaf");
+        } else {
+            assert_eq!(s, included as u32, "triangle {i} appears {s} times");
+        }
+    }
+    if split {
+        let budget = 1.0 + lancer::accel::bvh::DUPLICATION as f64;
+        assert!(bvh.order.len() as f64 <= budget * mesh.included().len() as f64);
+        let mut rng = Rng::new(bvh.order.len() as u64);
+        for (t, boxes) in mesh.triangles.iter().zip(&leaves_of) {
+            if boxes.len() < 2 {
+                continue;
+            }
+            let [a, b, c] = t.v;
+            let mut points = vec![a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5];
+            points.extend((0..16).map(|_| {
+                let (u, v) = (rng.f32(), rng.f32());
+                let (u, v) = if u + v > 1.0 {
+                    (1.0 - u, 1.0 - v)
+                } else {
+                    (u, v)
+                };
+                a + (b - a) * u + (c - a) * v
+            }));
+            for p in points {
+                // Points computed in f32 may round a step off the triangle: a step of slack.
+                let near = |b: &Aabb| {
+                    let slack = p.abs() * f32::EPSILON * 2.0;
+                    (b.lo - slack).cmple(p).all() && p.cmple(b.hi + slack).all()
+                };
+                assert!(
+                    boxes.iter().any(near),
+                    "{p} of {t:?} is in none of {boxes:?}"
+                );
+            }
+        }
     }
     for &kind in LayoutKind::ALL {
         let layout = flatten(kind, bvh, mesh);
@@ -73,7 +129,7 @@ proptest! {
             // exact_below: the sweep's handover from binned top levels, exercised here.
             let o = BuildOptions { builder: b, max_leaf, exact_below, optimize, ..BuildOptions::default() };
             let f = build(&mesh, &o);
-            check_invariants(&mesh, &f);
+            check_tree(&mesh, &f, b == Builder::Sbvh);
             // No leaf above max_leaf.
             prop_assert!(largest_leaf(&f.root) <= max_leaf);
             if optimize {
@@ -245,7 +301,7 @@ fn identical_triangles_stay_within_the_stack() {
         let s = BvhStats::of(&f, &opts(b));
         assert!(s.max_depth <= MAX_DEPTH, "{b:?}: depth {}", s.max_depth);
         assert_eq!(s.triangles, 1_000_000);
-        check_invariants(&mesh, &f);
+        check_tree(&mesh, &f, b == Builder::Sbvh);
     }
 }
 
@@ -254,7 +310,7 @@ fn depth_cap_bounds_every_leaf() {
     // The cap that protects the 64-entry stack, exercised at a depth real meshes reach:
     // an uncapped tree over this soup is deeper than 13.
     let mesh = soup(&mut Rng::new(3), 3000, 0.3);
-    for b in [Builder::Sweep, Builder::Binned] {
+    for b in [Builder::Sweep, Builder::Binned, Builder::Sbvh] {
         let free = BuildOptions {
             max_leaf: 1,
             ..opts(b)
@@ -268,7 +324,7 @@ fn depth_cap_bounds_every_leaf() {
                 ..free
             };
             let f = build(&mesh, &capped);
-            check_invariants(&mesh, &f);
+            check_tree(&mesh, &f, b == Builder::Sbvh);
             let d = BvhStats::of(&f, &capped).max_depth;
             assert!(
                 d <= 13,
@@ -278,7 +334,7 @@ fn depth_cap_bounds_every_leaf() {
     }
 }
 
-fn costs(mesh: &Mesh) -> [f64; 4] {
+fn costs(mesh: &Mesh) -> [f64; 5] {
     Builder::ALL.map(|b| BvhStats::of(&build(mesh, &opts(b)), &opts(b)).sah_cost)
 }
 
@@ -319,7 +375,7 @@ fn the_sweeps_binned_top_levels_cost_under_half_a_percent_of_sah() {
 fn sweep_beats_binned_beats_median_on_random_soups() {
     for seed in 0..6 {
         let mesh = soup(&mut Rng::new(seed), 5000, 0.05 + 0.05 * seed as f32);
-        let [s, b, m, _] = costs(&mesh);
+        let [s, b, m, _, _] = costs(&mesh);
         println!("seed {seed}: sweep {s:.3} binned {b:.3} median {m:.3}");
         assert!(
             s <= b && b <= m,
@@ -332,9 +388,11 @@ fn sweep_beats_binned_beats_median_on_random_soups() {
 fn sweep_beats_binned_beats_median_on_models() {
     for name in ["stanford-bunny.obj", "teapot.obj"] {
         let Some(mesh) = load_model(name) else { return };
-        let [s, b, m, p] = costs(&mesh);
-        println!("{name}: sweep {s:.3} binned {b:.3} median {m:.3} ploc {p:.3}");
+        let [s, b, m, sb, p] = costs(&mesh);
+        println!("{name}: sweep {s:.3} binned {b:.3} median {m:.3} sbvh {sb:.3} ploc {p:.3}");
         assert!(s <= b && b <= m, "{name}: sweep {s} binned {b} median {m}");
+        // Spatial splits are taken only where they beat the sweep's object split.
+        assert!(sb <= s, "{name}: sbvh {sb} sweep {s}");
         // Clustering along a Morton curve: well below the median, within 15 % of the sweep.
         assert!(
             p < m && p < 1.15 * s,
@@ -361,4 +419,46 @@ fn reinsertion_lowers_the_median_trees_sah_by_far() {
         after < 0.95 * before,
         "median {before} → reinserted {after}"
     );
+}
+
+/// A ramp (the plane z = x) made of long thin strips, with small things lying on it (the
+/// teapot on a slanted stage; architecture's roofs and stairs): every strip's box spans the
+/// ramp's whole height and length, so object splits cannot separate the strips from what
+/// lies on them.
+fn things_on_a_ramp(seed: u64) -> Mesh {
+    let mut rng = Rng::new(seed);
+    let mut tris = Vec::new();
+    let strips = 16;
+    for j in 0..strips {
+        let (y0, y1) = (
+            j as f32 * 10.0 / strips as f32,
+            (j + 1) as f32 * 10.0 / strips as f32,
+        );
+        let p = |x: f32, y: f32| Vec3::new(x, y, x);
+        tris.push(Triangle::new(p(0.0, y0), p(10.0, y0), p(10.0, y1)));
+        tris.push(Triangle::new(p(0.0, y0), p(10.0, y1), p(0.0, y1)));
+    }
+    for t in soup(&mut rng, 2000, 0.01).triangles {
+        // The soup fills the unit cube: spread it over the ramp, just above it.
+        let (x, y) = (10.0 * rng.f32(), 10.0 * rng.f32());
+        let at = Vec3::new(x, y, x + 0.05);
+        let [a, b, c] = t.v.map(|v| v - t.v[0] + at);
+        tris.push(Triangle::new(a, b, c));
+    }
+    Mesh::from_triangles(tris)
+}
+
+#[test]
+fn spatial_splits_beat_the_sweep_on_long_thin_triangles() {
+    let mesh = things_on_a_ramp(3);
+    let [s, _, _, sb, _] = costs(&mesh);
+    let tree = build(&mesh, &opts(Builder::Sbvh));
+    let refs = tree.order.len() as f64 / mesh.len() as f64;
+    println!("things on a ramp: sweep {s:.2} sbvh {sb:.2}, {refs:.3} references a triangle");
+    assert!(sb < 0.8 * s, "sbvh {sb} sweep {s}");
+    assert!(
+        refs > 1.05,
+        "{refs} references a triangle: no spatial split taken"
+    );
+    check_tree(&mesh, &tree, true);
 }

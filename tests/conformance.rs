@@ -14,7 +14,7 @@ use common::accel_check::{brute_force, check, same_as_bvh};
 use common::hard::{coincident_stacks, edge_rays, extreme_rays, grid, invalid_rays, stack_rays};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
-use lancer::accel::bvh::BuildOptions;
+use lancer::accel::bvh::{BuildOptions, Builder};
 use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::{Ray, Triangle, TriangleTest};
@@ -22,13 +22,21 @@ use lancer::mesh::Mesh;
 use lancer::trace::oracle::{self, judge, Verdict};
 use lancer::{Query, RayStats, Robustness};
 
-/// Every structure of the registry over `mesh`, with its default options.
-fn every_structure(mesh: &Mesh) -> Vec<(AccelKind, Box<dyn Accel>)> {
-    (AccelKind::ALL.iter())
-        .map(|&kind| {
-            let accel = build(kind, mesh, &BuildOptions::default())
-                .unwrap_or_else(|e| panic!("{kind} does not build: {e}"));
-            (kind, accel)
+/// Every structure of the registry over `mesh`, with its default options, and the BVH once
+/// more with spatial splits (leaves holding parts of triangles, a triangle in several).
+fn every_structure(mesh: &Mesh) -> Vec<(String, Box<dyn Accel>)> {
+    let sbvh = BuildOptions {
+        builder: Builder::Sbvh,
+        ..BuildOptions::default()
+    };
+    let variants = (AccelKind::ALL.iter())
+        .map(|&kind| (kind.to_string(), kind, BuildOptions::default()))
+        .chain([("bvh (sbvh)".to_string(), AccelKind::ALL[0], sbvh)]);
+    variants
+        .map(|(name, kind, opts)| {
+            let accel =
+                build(kind, mesh, &opts).unwrap_or_else(|e| panic!("{name} does not build: {e}"));
+            (name, accel)
         })
         .collect()
 }

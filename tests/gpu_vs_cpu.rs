@@ -7,6 +7,7 @@ mod common;
 
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::{BuildOptions, Builder};
 use lancer::camera::Camera;
 use lancer::geometry::{Hit, Ray, Triangle, TriangleTest};
 use lancer::gpu::BvhMemory;
@@ -20,6 +21,7 @@ struct TraceKernel {
     query: Query,
     robustness: Robustness,
     workgroup_size: Option<u32>,
+    builder: Builder,
 }
 
 impl TraceKernel {
@@ -29,6 +31,10 @@ impl TraceKernel {
             robustness: self.robustness,
             workgroup_size: self.workgroup_size.unwrap_or(64),
             stats: true,
+            build: BuildOptions {
+                builder: self.builder,
+                ..BuildOptions::default()
+            },
             ..TracerOptions::default()
         }
     }
@@ -125,6 +131,52 @@ fn kernels() -> [TraceKernel; 2] {
             ..TraceKernel::default()
         },
     ]
+}
+
+#[test]
+fn spatial_split_trees_in_every_layout() {
+    // Long thin triangles at every angle among small ones: the SBVH splits many of them, so
+    // leaves hold parts of triangles and a triangle is in several leaves.
+    let mut rng = Rng::new(77);
+    let mut tris = soup(&mut rng, 1500, 0.05).triangles;
+    for _ in 0..150 {
+        let mut p = || Vec3::new(rng.f32(), rng.f32(), rng.f32());
+        let (a, d, w) = (p(), p() - Vec3::splat(0.5), p() * 0.01);
+        tris.push(Triangle::new(a, a + d, a + w));
+    }
+    let mesh = Mesh::from_triangles(tris);
+    let tree = lancer::accel::bvh::build(
+        &mesh,
+        &BuildOptions {
+            builder: Builder::Sbvh,
+            ..BuildOptions::default()
+        },
+    );
+    assert!(
+        tree.order.len() > mesh.len() + 100,
+        "{} references",
+        tree.order.len()
+    );
+    let rays = random_rays(&mut rng, 10_000, &mesh);
+    for k in kernels() {
+        let k = TraceKernel {
+            builder: Builder::Sbvh,
+            ..k
+        };
+        compare("sbvh", &mesh, &rays, k);
+        // The same hits as the sweep's tree, bit for bit: a split triangle is tested whole.
+        let (sweep, sbvh) = (cpu_hits(&mesh, &rays, k.query), {
+            let cpu = Device::cpu();
+            let mut t = Tracer::new(&cpu, &mesh, &k.options(BvhMemory::default())).unwrap();
+            t.trace(&rays, k.query).unwrap().hits
+        });
+        if k.query == Query::Closest {
+            assert!(sweep == sbvh, "sbvh hits differ from the sweep tree's");
+        } else {
+            let hit = |h: &[Hit]| h.iter().map(|h| h.is_hit()).collect::<Vec<_>>();
+            assert_eq!(hit(&sweep), hit(&sbvh));
+        }
+    }
 }
 
 #[test]

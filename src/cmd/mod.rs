@@ -78,8 +78,9 @@ enum Cmd {
 pub struct BuilderArgs {
     /// BVH builder: sweep (the SAH over every split position on all three axes), binned (the
     /// SAH over --bins candidate splits per axis: a faster build), median (the object median
-    /// of the longest axis: the fastest build, slower traversal) or ploc (clustering along a
-    /// Morton curve, on all threads).
+    /// of the longest axis: the fastest build, slower traversal), sbvh (the sweep plus spatial
+    /// splits that cut long triangles: a slower build, a faster trace where triangles are
+    /// long and thin) or ploc (clustering along a Morton curve, on all threads).
     #[arg(long, value_enum, default_value_t = Builder::Sweep, hide_possible_values = true)]
     builder: Builder,
     /// Bins per axis (binned builder), 2 to 64.

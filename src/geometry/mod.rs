@@ -13,7 +13,7 @@ mod triangle_f64;
 mod vector;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
-pub(crate) use clip::{clip_bounds, clipped_area};
+pub(crate) use clip::{chopped_bounds, clip_bounds, clipped_area, covered};
 pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{

@@ -1,5 +1,6 @@
-//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median, PLOC), the
-//! reinsertion optimiser and its statistics (SAH, end-point overlap). Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
+//! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median, spatial
+//! splits, PLOC), the reinsertion optimiser and its statistics (SAH, end-point overlap).
+//! Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
 
 mod binned;
 mod epo;
@@ -10,6 +11,7 @@ mod ploc;
 mod prim_ref;
 mod prims;
 mod reinsert;
+mod sbvh;
 mod stats;
 mod sweep;
 mod tree;
@@ -23,6 +25,7 @@ pub use binned::MAX_BINS;
 pub use epo::epo_cost;
 pub use options::{BuildOptions, Builder, EXACT_BELOW};
 pub use reinsert::optimize;
+pub use sbvh::{DUPLICATION, OVERLAP, SPATIAL_BINS};
 pub use stats::BvhStats;
 pub use tree::{Bvh, Node, MAX_DEPTH};
 
@@ -43,6 +46,7 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
         Builder::Sweep => sweep::build(prims, opts),
         Builder::Binned => binned::build(prims, opts),
         Builder::Median => median::build(&prims, opts),
+        Builder::Sbvh => sbvh::build(prims, &|i| mesh.triangles[ids[i as usize] as usize], opts),
         Builder::Ploc => match ploc::build(&prims, opts) {
             Some(tree) => tree,
             None => binned::build(prims, opts),

@@ -14,6 +14,10 @@ pub enum Builder {
     Binned,
     /// Object median on the longest centroid axis.
     Median,
+    /// Spatial splits (SBVH, Stich et al. 2009): the sweep's object splits, or planes that
+    /// cut the triangles straddling them, each side bounding its part; a triangle may be in
+    /// several leaves.
+    Sbvh,
     /// PLOC: parallel locally-ordered clustering along a Morton curve (Meister & Bittner
     /// 2018), leaves where the SAH prefers them.
     Ploc,
@@ -21,10 +25,11 @@ pub enum Builder {
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 4] = [
+    pub const ALL: [Builder; 5] = [
         Builder::Sweep,
         Builder::Binned,
         Builder::Median,
+        Builder::Sbvh,
         Builder::Ploc,
     ];
 
@@ -34,6 +39,7 @@ impl Builder {
             Builder::Sweep => "sweep",
             Builder::Binned => "binned",
             Builder::Median => "median",
+            Builder::Sbvh => "sbvh",
             Builder::Ploc => "ploc",
         }
     }

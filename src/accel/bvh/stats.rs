@@ -7,8 +7,11 @@ use super::{BuildOptions, Bvh, Node};
 /// Shape and cost of a BVH.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct BvhStats {
-    /// Triangles referenced by the leaves.
+    /// Distinct triangles referenced by the leaves.
     pub triangles: usize,
+    /// References in the leaves: the triangles, plus one for each extra leaf that holds a
+    /// part of a triangle split in space (the `sbvh` builder).
+    pub references: usize,
     /// Inner nodes and leaves.
     pub nodes: usize,
     /// Leaves.
@@ -46,11 +49,24 @@ impl BvhStats {
             }
         }
         BvhStats {
-            triangles: bvh.order.len(),
+            triangles: distinct(&bvh.order),
+            references: bvh.order.len(),
             nodes: bvh.root.nodes() as usize,
             leaves,
             max_depth,
             sah_cost: cost,
         }
     }
+}
+
+/// Distinct values in `ids` (one bit each up to the largest).
+fn distinct(ids: &[u32]) -> usize {
+    let Some(&max) = ids.iter().max() else {
+        return 0;
+    };
+    let mut bits = vec![0u64; max as usize / 64 + 1];
+    for &i in ids {
+        bits[i as usize / 64] |= 1 << (i % 64);
+    }
+    bits.iter().map(|w| w.count_ones() as usize).sum()
 }

@@ -101,7 +101,7 @@ fn order_key(r: &Ref, axis: usize) -> u64 {
 /// The references in list order on `axis`. References in index order (the whole mesh's)
 /// take a radix sort of their centroid keys, which is stable, so equal centroids stay in
 /// index order; others a comparison sort of (centroid, index) keys.
-fn sorted_by_centroid(refs: &[Ref], axis: usize, in_index_order: bool) -> Vec<Ref> {
+pub(crate) fn sorted_by_centroid(refs: &[Ref], axis: usize, in_index_order: bool) -> Vec<Ref> {
     if in_index_order {
         let mut keys: Vec<(u32, u32)> = (refs.iter().enumerate())
             .map(|(i, r)| (sortable(r.centroid()[axis]), i as u32))
@@ -190,19 +190,19 @@ fn node(opts: &BuildOptions, w: Work, bbox: BoxA, offset: usize, depth: usize) -
 }
 
 /// The best split of a node.
-struct Split {
-    cost: f32,
-    axis: usize,
+pub(crate) struct Split {
+    pub cost: f32,
+    pub axis: usize,
     /// Primitives on the left.
-    k: usize,
+    pub k: usize,
     /// Their bounds.
-    left: BoxA,
+    pub left: BoxA,
 }
 
 /// Best split found by the sweep (None when no position separates two centroids). Per axis
 /// the first position with the smallest A_L·N_L + A_R·N_R wins (it orders the candidates as
 /// the cost does, without a division each); then the axes by cost, in order.
-fn sweep(
+pub(crate) fn sweep(
     opts: &BuildOptions,
     lists: &[&mut [Ref]; 3],
     right_areas: &mut [Vec3A],

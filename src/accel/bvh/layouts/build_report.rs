@@ -59,6 +59,7 @@ impl BuildReport {
             format!("builder     {}", self.builder.name()),
             format!("layout      {}", self.layout),
             format!("triangles   {}", s.triangles),
+            format!("references  {}", s.references),
             format!("nodes       {}", s.nodes),
             format!("leaves      {}", s.leaves),
             format!("max depth   {}", s.max_depth),

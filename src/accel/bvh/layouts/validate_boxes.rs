@@ -6,6 +6,11 @@
 //!   an inner slot every vertex under the node it refers to. Exactly, in f32 with no
 //!   tolerance: the boxes as the traversal reads them (for `cwbvh`, dequantised), so a ray
 //!   that meets a triangle passes every box on the way to it;
+//! - except for a triangle split in space (an SBVH's: its records in several leaves, each
+//!   leaf bounding a part of it): there, the boxes on the way to its leaves — each path's
+//!   boxes intersected — must together cover the whole triangle, checked by cutting the
+//!   triangle against them in f64 ([`covered`]), so a ray that meets it passes every box on
+//!   the way to one of those leaves;
 //! - the leaves under each root refer to every record of the triangle array exactly once
 //!   (`threaded`'s eight copies each on their own).
 //!
@@ -18,7 +23,7 @@
 //! triangle and one frame per level as its only allocations.
 
 use crate::accel::LeafTri;
-use crate::geometry::Aabb;
+use crate::geometry::{covered, Aabb};
 
 /// What a slot refers to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -108,11 +113,40 @@ fn holds_point(b: &Aabb, p: glam::Vec3) -> bool {
 }
 
 /// One inner node being walked: the slot it was entered through, its slots still to walk,
-/// and the union of the vertices below the slots walked so far.
+/// the union of the vertices below the slots walked so far, and the intersection of the
+/// boxes on the way to it (what a ray must pass to reach it).
 struct Frame<I> {
     entered: Slot,
     slots: I,
     below: Aabb,
+    within: Aabb,
+}
+
+/// Everything.
+const ALL: Aabb = Aabb {
+    lo: glam::Vec3::splat(f32::NEG_INFINITY),
+    hi: glam::Vec3::splat(f32::INFINITY),
+};
+
+/// `within` cut to a slot's box.
+fn narrowed(within: &Aabb, slot: &Slot) -> Aabb {
+    match &slot.bbox {
+        Some(b) => Aabb {
+            lo: within.lo.max(b.lo),
+            hi: within.hi.min(b.hi),
+        },
+        None => *within,
+    }
+}
+
+/// A triangle record whose leaf box does not hold it all: where it is, the box, a vertex
+/// outside, and what a ray must pass to reach it.
+struct Part {
+    at: At,
+    record: u32,
+    bbox: Aabb,
+    vertex: glam::Vec3,
+    within: Aabb,
 }
 
 /// Checks that every slot's box holds the triangles below it and that the leaves under
@@ -123,15 +157,27 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
     let several = roots.len() > 1;
     let mut seen = vec![false; tris.len()];
     let mut stack = Vec::new();
+    let mut parts = Vec::new();
     for root in roots {
         seen.fill(false);
+        parts.clear();
+        let root_within = narrowed(&ALL, &root);
         let below = match root.child {
-            Child::Tris { first, count } => leaf(&root, first, count, tris, &mut seen)?,
+            Child::Tris { first, count } => leaf(
+                &root,
+                first,
+                count,
+                tris,
+                &mut seen,
+                root_within,
+                &mut parts,
+            )?,
             Child::Node(n) => {
                 stack.push(Frame {
                     entered: root,
                     slots: tree.slots(n),
                     below: Aabb::EMPTY,
+                    within: root_within,
                 });
                 let mut below = Aabb::EMPTY;
                 while let Some(top) = stack.last_mut() {
@@ -145,15 +191,17 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
                         }
                         continue;
                     };
+                    let within = narrowed(&top.within, &slot);
                     match slot.child {
                         Child::Tris { first, count } => {
-                            let b = leaf(&slot, first, count, tris, &mut seen)?;
+                            let b = leaf(&slot, first, count, tris, &mut seen, within, &mut parts)?;
                             top.below = top.below.union(b);
                         }
                         Child::Node(n) => stack.push(Frame {
                             entered: slot,
                             slots: tree.slots(n),
                             below: Aabb::EMPTY,
+                            within,
                         }),
                     }
                 }
@@ -161,6 +209,7 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
             }
         };
         inner(&root, &below)?;
+        check_parts(tris, &parts)?;
         if let Some(t) = seen.iter().position(|s| !s) {
             let end = (seen[t..].iter().position(|&s| s)).map_or(seen.len(), |k| t + k);
             let under = match several {
@@ -174,13 +223,17 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
 }
 
 /// Marks a leaf's triangles seen and checks their vertices against its box; returns the
-/// box of those vertices.
+/// box of those vertices. A triangle with a vertex outside is kept in `parts` for
+/// [`check_parts`] (its other leaves may hold the rest), and only its bounds within
+/// `within` (the boxes on the way here, this leaf's included) count as below.
 fn leaf(
     slot: &Slot,
     first: u32,
     count: u32,
     tris: &[LeafTri],
     seen: &mut [bool],
+    within: Aabb,
+    parts: &mut Vec<Part>,
 ) -> Result<Aabb, String> {
     let (first, end) = (first as usize, first as usize + count as usize);
     let (Some(ts), Some(flags)) = (tris.get(first..end), seen.get_mut(first..end)) else {
@@ -192,30 +245,98 @@ fn leaf(
     };
     let mut below = Aabb::EMPTY;
     for (k, (t, flag)) in ts.iter().zip(flags).enumerate() {
+        let record = first + k;
         if std::mem::replace(flag, true) {
-            return Err(format!(
-                "{}: triangle {} is in two leaves",
-                slot.at,
-                first + k
-            ));
+            return Err(format!("{}: triangle {record} is in two leaves", slot.at));
         }
-        for v in [t.v0, t.v1, t.v2].map(glam::Vec3::from) {
-            if let Some(b) = &slot.bbox {
-                if !holds_point(b, v) {
-                    return Err(format!(
-                        "{}: triangle {} (prim {}) lies outside the box {}: its vertex {:?}",
-                        slot.at,
-                        first + k,
-                        t.prim,
-                        show(b),
-                        v.to_array()
-                    ));
-                }
+        let vs = [t.v0, t.v1, t.v2].map(glam::Vec3::from);
+        let outside = match &slot.bbox {
+            Some(b) => vs
+                .into_iter()
+                .find(|&v| !holds_point(b, v))
+                .map(|v| (*b, v)),
+            None => None,
+        };
+        match outside {
+            Some((bbox, vertex)) if vs.iter().all(|v| v.is_finite()) => {
+                let tb = Aabb::from_points(&vs);
+                below = below.union(Aabb {
+                    lo: tb.lo.max(within.lo),
+                    hi: tb.hi.min(within.hi),
+                });
+                parts.push(Part {
+                    at: slot.at,
+                    record: record as u32,
+                    bbox,
+                    vertex,
+                    within,
+                });
             }
-            below = below.grow(v);
+            Some((bbox, vertex)) => return Err(outside_message(slot.at, record, t, &bbox, vertex)),
+            None => below = vs.into_iter().fold(below, Aabb::grow),
         }
     }
     Ok(below)
+}
+
+fn outside_message(at: At, record: usize, t: &LeafTri, bbox: &Aabb, v: glam::Vec3) -> String {
+    format!(
+        "{at}: triangle {record} (prim {}) lies outside the box {}: its vertex {:?}",
+        t.prim,
+        show(bbox),
+        v.to_array()
+    )
+}
+
+/// Checks the triangles whose leaf boxes hold only parts of them: the records of the same
+/// triangle (same `prim`, same vertices) together, the boxes on the way to each must cover
+/// it — unless another record of it sits whole in its leaf.
+fn check_parts(tris: &[LeafTri], parts: &[Part]) -> Result<(), String> {
+    if parts.is_empty() {
+        return Ok(());
+    }
+    let key = |t: &LeafTri| (t.prim, bytemuck::cast::<_, [u32; 9]>([t.v0, t.v1, t.v2]));
+    let mut split: std::collections::HashMap<_, Vec<&Part>> = std::collections::HashMap::new();
+    for p in parts {
+        split
+            .entry(key(&tris[p.record as usize]))
+            .or_default()
+            .push(p);
+    }
+    // A record that is not a part sits whole in its leaf: its triangle is covered.
+    let mut is_part = vec![false; tris.len()];
+    for p in parts {
+        is_part[p.record as usize] = true;
+    }
+    for (r, t) in tris.iter().enumerate() {
+        if !is_part[r] {
+            split.remove(&key(t));
+        }
+    }
+    let mut bad: Vec<&Vec<&Part>> = split
+        .values()
+        .filter(|group| {
+            let t = tris[group[0].record as usize].triangle();
+            let boxes: Vec<Aabb> = group.iter().map(|p| p.within).collect();
+            !covered(&t, &boxes)
+        })
+        .collect();
+    bad.sort_by_key(|group| group[0].record);
+    match bad.first() {
+        None => Ok(()),
+        Some(group) => {
+            let p = group[0];
+            let t = &tris[p.record as usize];
+            let mut msg = outside_message(p.at, p.record as usize, t, &p.bbox, p.vertex);
+            if group.len() > 1 {
+                msg += &format!(
+                    ", and the boxes of its {} leaves do not cover it together",
+                    group.len()
+                );
+            }
+            Err(msg)
+        }
+    }
 }
 
 /// Checks that an inner slot's box holds `below`, the box of the vertices under it (each
@@ -362,6 +483,44 @@ mod tests {
             &|t| {
                 t.roots[0].bbox = Some(Aabb::EMPTY);
             },
+        );
+        // A triangle split in space: two records of prim 0, each leaf bounding one side of
+        // the plane x = 1. Together they cover it; a leaf one step short on x does not.
+        let t = LeafTri::new(
+            [
+                Vec3::ZERO,
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(0.0, 2.0, 0.0),
+            ],
+            0,
+        );
+        let boxed = |lo: [f32; 3], hi: [f32; 3], first, at| Slot {
+            bbox: Some(Aabb {
+                lo: Vec3::from(lo),
+                hi: Vec3::from(hi),
+            }),
+            child: Child::Tris { first, count: 1 },
+            at,
+        };
+        let split = |right_lo: f32| Lists {
+            roots: node_zero().collect(),
+            nodes: vec![vec![
+                boxed([0.0; 3], [1.0, 2.0, 0.0], 0, At::Slot { node: 0, slot: 0 }),
+                boxed(
+                    [right_lo, 0.0, 0.0],
+                    [2.0, 1.0, 0.0],
+                    1,
+                    At::Slot { node: 0, slot: 1 },
+                ),
+            ]],
+            tris: vec![t, t],
+        };
+        check_boxes(&split(1.0)).unwrap();
+        let e = check_boxes(&split(1f32.next_up())).unwrap_err();
+        assert!(
+            e.contains("triangle 0 (prim 0) lies outside the box")
+                && e.contains("the boxes of its 2 leaves do not cover it together"),
+            "{e}"
         );
         let empty = Lists {
             roots: vec![slot(

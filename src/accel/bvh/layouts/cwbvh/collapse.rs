@@ -73,9 +73,11 @@ impl Binary {
 
     fn add(&mut self, node: &Node, tris: &[LeafTri]) -> u32 {
         match node {
-            Node::Leaf { start, count, .. } => {
+            Node::Leaf {
+                bbox, start, count, ..
+            } => {
                 let mut pos: Vec<u32> = (*start..start + count).collect();
-                self.split(&mut pos, tris)
+                self.split(&mut pos, tris, bbox)
             }
             Node::Inner { children, .. } => {
                 let l = self.add(&children[0], tris);
@@ -91,9 +93,17 @@ impl Binary {
         self.push(bbox, [l, r], n)
     }
 
-    /// A binary leaf's triangles as a tree of one-triangle leaves (`pos` non-empty).
-    fn split(&mut self, pos: &mut [u32], tris: &[LeafTri]) -> u32 {
-        let bbox = |p: &u32| tris[*p as usize].triangle().bbox();
+    /// A binary leaf's triangles as a tree of one-triangle leaves (`pos` non-empty). A
+    /// triangle's box is its bounds within the leaf's box `within`: all of it, unless a
+    /// spatial split gave the leaf only a part of the triangle.
+    fn split(&mut self, pos: &mut [u32], tris: &[LeafTri], within: &Aabb) -> u32 {
+        let bbox = |p: &u32| {
+            let b = tris[*p as usize].triangle().bbox();
+            Aabb {
+                lo: b.lo.max(within.lo),
+                hi: b.hi.min(within.hi),
+            }
+        };
         if let [p] = pos {
             let b = bbox(p);
             return self.push(b, [*p, LEAF], 1);
@@ -105,8 +115,8 @@ impl Binary {
             ca.total_cmp(&cb).then(a.cmp(b))
         });
         let (lo, hi) = pos.split_at_mut(pos.len() / 2);
-        let l = self.split(lo, tris);
-        let r = self.split(hi, tris);
+        let l = self.split(lo, tris, within);
+        let r = self.split(hi, tris, within);
         self.join(l, r)
     }
 }
