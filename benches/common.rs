@@ -38,3 +38,73 @@ pub fn terrain(n: usize) -> Mesh {
     }
     Mesh::from_triangles(tris)
 }
+
+/// Crates on a ramp: the plane y = x over [0, 10]², made of `strips` long thin strips running
+/// up the slope, with `crates` small boxes (12 triangles each) lying on it at random. Every
+/// strip's box spans the ramp's whole length and height, so object splits cannot separate a
+/// strip from the crates on it: the case spatial splits are for (architecture's roofs,
+/// stairs and beams).
+pub fn crates_on_a_ramp(strips: usize, crates: usize) -> Mesh {
+    let mut tris = Vec::new();
+    let w = 10.0 / strips as f32;
+    let on_ramp = |x: f32, z: f32| Vec3::new(x, x, z);
+    for j in 0..strips {
+        let (z0, z1) = (j as f32 * w, (j + 1) as f32 * w);
+        let (a, b) = (on_ramp(0.0, z0), on_ramp(10.0, z0));
+        let (c, d) = (on_ramp(10.0, z1), on_ramp(0.0, z1));
+        tris.push(Triangle::new(a, b, c));
+        tris.push(Triangle::new(a, c, d));
+    }
+    // Fixed sequences (Weyl, one irrational step per coordinate), so the file is the same
+    // everywhere.
+    let weyl = |i: usize, step: f64| ((i as f64 + 1.0) * step).fract() as f32;
+    for i in 0..crates {
+        let (x, z) = (9.8 * weyl(i, 0.618_034), 9.8 * weyl(i, 0.414_214));
+        let s = 0.02 + 0.08 * weyl(i, 0.732_051);
+        let lo = Vec3::new(x, x, z);
+        let hi = lo + Vec3::splat(s);
+        let corner =
+            |i: usize| Vec3::select(glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0), hi, lo);
+        for [a, b, c, d] in [
+            [0, 1, 3, 2],
+            [4, 6, 7, 5],
+            [0, 4, 5, 1],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 5, 7, 3],
+        ] {
+            tris.push(Triangle::new(corner(a), corner(b), corner(c)));
+            tris.push(Triangle::new(corner(a), corner(c), corner(d)));
+        }
+    }
+    Mesh::from_triangles(tris)
+}
+
+/// Writes a mesh as a binary little-endian PLY triangle soup (three vertices per face).
+/// Written by hand because ply-rs's writer keeps a map per element (about a kilobyte per
+/// vertex at the sizes the benches use).
+pub fn write_ply(mesh: &Mesh, out: &str) -> std::io::Result<()> {
+    use std::io::{BufWriter, Write};
+    let mut w = BufWriter::new(std::fs::File::create(out)?);
+    let tris = &mesh.triangles;
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\n\
+         property float x\nproperty float y\nproperty float z\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        3 * tris.len(),
+        tris.len()
+    )?;
+    for v in tris.iter().flat_map(|t| t.v) {
+        for c in v.to_array() {
+            w.write_all(&c.to_le_bytes())?;
+        }
+    }
+    for i in 0..tris.len() as i32 {
+        w.write_all(&[3])?;
+        for k in 0..3 {
+            w.write_all(&(3 * i + k).to_le_bytes())?;
+        }
+    }
+    w.flush()
+}

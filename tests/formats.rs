@@ -466,6 +466,97 @@ fn bunny_as_binary_ply_traces_to_the_same_hits_as_the_obj() {
     }
 }
 
+/// The bulk binary reader (every property a scalar, one index list per face) against ply-rs
+/// on the same content in ASCII: a leading element to skip, doubles and a byte colour in the
+/// vertex record, unsigned 16-bit indices, polygons, a short face and an index past the end;
+/// both byte orders. Bit for bit, status for status.
+#[test]
+fn binary_ply_read_in_bulk_equals_ply_rs_on_the_same_content() {
+    let dir = scratch();
+    let mut rng = common::Rng::new(17);
+    let verts: Vec<[f64; 3]> = (0..50)
+        .map(|_| [0; 3].map(|_| (rng.f32() as f64 - 0.5) * 1e3 + rng.f32() as f64 * 1e-9))
+        .collect();
+    let faces: Vec<Vec<u16>> = (0..200)
+        .map(|k| {
+            let n = [3, 3, 4, 5, 2][k % 5];
+            let bad = k % 37 == 0;
+            (0..n)
+                .map(|_| {
+                    if bad {
+                        60
+                    } else {
+                        (rng.f32() * 50.0) as u16 % 50
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let head = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\ncomment made by a test\nelement camera 2\n\
+             property float view\nproperty int id\nelement vertex {}\nproperty double x\n\
+             property uchar red\nproperty double y\nproperty double z\nelement face {}\n\
+             property list uchar ushort vertex_indices\nend_header\n",
+            verts.len(),
+            faces.len()
+        )
+    };
+    let mut ascii = head("ascii");
+    ascii += "1.5 7\n2.5 8\n";
+    for v in &verts {
+        ascii += &format!("{:?} 200 {:?} {:?}\n", v[0], v[1], v[2]);
+    }
+    for f in &faces {
+        let list: Vec<String> = f.iter().map(|i| i.to_string()).collect();
+        ascii += &format!("{} {}\n", f.len(), list.join(" "));
+    }
+    let p = dir.path().join("ascii.ply");
+    std::fs::write(&p, &ascii).unwrap();
+    let want = load_ply(&p).unwrap();
+    assert_eq!(want.short_faces, 40);
+    assert!(want.status.contains(&TriStatus::OutOfRange));
+    for big in [false, true] {
+        macro_rules! put {
+            ($out:expr, $x:expr) => {
+                $out.extend(if big {
+                    $x.to_be_bytes()
+                } else {
+                    $x.to_le_bytes()
+                })
+            };
+        }
+        let format = if big {
+            "binary_big_endian"
+        } else {
+            "binary_little_endian"
+        };
+        let mut bin = head(format).into_bytes();
+        for (view, id) in [(1.5f32, 7i32), (2.5, 8)] {
+            put!(bin, view);
+            put!(bin, id);
+        }
+        for v in &verts {
+            put!(bin, v[0]);
+            bin.push(200);
+            put!(bin, v[1]);
+            put!(bin, v[2]);
+        }
+        for f in &faces {
+            bin.push(f.len() as u8);
+            for &i in f {
+                put!(bin, i);
+            }
+        }
+        let p = dir.path().join(format!("{format}.ply"));
+        std::fs::write(&p, &bin).unwrap();
+        let got = load_ply(&p).unwrap();
+        assert_eq!(bits(&got), bits(&want), "{format}");
+        assert_eq!(got.status, want.status, "{format}");
+        assert_eq!(got.short_faces, want.short_faces, "{format}");
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // What is left out is counted, never dropped.
 

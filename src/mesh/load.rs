@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 /// out of the BVH. A scene (.toml) is refused here: it is assembled by the renderer's scene
 /// module.
 pub fn load_mesh(path: &Path) -> Result<Mesh> {
+    let start = std::time::Instant::now();
     let mesh = match FileKind::of(path)? {
         FileKind::Obj => load_obj(path)?,
         FileKind::Ply => load_ply(path)?,
@@ -21,6 +22,15 @@ pub fn load_mesh(path: &Path) -> Result<Mesh> {
         }
     };
     check_usable(path, &mesh)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
+    log::info!(
+        "{}: {} triangles read and checked in {:.0} ms ({:.0} MB/s)",
+        path.display(),
+        mesh.len(),
+        seconds * 1e3,
+        bytes as f64 / 1e6 / seconds.max(1e-9)
+    );
     Ok(mesh)
 }
 
@@ -42,7 +52,8 @@ pub fn warn_exclusions(path: &Path, mesh: &Mesh) {
 /// [`MIN_EXTENT`](crate::limits::MIN_EXTENT)).
 pub fn check_traceable(path: &Path, mesh: &Mesh) -> Result<()> {
     let extent = mesh.bounds().extent().length();
-    if !mesh.included().is_empty() && extent < crate::limits::MIN_EXTENT {
+    let usable = mesh.status.contains(&super::TriStatus::Ok);
+    if usable && extent < crate::limits::MIN_EXTENT {
         return Err(Error::input(
             path,
             None,
@@ -53,7 +64,7 @@ pub fn check_traceable(path: &Path, mesh: &Mesh) -> Result<()> {
             ),
         ));
     }
-    if mesh.included().is_empty() {
+    if !usable {
         return Err(Error::input(
             path,
             None,

@@ -10,6 +10,7 @@ mod load;
 mod mtl;
 mod obj;
 mod ply;
+mod ply_binary;
 mod ply_layout;
 
 pub use format::{FileKind, KNOWN_EXTENSIONS};
@@ -84,7 +85,8 @@ impl Mesh {
 
     /// Number of triangles with status `s`.
     pub fn count(&self, s: TriStatus) -> usize {
-        self.status.iter().filter(|&&x| x == s).count()
+        use rayon::prelude::*;
+        self.status.par_iter().filter(|&&x| x == s).count()
     }
 
     /// One line naming what was left out, or None when nothing was.
@@ -111,11 +113,11 @@ impl Mesh {
 
     /// Bounds of the included triangles.
     pub fn bounds(&self) -> Aabb {
-        self.triangles
-            .iter()
-            .zip(&self.status)
+        use rayon::prelude::*;
+        (self.triangles.par_iter().zip(&self.status))
             .filter(|(_, s)| **s == TriStatus::Ok)
-            .fold(Aabb::EMPTY, |b, (t, _)| b.union(t.bbox()))
+            .fold(|| Aabb::EMPTY, |b, (t, _)| b.union(t.bbox()))
+            .reduce(|| Aabb::EMPTY, Aabb::union)
     }
 }
 

@@ -1,6 +1,7 @@
 //! PLY loading (ASCII and binary, either byte order) through ply-rs-bw: the `vertex`
 //! element's x, y, z and the `face` element's index lists, fan-triangulated in file order
-//! like OBJ polygons. Faces naming no vertex keep their place as placeholders; other
+//! like OBJ polygons. Binary bodies in the usual layouts are read in bulk on all threads
+//! instead ([`ply_binary`](super::ply_binary)), with the same result. Faces naming no vertex keep their place as placeholders; other
 //! elements are read past and named in a warning.
 
 use std::io::BufReader;
@@ -8,7 +9,9 @@ use std::path::Path;
 
 use glam::Vec3;
 use ply_rs_bw::parser::{ParseError, Parser, Reader};
-use ply_rs_bw::ply::{ElementDef, Property, PropertyAccess, PropertyAccessResult, PropertyType};
+use ply_rs_bw::ply::{
+    ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
+};
 
 use super::{classify, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
@@ -145,6 +148,42 @@ fn check_element(path: &Path, e: &ElementDef) -> Result<()> {
     Ok(())
 }
 
+/// Refuses more triangles than lancer indexes or memory holds, before they are made.
+fn check_size(path: &Path, tris: u128) -> Result<()> {
+    if tris >= u32::MAX as u128 / 2 {
+        return Err(Error::input(
+            path,
+            None,
+            format!("{tris} triangles, more than lancer indexes: split the mesh"),
+        ));
+    }
+    crate::limits::check_memory(
+        &format!("{} ({tris} triangles)", path.display()),
+        tris * BYTES_PER_TRIANGLE,
+        "use a smaller mesh",
+    )
+}
+
+/// A binary body in a layout [`ply_binary`](super::ply_binary) reads, read on all threads;
+/// None for any other (ply-rs reads it).
+fn load_binary_in_bulk(path: &Path, header: &Header) -> Result<Option<Mesh>> {
+    let file = crate::input::read(path)?;
+    let Some(start) = super::ply_binary::body_start(&file) else {
+        return Ok(None);
+    };
+    let Some(body) = super::ply_binary::read(header, &file[start..], |t| check_size(path, t))
+    else {
+        return Ok(None);
+    };
+    let body = body?;
+    Ok(Some(Mesh {
+        sources: vec![path.to_path_buf()],
+        triangles: body.triangles,
+        status: body.status,
+        short_faces: body.short_faces,
+    }))
+}
+
 /// Loads every triangle of a PLY file in file order (polygons fan-triangulated).
 pub fn load_ply(path: &Path) -> Result<Mesh> {
     let (file, _) = crate::input::open(path)?;
@@ -154,10 +193,31 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
     let header = Parser::<Skip>::new()
         .read_header(&mut reader)
         .map_err(|e| parse_error(path, e))?;
+    let (mut first_vertex, mut first_face) = (true, true);
+    for e in header.elements.values() {
+        check_element(path, e)?;
+        let used = match e.name.as_str() {
+            "vertex" => std::mem::replace(&mut first_vertex, false),
+            "face" => std::mem::replace(&mut first_face, false),
+            _ => false,
+        };
+        if !used && e.count > 0 {
+            log::warn!(
+                "{}: {} '{}' elements not used (lancer reads 'vertex' and 'face')",
+                path.display(),
+                e.count,
+                e.name
+            );
+        }
+    }
+    if header.encoding != Encoding::Ascii {
+        if let Some(mesh) = load_binary_in_bulk(path, &header)? {
+            return Ok(mesh);
+        }
+    }
     let mut vertices: Option<Vec<Vertex>> = None;
     let mut faces: Option<Vec<Face>> = None;
     for (_, e) in &header.elements {
-        check_element(path, e)?;
         let read = |e| parse_error(path, e);
         match e.name.as_str() {
             "vertex" if vertices.is_none() => {
@@ -178,14 +238,6 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
                 Parser::<Skip>::new()
                     .read_payload_for_element(&mut reader, e, &header)
                     .map_err(read)?;
-                if e.count > 0 {
-                    log::warn!(
-                        "{}: {} '{}' elements not used (lancer reads 'vertex' and 'face')",
-                        path.display(),
-                        e.count,
-                        e.name
-                    );
-                }
             }
         }
     }
@@ -201,18 +253,7 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
         .iter()
         .map(|f| f.0.len().saturating_sub(2) as u128)
         .sum();
-    if tris >= u32::MAX as u128 / 2 {
-        return Err(Error::input(
-            path,
-            None,
-            format!("{tris} triangles, more than lancer indexes: split the mesh"),
-        ));
-    }
-    crate::limits::check_memory(
-        &format!("{} ({tris} triangles)", path.display()),
-        tris * BYTES_PER_TRIANGLE,
-        "use a smaller mesh",
-    )?;
+    check_size(path, tris)?;
 
     let mut mesh = Mesh {
         sources: vec![path.to_path_buf()],

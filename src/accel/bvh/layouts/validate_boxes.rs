@@ -139,6 +139,27 @@ fn narrowed(within: &Aabb, slot: &Slot) -> Aabb {
     }
 }
 
+/// The prims with several records, counted the first time one is asked about (only trees
+/// with a triangle outside a box on the way to its leaf pay for it).
+struct Several(Option<std::collections::HashSet<u32>>);
+
+impl Several {
+    fn holds(&mut self, tris: &[LeafTri], prim: u32) -> bool {
+        let set = self.0.get_or_insert_with(|| {
+            let mut count = std::collections::HashMap::<u32, u32>::new();
+            for t in tris {
+                *count.entry(t.prim).or_default() += 1;
+            }
+            count
+                .into_iter()
+                .filter(|&(_, n)| n > 1)
+                .map(|(p, _)| p)
+                .collect()
+        });
+        set.contains(&prim)
+    }
+}
+
 /// A triangle record whose leaf box does not hold it all: where it is, the box, a vertex
 /// outside, and what a ray must pass to reach it.
 struct Part {
@@ -155,23 +176,20 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
     let tris = tree.tris();
     let roots: Vec<Slot> = tree.roots().collect();
     let several = roots.len() > 1;
-    let mut seen = vec![false; tris.len()];
+    let mut walk = Walk {
+        seen: vec![false; tris.len()],
+        parts: Vec::new(),
+        several: Several(None),
+    };
     let mut stack = Vec::new();
-    let mut parts = Vec::new();
     for root in roots {
-        seen.fill(false);
-        parts.clear();
+        walk.seen.fill(false);
+        walk.parts.clear();
         let root_within = narrowed(&ALL, &root);
         let below = match root.child {
-            Child::Tris { first, count } => leaf(
-                &root,
-                first,
-                count,
-                tris,
-                &mut seen,
-                root_within,
-                &mut parts,
-            )?,
+            Child::Tris { first, count } => {
+                leaf(&root, first, count, tris, root_within, &mut walk)?
+            }
             Child::Node(n) => {
                 stack.push(Frame {
                     entered: root,
@@ -194,7 +212,7 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
                     let within = narrowed(&top.within, &slot);
                     match slot.child {
                         Child::Tris { first, count } => {
-                            let b = leaf(&slot, first, count, tris, &mut seen, within, &mut parts)?;
+                            let b = leaf(&slot, first, count, tris, within, &mut walk)?;
                             top.below = top.below.union(b);
                         }
                         Child::Node(n) => stack.push(Frame {
@@ -209,7 +227,8 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
             }
         };
         inner(&root, &below)?;
-        check_parts(tris, &parts)?;
+        check_parts(tris, &walk.parts)?;
+        let seen = &walk.seen;
         if let Some(t) = seen.iter().position(|s| !s) {
             let end = (seen[t..].iter().position(|&s| s)).map_or(seen.len(), |k| t + k);
             let under = match several {
@@ -222,19 +241,32 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
     Ok(())
 }
 
+/// What the walk under one root gathers: the records seen, the parts of split triangles,
+/// which prims have several records.
+struct Walk {
+    seen: Vec<bool>,
+    parts: Vec<Part>,
+    several: Several,
+}
+
 /// Marks a leaf's triangles seen and checks their vertices against its box; returns the
-/// box of those vertices. A triangle with a vertex outside is kept in `parts` for
-/// [`check_parts`] (its other leaves may hold the rest), and only its bounds within
-/// `within` (the boxes on the way here, this leaf's included) count as below.
+/// box of those vertices. A triangle with several records (a spatial split's) and a vertex
+/// outside the boxes on the way here (`within`, this leaf's included) is kept in `parts`
+/// for [`check_parts`] (its other leaves may hold the rest), and only its bounds within
+/// `within` count as below.
 fn leaf(
     slot: &Slot,
     first: u32,
     count: u32,
     tris: &[LeafTri],
-    seen: &mut [bool],
     within: Aabb,
-    parts: &mut Vec<Part>,
+    walk: &mut Walk,
 ) -> Result<Aabb, String> {
+    let Walk {
+        seen,
+        parts,
+        several,
+    } = walk;
     let (first, end) = (first as usize, first as usize + count as usize);
     let (Some(ts), Some(flags)) = (tris.get(first..end), seen.get_mut(first..end)) else {
         return Err(format!(
@@ -250,15 +282,20 @@ fn leaf(
             return Err(format!("{}: triangle {record} is in two leaves", slot.at));
         }
         let vs = [t.v0, t.v1, t.v2].map(glam::Vec3::from);
-        let outside = match &slot.bbox {
-            Some(b) => vs
-                .into_iter()
+        let out_of = |b: &Aabb| {
+            vs.into_iter()
                 .find(|&v| !holds_point(b, v))
-                .map(|v| (*b, v)),
-            None => None,
+                .map(|v| (*b, v))
         };
-        match outside {
-            Some((bbox, vertex)) if vs.iter().all(|v| v.is_finite()) => {
+        let outside_slot = slot.bbox.as_ref().and_then(out_of);
+        let beyond = out_of(&within);
+        match beyond {
+            // Whole inside every box on the way (the usual case).
+            None => below = vs.into_iter().fold(below, Aabb::grow),
+            // A part of a triangle other leaves hold too: only its bounds within count here,
+            // and the parts together must cover it.
+            Some(off) if vs.iter().all(|v| v.is_finite()) && several.holds(tris, t.prim) => {
+                let (bbox, vertex) = outside_slot.unwrap_or(off);
                 let tb = Aabb::from_points(&vs);
                 below = below.union(Aabb {
                     lo: tb.lo.max(within.lo),
@@ -272,8 +309,13 @@ fn leaf(
                     within,
                 });
             }
-            Some((bbox, vertex)) => return Err(outside_message(slot.at, record, t, &bbox, vertex)),
-            None => below = vs.into_iter().fold(below, Aabb::grow),
+            Some(_) => match outside_slot {
+                Some((bbox, vertex)) => {
+                    return Err(outside_message(slot.at, record, t, &bbox, vertex));
+                }
+                // Inside its own box, outside one above: that box's check names it.
+                None => below = vs.into_iter().fold(below, Aabb::grow),
+            },
         }
     }
     Ok(below)

@@ -1,0 +1,353 @@
+//! Binary PLY bodies read in bulk, on all threads: the layouts scanners and exporters write
+//! (every element a fixed record of scalars, except `face`, whose one property is its list of
+//! vertex indices). The vertex records are decoded in parallel; the faces are walked once
+//! to find where each starts (lists vary in length), then decoded and fan-triangulated in
+//! parallel. The result is the one ply-rs gives, value for value (positions through f64 to
+//! f32, indices widened, faces in file order); any other layout, and any body that does not
+//! match its header's counts, is left to ply-rs and its messages ([`read`] returns `None`).
+
+use glam::Vec3;
+use ply_rs_bw::ply::{ElementDef, Encoding, Header, PropertyType, ScalarType};
+use rayon::prelude::*;
+
+use super::{classify, placeholder, TriStatus};
+use crate::geometry::Triangle;
+
+/// A scalar type (ply-rs's, which is not `Copy`).
+#[derive(Clone, Copy)]
+enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl From<&ScalarType> for Scalar {
+    fn from(t: &ScalarType) -> Scalar {
+        match t {
+            ScalarType::Char => Scalar::I8,
+            ScalarType::UChar => Scalar::U8,
+            ScalarType::Short => Scalar::I16,
+            ScalarType::UShort => Scalar::U16,
+            ScalarType::Int => Scalar::I32,
+            ScalarType::UInt => Scalar::U32,
+            ScalarType::Float => Scalar::F32,
+            ScalarType::Double => Scalar::F64,
+        }
+    }
+}
+
+/// Bytes of one scalar.
+fn size(t: Scalar) -> usize {
+    match t {
+        Scalar::I8 | Scalar::U8 => 1,
+        Scalar::I16 | Scalar::U16 => 2,
+        Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+        Scalar::F64 => 8,
+    }
+}
+
+/// A scalar at the start of `b` (at least its size long) as f64; integers exactly.
+#[inline(always)]
+fn value(b: &[u8], t: Scalar, big: bool) -> f64 {
+    macro_rules! get {
+        ($ty:ty, $n:expr) => {{
+            let a: [u8; $n] = b[..$n].try_into().unwrap_or([0; $n]);
+            (if big {
+                <$ty>::from_be_bytes(a)
+            } else {
+                <$ty>::from_le_bytes(a)
+            }) as f64
+        }};
+    }
+    match t {
+        Scalar::I8 => get!(i8, 1),
+        Scalar::U8 => get!(u8, 1),
+        Scalar::I16 => get!(i16, 2),
+        Scalar::U16 => get!(u16, 2),
+        Scalar::I32 => get!(i32, 4),
+        Scalar::U32 => get!(u32, 4),
+        Scalar::F32 => get!(f32, 4),
+        Scalar::F64 => get!(f64, 8),
+    }
+}
+
+/// An integer scalar at the start of `b` as i64 (None for a float type).
+#[inline(always)]
+fn index(b: &[u8], t: Scalar, big: bool) -> Option<i64> {
+    match t {
+        Scalar::F32 | Scalar::F64 => None,
+        _ => Some(value(b, t, big) as i64),
+    }
+}
+
+/// A fixed record's bytes, or None when a property is a list.
+fn record_bytes(e: &ElementDef) -> Option<usize> {
+    e.properties
+        .values()
+        .map(|p| match &p.data_type {
+            PropertyType::Scalar(t) => Some(size(t.into())),
+            PropertyType::List(..) => None,
+        })
+        .sum()
+}
+
+/// Where x, y and z sit in a vertex record, and their types.
+fn xyz(e: &ElementDef) -> Option<[(usize, Scalar); 3]> {
+    let mut at = 0;
+    let mut found: [Option<(usize, Scalar)>; 3] = [None; 3];
+    for (name, p) in &e.properties {
+        let PropertyType::Scalar(t) = &p.data_type else {
+            return None;
+        };
+        let t = Scalar::from(t);
+        if let Some(k) = ["x", "y", "z"].iter().position(|a| a == name) {
+            found[k] = Some((at, t));
+        }
+        at += size(t);
+    }
+    Some([found[0]?, found[1]?, found[2]?])
+}
+
+/// The mesh's triangles and their status, and the faces naming fewer than three vertices.
+pub(super) struct Body {
+    pub triangles: Vec<Triangle>,
+    pub status: Vec<TriStatus>,
+    pub short_faces: usize,
+}
+
+/// Reads the body after a binary header, or None to leave it to ply-rs. `check` is given the
+/// triangle count before anything that size is allocated (the memory check); its error is
+/// returned as is.
+pub(super) fn read<E>(
+    header: &Header,
+    body: &[u8],
+    check: impl FnOnce(u128) -> Result<(), E>,
+) -> Option<Result<Body, E>> {
+    let big = match header.encoding {
+        Encoding::BinaryBigEndian => true,
+        Encoding::BinaryLittleEndian => false,
+        Encoding::Ascii => return None,
+    };
+    // Each element's bytes, in order; the first 'vertex' and 'face' are the ones read.
+    let mut at = 0usize;
+    let (mut vertex, mut face) = (None, None);
+    for e in header.elements.values() {
+        match e.name.as_str() {
+            "face" if face.is_none() => {
+                let mut props = e.properties.values();
+                let (Some(p), None) = (props.next(), props.next()) else {
+                    return None;
+                };
+                let PropertyType::List(count_type, item_type) = &p.data_type else {
+                    return None;
+                };
+                if !matches!(p.name.as_str(), "vertex_indices" | "vertex_index") {
+                    return None;
+                }
+                let (count_type, item_type) = (Scalar::from(count_type), Scalar::from(item_type));
+                let (c, i) = (size(count_type), size(item_type));
+                let mut starts = Vec::with_capacity(e.count.min(body.len()));
+                for _ in 0..e.count {
+                    let n = index(body.get(at..at + c)?, count_type, big)?;
+                    let n = usize::try_from(n).ok()?;
+                    starts.push(at);
+                    at = at.checked_add(c + n.checked_mul(i)?)?;
+                }
+                if at > body.len() {
+                    return None;
+                }
+                face = Some((starts, count_type, item_type));
+            }
+            name => {
+                let bytes = record_bytes(e)?.checked_mul(e.count)?;
+                if name == "vertex" && vertex.is_none() {
+                    vertex = Some((at, e.count, record_bytes(e)?, xyz(e)?));
+                }
+                at = at.checked_add(bytes)?;
+                if at > body.len() {
+                    return None;
+                }
+            }
+        }
+    }
+    let (starts, count_type, item_type) = face?;
+    let (c, i) = (size(count_type), size(item_type));
+    // Positions, decoded on all threads.
+    let vertices: Vec<Vec3> = match vertex {
+        Some((start, count, stride, [x, y, z])) if stride > 0 => body
+            [start..start + count * stride]
+            .par_chunks_exact(stride)
+            .map(|r| {
+                let get = |(o, t): (usize, Scalar)| value(&r[o..], t, big) as f32;
+                Vec3::new(get(x), get(y), get(z))
+            })
+            .collect(),
+        Some((_, count, _, _)) if count > 0 => return None,
+        _ => Vec::new(),
+    };
+    let corners = |f: usize| {
+        let s = starts[f];
+        let n = index(&body[s..], count_type, big).unwrap_or(0) as usize;
+        (s + c, n)
+    };
+    let tris: u128 = (starts.par_iter().enumerate())
+        .map(|(f, _)| corners(f).1.saturating_sub(2) as u128)
+        .sum();
+    if let Err(e) = check(tris) {
+        return Some(Err(e));
+    }
+    let short_faces = (0..starts.len())
+        .into_par_iter()
+        .filter(|&f| corners(f).1 < 3)
+        .count();
+    let vertex = |b: &[u8]| {
+        let k = index(b, item_type, big)?;
+        vertices.get(usize::try_from(k).ok()?).copied()
+    };
+    if tris == starts.len() as u128 && short_faces == 0 {
+        // Every face a triangle (the usual file): one triangle per face, written in place.
+        let triangles: Vec<Triangle> = (0..starts.len())
+            .into_par_iter()
+            .map(|f| {
+                let (s, _) = corners(f);
+                let v = |k: usize| vertex(&body[s + k * i..]);
+                match (v(0), v(1), v(2)) {
+                    (Some(a), Some(b), Some(c)) => Triangle::new(a, b, c),
+                    _ => placeholder(),
+                }
+            })
+            .collect();
+        let status = (triangles.par_iter().zip(0..starts.len()))
+            .map(|(t, f)| {
+                let (s, _) = corners(f);
+                let named = (0..3).all(|k| vertex(&body[s + k * i..]).is_some());
+                if named {
+                    classify(t)
+                } else {
+                    TriStatus::OutOfRange
+                }
+            })
+            .collect();
+        return Some(Ok(Body {
+            triangles,
+            status,
+            short_faces,
+        }));
+    }
+    let (triangles, status): (Vec<Triangle>, Vec<TriStatus>) = (0..starts.len())
+        .into_par_iter()
+        .flat_map_iter(|f| {
+            let (s, n) = corners(f);
+            let list = &body[s..s + n * i];
+            // Triangles (the common face) without an allocation.
+            let corner: Option<Corners> = if n == 3 {
+                let v = |k: usize| vertex(&list[k * i..]);
+                (|| Some(Corners::Three([v(0)?, v(1)?, v(2)?])))()
+            } else {
+                list.chunks_exact(i)
+                    .map(vertex)
+                    .collect::<Option<Vec<Vec3>>>()
+                    .map(Corners::Many)
+            };
+            (1..n.saturating_sub(1)).map(move |k| match &corner {
+                Some(v) => {
+                    let v = v.as_slice();
+                    let t = Triangle::new(v[0], v[k], v[k + 1]);
+                    (t, classify(&t))
+                }
+                None => (placeholder(), TriStatus::OutOfRange),
+            })
+        })
+        .unzip();
+    Some(Ok(Body {
+        triangles,
+        status,
+        short_faces,
+    }))
+}
+
+/// A face's corner positions.
+enum Corners {
+    Three([Vec3; 3]),
+    Many(Vec<Vec3>),
+}
+
+impl Corners {
+    fn as_slice(&self) -> &[Vec3] {
+        match self {
+            Corners::Three(v) => v,
+            Corners::Many(v) => v,
+        }
+    }
+}
+
+/// Where the body starts: after the line `end_header` (None when there is none).
+pub(super) fn body_start(file: &[u8]) -> Option<usize> {
+    let key = b"\nend_header";
+    let at = file.windows(key.len()).position(|w| w == key)? + key.len();
+    let nl = file[at..].iter().position(|&b| b == b'\n')?;
+    // Only spaces or a carriage return may follow on that line.
+    (file[at..at + nl].iter().all(|&b| b == b' ' || b == b'\r')).then_some(at + nl + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ply_rs_bw::parser::{Parser, Reader};
+    use ply_rs_bw::ply::DefaultElement;
+
+    /// A binary little-endian file with `vertex_props` before x y z's end and one quad.
+    fn file(extra_vertex: &str) -> Vec<u8> {
+        let mut f = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+             property float y\nproperty float z\n{extra_vertex}element face 1\n\
+             property list uchar int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        for v in [
+            [0.0f32, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ] {
+            for c in v {
+                f.extend(c.to_le_bytes());
+            }
+            if !extra_vertex.is_empty() {
+                f.push(0); // an empty list
+            }
+        }
+        f.push(4);
+        for i in 0..4i32 {
+            f.extend(i.to_le_bytes());
+        }
+        f
+    }
+
+    fn bulk(bytes: &[u8]) -> Option<Body> {
+        let header = Parser::<DefaultElement>::new()
+            .read_header(&mut Reader::new(std::io::Cursor::new(bytes)))
+            .unwrap();
+        let start = body_start(bytes).unwrap();
+        read(&header, &bytes[start..], |_| Ok::<(), ()>(())).map(|r| r.unwrap())
+    }
+
+    #[test]
+    fn the_usual_layout_is_read_in_bulk_and_others_are_left_to_ply_rs() {
+        let body = bulk(&file("")).expect("read in bulk");
+        assert_eq!(body.triangles.len(), 2);
+        assert_eq!(body.triangles[1].v[2], Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(body.status, [TriStatus::Ok, TriStatus::Ok]);
+        // A list in the vertex record: not a fixed record, so ply-rs reads it.
+        assert!(bulk(&file("property list uchar int extra\n")).is_none());
+        // A body shorter than its header says: ply-rs reads it, and says so.
+        let mut cut = file("");
+        cut.pop();
+        assert!(bulk(&cut).is_none());
+    }
+}
