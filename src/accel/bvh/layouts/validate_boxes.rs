@@ -564,6 +564,23 @@ mod tests {
                 && e.contains("the boxes of its 2 leaves do not cover it together"),
             "{e}"
         );
+        // A leaf box rounded out past its parent's (cwbvh's quantised boxes) may hold a split
+        // triangle whole: what counts is the boxes on the way there, which hold a part.
+        let rounded = Lists {
+            roots: node_zero().collect(),
+            nodes: vec![
+                vec![
+                    Slot {
+                        child: Child::Node(1),
+                        ..boxed([0.0; 3], [1.0, 2.0, 0.0], 0, At::Slot { node: 0, slot: 0 })
+                    },
+                    boxed([1.0, 0.0, 0.0], [2.0, 1.0, 0.0], 1, At::Slot { node: 0, slot: 1 }),
+                ],
+                vec![boxed([0.0; 3], [2.0, 2.0, 0.0], 0, At::Slot { node: 1, slot: 0 })],
+            ],
+            tris: vec![t, t],
+        };
+        check_boxes(&rounded).unwrap();
         let empty = Lists {
             roots: vec![slot(
                 0.0,
