@@ -23,7 +23,7 @@ use glam::Vec3A;
 
 use super::prim_ref::{bounds, box_area, BoxA, Ref};
 use super::prims::{join, Prims, PARALLEL_MIN};
-use super::sweep::{sorted_by_centroid, sweep};
+use super::sweep::{order_key, sorted_by_centroid, sweep};
 use super::tree::{leaf, Node};
 use super::BuildOptions;
 use crate::geometry::{chopped_bounds, clip_bounds, Aabb, Triangle};
@@ -47,9 +47,30 @@ struct Ctx<'a> {
     root_area: f32,
 }
 
+/// A node's references sorted on x, y and z by (centroid, index).
+type Lists = [Vec<Ref>; 3];
+
+/// A node's references: sorted on each axis when an object split made them (the parent's
+/// lists partitioned, which keeps the order), in any order when a spatial split did (the
+/// clipped references' centroids moved: they are sorted again).
+enum Refs {
+    Sorted(Lists),
+    Unsorted(Vec<Ref>),
+}
+
+impl Refs {
+    /// The references, in some order.
+    fn any(&self) -> &[Ref] {
+        match self {
+            Refs::Sorted(l) => &l[0],
+            Refs::Unsorted(r) => r,
+        }
+    }
+}
+
 /// A node waiting to be planned: its references, depth, and where its parent points.
 struct Pending {
-    refs: Vec<Ref>,
+    refs: Refs,
     depth: usize,
     at: usize,
 }
@@ -84,7 +105,7 @@ pub(crate) fn build(
     };
     let mut arena: Vec<Built> = vec![Built::Leaf(Aabb::EMPTY, Vec::new())];
     let mut level = vec![Pending {
-        refs,
+        refs: Refs::Unsorted(refs),
         depth: 0,
         at: 0,
     }];
@@ -112,14 +133,15 @@ pub(crate) fn build(
                     ..
                 } if s.duplicated <= budget => {
                     budget -= s.duplicated;
-                    (bbox, (s.axis, s.left, s.right))
+                    let (l, r) = (Refs::Unsorted(s.left), Refs::Unsorted(s.right));
+                    (bbox, (s.axis, l, r))
                 }
                 Plan::Split { bbox, object, .. } => match object {
                     Object::Leaf(ids) => {
                         arena[at] = Built::Leaf(bbox, ids);
                         continue;
                     }
-                    Object::Split(axis, left, right) => (bbox, (axis, left, right)),
+                    Object::Split(axis, l, r) => (bbox, (axis, Refs::Sorted(l), Refs::Sorted(r))),
                 },
             };
             let (axis, left, right) = split;
@@ -160,7 +182,7 @@ fn assemble(arena: &mut [Built], i: usize, order: &mut Vec<u32>) -> Node {
 /// What a node becomes without a spatial split.
 enum Object {
     Leaf(Vec<u32>),
-    Split(usize, Vec<Ref>, Vec<Ref>),
+    Split(usize, Lists, Lists),
 }
 
 /// A node's plan: a leaf, or a split — in space if the budget allows it, else by object.
@@ -180,32 +202,57 @@ fn leaf_ids(refs: &[Ref]) -> Vec<u32> {
     ids
 }
 
-fn plan(ctx: &Ctx, refs: Vec<Ref>, depth: usize) -> Plan {
+/// The lists of the two sides of an object split at position `k` of the list on `axis`:
+/// that list cut, the other two partitioned by it, each keeping its order.
+fn divide(lists: &Lists, axis: usize, k: usize) -> (Lists, Lists) {
+    let pivot = order_key(&lists[axis][k], axis);
+    let n = lists[axis].len();
+    let side = |a: usize, left: bool| -> Vec<Ref> {
+        if a == axis {
+            let (l, r) = lists[a].split_at(k);
+            return if left { l.to_vec() } else { r.to_vec() };
+        }
+        let mut out = Vec::with_capacity(if left { k } else { n - k });
+        out.extend(
+            lists[a]
+                .iter()
+                .filter(|r| (order_key(r, axis) < pivot) == left),
+        );
+        out
+    };
+    (
+        std::array::from_fn(|a| side(a, true)),
+        std::array::from_fn(|a| side(a, false)),
+    )
+}
+
+fn plan(ctx: &Ctx, refs: Refs, depth: usize) -> Plan {
     let opts = ctx.opts;
-    let n = refs.len();
-    let (bbox, cbox) = bounds(&refs);
+    let n = refs.any().len();
+    let (bbox, cbox) = bounds(refs.any());
     let aabb = bbox.aabb();
     let forced = opts.depth_forces_median(depth, n);
     if n == 1 || (opts.leaf_beats_any_split(n) && !forced) {
-        return Plan::Leaf(aabb, leaf_ids(&refs));
+        return Plan::Leaf(aabb, leaf_ids(refs.any()));
     }
     let par = opts.parallel && n >= PARALLEL_MIN;
-    let sorted = |axis: usize| sorted_by_centroid(&refs, axis, false);
-    let (mut x, (mut y, mut z)) = join(par, || sorted(0), || join(par, || sorted(1), || sorted(2)));
-    let lists = [&mut x[..], &mut y[..], &mut z[..]];
-    let halves = |list: &[Ref], k: usize| {
-        let (l, r) = list.split_at(k);
-        (l.to_vec(), r.to_vec())
+    let mut lists: Lists = match refs {
+        Refs::Sorted(lists) => lists,
+        Refs::Unsorted(refs) => {
+            let sorted = |axis: usize| sorted_by_centroid(&refs, axis, false);
+            let (x, (y, z)) = join(par, || sorted(0), || join(par, || sorted(1), || sorted(2)));
+            [x, y, z]
+        }
     };
 
     if forced || cbox.aabb().extent() == glam::Vec3::ZERO {
         // Depth cap, or identical centroids: the object median keeps the tree balanced.
         let cost = opts.split_cost(1.0, 1.0, n / 2, 1.0, n - n / 2);
         if !forced && opts.prefers_leaf(n, cost) {
-            return Plan::Leaf(aabb, leaf_ids(&refs));
+            return Plan::Leaf(aabb, leaf_ids(&lists[0]));
         }
         let axis = cbox.aabb().longest_axis();
-        let (l, r) = halves(lists[axis], n / 2);
+        let (l, r) = divide(&lists, axis, n / 2);
         return Plan::Split {
             bbox: aabb,
             spatial: None,
@@ -213,7 +260,11 @@ fn plan(ctx: &Ctx, refs: Vec<Ref>, depth: usize) -> Plan {
         };
     }
     let mut right_areas = vec![Vec3A::ZERO; n];
-    let best = sweep(opts, &lists, &mut right_areas, aabb.area());
+    let best = {
+        let [x, y, z] = &mut lists;
+        sweep(opts, &[x, y, z], &mut right_areas, aabb.area())
+    };
+    drop(right_areas);
     let overlap = best.as_ref().map_or(f32::INFINITY, |s| {
         let right = bounds(&lists[s.axis][s.k..]).0;
         box_area(intersection(s.left, right))
@@ -221,22 +272,22 @@ fn plan(ctx: &Ctx, refs: Vec<Ref>, depth: usize) -> Plan {
     // The binned estimate must beat the object split, then the split as made.
     let beats_object = |cost: f32| best.as_ref().is_none_or(|o| cost < o.cost);
     let spatial = (overlap > OVERLAP * ctx.root_area)
-        .then(|| best_spatial(ctx, &refs, bbox))
+        .then(|| best_spatial(ctx, &lists[0], bbox))
         .flatten()
         .filter(|s| beats_object(s.cost))
-        .and_then(|s| split_in_space(ctx, &refs, s))
+        .and_then(|s| split_in_space(ctx, &lists[0], s))
         .filter(|s| beats_object(s.cost))
         .filter(|s| !opts.prefers_leaf(n, s.cost));
     let object = match best {
-        Some(o) if opts.prefers_leaf(n, o.cost) => Object::Leaf(leaf_ids(&refs)),
+        Some(o) if opts.prefers_leaf(n, o.cost) => Object::Leaf(leaf_ids(&lists[0])),
         Some(o) => {
-            let (l, r) = halves(lists[o.axis], o.k);
+            let (l, r) = divide(&lists, o.axis, o.k);
             Object::Split(o.axis, l, r)
         }
-        None if n <= opts.max_leaf => Object::Leaf(leaf_ids(&refs)),
+        None if n <= opts.max_leaf => Object::Leaf(leaf_ids(&lists[0])),
         // Every candidate's cost overflowed (boxes near f32::MAX): halve the node.
         None => {
-            let (l, r) = halves(lists[0], n / 2);
+            let (l, r) = divide(&lists, 0, n / 2);
             Object::Split(0, l, r)
         }
     };
@@ -317,11 +368,12 @@ struct Bins {
 }
 
 /// The best binned spatial split over the node's box `bbox`, if any plane separates. Small
-/// nodes take fewer planes (as many as references, at least 8): their references span
-/// many bins, each a clipping.
+/// nodes take fewer planes, √N for N references (at least 8): a surface of N triangles is
+/// about √N triangles across, so a triangle spans about one bin and is clipped about once
+/// per axis rather than once per bin it crosses.
 fn best_spatial(ctx: &Ctx, refs: &[Ref], bbox: BoxA) -> Option<Plane> {
     let area = box_area(bbox);
-    let bins = refs.len().next_power_of_two().clamp(8, SPATIAL_BINS);
+    let bins = ((refs.len() as f64).sqrt() as usize).clamp(8, SPATIAL_BINS);
     let planes: [Planes; 3] = std::array::from_fn(|a| Planes::new(bbox.lo[a], bbox.hi[a], bins));
     let mut binned: [Bins; 3] = std::array::from_fn(|_| Bins {
         boxes: [BoxA::EMPTY; SPATIAL_BINS],

@@ -94,7 +94,7 @@ fn sortable(c: f32) -> u32 {
 
 /// The order of the list on `axis`: centroid, then index (deterministic, unique).
 #[inline(always)]
-fn order_key(r: &Ref, axis: usize) -> u64 {
+pub(crate) fn order_key(r: &Ref, axis: usize) -> u64 {
     (sortable(r.centroid()[axis]) as u64) << 32 | r.id() as u64
 }
 

@@ -574,9 +574,19 @@ mod tests {
                         child: Child::Node(1),
                         ..boxed([0.0; 3], [1.0, 2.0, 0.0], 0, At::Slot { node: 0, slot: 0 })
                     },
-                    boxed([1.0, 0.0, 0.0], [2.0, 1.0, 0.0], 1, At::Slot { node: 0, slot: 1 }),
+                    boxed(
+                        [1.0, 0.0, 0.0],
+                        [2.0, 1.0, 0.0],
+                        1,
+                        At::Slot { node: 0, slot: 1 },
+                    ),
                 ],
-                vec![boxed([0.0; 3], [2.0, 2.0, 0.0], 0, At::Slot { node: 1, slot: 0 })],
+                vec![boxed(
+                    [0.0; 3],
+                    [2.0, 2.0, 0.0],
+                    0,
+                    At::Slot { node: 1, slot: 0 },
+                )],
             ],
             tris: vec![t, t],
         };
