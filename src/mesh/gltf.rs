@@ -13,12 +13,9 @@ use ::gltf::{Accessor, Document, Node, Primitive};
 use base64::Engine;
 use glam::{Mat4, Vec2, Vec3};
 
-use super::{classify, placeholder, Mesh, TriStatus};
+use super::{classify, placeholder, Mesh, TriStatus, BYTES_PER_TRIANGLE};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-
-/// Bytes a triangle costs from here through the BVH build (as for built-in spheres).
-const BYTES_PER_TRIANGLE: u128 = 256;
 
 /// Where a texture's encoded image is: bytes from a buffer or data URI, or a file.
 #[derive(Clone, Debug)]

@@ -5,12 +5,9 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::{classify, placeholder, Mesh, TriStatus};
+use super::{classify, placeholder, Mesh, TriStatus, BYTES_PER_TRIANGLE};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-
-/// Bytes a triangle costs from here through the BVH build (as for the file readers).
-const BYTES_PER_TRIANGLE: u128 = 256;
 
 /// What errors and warnings about a mesh from arrays name in place of a file.
 const SOURCE: &str = "Mesh::from_indexed";

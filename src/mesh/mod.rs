@@ -9,6 +9,7 @@ mod indexed;
 mod load;
 mod mtl;
 mod obj;
+mod obj_bulk;
 mod ply;
 mod ply_binary;
 mod ply_layout;
@@ -140,4 +141,23 @@ pub(crate) fn classify(t: &Triangle) -> TriStatus {
 /// Placeholder for a face that could not be resolved: keeps the numbering.
 pub(crate) fn placeholder() -> Triangle {
     Triangle::new(Vec3::NAN, Vec3::NAN, Vec3::NAN)
+}
+
+/// Bytes a triangle costs from reading through the BVH build, for the memory checks up front.
+pub(crate) const BYTES_PER_TRIANGLE: u128 = 256;
+
+/// Refuses more triangles than lancer indexes or memory holds, before they are made.
+pub(crate) fn check_triangle_count(path: &std::path::Path, tris: u128) -> crate::Result<()> {
+    if tris >= u32::MAX as u128 / 2 {
+        return Err(crate::Error::input(
+            path,
+            None,
+            format!("{tris} triangles, more than lancer indexes: split the mesh"),
+        ));
+    }
+    crate::limits::check_memory(
+        &format!("{} ({tris} triangles)", path.display()),
+        tris * BYTES_PER_TRIANGLE,
+        "use a smaller mesh",
+    )
 }

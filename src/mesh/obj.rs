@@ -1,13 +1,15 @@
-//! OBJ loading through tobj. A line scan first finds what tobj would reject without a line
-//! number (bad numbers, bad indices) and faces whose vertex index points nowhere; the latter
-//! are commented out for tobj and replaced by placeholders so numbering stays in file order.
+//! OBJ loading. Plain geometry is read in bulk on all threads ([`obj_bulk`](super::obj_bulk));
+//! everything else through tobj, after a line scan that finds what tobj would reject without
+//! a line number (bad numbers, bad indices) and faces whose vertex index points nowhere; the
+//! latter are commented out for tobj and replaced by placeholders so numbering stays in file
+//! order. Both give the same mesh for the same file.
 
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::{classify, mtl, placeholder, Mesh, TriStatus};
+use super::{check_triangle_count, classify, mtl, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
 
@@ -18,6 +20,8 @@ struct Scan {
     /// (triangle index where the face would start, triangles it would have made).
     out_of_range: Vec<(usize, usize)>,
     short_faces: usize,
+    /// Triangles the faces make (placeholders included).
+    tris: usize,
 }
 
 fn scan(path: &Path, src: &str) -> Result<Scan> {
@@ -104,6 +108,7 @@ fn scan(path: &Path, src: &str) -> Result<Scan> {
         text,
         out_of_range,
         short_faces,
+        tris,
     })
 }
 
@@ -133,7 +138,33 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
 /// Loads an OBJ file with its texture coordinates and MTL materials.
 pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
     let src = crate::input::read_text(path)?;
-    let scan = scan(path, &src)?;
+    match super::obj_bulk::read(path, &src) {
+        Some(bulk) => Ok(from_bulk(path, bulk?)),
+        None => load_with_tobj(path, &src),
+    }
+}
+
+/// The scene of a plain OBJ file (no materials) read in bulk.
+fn from_bulk(path: &Path, bulk: super::obj_bulk::Bulk) -> ObjScene {
+    let n = bulk.triangles.len();
+    ObjScene {
+        mesh: Mesh {
+            triangles: bulk.triangles,
+            status: bulk.status,
+            short_faces: bulk.short_faces,
+            sources: vec![path.to_path_buf()],
+        },
+        uvs: bulk.uvs,
+        material_ids: vec![None; n],
+        materials: Vec::new(),
+        mtl_error: None,
+    }
+}
+
+/// Loads an OBJ file (its text `src`) through the line scan and tobj.
+fn load_with_tobj(path: &Path, src: &str) -> Result<ObjScene> {
+    let scan = scan(path, src)?;
+    check_triangle_count(path, scan.tris as u128)?;
     let opts = tobj::LoadOptions {
         single_index: false,
         triangulate: true,
@@ -222,7 +253,7 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
         ),
     };
     if mtl_error.is_none() {
-        warn_unknown_usemtl(path, &src, &materials);
+        warn_unknown_usemtl(path, src, &materials);
     }
     let mut sources = vec![path.to_path_buf()];
     sources.extend(mtl_files.into_inner());
@@ -267,6 +298,240 @@ fn warn_unknown_usemtl(path: &Path, src: &str, materials: &[tobj::Material]) {
                  faces are grey",
                 path.display(),
                 i + 1
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A statement of a generated OBJ file; indices are drawn relative to what is defined
+    /// when the statement is written.
+    #[derive(Clone, Debug)]
+    enum Statement {
+        V([usize; 3]),
+        Vt([usize; 2]),
+        Vn,
+        /// Corners: (position pick, texture coordinate pick or none, normal or not).
+        F(Vec<(Pick, Option<Pick>, bool)>),
+        Other(usize),
+    }
+
+    #[derive(Clone, Copy, Debug)]
+    enum Pick {
+        Absolute(u8),
+        Relative(u8),
+        /// Past the end (for a position: a placeholder face).
+        Past,
+    }
+
+    const NUMBERS: [&str; 10] = [
+        "0",
+        "1.5",
+        "-2e-3",
+        "7",
+        "0.1",
+        "-0",
+        "123456.789",
+        "3.4028236e38",
+        "nan",
+        "1e-45",
+    ];
+    const OTHER: [&str; 6] = ["# a comment", "", "o thing", "g group", "s 1", "  \t"];
+
+    fn pick() -> impl Strategy<Value = Pick> {
+        prop_oneof![
+            8 => any::<u8>().prop_map(Pick::Absolute),
+            4 => any::<u8>().prop_map(Pick::Relative),
+            1 => Just(Pick::Past),
+        ]
+    }
+
+    fn statement() -> impl Strategy<Value = Statement> {
+        let corner = (pick(), prop::option::of(pick()), any::<bool>());
+        prop_oneof![
+            4 => prop::array::uniform3(0..NUMBERS.len()).prop_map(Statement::V),
+            1 => prop::array::uniform2(0..NUMBERS.len()).prop_map(Statement::Vt),
+            1 => Just(Statement::Vn),
+            4 => prop::collection::vec(corner, 1..7).prop_map(Statement::F),
+            1 => (0..OTHER.len()).prop_map(Statement::Other),
+        ]
+    }
+
+    /// The text of `statements` (each index within what is defined so far, unless `Past`),
+    /// and whether it has texture coordinates and a corner without one.
+    fn render(statements: &[Statement], crlf: bool) -> (String, bool) {
+        let mut corner_without_vt = false;
+        let (mut nv, mut nvt, mut nvn) = (0usize, 0usize, 0usize);
+        let end = if crlf { "\r\n" } else { "\n" };
+        let index = |p: Pick, n: usize| match p {
+            _ if n == 0 => (n + 1) as i64,
+            Pick::Absolute(k) => 1 + (k as usize % n) as i64,
+            Pick::Relative(k) => -1 - (k as usize % n) as i64,
+            Pick::Past => (n + 1) as i64,
+        };
+        let mut text = String::new();
+        for s in statements {
+            let line = match s {
+                Statement::V(c) => {
+                    nv += 1;
+                    format!("v {} {} {}", NUMBERS[c[0]], NUMBERS[c[1]], NUMBERS[c[2]])
+                }
+                Statement::Vt(c) => {
+                    nvt += 1;
+                    format!("vt {} {}", NUMBERS[c[0]], NUMBERS[c[1]])
+                }
+                Statement::Vn => {
+                    nvn += 1;
+                    "vn 0 0 1".to_string()
+                }
+                Statement::F(corners) => {
+                    let words: Vec<String> = corners
+                        .iter()
+                        .map(|&(v, vt, vn)| {
+                            // Texture coordinates and normals stay in range (the scan
+                            // refuses others); positions may point nowhere.
+                            let vt = vt.filter(|_| nvt > 0).map(|p| match p {
+                                Pick::Past => Pick::Absolute(0),
+                                p => p,
+                            });
+                            let v = index(v, nv);
+                            corner_without_vt |= vt.is_none();
+                            match (vt, vn && nvn > 0) {
+                                (None, false) => format!("{v}"),
+                                (Some(t), false) => format!("{v}/{}", index(t, nvt)),
+                                (None, true) => format!("{v}//{}", index(Pick::Absolute(0), nvn)),
+                                (Some(t), true) => {
+                                    format!(
+                                        "{v}/{}/{}",
+                                        index(t, nvt),
+                                        index(Pick::Absolute(0), nvn)
+                                    )
+                                }
+                            }
+                        })
+                        .collect();
+                    format!("f {}", words.join(" "))
+                }
+                Statement::Other(k) => OTHER[*k].to_string(),
+            };
+            text += &line;
+            text += end;
+        }
+        (text, nvt > 0 && corner_without_vt)
+    }
+
+    fn same_scene(a: &ObjScene, b: &ObjScene) -> std::result::Result<(), TestCaseError> {
+        let bits = |s: &ObjScene| -> Vec<[u32; 9]> {
+            s.mesh
+                .triangles
+                .iter()
+                .map(|t| {
+                    let f = [t.v[0], t.v[1], t.v[2]].map(|v| v.to_array());
+                    std::array::from_fn(|i| f[i / 3][i % 3].to_bits())
+                })
+                .collect()
+        };
+        let uv_bits = |s: &ObjScene| -> Vec<[u32; 6]> {
+            s.uvs
+                .iter()
+                .map(|u| std::array::from_fn(|i| u[i / 2][i % 2].to_bits()))
+                .collect()
+        };
+        prop_assert_eq!(bits(a), bits(b), "triangles");
+        prop_assert_eq!(&a.mesh.status, &b.mesh.status, "status");
+        prop_assert_eq!(a.mesh.short_faces, b.mesh.short_faces, "short faces");
+        prop_assert_eq!(&a.mesh.sources, &b.mesh.sources, "sources");
+        prop_assert_eq!(uv_bits(a), uv_bits(b), "texture coordinates");
+        prop_assert_eq!(&a.material_ids, &b.material_ids, "materials");
+        prop_assert!(a.materials.is_empty() && b.materials.is_empty());
+        prop_assert_eq!(&a.mtl_error, &b.mtl_error);
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        /// The bulk reader, in chunks of any size, against the line scan and tobj on the same
+        /// text: bit for bit, status for status, wherever it takes the file (files with
+        /// texture coordinates on every corner, or none, and no other statement it leaves to
+        /// tobj); it must take most of these.
+        #[test]
+        fn bulk_reading_equals_tobj(
+            uv in any::<bool>(),
+            statements in prop::collection::vec(statement(), 0..60),
+            crlf in any::<bool>(),
+            chunk in 1usize..200,
+        ) {
+            // With `uv`, every corner names a texture coordinate once one is defined.
+            let statements: Vec<Statement> = statements
+                .into_iter()
+                .map(|s| match s {
+                    Statement::F(c) => Statement::F(
+                        c.into_iter()
+                            .map(|(v, t, n)| (v, if uv { t.or(Some(Pick::Absolute(0))) } else { None }, n))
+                            .collect(),
+                    ),
+                    Statement::Vt(_) if !uv => Statement::Vn,
+                    s => s,
+                })
+                .collect();
+            let (text, uv_on_some_corners) = render(&statements, crlf);
+            let path = Path::new("generated.obj");
+            let expected = load_with_tobj(path, &text).map_err(|e| TestCaseError::fail(e.to_string()))?;
+            let bulk = super::super::obj_bulk::read_in_chunks(path, &text, chunk);
+            match bulk {
+                Some(bulk) => {
+                    let got = from_bulk(path, bulk.map_err(|e| TestCaseError::fail(e.to_string()))?);
+                    same_scene(&got, &expected)?;
+                }
+                None => prop_assert!(uv_on_some_corners, "left to tobj:\n{text}"),
+            }
+        }
+    }
+
+    /// The shared scanned models are plain: read in bulk, equal to tobj's reading.
+    #[test]
+    fn scanned_models_read_in_bulk_equal_tobj() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
+        for name in ["stanford-bunny.obj", "teapot.obj"] {
+            let path = dir.join(name);
+            let Ok(text) = std::fs::read_to_string(&path) else {
+                assert!(
+                    std::env::var("CI").is_err(),
+                    "{} is missing in CI",
+                    path.display()
+                );
+                continue;
+            };
+            let bulk = super::super::obj_bulk::read(&path, &text).expect("a plain OBJ file");
+            let got = from_bulk(&path, bulk.expect("small enough"));
+            let expected = load_with_tobj(&path, &text).expect("a valid OBJ file");
+            assert!(got.mesh.len() > 1000);
+            same_scene(&got, &expected).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+
+    #[test]
+    fn materials_lines_and_vertex_colours_are_left_to_tobj() {
+        let path = Path::new("x.obj");
+        let plain = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n";
+        assert!(super::super::obj_bulk::read(path, plain).is_some());
+        for extra in [
+            "usemtl red\n",
+            "mtllib a.mtl\n",
+            "l 1 2\n",
+            "v 0 0 1 0.5 0.5 0.5\n",
+            "v 0 0 1 2\n",
+            "f 1 2/1 3\n",
+            "\u{b}v 0 0 2\n",
+        ] {
+            let text = format!("{plain}{extra}");
+            assert!(
+                super::super::obj_bulk::read(path, &text).is_none(),
+                "{extra:?}"
             );
         }
     }

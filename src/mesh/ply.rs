@@ -13,12 +13,9 @@ use ply_rs_bw::ply::{
     ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
 };
 
-use super::{classify, placeholder, Mesh, TriStatus};
+use super::{check_triangle_count, classify, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
-
-/// Bytes a triangle costs from here through the BVH build (as for built-in spheres).
-const BYTES_PER_TRIANGLE: u128 = 256;
 
 /// A vertex position, whatever scalar type the file stores it in.
 struct Vertex([f64; 3]);
@@ -148,22 +145,6 @@ fn check_element(path: &Path, e: &ElementDef) -> Result<()> {
     Ok(())
 }
 
-/// Refuses more triangles than lancer indexes or memory holds, before they are made.
-fn check_size(path: &Path, tris: u128) -> Result<()> {
-    if tris >= u32::MAX as u128 / 2 {
-        return Err(Error::input(
-            path,
-            None,
-            format!("{tris} triangles, more than lancer indexes: split the mesh"),
-        ));
-    }
-    crate::limits::check_memory(
-        &format!("{} ({tris} triangles)", path.display()),
-        tris * BYTES_PER_TRIANGLE,
-        "use a smaller mesh",
-    )
-}
-
 /// A binary body in a layout [`ply_binary`](super::ply_binary) reads, read on all threads;
 /// None for any other (ply-rs reads it).
 fn load_binary_in_bulk(path: &Path, header: &Header) -> Result<Option<Mesh>> {
@@ -171,7 +152,8 @@ fn load_binary_in_bulk(path: &Path, header: &Header) -> Result<Option<Mesh>> {
     let Some(start) = super::ply_binary::body_start(&file) else {
         return Ok(None);
     };
-    let Some(body) = super::ply_binary::read(header, &file[start..], |t| check_size(path, t))
+    let Some(body) =
+        super::ply_binary::read(header, &file[start..], |t| check_triangle_count(path, t))
     else {
         return Ok(None);
     };
@@ -253,7 +235,7 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
         .iter()
         .map(|f| f.0.len().saturating_sub(2) as u128)
         .sum();
-    check_size(path, tris)?;
+    check_triangle_count(path, tris)?;
 
     let mut mesh = Mesh {
         sources: vec![path.to_path_buf()],
