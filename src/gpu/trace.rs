@@ -100,7 +100,13 @@ pub struct GpuTracer<'a> {
 impl<'a> GpuTracer<'a> {
     /// Validates and uploads a layout in the given memory and compiles the kernel.
     pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
+        let start = std::time::Instant::now();
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
+        log::info!(
+            "{} layout checked, packed and uploaded ({memory:?}) in {:.0} ms",
+            layout.name(),
+            start.elapsed().as_secs_f64() * 1e3
+        );
         let mut entries: Vec<_> = GpuBvh::layout_entries().into();
         entries.extend([
             storage_entry(bindings::TRACE_RAYS, true),

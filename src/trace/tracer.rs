@@ -87,9 +87,18 @@ impl<'d> Tracer<'d> {
     /// Builds the BVH over the mesh's usable triangles, flattens it, and uploads it when
     /// the device is a GPU.
     pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
+        let start = std::time::Instant::now();
         let tree = bvh::build(mesh, &options.build);
+        let built = start.elapsed();
         let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
         let layout: Arc<dyn GpuForm> = layouts::try_flatten(kind, &tree, mesh)?.into();
+        drop(tree);
+        log::info!(
+            "BVH built ({}) in {:.0} ms, flattened into {kind} in {:.0} ms",
+            options.build.builder.name(),
+            built.as_secs_f64() * 1e3,
+            (start.elapsed() - built).as_secs_f64() * 1e3
+        );
         Self::with_layout(device, layout, options)
     }
 

@@ -14,10 +14,6 @@
 
 /// The binary tree the programme runs on: nodes `0..len()`, children before parents.
 pub(crate) trait BinaryTree {
-    /// Nodes.
-    fn len(&self) -> usize;
-    /// Surface area of node n's box.
-    fn area(&self, n: u32) -> f32;
     /// Node n's two children, none for a leaf.
     fn kids(&self, n: u32) -> Option<[u32; 2]>;
     /// Triangles beneath node n.
@@ -93,17 +89,6 @@ pub(crate) struct Plan<const W: usize> {
 }
 
 impl<const W: usize> Plan<W> {
-    /// Runs the programme bottom-up.
-    pub fn new(tree: &impl BinaryTree, costs: SahCosts) -> Plan<W> {
-        let mut entries: Vec<Entry<W>> = Vec::with_capacity(tree.len());
-        for n in 0..tree.len() as u32 {
-            let kids = tree.kids(n).map(|k| k.map(|c| &entries[c as usize]));
-            let e = Entry::new(tree.area(n), tree.tris(n), kids, costs);
-            entries.push(e);
-        }
-        Plan { entries }
-    }
-
     /// A plan from every node's entry, indexed as the tree's nodes.
     pub fn from_entries(entries: Vec<Entry<W>>) -> Plan<W> {
         Plan { entries }

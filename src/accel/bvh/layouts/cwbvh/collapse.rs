@@ -5,7 +5,7 @@
 //! eight slots decides for every binary node whether it becomes a wide leaf (≤ 3
 //! triangles), a wide internal node, or is spread over its parent's slots.
 
-use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan, SahCosts};
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
 use crate::accel::LeafTri;
 use crate::geometry::Aabb;
@@ -31,19 +31,115 @@ pub(crate) struct Binary {
     tris: Vec<u32>,
 }
 
-impl Binary {
-    /// Splits `root`'s leaves (triangles `tris` in leaf order, at least one).
-    pub fn new(root: &Node, tris: &[LeafTri]) -> Binary {
-        let mut t = Binary {
-            boxes: Vec::new(),
-            kids: Vec::new(),
-            tris: Vec::new(),
-        };
-        t.add(root, tris);
-        t
+/// Subtrees of at least this many triangles are made on two threads.
+const PARALLEL_TRIS: u32 = 16384;
+
+/// A subtree's share of the arrays: its nodes' slots, children before parents, the
+/// subtree's root last; `base` is the index of its first slot.
+struct Share<'s, const W: usize> {
+    base: u32,
+    boxes: &'s mut [Aabb],
+    kids: &'s mut [[u32; 2]],
+    tris: &'s mut [u32],
+    entries: &'s mut [Entry<W>],
+}
+
+impl<'s, const W: usize> Share<'s, W> {
+    /// The first `at` slots and the rest before the last (the subtree root's own).
+    fn split(self, at: usize) -> (Share<'s, W>, Share<'s, W>, Share<'s, W>) {
+        let last = self.boxes.len() - 1;
+        let (b, b_own) = self.boxes.split_at_mut(last);
+        let (k, k_own) = self.kids.split_at_mut(last);
+        let (t, t_own) = self.tris.split_at_mut(last);
+        let (e, e_own) = self.entries.split_at_mut(last);
+        let (b0, b1) = b.split_at_mut(at);
+        let (k0, k1) = k.split_at_mut(at);
+        let (t0, t1) = t.split_at_mut(at);
+        let (e0, e1) = e.split_at_mut(at);
+        let base = self.base;
+        (
+            Share {
+                base,
+                boxes: b0,
+                kids: k0,
+                tris: t0,
+                entries: e0,
+            },
+            Share {
+                base: base + at as u32,
+                boxes: b1,
+                kids: k1,
+                tris: t1,
+                entries: e1,
+            },
+            Share {
+                base: base + last as u32,
+                boxes: b_own,
+                kids: k_own,
+                tris: t_own,
+                entries: e_own,
+            },
+        )
     }
 
-    /// The root (the last node added).
+    /// Puts a node and its programme entry in local slot `i`; returns its index.
+    fn put(&mut self, i: usize, bbox: Aabb, kids: [u32; 2], tris: u32, entry: Entry<W>) -> Made<W> {
+        self.boxes[i] = bbox;
+        self.kids[i] = kids;
+        self.tris[i] = tris;
+        self.entries[i] = entry;
+        (self.base + i as u32, bbox, entry)
+    }
+}
+
+/// A subtree's root as made: its index, box and programme entry.
+type Made<const W: usize> = (u32, Aabb, Entry<W>);
+
+/// The leaf-order positions `start..end` of a subtree's triangles.
+fn span(node: &Node) -> (u32, u32) {
+    let mut first = node;
+    while let Node::Inner { children, .. } = first {
+        first = &children[0];
+    }
+    let mut last = node;
+    while let Node::Inner { children, .. } = last {
+        last = &children[1];
+    }
+    match (first, last) {
+        (
+            Node::Leaf { start, .. },
+            Node::Leaf {
+                start: s, count, ..
+            },
+        ) => (*start, s + count),
+        _ => (0, 0),
+    }
+}
+
+impl Binary {
+    /// Splits `root`'s leaves (triangles `tris` in leaf order, at least one), and runs the
+    /// SAH programme for the wide tree on it, the big subtrees on all threads.
+    pub fn new(root: &Node, tris: &[LeafTri]) -> (Binary, Plan<WIDTH>) {
+        let (start, end) = span(root);
+        let len = 2 * (end - start) as usize - 1;
+        let mut t = Binary {
+            boxes: vec![Aabb::EMPTY; len],
+            kids: vec![[0, LEAF]; len],
+            tris: vec![0; len],
+        };
+        let mut entries = vec![Entry::new(0.0, 0, None, COSTS); len];
+        let share = Share {
+            base: 0,
+            boxes: &mut t.boxes,
+            kids: &mut t.kids,
+            tris: &mut t.tris,
+            entries: &mut entries,
+        };
+        fill(root, (start, end), share, tris);
+        (t, Plan::from_entries(entries))
+    }
+
+    /// The root (the last node).
     pub fn root(&self) -> u32 {
         self.boxes.len() as u32 - 1
     }
@@ -63,73 +159,119 @@ impl Binary {
             self.positions(b, out);
         }
     }
+}
 
-    fn push(&mut self, bbox: Aabb, kids: [u32; 2], tris: u32) -> u32 {
-        self.boxes.push(bbox);
-        self.kids.push(kids);
-        self.tris.push(tris);
-        self.root()
-    }
-
-    fn add(&mut self, node: &Node, tris: &[LeafTri]) -> u32 {
-        match node {
-            Node::Leaf {
-                bbox, start, count, ..
-            } => {
-                let mut pos: Vec<u32> = (*start..start + count).collect();
-                self.split(&mut pos, tris, bbox)
-            }
-            Node::Inner { children, .. } => {
-                let l = self.add(&children[0], tris);
-                let r = self.add(&children[1], tris);
-                self.join(l, r)
-            }
+/// Fills `share` with `node`'s subtree (leaf-order positions `span_`): the two halves of a
+/// big subtree on two threads, a small one in order. Returns the subtree's root.
+fn fill(node: &Node, span_: (u32, u32), share: Share<'_, WIDTH>, tris: &[LeafTri]) -> Made<WIDTH> {
+    match node {
+        Node::Inner { children, .. } if span_.1 - span_.0 >= PARALLEL_TRIS => {
+            let mid = span(&children[0]).1;
+            let (left, right, mut own) = share.split(2 * (mid - span_.0) as usize - 1);
+            let (l, r) = rayon::join(
+                || fill(&children[0], (span_.0, mid), left, tris),
+                || fill(&children[1], (mid, span_.1), right, tris),
+            );
+            own.join(0, l, r, span_.1 - span_.0)
         }
-    }
-
-    fn join(&mut self, l: u32, r: u32) -> u32 {
-        let bbox = self.bbox(l).union(*self.bbox(r));
-        let n = self.tris[l as usize] + self.tris[r as usize];
-        self.push(bbox, [l, r], n)
-    }
-
-    /// A binary leaf's triangles as a tree of one-triangle leaves (`pos` non-empty). A
-    /// triangle's box is its bounds within the leaf's box `within`: all of it, unless a
-    /// spatial split gave the leaf only a part of the triangle.
-    fn split(&mut self, pos: &mut [u32], tris: &[LeafTri], within: &Aabb) -> u32 {
-        let bbox = |p: &u32| {
-            let b = tris[*p as usize].triangle().bbox();
-            Aabb {
-                lo: b.lo.max(within.lo),
-                hi: b.hi.min(within.hi),
-            }
-        };
-        if let [p] = pos {
-            let b = bbox(p);
-            return self.push(b, [*p, LEAF], 1);
+        _ => {
+            let mut share = share;
+            let mut cursor = 0;
+            let root = add(node, &mut share, &mut cursor, tris);
+            debug_assert_eq!(cursor, share.boxes.len());
+            root
         }
-        let centres = Aabb::from_points(&pos.iter().map(|p| bbox(p).center()).collect::<Vec<_>>());
-        let axis = centres.longest_axis();
-        pos.sort_by(|a, b| {
-            let (ca, cb) = (bbox(a).center()[axis], bbox(b).center()[axis]);
-            ca.total_cmp(&cb).then(a.cmp(b))
-        });
-        let (lo, hi) = pos.split_at_mut(pos.len() / 2);
-        let l = self.split(lo, tris, within);
-        let r = self.split(hi, tris, within);
-        self.join(l, r)
     }
 }
 
+impl Share<'_, WIDTH> {
+    /// Puts the parent of `l` and `r` (of `tris` triangles) in local slot `i`.
+    fn join(&mut self, i: usize, l: Made<WIDTH>, r: Made<WIDTH>, tris: u32) -> Made<WIDTH> {
+        let bbox = l.1.union(r.1);
+        let entry = Entry::new(bbox.area(), tris, Some([&l.2, &r.2]), COSTS);
+        self.put(i, bbox, [l.0, r.0], tris, entry)
+    }
+
+    /// Puts a one-triangle leaf (gathered position `p`, box `bbox`) in local slot `i`.
+    fn leaf(&mut self, i: usize, p: u32, bbox: Aabb) -> Made<WIDTH> {
+        let entry = Entry::new(bbox.area(), 1, None, COSTS);
+        self.put(i, bbox, [p, LEAF], 1, entry)
+    }
+}
+
+/// Adds `node`'s subtree at the share's `cursor`, in post-order; returns its root.
+fn add(
+    node: &Node,
+    share: &mut Share<'_, WIDTH>,
+    cursor: &mut usize,
+    tris: &[LeafTri],
+) -> Made<WIDTH> {
+    match node {
+        Node::Leaf {
+            bbox, start, count, ..
+        } => {
+            let mut pos: Vec<u32> = (*start..start + count).collect();
+            split(&mut pos, tris, bbox, share, cursor)
+        }
+        Node::Inner { children, .. } => {
+            let l = add(&children[0], share, cursor, tris);
+            let r = add(&children[1], share, cursor, tris);
+            next(share, cursor, l, r)
+        }
+    }
+}
+
+/// Joins `l` and `r` at the cursor.
+fn next(
+    share: &mut Share<'_, WIDTH>,
+    cursor: &mut usize,
+    l: Made<WIDTH>,
+    r: Made<WIDTH>,
+) -> Made<WIDTH> {
+    let at = |c: u32| share.tris[(c - share.base) as usize];
+    let n = at(l.0) + at(r.0);
+    let i = *cursor;
+    *cursor += 1;
+    share.join(i, l, r, n)
+}
+
+/// A binary leaf's triangles as a tree of one-triangle leaves (`pos` non-empty). A
+/// triangle's box is its bounds within the leaf's box `within`: all of it, unless a
+/// spatial split gave the leaf only a part of the triangle.
+fn split(
+    pos: &mut [u32],
+    tris: &[LeafTri],
+    within: &Aabb,
+    share: &mut Share<'_, WIDTH>,
+    cursor: &mut usize,
+) -> Made<WIDTH> {
+    let bbox = |p: &u32| {
+        let b = tris[*p as usize].triangle().bbox();
+        Aabb {
+            lo: b.lo.max(within.lo),
+            hi: b.hi.min(within.hi),
+        }
+    };
+    if let [p] = pos {
+        let i = *cursor;
+        *cursor += 1;
+        return share.leaf(i, *p, bbox(p));
+    }
+    let centres = pos
+        .iter()
+        .fold(Aabb::EMPTY, |b, p| b.grow(bbox(p).center()));
+    let axis = centres.longest_axis();
+    pos.sort_by(|a, b| {
+        let (ca, cb) = (bbox(a).center()[axis], bbox(b).center()[axis]);
+        ca.total_cmp(&cb).then(a.cmp(b))
+    });
+    let (lo, hi) = pos.split_at_mut(pos.len() / 2);
+    let l = split(lo, tris, within, share, cursor);
+    let r = split(hi, tris, within, share, cursor);
+    next(share, cursor, l, r)
+}
+
 impl BinaryTree for Binary {
-    fn len(&self) -> usize {
-        self.boxes.len()
-    }
-
-    fn area(&self, n: u32) -> f32 {
-        self.boxes[n as usize].area()
-    }
-
     fn kids(&self, n: u32) -> Option<[u32; 2]> {
         let kids = self.kids[n as usize];
         (kids[1] != LEAF).then_some(kids)
@@ -138,9 +280,4 @@ impl BinaryTree for Binary {
     fn tris(&self, n: u32) -> u32 {
         self.tris[n as usize]
     }
-}
-
-/// The programme's decisions for the 8-wide tree of `tree`.
-pub(crate) fn plan(tree: &Binary) -> Plan<WIDTH> {
-    Plan::new(tree, COSTS)
 }

@@ -31,7 +31,7 @@ use crate::mesh::Mesh;
 use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
-use crate::accel::bvh::layouts::sah_collapse::Plan;
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan};
 use collapse::Binary;
 use quantise::{dequantise, step, Frame};
 
@@ -141,23 +141,23 @@ impl Cwbvh {
                 deepest: 0,
             };
         }
-        let tree = Binary::new(&bvh.root, &gathered);
-        let plan = collapse::plan(&tree);
-        let mut w = Writer {
+        let (tree, plan) = Binary::new(&bvh.root, &gathered);
+        let w = Writer {
             tree: &tree,
             plan: &plan,
             gathered: &gathered,
-            nodes: vec![bytemuck::Zeroable::zeroed()],
-            tris: Vec::with_capacity(gathered.len()),
-            scratch: Vec::new(),
-            deepest: 0,
         };
-        w.write(0, tree.root(), 0);
+        let root = tree.root();
+        let counts = w.count(root);
+        let mut nodes = vec![bytemuck::Zeroable::zeroed(); 1 + counts.descendants(root) as usize];
+        let mut tris = vec![bytemuck::Zeroable::zeroed(); gathered.len()];
+        let (first, rest) = nodes.split_at_mut(1);
+        let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut tris));
         Cwbvh {
-            nodes: w.nodes,
-            tris: w.tris,
-            bounds: *tree.bbox(tree.root()),
-            deepest: w.deepest,
+            nodes,
+            tris,
+            bounds: *tree.bbox(root),
+            deepest,
         }
     }
 
@@ -245,23 +245,84 @@ impl BoxTree for Cwbvh {
     }
 }
 
-/// Writes wide nodes depth first; each node's internal children are contiguous.
+/// Writes wide nodes depth first; each node's internal children are contiguous, followed
+/// by the first child's descendants, then the second's, and so on; each node's leaf
+/// triangles come before its children's. The big subtrees are written on all threads, into
+/// the parts of the arrays their sizes (counted first) give them.
 struct Writer<'a> {
     tree: &'a Binary,
     plan: &'a Plan<WIDTH>,
     gathered: &'a [LeafTri],
-    nodes: Vec<CwNode>,
-    tris: Vec<LeafTri>,
-    scratch: Vec<u32>,
-    /// Depth of the deepest node written so far.
-    deepest: usize,
 }
 
+/// Subtrees of at least this many triangles are counted and written on several threads.
+const PARALLEL_TRIS: u32 = 16384;
+
+/// Wide nodes below each binary node that becomes a wide internal node (by binary node).
+struct Counts(Vec<u32>);
+
+impl Counts {
+    /// Wide nodes below the wide node made from `n`.
+    fn descendants(&self, n: u32) -> u32 {
+        self.0[n as usize]
+    }
+}
+
+/// A part of an output array, and the index of its first element in the whole.
+type Part<'p, T> = (u32, &'p mut [T]);
+
 impl Writer<'_> {
-    /// Writes the wide node made from binary node `n` at `index` (already allocated) and
-    /// `depth`, then its internal children.
-    fn write(&mut self, index: usize, n: u32, depth: usize) {
-        self.deepest = self.deepest.max(depth);
+    /// The wide nodes below every wide internal node.
+    fn count(&self, root: u32) -> Counts {
+        let mut counts = vec![0; root as usize + 1];
+        self.count_below(root, (0, &mut counts));
+        Counts(counts)
+    }
+
+    /// Counts below `n` into `counts`, the part of the array (indexed by binary node) that
+    /// holds `n`'s binary subtree; returns the nodes of `n`'s wide subtree. The binary
+    /// subtree of a node of T triangles is the 2T − 1 indices up to it (children before
+    /// parents), so the children's parts are disjoint and in order.
+    fn count_below(&self, n: u32, counts: Part<'_, u32>) -> u32 {
+        let (base, mut rest) = counts;
+        let mut at = base;
+        let mut jobs = Vec::with_capacity(WIDTH);
+        for &(c, leaf) in self.plan.children(self.tree, n).iter() {
+            if leaf {
+                continue;
+            }
+            let first = c + 1 - (2 * self.tree.tris(c) - 1);
+            let (_, tail) = std::mem::take(&mut rest).split_at_mut((first - at) as usize);
+            let (mine, tail) = tail.split_at_mut((c + 1 - first) as usize);
+            jobs.push((c, (first, mine)));
+            (rest, at) = (tail, c + 1);
+        }
+        let go = |(c, part): (u32, Part<'_, u32>)| 1 + self.count_below(c, part);
+        let below = if self.tree.tris(n) >= PARALLEL_TRIS {
+            use rayon::prelude::*;
+            jobs.into_par_iter().map(go).sum()
+        } else {
+            jobs.into_iter().map(go).sum()
+        };
+        // `n` is the last index of its part, after its children's.
+        if let Some(own) = rest.last_mut() {
+            *own = below;
+        }
+        below
+    }
+
+    /// Writes the wide node made from binary node `n` into `slot` at `depth`, and its
+    /// descendants into `nodes` and its subtree's triangles into `tris`; returns the depth of
+    /// the deepest node written.
+    fn write(
+        &self,
+        counts: &Counts,
+        n: u32,
+        depth: usize,
+        slot: &mut CwNode,
+        nodes: Part<'_, CwNode>,
+        tris: Part<'_, LeafTri>,
+    ) -> usize {
         let children = self.plan.children(self.tree, n);
         let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| *self.tree.bbox(c)).collect();
         let bbox = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
@@ -270,14 +331,15 @@ impl Writer<'_> {
             p: frame.p.into(),
             e: frame.e,
             imask: 0,
-            child_base: self.nodes.len() as u32,
-            tri_base: self.tris.len() as u32,
+            child_base: nodes.0,
+            tri_base: tris.0,
             child_meta: [0; WIDTH],
             q_lo: [[0; WIDTH]; 3],
             q_hi: [[0; WIDTH]; 3],
         };
         let mut inner = Vec::with_capacity(WIDTH);
         let mut offset = 0u32;
+        let mut positions = Vec::new();
         for (s, c) in slots::assign(&bbox, &boxes).into_iter().enumerate() {
             let Some(c) = c else { continue };
             let (b, leaf) = children[c];
@@ -287,25 +349,49 @@ impl Writer<'_> {
                 node.q_hi[axis][s] = hi[axis];
             }
             if leaf {
-                self.scratch.clear();
-                self.tree.positions(b, &mut self.scratch);
-                let count = self.scratch.len() as u32;
+                positions.clear();
+                self.tree.positions(b, &mut positions);
+                let count = positions.len() as u32;
                 node.child_meta[s] = (((1 << count) - 1) << COUNT_SHIFT | offset) as u8;
+                for (t, &p) in tris.1[offset as usize..].iter_mut().zip(&positions) {
+                    *t = self.gathered[p as usize];
+                }
                 offset += count;
-                let gathered = self.gathered;
-                (self.tris).extend(self.scratch.iter().map(|&p| gathered[p as usize]));
             } else {
                 node.imask |= 1 << s;
                 node.child_meta[s] = CwNode::inner_meta(s);
                 inner.push(b);
             }
         }
-        let base = self.nodes.len();
-        (self.nodes).resize(base + inner.len(), bytemuck::Zeroable::zeroed());
-        self.nodes[index] = node;
-        for (j, b) in inner.into_iter().enumerate() {
-            self.write(base + j, b, depth + 1);
+        *slot = node;
+        // The parts of the children: their records, then each one's descendants and
+        // triangles in turn.
+        let (records, mut rest) = nodes.1.split_at_mut(inner.len());
+        let mut rest_base = nodes.0 + inner.len() as u32;
+        let (_, mut tri_rest) = tris.1.split_at_mut(offset as usize);
+        let mut tri_base = tris.0 + offset;
+        let mut jobs = Vec::with_capacity(inner.len());
+        for (&c, record) in inner.iter().zip(records) {
+            let below = counts.descendants(c) as usize;
+            let (mine, more) = std::mem::take(&mut rest).split_at_mut(below);
+            let (my_tris, more_tris) =
+                std::mem::take(&mut tri_rest).split_at_mut(self.tree.tris(c) as usize);
+            jobs.push((c, record, (rest_base, mine), (tri_base, my_tris)));
+            rest_base += below as u32;
+            tri_base += self.tree.tris(c);
+            (rest, tri_rest) = (more, more_tris);
         }
+        let go =
+            |(c, record, nodes, tris): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, LeafTri>)| {
+                self.write(counts, c, depth + 1, record, nodes, tris)
+            };
+        let deepest = if self.tree.tris(n) >= PARALLEL_TRIS {
+            use rayon::prelude::*;
+            jobs.into_par_iter().map(go).max()
+        } else {
+            jobs.into_iter().map(go).max()
+        };
+        deepest.unwrap_or(depth).max(depth)
     }
 }
 

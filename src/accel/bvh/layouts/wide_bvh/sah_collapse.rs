@@ -138,14 +138,6 @@ fn reborrow<'t, 'a, const W: usize>(s: &'t mut Share<'_, 'a, W>) -> Share<'t, 'a
 }
 
 impl BinaryTree for Arena<'_> {
-    fn len(&self) -> usize {
-        self.nodes.len()
-    }
-
-    fn area(&self, n: u32) -> f32 {
-        self.nodes[n as usize].bbox().area()
-    }
-
     fn kids(&self, n: u32) -> Option<[u32; 2]> {
         self.kids[n as usize]
     }
