@@ -81,17 +81,41 @@ impl<const W: usize> Entry<W> {
         }
         Entry { cost, split, leaf }
     }
+
+    /// What the wide tree is made from (the costs only serve the parent's entry).
+    pub fn decision(&self) -> Decision<W> {
+        Decision {
+            split: self.split,
+            leaf: self.leaf,
+        }
+    }
+}
+
+/// The programme's decisions for one binary node, without the costs they were made from
+/// (an [`Entry`]'s `split` and `leaf`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Decision<const W: usize> {
+    split: [u8; W],
+    leaf: bool,
+}
+
+impl<const W: usize> Decision<W> {
+    /// A placeholder, overwritten before use.
+    pub const NONE: Decision<W> = Decision {
+        split: [0; W],
+        leaf: true,
+    };
 }
 
 /// The programme's decisions for every binary node, for W slots.
 pub(crate) struct Plan<const W: usize> {
-    entries: Vec<Entry<W>>,
+    decisions: Vec<Decision<W>>,
 }
 
 impl<const W: usize> Plan<W> {
-    /// A plan from every node's entry, indexed as the tree's nodes.
-    pub fn from_entries(entries: Vec<Entry<W>>) -> Plan<W> {
-        Plan { entries }
+    /// A plan from every node's decisions, indexed as the tree's nodes.
+    pub fn from_decisions(decisions: Vec<Decision<W>>) -> Plan<W> {
+        Plan { decisions }
     }
 
     /// The children of the wide internal node made from `n`: (binary node, is a wide
@@ -101,7 +125,7 @@ impl<const W: usize> Plan<W> {
         match tree.kids(n) {
             None => out.push((n, true)),
             Some([l, r]) => {
-                let k = self.entries[n as usize].split[0] as usize;
+                let k = self.decisions[n as usize].split[0] as usize;
                 self.collect(tree, l, k, &mut out);
                 self.collect(tree, r, W - k, &mut out);
             }
@@ -111,14 +135,14 @@ impl<const W: usize> Plan<W> {
 
     /// The at most `slots` subtrees that hold `n`'s subtree.
     fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Vec<(u32, bool)>) {
-        let split = &self.entries[n as usize].split;
+        let split = &self.decisions[n as usize].split;
         let mut i = slots;
         while i > 1 && split[i - 1] == 0 {
             i -= 1;
         }
         let kids = tree.kids(n);
         let (Some([l, r]), true) = (kids, i > 1) else {
-            out.push((n, self.entries[n as usize].leaf));
+            out.push((n, self.decisions[n as usize].leaf));
             return;
         };
         let k = split[i - 1] as usize;

@@ -5,10 +5,10 @@
 //! eight slots decides for every binary node whether it becomes a wide leaf (≤ 3
 //! triangles), a wide internal node, or is spread over its parent's slots.
 
-use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Entry, Plan, SahCosts};
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
-use crate::accel::LeafTri;
 use crate::geometry::Aabb;
+use crate::geometry::Triangle;
 
 use super::{MAX_LEAF_TRIS, WIDTH};
 
@@ -22,10 +22,25 @@ const COSTS: SahCosts = SahCosts {
 /// `kids[n][1]` of a leaf.
 const LEAF: u32 = u32::MAX;
 
+/// A built tree's triangles in leaf order, read where they lie in the mesh.
+pub(crate) struct LeafOrder<'a> {
+    /// Original triangle index by leaf-order position ([`Bvh::order`](crate::accel::bvh::Bvh::order)).
+    pub order: &'a [u32],
+    /// The mesh's triangles.
+    pub triangles: &'a [Triangle],
+}
+
+impl LeafOrder<'_> {
+    /// The triangle at leaf-order position `p`.
+    pub fn triangle(&self, p: u32) -> &Triangle {
+        &self.triangles[self.order[p as usize] as usize]
+    }
+}
+
 /// A binary tree whose leaves hold one triangle each, children before parents.
 pub(crate) struct Binary {
     boxes: Vec<Aabb>,
-    /// Inner: the two children. Leaf: [position in the gathered triangles, LEAF].
+    /// Inner: the two children. Leaf: [leaf-order position of its triangle, LEAF].
     kids: Vec<[u32; 2]>,
     /// Triangles beneath.
     tris: Vec<u32>,
@@ -41,7 +56,7 @@ struct Share<'s, const W: usize> {
     boxes: &'s mut [Aabb],
     kids: &'s mut [[u32; 2]],
     tris: &'s mut [u32],
-    entries: &'s mut [Entry<W>],
+    decisions: &'s mut [Decision<W>],
 }
 
 impl<'s, const W: usize> Share<'s, W> {
@@ -51,7 +66,7 @@ impl<'s, const W: usize> Share<'s, W> {
         let (b, b_own) = self.boxes.split_at_mut(last);
         let (k, k_own) = self.kids.split_at_mut(last);
         let (t, t_own) = self.tris.split_at_mut(last);
-        let (e, e_own) = self.entries.split_at_mut(last);
+        let (e, e_own) = self.decisions.split_at_mut(last);
         let (b0, b1) = b.split_at_mut(at);
         let (k0, k1) = k.split_at_mut(at);
         let (t0, t1) = t.split_at_mut(at);
@@ -63,21 +78,21 @@ impl<'s, const W: usize> Share<'s, W> {
                 boxes: b0,
                 kids: k0,
                 tris: t0,
-                entries: e0,
+                decisions: e0,
             },
             Share {
                 base: base + at as u32,
                 boxes: b1,
                 kids: k1,
                 tris: t1,
-                entries: e1,
+                decisions: e1,
             },
             Share {
                 base: base + last as u32,
                 boxes: b_own,
                 kids: k_own,
                 tris: t_own,
-                entries: e_own,
+                decisions: e_own,
             },
         )
     }
@@ -87,7 +102,7 @@ impl<'s, const W: usize> Share<'s, W> {
         self.boxes[i] = bbox;
         self.kids[i] = kids;
         self.tris[i] = tris;
-        self.entries[i] = entry;
+        self.decisions[i] = entry.decision();
         (self.base + i as u32, bbox, entry)
     }
 }
@@ -119,7 +134,7 @@ fn span(node: &Node) -> (u32, u32) {
 impl Binary {
     /// Splits `root`'s leaves (triangles `tris` in leaf order, at least one), and runs the
     /// SAH programme for the wide tree on it, the big subtrees on all threads.
-    pub fn new(root: &Node, tris: &[LeafTri]) -> (Binary, Plan<WIDTH>) {
+    pub fn new(root: &Node, tris: &LeafOrder) -> (Binary, Plan<WIDTH>) {
         let (start, end) = span(root);
         let len = 2 * (end - start) as usize - 1;
         let mut t = Binary {
@@ -127,16 +142,16 @@ impl Binary {
             kids: vec![[0, LEAF]; len],
             tris: vec![0; len],
         };
-        let mut entries = vec![Entry::new(0.0, 0, None, COSTS); len];
+        let mut decisions = vec![Decision::NONE; len];
         let share = Share {
             base: 0,
             boxes: &mut t.boxes,
             kids: &mut t.kids,
             tris: &mut t.tris,
-            entries: &mut entries,
+            decisions: &mut decisions,
         };
         fill(root, (start, end), share, tris);
-        (t, Plan::from_entries(entries))
+        (t, Plan::from_decisions(decisions))
     }
 
     /// The root (the last node).
@@ -149,7 +164,7 @@ impl Binary {
         &self.boxes[n as usize]
     }
 
-    /// The gathered positions of the triangles beneath `n`, left to right.
+    /// The leaf-order positions of the triangles beneath `n`, left to right.
     pub fn positions(&self, n: u32, out: &mut Vec<u32>) {
         let [a, b] = self.kids[n as usize];
         if b == LEAF {
@@ -163,7 +178,7 @@ impl Binary {
 
 /// Fills `share` with `node`'s subtree (leaf-order positions `span_`): the two halves of a
 /// big subtree on two threads, a small one in order. Returns the subtree's root.
-fn fill(node: &Node, span_: (u32, u32), share: Share<'_, WIDTH>, tris: &[LeafTri]) -> Made<WIDTH> {
+fn fill(node: &Node, span_: (u32, u32), share: Share<'_, WIDTH>, tris: &LeafOrder) -> Made<WIDTH> {
     match node {
         Node::Inner { children, .. } if span_.1 - span_.0 >= PARALLEL_TRIS => {
             let mid = span(&children[0]).1;
@@ -192,7 +207,7 @@ impl Share<'_, WIDTH> {
         self.put(i, bbox, [l.0, r.0], tris, entry)
     }
 
-    /// Puts a one-triangle leaf (gathered position `p`, box `bbox`) in local slot `i`.
+    /// Puts a one-triangle leaf (leaf-order position `p`, box `bbox`) in local slot `i`.
     fn leaf(&mut self, i: usize, p: u32, bbox: Aabb) -> Made<WIDTH> {
         let entry = Entry::new(bbox.area(), 1, None, COSTS);
         self.put(i, bbox, [p, LEAF], 1, entry)
@@ -204,7 +219,7 @@ fn add(
     node: &Node,
     share: &mut Share<'_, WIDTH>,
     cursor: &mut usize,
-    tris: &[LeafTri],
+    tris: &LeafOrder,
 ) -> Made<WIDTH> {
     match node {
         Node::Leaf {
@@ -240,13 +255,13 @@ fn next(
 /// spatial split gave the leaf only a part of the triangle.
 fn split(
     pos: &mut [u32],
-    tris: &[LeafTri],
+    tris: &LeafOrder,
     within: &Aabb,
     share: &mut Share<'_, WIDTH>,
     cursor: &mut usize,
 ) -> Made<WIDTH> {
     let bbox = |p: &u32| {
-        let b = tris[*p as usize].triangle().bbox();
+        let b = tris.triangle(*p).bbox();
         Aabb {
             lo: b.lo.max(within.lo),
             hi: b.hi.min(within.hi),

@@ -32,7 +32,7 @@ use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
 use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan};
-use collapse::Binary;
+use collapse::{Binary, LeafOrder};
 use quantise::{dequantise, step, Frame};
 
 /// Children per node.
@@ -127,8 +127,11 @@ pub struct Cwbvh {
 impl Cwbvh {
     /// Collapses a built tree into 8-wide compressed nodes.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Cwbvh {
-        let gathered = LeafTri::gather(bvh, mesh);
-        if gathered.is_empty() {
+        let leaves = LeafOrder {
+            order: &bvh.order,
+            triangles: &mesh.triangles,
+        };
+        if bvh.order.is_empty() {
             // One node without children: every ray loads it and ends.
             let empty = CwNode {
                 e: [127; 3],
@@ -141,16 +144,16 @@ impl Cwbvh {
                 deepest: 0,
             };
         }
-        let (tree, plan) = Binary::new(&bvh.root, &gathered);
+        let (tree, plan) = Binary::new(&bvh.root, &leaves);
         let w = Writer {
             tree: &tree,
             plan: &plan,
-            gathered: &gathered,
+            leaves: &leaves,
         };
         let root = tree.root();
         let counts = w.count(root);
         let mut nodes = vec![bytemuck::Zeroable::zeroed(); 1 + counts.descendants(root) as usize];
-        let mut tris = vec![bytemuck::Zeroable::zeroed(); gathered.len()];
+        let mut tris = vec![bytemuck::Zeroable::zeroed(); bvh.order.len()];
         let (first, rest) = nodes.split_at_mut(1);
         let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut tris));
         Cwbvh {
@@ -252,7 +255,7 @@ impl BoxTree for Cwbvh {
 struct Writer<'a> {
     tree: &'a Binary,
     plan: &'a Plan<WIDTH>,
-    gathered: &'a [LeafTri],
+    leaves: &'a LeafOrder<'a>,
 }
 
 /// Subtrees of at least this many triangles are counted and written on several threads.
@@ -354,7 +357,8 @@ impl Writer<'_> {
                 let count = positions.len() as u32;
                 node.child_meta[s] = (((1 << count) - 1) << COUNT_SHIFT | offset) as u8;
                 for (t, &p) in tris.1[offset as usize..].iter_mut().zip(&positions) {
-                    *t = self.gathered[p as usize];
+                    let prim = self.leaves.order[p as usize];
+                    *t = LeafTri::new(self.leaves.triangle(p).v, prim);
                 }
                 offset += count;
             } else {

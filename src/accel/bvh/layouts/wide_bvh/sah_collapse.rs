@@ -4,7 +4,7 @@
 //! range) or a binary leaf of any size. `collapse` gives up (and the greedy collapse is used)
 //! where the tree would be deeper than the stack holds.
 
-use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Entry, Plan, SahCosts};
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
 
 use super::{WideNode, INNER};
@@ -29,7 +29,7 @@ struct Share<'s, 'a, const W: usize> {
     nodes: &'s mut [&'a Node],
     kids: &'s mut [Option<[u32; 2]>],
     tris: &'s mut [u32],
-    entries: &'s mut [Entry<W>],
+    decisions: &'s mut [Decision<W>],
 }
 
 impl<'s, 'a, const W: usize> Share<'s, 'a, W> {
@@ -45,14 +45,14 @@ impl<'s, 'a, const W: usize> Share<'s, 'a, W> {
             &'s mut &'a Node,
             &'s mut Option<[u32; 2]>,
             &'s mut u32,
-            &'s mut Entry<W>,
+            &'s mut Decision<W>,
         ),
     ) {
         let last = self.nodes.len() - 1;
         let (n, n_own) = self.nodes.split_at_mut(last);
         let (k, k_own) = self.kids.split_at_mut(last);
         let (t, t_own) = self.tris.split_at_mut(last);
-        let (e, e_own) = self.entries.split_at_mut(last);
+        let (e, e_own) = self.decisions.split_at_mut(last);
         let (n0, n1) = n.split_at_mut(at);
         let (k0, k1) = k.split_at_mut(at);
         let (t0, t1) = t.split_at_mut(at);
@@ -62,13 +62,13 @@ impl<'s, 'a, const W: usize> Share<'s, 'a, W> {
                 nodes: n0,
                 kids: k0,
                 tris: t0,
-                entries: e0,
+                decisions: e0,
             },
             Share {
                 nodes: n1,
                 kids: k1,
                 tris: t1,
-                entries: e1,
+                decisions: e1,
             },
             (&mut n_own[0], &mut k_own[0], &mut t_own[0], &mut e_own[0]),
         )
@@ -79,53 +79,57 @@ impl<'s, 'a, const W: usize> Share<'s, 'a, W> {
 const PARALLEL_NODES: u32 = 8192;
 
 /// Fills `share` with `node`'s subtree in post-order, its first slot at index `base`, and
-/// the programme's entries bottom-up (each subtree on its own thread where big).
-fn fill<'a, const W: usize>(node: &'a Node, base: u32, share: Share<'_, 'a, W>, costs: SahCosts) {
+/// the programme's decisions bottom-up (each subtree on its own thread where big); returns
+/// the entry of `node`, which its parent's is made from.
+fn fill<'a, const W: usize>(
+    node: &'a Node,
+    base: u32,
+    share: Share<'_, 'a, W>,
+    costs: SahCosts,
+) -> Entry<W> {
     let area = node.bbox().area();
     let Node::Inner { children, .. } = node else {
         let count = match node {
             Node::Leaf { count, .. } => *count,
             Node::Inner { .. } => 0,
         };
+        let entry = Entry::new(area, count, None, costs);
         share.nodes[0] = node;
         share.kids[0] = None;
         share.tris[0] = count;
-        share.entries[0] = Entry::new(area, count, None, costs);
-        return;
+        share.decisions[0] = entry.decision();
+        return entry;
     };
     let nl = children[0].nodes();
     let (left, right, own) = share.split(nl as usize);
     let (l, r) = (nl as usize - 1, right.nodes.len() - 1);
     let go = |c: &'a Node, b: u32, s: Share<'_, 'a, W>| fill(c, b, s, costs);
-    let (left, right) = if node.nodes() >= PARALLEL_NODES {
+    let ((left, le), (right, re)) = if node.nodes() >= PARALLEL_NODES {
         rayon::join(
             || {
                 let mut s = left;
-                go(&children[0], base, reborrow(&mut s));
-                s
+                let e = go(&children[0], base, reborrow(&mut s));
+                (s, e)
             },
             || {
                 let mut s = right;
-                go(&children[1], base + nl, reborrow(&mut s));
-                s
+                let e = go(&children[1], base + nl, reborrow(&mut s));
+                (s, e)
             },
         )
     } else {
         let (mut a, mut b) = (left, right);
-        go(&children[0], base, reborrow(&mut a));
-        go(&children[1], base + nl, reborrow(&mut b));
-        (a, b)
+        let ea = go(&children[0], base, reborrow(&mut a));
+        let eb = go(&children[1], base + nl, reborrow(&mut b));
+        ((a, ea), (b, eb))
     };
     let tris = left.tris[l] + right.tris[r];
+    let entry = Entry::new(area, tris, Some([&le, &re]), costs);
     *own.0 = node;
     *own.1 = Some([base + l as u32, base + nl + r as u32]);
     *own.2 = tris;
-    *own.3 = Entry::new(
-        area,
-        tris,
-        Some([&left.entries[l], &right.entries[r]]),
-        costs,
-    );
+    *own.3 = entry.decision();
+    entry
 }
 
 fn reborrow<'t, 'a, const W: usize>(s: &'t mut Share<'_, 'a, W>) -> Share<'t, 'a, W> {
@@ -133,7 +137,7 @@ fn reborrow<'t, 'a, const W: usize>(s: &'t mut Share<'_, 'a, W>) -> Share<'t, 'a
         nodes: s.nodes,
         kids: s.kids,
         tris: s.tris,
-        entries: s.entries,
+        decisions: s.decisions,
     }
 }
 
@@ -206,15 +210,15 @@ where
         kids: vec![None; len],
         tris: vec![0; len],
     };
-    let mut entries = vec![Entry::new(0.0, 0, None, costs); len];
+    let mut decisions = vec![Decision::NONE; len];
     let share = Share {
         nodes: &mut arena.nodes,
         kids: &mut arena.kids,
         tris: &mut arena.tris,
-        entries: &mut entries,
+        decisions: &mut decisions,
     };
     fill(root, 0, share, costs);
-    let plan = Plan::<W>::from_entries(entries);
+    let plan = Plan::<W>::from_decisions(decisions);
     let r = len as u32 - 1;
     let mut out = Vec::new();
     emit(&arena, &plan, r, 0, max_depth, &mut out)?;
