@@ -72,6 +72,13 @@ fn build_json_has_the_documented_keys() {
         assert!(j.get(k).is_some(), "missing {k}");
     }
     assert_eq!(j["triangles"], 2);
+    if cfg!(target_os = "linux") {
+        // The whole process: at least the binary's own pages, well under a gigabyte here.
+        let peak = j["peak_memory_bytes"]
+            .as_u64()
+            .expect("peak memory on Linux");
+        assert!((1 << 20..1 << 30).contains(&peak), "{peak}");
+    }
 }
 
 #[test]

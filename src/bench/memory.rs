@@ -1,7 +1,8 @@
 //! Peak heap memory of a piece of work: [`PeakAlloc`], a counting wrapper around the system
 //! allocator that a program installs as its global allocator (the `lancer` binary does), and
 //! [`peak_during`], which reads it. Exact bytes requested from the allocator, unlike the
-//! process's resident set, which an allocator keeping freed pages hides.
+//! process's resident set, which an allocator keeping freed pages hides; that too is here
+//! ([`peak_resident`]), for what a whole command took.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicIsize, Ordering};
@@ -81,4 +82,14 @@ pub fn peak_during<T>(work: impl FnOnce() -> T) -> (T, Option<u64>) {
     COUNTING.store(false, Ordering::Relaxed);
     let peak = PEAK.load(Ordering::Relaxed).max(0) as u64;
     (out, installed.then_some(peak))
+}
+
+/// The most memory this process has held resident so far (Linux's `VmHWM`): everything it
+/// allocated and touched, the allocator's retained pages, and a software GPU's buffers
+/// included. None where the system does not say.
+pub fn peak_resident() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }

@@ -36,6 +36,7 @@ impl BuildCmd {
             bvh_file::write(out, layout.as_ref(), mesh.len())?;
             report.out = Some(out.display().to_string());
         }
+        report.peak_memory_bytes = lancer::bench::memory::peak_resident();
         if self.json {
             print_json(&report)?;
         } else {

@@ -9,6 +9,7 @@ use super::{try_flatten, LayoutKind};
 use crate::accel::bvh::{build, BuildOptions, Builder, BvhStats};
 use crate::accel::GpuForm;
 use crate::mesh::Mesh;
+use crate::util::human_bytes;
 
 /// What a build made (`lancer build`, and its `--json` object).
 #[derive(Clone, Debug, Serialize)]
@@ -28,6 +29,10 @@ pub struct BuildReport {
     /// The BVH file written, if any (set by the caller that writes it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub out: Option<String>,
+    /// The process's peak resident memory in bytes, if the caller measured it (the
+    /// command line does, where the system says).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_memory_bytes: Option<u64>,
 }
 
 /// Builds a BVH over `mesh` with `options`, flattens it into `layout`, and reports.
@@ -47,6 +52,7 @@ pub fn build_and_flatten(
         build_ms,
         bytes: flat.bytes(),
         out: None,
+        peak_memory_bytes: None,
     };
     Ok((flat, report))
 }
@@ -68,6 +74,9 @@ impl BuildReport {
             format!("GPU bytes   {}", self.bytes),
         ];
         lines.extend(self.out.iter().map(|o| format!("written to  {o}")));
+        lines.extend(
+            (self.peak_memory_bytes.iter()).map(|b| format!("peak memory {}", human_bytes(*b))),
+        );
         lines
     }
 }
