@@ -4,11 +4,13 @@
 //! straddle it, each side keeping the bounds of its part of the triangle (clipped with
 //! [`clip_bounds`]), so long thin triangles stop inflating every box they cross.
 //!
-//! - Spatial candidates are binned ([`SPATIAL_BINS`] planes per axis over the node's box),
-//!   each reference clipped into the bins it spans, and tried only where the best object
-//!   split's children overlap by more than [`OVERLAP`] of the root's area.
+//! - Spatial candidates are binned (√N bins per axis over the node's box, at least 8 and at
+//!   most [`SPATIAL_BINS`]), each reference clipped into the bins it spans, and tried only
+//!   where the best object split's children overlap by more than [`OVERLAP`] of the root's
+//!   area.
 //! - Reference unsplitting: a straddling reference goes whole to one side when that costs
-//!   less than duplicating it (the paper's C₁/C₂ against C_split), in input order.
+//!   less than duplicating it (the paper's C₁/C₂ against C_split), taken in the node's
+//!   centroid order on x.
 //! - A duplication budget of [`DUPLICATION`] times the triangles, spent level by level from
 //!   the root (see [`build`]), so the tree is the same whether it is built on one thread
 //!   or many.
