@@ -108,3 +108,38 @@ pub fn write_ply(mesh: &Mesh, out: &str) -> std::io::Result<()> {
     }
     w.flush()
 }
+
+/// Writes a mesh as an indexed OBJ file (each distinct vertex once, `f a b c` rows), the
+/// shape scanners and converters write. Coordinates in Rust's shortest round-trip form, so
+/// reading the file gives back the same `f32` values.
+pub fn write_obj(mesh: &Mesh, out: &str) -> std::io::Result<()> {
+    use std::collections::HashMap;
+    use std::io::{BufWriter, Write};
+    let mut index: HashMap<[u32; 3], usize> = HashMap::new();
+    let mut vertices = Vec::new();
+    let faces: Vec<[usize; 3]> = (mesh.triangles.iter())
+        .map(|t| {
+            t.v.map(|v| {
+                let key = v.to_array().map(f32::to_bits);
+                *index.entry(key).or_insert_with(|| {
+                    vertices.push(v);
+                    vertices.len()
+                })
+            })
+        })
+        .collect();
+    let mut w = BufWriter::new(std::fs::File::create(out)?);
+    writeln!(
+        w,
+        "# {} vertices, {} triangles",
+        vertices.len(),
+        faces.len()
+    )?;
+    for v in &vertices {
+        writeln!(w, "v {:?} {:?} {:?}", v.x, v.y, v.z)?;
+    }
+    for [a, b, c] in &faces {
+        writeln!(w, "f {a} {b} {c}")?;
+    }
+    w.flush()
+}
