@@ -137,6 +137,31 @@ fn random_soups_against_the_oracle_and_dfs_sign() {
     }
 }
 
+/// The flattening that consumes the tree (the tracer's: it frees the tree's nodes early)
+/// writes the same layout, on trees with spatial splits (clipped leaves) and on one triangle.
+#[test]
+fn flattening_an_owned_tree_writes_the_same_layout() {
+    use lancer::accel::bvh::Builder;
+    let mut rng = Rng::new(41);
+    let mut meshes = vec![soup(&mut rng, 1500, 0.4), soup(&mut rng, 1, 0.4)];
+    meshes.extend(load_model("teapot.obj"));
+    for mesh in &meshes {
+        for builder in [Builder::Sweep, Builder::Sbvh] {
+            let opts = BuildOptions {
+                builder,
+                ..BuildOptions::default()
+            };
+            let bvh = build(mesh, &opts);
+            let borrowed = Cwbvh::flatten(&bvh, mesh);
+            assert!(
+                borrowed == Cwbvh::flatten_owned(bvh, mesh),
+                "{builder:?}, {} triangles",
+                mesh.len()
+            );
+        }
+    }
+}
+
 /// A height field of quads (two triangles each): many shared edges and vertices.
 fn grid(n: usize) -> Mesh {
     let p = |i: usize, j: usize| {

@@ -212,7 +212,7 @@ pub fn build(
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
-            layouts::try_flatten(layout, &tree, mesh)?
+            layouts::try_flatten_owned(layout, tree, mesh)?
         }
         AccelKind::KdTree => Box::new(kdtree::KdTree::build(mesh, &Default::default())?),
         AccelKind::UniformGrid => Box::new(grid::UniformGrid::build(mesh, &Default::default())?),
@@ -233,7 +233,7 @@ pub fn build_gpu(
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);
-            Some(layouts::try_flatten(layout, &tree, mesh)?.into())
+            Some(layouts::try_flatten_owned(layout, tree, mesh)?.into())
         }
         AccelKind::KdTree => Some(Arc::new(kdtree::KdTree::build(mesh, &Default::default())?)),
         AccelKind::Bih => Some(Arc::new(bih::Bih::build(mesh, &Default::default())?)),

@@ -160,12 +160,18 @@ impl<'a> Renderer<'a> {
         let kind =
             (options.accel).unwrap_or_else(|| AccelKind::Bvh(crate::trace::default_layout(device)));
         let start = Instant::now();
+        // The tree's statistics are taken before it is flattened (which consumes it), and
+        // their time is not the build's.
+        let mut stats_time = std::time::Duration::ZERO;
         let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) = match kind {
             AccelKind::Bvh(layout_kind) => {
                 let tree = bvh::build(&scene.mesh, &options.build);
+                let stats_start = Instant::now();
+                let stats = BvhStats::of(&tree, &options.build);
+                stats_time = stats_start.elapsed();
                 let flat: Arc<dyn GpuForm> =
-                    layouts::try_flatten(layout_kind, &tree, &scene.mesh)?.into();
-                (flat.clone(), Some(flat), Some(tree))
+                    layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
+                (flat.clone(), Some(flat), Some(stats))
             }
             _ if device.is_cpu() => (
                 accel::build(kind, &scene.mesh, &options.build)?.into(),
@@ -182,8 +188,7 @@ impl<'a> Renderer<'a> {
                 }
             },
         };
-        let build_ms = start.elapsed().as_secs_f64() * 1e3;
-        let stats = stats.map(|tree| BvhStats::of(&tree, &options.build));
+        let build_ms = (start.elapsed() - stats_time).as_secs_f64() * 1e3;
         let start = Instant::now();
         let gpu = match (device.gpu_context(), &gpu_form) {
             (Some(ctx), Some(flat)) => Some(GpuRenderer::new(

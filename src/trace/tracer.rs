@@ -91,8 +91,7 @@ impl<'d> Tracer<'d> {
         let tree = bvh::build(mesh, &options.build);
         let built = start.elapsed();
         let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
-        let layout: Arc<dyn GpuForm> = layouts::try_flatten(kind, &tree, mesh)?.into();
-        drop(tree);
+        let layout: Arc<dyn GpuForm> = layouts::try_flatten_owned(kind, tree, mesh)?.into();
         log::info!(
             "BVH built ({}) in {:.0} ms, flattened into {kind} in {:.0} ms",
             options.build.builder.name(),

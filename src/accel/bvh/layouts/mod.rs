@@ -152,6 +152,19 @@ pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Bo
     Ok(flatten(kind, bvh, mesh))
 }
 
+/// [`try_flatten`], consuming the tree: layouts that can (`cwbvh`, the GPU default) free
+/// its nodes before writing their own, for a lower peak of memory.
+pub fn try_flatten_owned(
+    kind: LayoutKind,
+    bvh: Bvh,
+    mesh: &Mesh,
+) -> crate::Result<Box<dyn GpuForm>> {
+    match kind {
+        LayoutKind::Cwbvh => Ok(Box::new(Cwbvh::flatten_owned(bvh, mesh))),
+        _ => try_flatten(kind, &bvh, mesh),
+    }
+}
+
 /// Flattens a built tree into the chosen layout, unchecked: for trees known to fit (tests,
 /// benches); input goes through [`try_flatten`].
 pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn GpuForm> {

@@ -113,7 +113,8 @@ pub(crate) struct Plan<const W: usize> {
 }
 
 impl<const W: usize> Plan<W> {
-    /// A plan from every node's decisions, indexed as the tree's nodes.
+    /// A plan from every inner node's decisions, indexed as the tree's nodes (a leaf's
+    /// entry, where there is one, is never read).
     pub fn from_decisions(decisions: Vec<Decision<W>>) -> Plan<W> {
         Plan { decisions }
     }
@@ -134,18 +135,22 @@ impl<const W: usize> Plan<W> {
     }
 
     /// The at most `slots` subtrees that hold `n`'s subtree.
+    /// A binary leaf is a wide leaf: its decision is not read (a tree may store none).
     fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Vec<(u32, bool)>) {
-        let split = &self.decisions[n as usize].split;
-        let mut i = slots;
-        while i > 1 && split[i - 1] == 0 {
-            i -= 1;
-        }
-        let kids = tree.kids(n);
-        let (Some([l, r]), true) = (kids, i > 1) else {
-            out.push((n, self.decisions[n as usize].leaf));
+        let Some([l, r]) = tree.kids(n) else {
+            out.push((n, true));
             return;
         };
-        let k = split[i - 1] as usize;
+        let decision = &self.decisions[n as usize];
+        let mut i = slots;
+        while i > 1 && decision.split[i - 1] == 0 {
+            i -= 1;
+        }
+        if i == 1 {
+            out.push((n, decision.leaf));
+            return;
+        }
+        let k = decision.split[i - 1] as usize;
         self.collect(tree, l, k, out);
         self.collect(tree, r, i - k, out);
     }

@@ -3,7 +3,9 @@
 //! a binary leaf may hold up to `max_leaf` triangles, a wide leaf at most 3), then the
 //! shared SAH programme (`layouts::sah_collapse`, Ylitie, Karras & Laine 2017, §4.1) for
 //! eight slots decides for every binary node whether it becomes a wide leaf (≤ 3
-//! triangles), a wide internal node, or is spread over its parent's slots.
+//! triangles), a wide internal node, or is spread over its parent's slots. The
+//! one-triangle leaves are not stored (their box, count and decision follow from the
+//! triangle), which halves the memory of the programme's tree.
 
 use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
@@ -19,8 +21,9 @@ const COSTS: SahCosts = SahCosts {
     max_leaf: MAX_LEAF_TRIS,
 };
 
-/// `kids[n][1]` of a leaf.
-const LEAF: u32 = u32::MAX;
+/// Tag of a one-triangle leaf's id: `LEAF | its leaf-order position`; untagged ids are
+/// inner nodes. References number fewer than 2³¹ (mesh sizes are checked far below).
+const LEAF: u32 = 1 << 31;
 
 /// A built tree's triangles in leaf order, read where they lie in the mesh.
 pub(crate) struct LeafOrder<'a> {
@@ -37,26 +40,34 @@ impl LeafOrder<'_> {
     }
 }
 
-/// A binary tree whose leaves hold one triangle each, children before parents.
-pub(crate) struct Binary {
+/// A binary tree whose leaves hold one triangle each. Its inner nodes are stored, children
+/// before parents; a node's id is its index, or `LEAF | position` for a leaf.
+pub(crate) struct Binary<'a> {
     boxes: Vec<Aabb>,
-    /// Inner: the two children. Leaf: [leaf-order position of its triangle, LEAF].
+    /// The two children's ids.
     kids: Vec<[u32; 2]>,
     /// Triangles beneath.
     tris: Vec<u32>,
+    /// The leaves whose box is not their triangle's whole box (a spatial split gave their
+    /// binary leaf a part of the triangle), by position, in position order.
+    clipped: Vec<(u32, Aabb)>,
+    root: u32,
+    leaves: &'a LeafOrder<'a>,
 }
 
 /// Subtrees of at least this many triangles are made on two threads.
 const PARALLEL_TRIS: u32 = 16384;
 
-/// A subtree's share of the arrays: its nodes' slots, children before parents, the
-/// subtree's root last; `base` is the index of its first slot.
+/// A subtree's share of the arrays: its inner nodes' slots, children before parents, the
+/// subtree's root last; `base` is the index of its first slot. `clipped` collects the
+/// subtree's clipped leaves.
 struct Share<'s, const W: usize> {
     base: u32,
     boxes: &'s mut [Aabb],
     kids: &'s mut [[u32; 2]],
     tris: &'s mut [u32],
     decisions: &'s mut [Decision<W>],
+    clipped: Vec<(u32, Aabb)>,
 }
 
 impl<'s, const W: usize> Share<'s, W> {
@@ -79,6 +90,7 @@ impl<'s, const W: usize> Share<'s, W> {
                 kids: k0,
                 tris: t0,
                 decisions: e0,
+                clipped: Vec::new(),
             },
             Share {
                 base: base + at as u32,
@@ -86,6 +98,7 @@ impl<'s, const W: usize> Share<'s, W> {
                 kids: k1,
                 tris: t1,
                 decisions: e1,
+                clipped: Vec::new(),
             },
             Share {
                 base: base + last as u32,
@@ -93,11 +106,12 @@ impl<'s, const W: usize> Share<'s, W> {
                 kids: k_own,
                 tris: t_own,
                 decisions: e_own,
+                clipped: self.clipped,
             },
         )
     }
 
-    /// Puts a node and its programme entry in local slot `i`; returns its index.
+    /// Puts an inner node and its programme entry in local slot `i`; returns its id.
     fn put(&mut self, i: usize, bbox: Aabb, kids: [u32; 2], tris: u32, entry: Entry<W>) -> Made<W> {
         self.boxes[i] = bbox;
         self.kids[i] = kids;
@@ -105,9 +119,18 @@ impl<'s, const W: usize> Share<'s, W> {
         self.decisions[i] = entry.decision();
         (self.base + i as u32, bbox, entry)
     }
+
+    /// Triangles beneath the node `id` of this share.
+    fn tris_of(&self, id: u32) -> u32 {
+        if id & LEAF != 0 {
+            1
+        } else {
+            self.tris[(id - self.base) as usize]
+        }
+    }
 }
 
-/// A subtree's root as made: its index, box and programme entry.
+/// A subtree's root as made: its id, box and programme entry.
 type Made<const W: usize> = (u32, Aabb, Entry<W>);
 
 /// The leaf-order positions `start..end` of a subtree's triangles.
@@ -131,16 +154,21 @@ fn span(node: &Node) -> (u32, u32) {
     }
 }
 
-impl Binary {
+impl<'a> Binary<'a> {
     /// Splits `root`'s leaves (triangles `tris` in leaf order, at least one), and runs the
     /// SAH programme for the wide tree on it, the big subtrees on all threads.
-    pub fn new(root: &Node, tris: &LeafOrder) -> (Binary, Plan<WIDTH>) {
+    pub fn new(root: &Node, tris: &'a LeafOrder<'a>) -> (Binary<'a>, Plan<WIDTH>) {
         let (start, end) = span(root);
-        let len = 2 * (end - start) as usize - 1;
+        debug_assert!(end < LEAF, "references beyond the leaf tag");
+        // T triangles, T − 1 inner nodes.
+        let len = (end - start) as usize - 1;
         let mut t = Binary {
             boxes: vec![Aabb::EMPTY; len],
-            kids: vec![[0, LEAF]; len],
+            kids: vec![[0, 0]; len],
             tris: vec![0; len],
+            clipped: Vec::new(),
+            root: 0,
+            leaves: tris,
         };
         let mut decisions = vec![Decision::NONE; len];
         let share = Share {
@@ -149,52 +177,81 @@ impl Binary {
             kids: &mut t.kids,
             tris: &mut t.tris,
             decisions: &mut decisions,
+            clipped: Vec::new(),
         };
-        fill(root, (start, end), share, tris);
+        let ((root, ..), clipped) = fill(root, (start, end), share, tris);
+        t.root = root;
+        t.clipped = clipped;
+        t.clipped.sort_unstable_by_key(|&(p, _)| p);
         (t, Plan::from_decisions(decisions))
     }
 
-    /// The root (the last node).
+    /// The root: the last inner node, or the only leaf.
     pub fn root(&self) -> u32 {
-        self.boxes.len() as u32 - 1
+        self.root
+    }
+
+    /// The number of inner nodes (ids `0..inner_len()`).
+    pub fn inner_len(&self) -> usize {
+        self.boxes.len()
     }
 
     /// The exact box of `n`'s triangles.
-    pub fn bbox(&self, n: u32) -> &Aabb {
-        &self.boxes[n as usize]
+    pub fn bbox(&self, n: u32) -> Aabb {
+        if n & LEAF == 0 {
+            return self.boxes[n as usize];
+        }
+        let p = n & !LEAF;
+        match self.clipped.binary_search_by_key(&p, |&(q, _)| q) {
+            Ok(i) => self.clipped[i].1,
+            Err(_) => self.leaves.triangle(p).bbox(),
+        }
     }
 
     /// The leaf-order positions of the triangles beneath `n`, left to right.
     pub fn positions(&self, n: u32, out: &mut Vec<u32>) {
-        let [a, b] = self.kids[n as usize];
-        if b == LEAF {
-            out.push(a);
-        } else {
-            self.positions(a, out);
-            self.positions(b, out);
+        match self.kids(n) {
+            None => out.push(n & !LEAF),
+            Some([a, b]) => {
+                self.positions(a, out);
+                self.positions(b, out);
+            }
         }
+    }
+
+    /// The inner nodes of `n`'s binary subtree are the indices `first(n)..=n`.
+    pub fn first(&self, n: u32) -> u32 {
+        n + 1 - (self.tris(n) - 1)
     }
 }
 
 /// Fills `share` with `node`'s subtree (leaf-order positions `span_`): the two halves of a
-/// big subtree on two threads, a small one in order. Returns the subtree's root.
-fn fill(node: &Node, span_: (u32, u32), share: Share<'_, WIDTH>, tris: &LeafOrder) -> Made<WIDTH> {
+/// big subtree on two threads, a small one in order. Returns the subtree's root and its
+/// clipped leaves.
+fn fill<'s>(
+    node: &Node,
+    span_: (u32, u32),
+    share: Share<'s, WIDTH>,
+    tris: &LeafOrder,
+) -> (Made<WIDTH>, Vec<(u32, Aabb)>) {
     match node {
         Node::Inner { children, .. } if span_.1 - span_.0 >= PARALLEL_TRIS => {
             let mid = span(&children[0]).1;
-            let (left, right, mut own) = share.split(2 * (mid - span_.0) as usize - 1);
-            let (l, r) = rayon::join(
+            let (left, right, mut own) = share.split((mid - span_.0) as usize - 1);
+            let ((l, mut clipped), (r, more)) = rayon::join(
                 || fill(&children[0], (span_.0, mid), left, tris),
                 || fill(&children[1], (mid, span_.1), right, tris),
             );
-            own.join(0, l, r, span_.1 - span_.0)
+            clipped.extend(more);
+            clipped.append(&mut own.clipped);
+            (own.join(0, l, r, span_.1 - span_.0), clipped)
         }
         _ => {
             let mut share = share;
             let mut cursor = 0;
             let root = add(node, &mut share, &mut cursor, tris);
             debug_assert_eq!(cursor, share.boxes.len());
-            root
+            (root, share.clipped)
         }
     }
 }
@@ -207,10 +264,15 @@ impl Share<'_, WIDTH> {
         self.put(i, bbox, [l.0, r.0], tris, entry)
     }
 
-    /// Puts a one-triangle leaf (leaf-order position `p`, box `bbox`) in local slot `i`.
-    fn leaf(&mut self, i: usize, p: u32, bbox: Aabb) -> Made<WIDTH> {
-        let entry = Entry::new(bbox.area(), 1, None, COSTS);
-        self.put(i, bbox, [p, LEAF], 1, entry)
+    /// A one-triangle leaf (leaf-order position `p`, box `bbox` within its triangle's
+    /// `whole` box): nothing stored but a clipped box.
+    fn leaf(&mut self, p: u32, bbox: Aabb, whole: &Aabb) -> Made<WIDTH> {
+        // Bit for bit: a clipped −0 is not the triangle's +0.
+        let bits = |b: &Aabb| [b.lo.to_array(), b.hi.to_array()].map(|v| v.map(f32::to_bits));
+        if bits(&bbox) != bits(whole) {
+            self.clipped.push((p, bbox));
+        }
+        (LEAF | p, bbox, Entry::new(bbox.area(), 1, None, COSTS))
     }
 }
 
@@ -243,8 +305,7 @@ fn next(
     l: Made<WIDTH>,
     r: Made<WIDTH>,
 ) -> Made<WIDTH> {
-    let at = |c: u32| share.tris[(c - share.base) as usize];
-    let n = at(l.0) + at(r.0);
+    let n = share.tris_of(l.0) + share.tris_of(r.0);
     let i = *cursor;
     *cursor += 1;
     share.join(i, l, r, n)
@@ -268,9 +329,7 @@ fn split(
         }
     };
     if let [p] = pos {
-        let i = *cursor;
-        *cursor += 1;
-        return share.leaf(i, *p, bbox(p));
+        return share.leaf(*p, bbox(p), &tris.triangle(*p).bbox());
     }
     let centres = pos
         .iter()
@@ -286,13 +345,16 @@ fn split(
     next(share, cursor, l, r)
 }
 
-impl BinaryTree for Binary {
+impl BinaryTree for Binary<'_> {
     fn kids(&self, n: u32) -> Option<[u32; 2]> {
-        let kids = self.kids[n as usize];
-        (kids[1] != LEAF).then_some(kids)
+        (n & LEAF == 0).then(|| self.kids[n as usize])
     }
 
     fn tris(&self, n: u32) -> u32 {
-        self.tris[n as usize]
+        if n & LEAF != 0 {
+            1
+        } else {
+            self.tris[n as usize]
+        }
     }
 }

@@ -22,6 +22,8 @@ mod quantise;
 mod slots;
 mod twin;
 
+use std::borrow::Cow;
+
 use glam::Vec3A;
 
 use crate::accel::bvh::{Bvh, MAX_DEPTH};
@@ -127,11 +129,23 @@ pub struct Cwbvh {
 impl Cwbvh {
     /// Collapses a built tree into 8-wide compressed nodes.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Cwbvh {
+        Cwbvh::collapse(Cow::Borrowed(bvh), &bvh.order, mesh)
+    }
+
+    /// [`Cwbvh::flatten`], consuming the tree: its nodes are freed as soon as the collapse
+    /// holds the tree's shape, before the wide nodes are written (a lower peak of memory).
+    pub fn flatten_owned(mut bvh: Bvh, mesh: &Mesh) -> Cwbvh {
+        let order = std::mem::take(&mut bvh.order);
+        Cwbvh::collapse(Cow::Owned(bvh), &order, mesh)
+    }
+
+    /// Collapses `bvh`'s tree (its triangles in `order`), dropping it once it is read.
+    fn collapse(bvh: Cow<'_, Bvh>, order: &[u32], mesh: &Mesh) -> Cwbvh {
         let leaves = LeafOrder {
-            order: &bvh.order,
+            order,
             triangles: &mesh.triangles,
         };
-        if bvh.order.is_empty() {
+        if order.is_empty() {
             // One node without children: every ray loads it and ends.
             let empty = CwNode {
                 e: [127; 3],
@@ -145,6 +159,7 @@ impl Cwbvh {
             };
         }
         let (tree, plan) = Binary::new(&bvh.root, &leaves);
+        drop(bvh);
         let w = Writer {
             tree: &tree,
             plan: &plan,
@@ -153,13 +168,13 @@ impl Cwbvh {
         let root = tree.root();
         let counts = w.count(root);
         let mut nodes = vec![bytemuck::Zeroable::zeroed(); 1 + counts.descendants(root) as usize];
-        let mut tris = vec![bytemuck::Zeroable::zeroed(); bvh.order.len()];
+        let mut tris = vec![bytemuck::Zeroable::zeroed(); order.len()];
         let (first, rest) = nodes.split_at_mut(1);
         let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut tris));
         Cwbvh {
             nodes,
             tris,
-            bounds: *tree.bbox(root),
+            bounds: tree.bbox(root),
             deepest,
         }
     }
@@ -253,7 +268,7 @@ impl BoxTree for Cwbvh {
 /// triangles come before its children's. The big subtrees are written on all threads, into
 /// the parts of the arrays their sizes (counted first) give them.
 struct Writer<'a> {
-    tree: &'a Binary,
+    tree: &'a Binary<'a>,
     plan: &'a Plan<WIDTH>,
     leaves: &'a LeafOrder<'a>,
 }
@@ -261,13 +276,14 @@ struct Writer<'a> {
 /// Subtrees of at least this many triangles are counted and written on several threads.
 const PARALLEL_TRIS: u32 = 16384;
 
-/// Wide nodes below each binary node that becomes a wide internal node (by binary node).
+/// Wide nodes below each binary inner node that becomes a wide internal node (by binary
+/// node).
 struct Counts(Vec<u32>);
 
 impl Counts {
-    /// Wide nodes below the wide node made from `n`.
+    /// Wide nodes below the wide node made from `n` (none below a one-leaf tree's root).
     fn descendants(&self, n: u32) -> u32 {
-        self.0[n as usize]
+        self.0.get(n as usize).copied().unwrap_or(0)
     }
 }
 
@@ -277,15 +293,15 @@ type Part<'p, T> = (u32, &'p mut [T]);
 impl Writer<'_> {
     /// The wide nodes below every wide internal node.
     fn count(&self, root: u32) -> Counts {
-        let mut counts = vec![0; root as usize + 1];
+        let mut counts = vec![0; self.tree.inner_len()];
         self.count_below(root, (0, &mut counts));
         Counts(counts)
     }
 
     /// Counts below `n` into `counts`, the part of the array (indexed by binary node) that
     /// holds `n`'s binary subtree; returns the nodes of `n`'s wide subtree. The binary
-    /// subtree of a node of T triangles is the 2T − 1 indices up to it (children before
-    /// parents), so the children's parts are disjoint and in order.
+    /// subtree's inner nodes are the indices up to it (children before parents), so the
+    /// children's parts are disjoint and in order.
     fn count_below(&self, n: u32, counts: Part<'_, u32>) -> u32 {
         let (base, mut rest) = counts;
         let mut at = base;
@@ -294,7 +310,7 @@ impl Writer<'_> {
             if leaf {
                 continue;
             }
-            let first = c + 1 - (2 * self.tree.tris(c) - 1);
+            let first = self.tree.first(c);
             let (_, tail) = std::mem::take(&mut rest).split_at_mut((first - at) as usize);
             let (mine, tail) = tail.split_at_mut((c + 1 - first) as usize);
             jobs.push((c, (first, mine)));
@@ -327,7 +343,7 @@ impl Writer<'_> {
         tris: Part<'_, LeafTri>,
     ) -> usize {
         let children = self.plan.children(self.tree, n);
-        let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| *self.tree.bbox(c)).collect();
+        let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| self.tree.bbox(c)).collect();
         let bbox = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
         let frame = Frame::new(&bbox);
         let mut node = CwNode {
