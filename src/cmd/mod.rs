@@ -45,6 +45,13 @@ pub struct Cli {
     cmd: Cmd,
 }
 
+impl Cli {
+    /// Whether the command measures (a bench): it repeats builds that reuse freed memory.
+    pub fn is_bench(&self) -> bool {
+        matches!(self.cmd, Cmd::Bench(_))
+    }
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Render a TOML scene, or a mesh (.obj, .ply, .gltf, .glb) on a ground plane under a sun,

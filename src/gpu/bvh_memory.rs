@@ -6,6 +6,7 @@ use crate::accel::{GpuForm, LeafTri};
 use crate::error::{Error, Result};
 
 use super::bindings;
+use super::context::UPLOAD_SLICE;
 use super::plumbing::{storage_entry, texel_entry};
 use super::GpuContext;
 use crate::util::human_bytes;
@@ -157,10 +158,15 @@ fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureVie
         bytes_per_row: Some(row_bytes as u32),
         rows_per_image: None,
     };
-    if full > 0 {
-        let whole = &bytes[..full * row_bytes];
-        ctx.queue
-            .write_texture(texture.as_image_copy(), whole, layout, size(full));
+    // In slices of whole rows, each waited for (see UPLOAD_SLICE).
+    let slice_rows = (UPLOAD_SLICE / row_bytes).max(1);
+    for first in (0..full).step_by(slice_rows) {
+        let rows = slice_rows.min(full - first);
+        let slice = &bytes[first * row_bytes..(first + rows) * row_bytes];
+        let mut at = texture.as_image_copy();
+        at.origin.y = first as u32;
+        ctx.queue.write_texture(at, slice, layout, size(rows));
+        ctx.finish_writes();
     }
     let rest = &bytes[full * row_bytes..];
     if !rest.is_empty() {

@@ -26,6 +26,12 @@ impl std::fmt::Display for AdapterReport {
     }
 }
 
+/// Bytes one upload stages at most. wgpu copies every write into a staging buffer of its
+/// own, freed once the device has done the copy; big arrays go up in slices of this size,
+/// each waited for, so that the process holds one slice besides the array rather than a
+/// second copy of it (on a software adapter, a third: the device memory is the process's).
+pub(crate) const UPLOAD_SLICE: usize = 32 << 20;
+
 /// A headless device and queue (a clone shares them): opened by lancer
 /// ([`GpuContext::new`]) or the application's own ([`GpuContext::from_wgpu`]).
 #[derive(Clone)]
@@ -259,19 +265,44 @@ impl GpuContext {
         None
     }
 
-    /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM).
+    /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM). Contents
+    /// over [`UPLOAD_SLICE`] go up in slices, each waited for.
     pub fn buffer_with(
         &self,
         label: &str,
         contents: &[u8],
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage,
-            })
+        let aligned = (contents.len() as u64).is_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        if contents.len() <= UPLOAD_SLICE || !aligned {
+            return self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                });
+        }
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: contents.len() as u64,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        for (i, slice) in contents.chunks(UPLOAD_SLICE).enumerate() {
+            let offset = (i * UPLOAD_SLICE) as u64;
+            self.queue.write_buffer(&buffer, offset, slice);
+            self.finish_writes();
+        }
+        buffer
+    }
+
+    /// Lets the device do the queued writes, so that wgpu frees their staging memory.
+    pub(crate) fn finish_writes(&self) {
+        self.queue.submit([]);
+        // A poll that waits without a timeout cannot fail; device errors are reported by
+        // the next `plumbing::wait`.
+        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
     }
 
     /// Refuses a buffer the device cannot bind, naming the size and the limit.
