@@ -190,7 +190,8 @@ fn bindings_are_the_rust_numbers() {
         ("rays", bindings::TRACE_RAYS),
         ("hits", bindings::TRACE_HITS),
         ("stats", bindings::TRACE_STATS),
-        ("shades", bindings::RENDER_SHADES),
+        ("shade_words", bindings::RENDER_SHADES),
+        ("shade_texels", bindings::RENDER_SHADE_TEXELS),
         ("accum", bindings::RENDER_ACCUM),
     ];
     let layout = &layouts()[0];
@@ -210,8 +211,8 @@ fn bindings_are_the_rust_numbers() {
             }
         }
     }
-    // The four BVH bindings in every kernel, plus 3 in each trace and 2 in each render kernel.
-    assert_eq!(seen, traces * (4 + 3) + renders * (4 + 2));
+    // The four BVH bindings in every kernel, plus 3 in each trace and 3 in each render kernel.
+    assert_eq!(seen, traces * (4 + 3) + renders * (4 + 3));
     // The driver's kernel: its acceleration structure and the trace bindings it shares.
     let src = shaders::driver_trace_source();
     let m = module(&src);

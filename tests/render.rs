@@ -175,6 +175,40 @@ fn both_bvh_memories_render_the_same_image() {
     }
 }
 
+/// Shading triangles (80 bytes each) beyond one storage binding render from textures: on a
+/// device whose recorded binding limit is shrunk below the teapot's, the textures memory
+/// renders the CPU's image (before, the shading triangles were always a storage buffer and
+/// were refused); the buffers memory is refused, naming the limit.
+#[test]
+fn shading_triangles_beyond_a_storage_binding_render_from_textures() {
+    gpu_device(); // fails with the install hint when there is no adapter
+    let Some(path) = common::model("teapot.obj") else {
+        return;
+    };
+    let s = RenderScene::from_mesh(&path, 32, 24).unwrap();
+    let shade_bytes = s.mesh.len() as u64 * 80;
+    let mut ctx = lancer::gpu::GpuContext::new().unwrap();
+    ctx.limits.max_storage_buffer_binding_size = shade_bytes / 2;
+    let device = Device::gpu(ctx);
+    let fx = EffectSet::of(&s);
+    let options = |memory| RenderOptions {
+        spp: Some(1),
+        effects: Some(fx),
+        memory,
+        ..RenderOptions::default()
+    };
+    let gpu = render(&s, &device, &options(BvhMemory::Textures))
+        .unwrap()
+        .image
+        .pixels;
+    assert_gpu_matches_cpu("teapot, small bindings", &s, &gpu, &cpu_image(&s, fx, 1));
+    let Err(e) = render(&s, &device, &options(BvhMemory::Buffers)) else {
+        panic!("buffers beyond the limit were bound");
+    };
+    let e = e.to_string();
+    assert!(e.contains("max_storage_buffer_binding_size"), "{e}");
+}
+
 /// A GPU render of `s` (one sample) traversing in `mode` through `layout`, cropped where
 /// `crop` says.
 fn gpu_render_in_mode(

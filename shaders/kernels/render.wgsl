@@ -30,6 +30,24 @@ struct Shade {
     pad3: vec2<u32>,
 }
 
+fn shade_word(i: u32) -> vec4<u32> {
+    if BVH_TEXTURES {
+        return textureLoad(shade_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
+    }
+    return shade_words[i];
+}
+
+fn load_shade(i: u32) -> Shade {
+    let a = shade_word(5u * i);
+    let b = shade_word(5u * i + 1u);
+    let c = shade_word(5u * i + 2u);
+    let d = shade_word(5u * i + 3u);
+    let e = shade_word(5u * i + 4u);
+    return Shade(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
+                 bitcast<vec3<f32>>(c.xyz), c.w, bitcast<vec2<f32>>(d.xy),
+                 bitcast<vec2<f32>>(d.zw), bitcast<vec2<f32>>(e.xy), e.zw);
+}
+
 // render::gpu::GpuMaterial
 struct Material {
     albedo: vec3<f32>,
@@ -81,7 +99,12 @@ struct Params {
     pad3: u32,
 }
 
-@group(0) @binding(BINDING_RENDER_SHADES) var<storage, read> shades: array<Shade>;
+// The shading triangles, five words each, in the BVH's memory (BVH_TEXTURES,
+// lib/traversal.wgsl): a storage buffer, or a storage texture (which holds more than one
+// storage binding may: lavapipe binds 128 MiB). The unused binding is a placeholder.
+@group(0) @binding(BINDING_RENDER_SHADES) var<storage, read> shade_words: array<vec4<u32>>;
+@group(0) @binding(BINDING_RENDER_SHADE_TEXELS)
+var shade_texels: texture_storage_2d<rgba32uint, read>;
 @group(0) @binding(BINDING_RENDER_MATERIALS) var<storage, read> materials: array<Material>;
 @group(0) @binding(BINDING_RENDER_LIGHTS) var<storage, read> lights: array<Light>;
 // (original triangle index, running area sum as f32 bits)
@@ -307,7 +330,7 @@ fn path_hit(hit: Hit) {
         step = STEP_DONE;
         return;
     }
-    let s = shades[hit.prim];
+    let s = load_shade(hit.prim);
     let mat = materials[s.material];
     let w = 1.0 - hit.u - hit.v;
     let p = s.v0 * w + s.v1 * hit.u + s.v2 * hit.v;
@@ -428,7 +451,7 @@ fn emitter_ray() {
                 lo = mid + 1u;
             }
         }
-        let s = shades[emitters[lo].x];
+        let s = load_shade(emitters[lo].x);
         let su = sqrt(next_f32());
         let b0 = 1.0 - su;
         let b1 = next_f32() * su;

@@ -194,7 +194,8 @@ pub struct DeviceArgs {
     /// (a software adapter such as lavapipe is slower than the CPU; --device gpu uses it).
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
-    /// GPU: where the kernels read the BVH from (storage textures or storage buffers).
+    /// GPU: where the kernels read the BVH and the shading triangles from (storage textures,
+    /// which hold more than one storage buffer may, or storage buffers).
     #[arg(long, value_enum, default_value_t = BvhMemory::default())]
     bvh_memory: BvhMemory,
 }

@@ -22,8 +22,10 @@ pub const TRACE_PARAMS: u32 = 5;
 /// Driver trace kernel: the driver's acceleration structure.
 pub const DRIVER_SCENE: u32 = 12;
 
-/// Render kernel: shading triangles.
+/// Render kernel: shading triangles' words in a storage buffer.
 pub const RENDER_SHADES: u32 = 2;
+/// Render kernel: shading triangles' words in a storage texture (the BVH's memory).
+pub const RENDER_SHADE_TEXELS: u32 = 13;
 /// Render kernel: materials.
 pub const RENDER_MATERIALS: u32 = 3;
 /// Render kernel: point and directional lights.
@@ -49,6 +51,7 @@ pub const ALL: &[(&str, u32)] = &[
     ("BINDING_TRACE_PARAMS", TRACE_PARAMS),
     ("BINDING_DRIVER_SCENE", DRIVER_SCENE),
     ("BINDING_RENDER_SHADES", RENDER_SHADES),
+    ("BINDING_RENDER_SHADE_TEXELS", RENDER_SHADE_TEXELS),
     ("BINDING_RENDER_MATERIALS", RENDER_MATERIALS),
     ("BINDING_RENDER_LIGHTS", RENDER_LIGHTS),
     ("BINDING_RENDER_EMITTERS", RENDER_EMITTERS),

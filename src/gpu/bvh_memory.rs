@@ -11,8 +11,9 @@ use super::plumbing::{storage_entry, texel_entry};
 use super::GpuContext;
 use crate::util::human_bytes;
 
-/// Where the kernels read nodes and triangles from. The words are the same; only the kind
-/// of binding differs.
+/// Where the kernels read nodes and triangles from (and the render kernel its shading
+/// triangles). The words are the same; only the kind of binding differs: a texture holds
+/// more than one storage binding may (lavapipe: 128 MiB).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BvhMemory {
@@ -57,26 +58,14 @@ impl GpuBvh {
         } else {
             arrays.tris
         };
-        let word = [0u8; 16];
-        let bvh = match memory {
-            BvhMemory::Buffers => {
-                ctx.check_binding("the BVH nodes", nodes.len() as u64)?;
-                ctx.check_binding("the triangles", tris.len() as u64)?;
-                GpuBvh {
-                    memory,
-                    node_buf: storage(ctx, "nodes", nodes),
-                    tri_buf: storage(ctx, "tris", tris),
-                    node_tex: texels(ctx, "unused node texels", &word)?,
-                    tri_tex: texels(ctx, "unused triangle texels", &word)?,
-                }
-            }
-            BvhMemory::Textures => GpuBvh {
-                memory,
-                node_buf: storage(ctx, "unused nodes", &word),
-                tri_buf: storage(ctx, "unused tris", &word),
-                node_tex: texels(ctx, "the BVH nodes", nodes)?,
-                tri_tex: texels(ctx, "the triangles", tris)?,
-            },
+        let (node_buf, node_tex) = words_in(ctx, memory, "the BVH nodes", nodes)?;
+        let (tri_buf, tri_tex) = words_in(ctx, memory, "the triangles", tris)?;
+        let bvh = GpuBvh {
+            memory,
+            node_buf,
+            tri_buf,
+            node_tex,
+            tri_tex,
         };
         Ok(bvh)
     }
@@ -115,8 +104,25 @@ impl GpuBvh {
     }
 }
 
-fn storage(ctx: &GpuContext, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-    ctx.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE)
+/// 16-byte words (`what`, for messages) in `memory`: a storage buffer and a placeholder
+/// texture, or a placeholder buffer and a storage texture; refuses sizes the device cannot
+/// bind, naming the size and the limit.
+pub(crate) fn words_in(
+    ctx: &GpuContext,
+    memory: BvhMemory,
+    what: &str,
+    bytes: &[u8],
+) -> Result<(wgpu::Buffer, wgpu::TextureView)> {
+    let word = [0u8; 16];
+    let storage =
+        |label: &str, bytes: &[u8]| ctx.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE);
+    Ok(match memory {
+        BvhMemory::Buffers => {
+            ctx.check_binding(what, bytes.len() as u64)?;
+            (storage(what, bytes), texels(ctx, "unused texels", &word)?)
+        }
+        BvhMemory::Textures => (storage("unused words", &word), texels(ctx, what, bytes)?),
+    })
 }
 
 /// An rgba32uint texture holding `bytes` (a multiple of 16) row by row, the last row padded

@@ -14,8 +14,8 @@ use crate::accel::TraversalMode;
 use crate::error::Result;
 use crate::geometry::Robustness;
 use crate::gpu::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
-    Chunks, Kernel, Readback,
+    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, texel_entry,
+    uniform_binding, wait, Chunks, Kernel, Readback,
 };
 use crate::gpu::{bindings, BvhMemory, GpuBvh, GpuContext};
 
@@ -267,12 +267,7 @@ impl<'a> GpuRenderer<'a> {
 
         // The sums, then (with AOVs) two entries a pixel.
         let accum_bytes = pixels as u64 * 16 * if aovs { 3 } else { 1 };
-        let sized: [(u32, &str, &[u8]); 5] = [
-            (
-                bindings::RENDER_SHADES,
-                "the shading triangles",
-                bytemuck::cast_slice(&shades),
-            ),
+        let sized: [(u32, &str, &[u8]); 4] = [
             (
                 bindings::RENDER_MATERIALS,
                 "the materials",
@@ -298,6 +293,14 @@ impl<'a> GpuRenderer<'a> {
             ctx.check_binding(what, bytes.len() as u64)?;
         }
         ctx.check_binding("the image accumulator", accum_bytes)?;
+        // The shading triangles, one per mesh triangle, go where the BVH's triangles do.
+        let (shade_buf, shade_tex) = crate::gpu::words_in(
+            ctx,
+            memory,
+            "the shading triangles",
+            bytemuck::cast_slice(&shades),
+        )?;
+        drop(shades);
         let buffers: Vec<(u32, wgpu::Buffer)> = (sized.iter())
             .map(|&(b, what, bytes)| (b, ctx.buffer_with(what, bytes, wgpu::BufferUsages::STORAGE)))
             .collect();
@@ -310,6 +313,8 @@ impl<'a> GpuRenderer<'a> {
             mapped_at_creation: false,
         });
         let mut entries: Vec<_> = GpuBvh::layout_entries().into();
+        entries.push(storage_entry(bindings::RENDER_SHADES, true));
+        entries.push(texel_entry(bindings::RENDER_SHADE_TEXELS));
         entries.extend(sized.iter().map(|&(b, _, _)| storage_entry(b, true)));
         entries.push(storage_entry(bindings::RENDER_ACCUM, false));
         entries.push(dynamic_uniform_entry(bindings::RENDER_PARAMS, PARAMS_SIZE));
@@ -337,6 +342,11 @@ impl<'a> GpuRenderer<'a> {
             true,
         )?;
         let mut bind_entries: Vec<_> = bvh.bind_entries().into();
+        bind_entries.push(buffer_binding(bindings::RENDER_SHADES, &shade_buf));
+        bind_entries.push(wgpu::BindGroupEntry {
+            binding: bindings::RENDER_SHADE_TEXELS,
+            resource: wgpu::BindingResource::TextureView(&shade_tex),
+        });
         bind_entries.extend(buffers.iter().map(|(b, buf)| buffer_binding(*b, buf)));
         bind_entries.push(buffer_binding(bindings::RENDER_ACCUM, &accum));
         bind_entries.push(uniform_binding(
