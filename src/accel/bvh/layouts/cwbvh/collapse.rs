@@ -287,8 +287,19 @@ fn add(
         Node::Leaf {
             bbox, start, count, ..
         } => {
-            let mut pos: Vec<u32> = (*start..start + count).collect();
-            split(&mut pos, tris, bbox, share, cursor)
+            // A triangle's box is its bounds within the leaf's box: all of it, unless a
+            // spatial split gave the leaf only a part of the triangle.
+            let mut refs: Vec<(u32, Aabb)> = (*start..start + count)
+                .map(|p| {
+                    let b = tris.triangle(p).bbox();
+                    let within = Aabb {
+                        lo: b.lo.max(bbox.lo),
+                        hi: b.hi.min(bbox.hi),
+                    };
+                    (p, within)
+                })
+                .collect();
+            split(&mut refs, tris, share, cursor)
         }
         Node::Inner { children, .. } => {
             let l = add(&children[0], share, cursor, tris);
@@ -311,37 +322,29 @@ fn next(
     share.join(i, l, r, n)
 }
 
-/// A binary leaf's triangles as a tree of one-triangle leaves (`pos` non-empty). A
-/// triangle's box is its bounds within the leaf's box `within`: all of it, unless a
-/// spatial split gave the leaf only a part of the triangle.
+/// A binary leaf's triangles (leaf-order positions with their boxes within the leaf, at
+/// least one) as a tree of one-triangle leaves: median splits on the longest axis of the
+/// box centres.
 fn split(
-    pos: &mut [u32],
+    refs: &mut [(u32, Aabb)],
     tris: &LeafOrder,
-    within: &Aabb,
     share: &mut Share<'_, WIDTH>,
     cursor: &mut usize,
 ) -> Made<WIDTH> {
-    let bbox = |p: &u32| {
-        let b = tris.triangle(*p).bbox();
-        Aabb {
-            lo: b.lo.max(within.lo),
-            hi: b.hi.min(within.hi),
-        }
-    };
-    if let [p] = pos {
-        return share.leaf(*p, bbox(p), &tris.triangle(*p).bbox());
+    if let [(p, bbox)] = refs {
+        return share.leaf(*p, *bbox, &tris.triangle(*p).bbox());
     }
-    let centres = pos
+    let centres = refs
         .iter()
-        .fold(Aabb::EMPTY, |b, p| b.grow(bbox(p).center()));
+        .fold(Aabb::EMPTY, |b, (_, r)| b.grow(r.center()));
     let axis = centres.longest_axis();
-    pos.sort_by(|a, b| {
-        let (ca, cb) = (bbox(a).center()[axis], bbox(b).center()[axis]);
+    refs.sort_by(|(a, ra), (b, rb)| {
+        let (ca, cb) = (ra.center()[axis], rb.center()[axis]);
         ca.total_cmp(&cb).then(a.cmp(b))
     });
-    let (lo, hi) = pos.split_at_mut(pos.len() / 2);
-    let l = split(lo, tris, within, share, cursor);
-    let r = split(hi, tris, within, share, cursor);
+    let (lo, hi) = refs.split_at_mut(refs.len() / 2);
+    let l = split(lo, tris, share, cursor);
+    let r = split(hi, tris, share, cursor);
     next(share, cursor, l, r)
 }
 

@@ -22,14 +22,22 @@ fn diagonal(o: usize) -> Vec3 {
 /// children, all inside `parent`).
 pub(crate) fn assign(parent: &Aabb, children: &[Aabb]) -> [Option<usize>; WIDTH] {
     let centre = parent.center();
-    let cost = |c: usize, s: usize| (children[c].center() - centre).dot(diagonal(s));
+    let n = children.len().min(WIDTH);
+    // Every (child, slot) cost once, rather than once per round.
+    let mut cost = [[0.0f32; WIDTH]; WIDTH];
+    for (c, row) in cost.iter_mut().enumerate().take(n) {
+        let offset = children[c].center() - centre;
+        for (s, x) in row.iter_mut().enumerate() {
+            *x = offset.dot(diagonal(s));
+        }
+    }
     let mut slots = [None; WIDTH];
     let mut placed = [false; WIDTH];
-    for _ in 0..children.len().min(WIDTH) {
+    for _ in 0..n {
         let mut best: Option<(f32, usize, usize)> = None;
-        for c in (0..children.len().min(WIDTH)).filter(|&c| !placed[c]) {
+        for c in (0..n).filter(|&c| !placed[c]) {
             for s in (0..WIDTH).filter(|&s| slots[s].is_none()) {
-                let x = cost(c, s);
+                let x = cost[c][s];
                 if best.is_none_or(|(b, _, _)| x < b) {
                     best = Some((x, c, s));
                 }
