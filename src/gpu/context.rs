@@ -266,7 +266,7 @@ impl GpuContext {
     }
 
     /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM). Contents
-    /// over [`UPLOAD_SLICE`] go up in slices, each waited for.
+    /// over 32 MiB (`UPLOAD_SLICE`) go up in slices, each waited for.
     pub fn buffer_with(
         &self,
         label: &str,
