@@ -8,6 +8,7 @@
 pub mod bih;
 pub mod bvh;
 pub mod grid;
+pub mod instances;
 pub mod kdtree;
 pub mod octree;
 

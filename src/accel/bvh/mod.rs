@@ -36,6 +36,31 @@ use tree::leaf;
 pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
     let ids = mesh.included();
     let prims = Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()));
+    build_prims(
+        prims,
+        &ids,
+        opts,
+        Some(&|i| mesh.triangles[ids[i as usize] as usize]),
+    )
+}
+
+/// Builds a BVH over boxes instead of triangles (the top level over instances' world
+/// boxes): `order` holds positions in `boxes`. The spatial-split builder, which clips
+/// triangles, builds binned here. Deterministic for a given input.
+pub fn build_boxes(boxes: &[Aabb], opts: &BuildOptions) -> Bvh {
+    let ids: Vec<u32> = (0..boxes.len() as u32).collect();
+    build_prims(Prims::new(boxes.par_iter().copied()), &ids, opts, None)
+}
+
+/// The builders' common entry: `prims` are the boxes of the primitives `ids` (positions
+/// into `ids` in the tree; `order` maps them back), `triangle(i)` the triangle of position
+/// i (the spatial-split builder clips them; without triangles it builds binned).
+fn build_prims(
+    prims: Prims,
+    ids: &[u32],
+    opts: &BuildOptions,
+    triangle: Option<&(dyn Fn(u32) -> crate::geometry::Triangle + Sync)>,
+) -> Bvh {
     if ids.is_empty() {
         return Bvh {
             root: leaf(Aabb::EMPTY, 0, 0),
@@ -46,7 +71,10 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
         Builder::Sweep => sweep::build(prims, opts),
         Builder::Binned => binned::build(prims, opts),
         Builder::Median => median::build(&prims, opts),
-        Builder::Sbvh => sbvh::build(prims, &|i| mesh.triangles[ids[i as usize] as usize], opts),
+        Builder::Sbvh => match triangle {
+            Some(triangle) => sbvh::build(prims, triangle, opts),
+            None => binned::build(prims, opts),
+        },
         Builder::Ploc => match ploc::build(&prims, opts) {
             Some(tree) => tree,
             None => binned::build(prims, opts),

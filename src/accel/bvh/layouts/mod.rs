@@ -58,6 +58,7 @@ pub use bvh2_wide_node::Bvh2WideNode;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
+pub(crate) use dfs_sign::{dfs_nodes, DfsNode, DfsNodeRay};
 pub use threaded::Threaded;
 pub use wide_bvh::{Bvh4, Bvh8, WideBvh};
 

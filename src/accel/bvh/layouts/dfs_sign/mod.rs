@@ -87,11 +87,10 @@ impl DfsSign {
     /// Flattens a built tree (in parallel for big trees).
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> DfsSign {
         let tris = LeafTri::gather(bvh, mesh);
-        // Every subtree knows its size, so each writes its own part of the array; the big
-        // ones on all threads (most of the time here is first touches of fresh pages).
-        let mut nodes = bytemuck::zeroed_vec(bvh.root.nodes() as usize);
-        write(&bvh.root, &mut nodes, 0);
-        DfsSign { nodes, tris }
+        DfsSign {
+            nodes: dfs_nodes(bvh),
+            tris,
+        }
     }
 
     /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
@@ -207,6 +206,16 @@ const PARALLEL_NODES: usize = 1 << 12;
 
 /// Writes `node`'s subtree in pre-order into `out` (exactly its size), whose first element
 /// is node `index` of the whole array.
+/// The tree's nodes in depth-first pre-order (leaves hold positions in `bvh.order`): the
+/// nodes of dfs-sign, and of the top level over instances.
+pub(crate) fn dfs_nodes(bvh: &Bvh) -> Vec<DfsNode> {
+    // Every subtree knows its size, so each writes its own part of the array; the big
+    // ones on all threads (most of the time here is first touches of fresh pages).
+    let mut nodes = bytemuck::zeroed_vec(bvh.root.nodes() as usize);
+    write(&bvh.root, &mut nodes, 0);
+    nodes
+}
+
 fn write(node: &Node, out: &mut [DfsNode], index: u32) {
     let b = node.bbox();
     let (a, tag, children) = match node {

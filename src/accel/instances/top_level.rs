@@ -1,0 +1,86 @@
+//! The top level: a BVH over the instances' world boxes (the SAH builders over boxes, one
+//! instance a leaf), in dfs-sign nodes, and one entry per instance in leaf order.
+
+use rayon::prelude::*;
+
+use super::{Affine, InstanceSet};
+use crate::accel::bvh::layouts::{dfs_nodes, DfsNode};
+use crate::accel::bvh::{self, BuildOptions};
+use crate::geometry::Aabb;
+
+/// One instance as the top level reads it, 64 bytes: the map into its object space, its
+/// first triangle index, its mesh (bottom level) and its position in the set.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct TopEntry {
+    /// World space to object space.
+    pub to_object: Affine,
+    /// Its first triangle's index in the flattened numbering.
+    pub first_prim: u32,
+    /// Index of its mesh and bottom level.
+    pub mesh: u32,
+    /// Index of the instance in [`InstanceSet::instances`].
+    pub instance: u32,
+    /// Padding (zero).
+    pub pad: u32,
+}
+
+/// The top-level tree: dfs-sign nodes whose leaves refer to ranges of `entries`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TopLevel {
+    /// Depth-first nodes; empty when no instance has a triangle to hit.
+    pub nodes: Vec<DfsNode>,
+    /// The instances in leaf order.
+    pub entries: Vec<TopEntry>,
+}
+
+impl TopLevel {
+    /// The top level over `set`'s instances whose mesh has a box (`mesh_bounds`, by mesh;
+    /// empty for a mesh with no usable triangle), built by `opts.builder` with one instance
+    /// a leaf. Maps must be invertible ([`InstanceSet::new`] checks them).
+    pub fn build(set: &InstanceSet, mesh_bounds: &[Aabb], opts: &BuildOptions) -> TopLevel {
+        let firsts = set.first_prims();
+        let placed: Vec<u32> = (0..set.instances.len() as u32)
+            .filter(|&i| !mesh_bounds[set.instances[i as usize].mesh as usize].is_empty())
+            .collect();
+        let boxes: Vec<Aabb> = placed
+            .par_iter()
+            .map(|&i| {
+                let inst = &set.instances[i as usize];
+                inst.to_world.bound_box(&mesh_bounds[inst.mesh as usize])
+            })
+            .collect();
+        if boxes.is_empty() {
+            return TopLevel::default();
+        }
+        let opts = BuildOptions {
+            max_leaf: 1,
+            ..*opts
+        };
+        let tree = bvh::build_boxes(&boxes, &opts);
+        let entries = tree
+            .order
+            .iter()
+            .map(|&k| {
+                let i = placed[k as usize];
+                let inst = &set.instances[i as usize];
+                TopEntry {
+                    to_object: inst.to_world.inverse().unwrap_or(Affine::IDENTITY),
+                    first_prim: firsts[i as usize],
+                    mesh: inst.mesh,
+                    instance: i,
+                    pad: 0,
+                }
+            })
+            .collect();
+        TopLevel {
+            nodes: dfs_nodes(&tree),
+            entries,
+        }
+    }
+
+    /// Bounds of every placed instance (empty when none is).
+    pub fn bounds(&self) -> Aabb {
+        self.nodes.first().map_or(Aabb::EMPTY, DfsNode::bbox)
+    }
+}

@@ -1,0 +1,155 @@
+//! [`TwoLevel`]: the top level over instances composed with a bottom-level structure per
+//! mesh, traced on the CPU.
+
+use std::sync::Arc;
+
+use super::top_level::TopLevel;
+use super::InstanceSet;
+use crate::accel::bvh::layouts::DfsNodeRay;
+use crate::accel::bvh::{BuildOptions, MAX_DEPTH};
+use crate::accel::{Accel, AccelKind, Query, RayStats};
+use crate::geometry::{
+    intersect_triangle_bounded, prune_bound, triangle_hit_f64, Aabb, Hit, Precision, Ray,
+    Robustness, Triangle, WatertightRay,
+};
+use crate::mesh::Mesh;
+
+/// A two-level structure: a top-level BVH over instances, one bottom-level structure per
+/// unique mesh (any [`AccelKind`]). Its [`Accel`] walks the top level as dfs-sign walks its
+/// nodes (the far child stacked, the near one by the ray's sign on the split axis), moves
+/// the ray into each instance's object space and continues the trace in its mesh's bottom
+/// level, numbering hits as the flattened scene does ([`InstanceSet::flatten`]).
+pub struct TwoLevel {
+    top: TopLevel,
+    bottoms: Vec<Box<dyn Accel>>,
+    meshes: Vec<Arc<Mesh>>,
+}
+
+impl TwoLevel {
+    /// Builds a `kind` structure over each of `set`'s meshes (the BVH with `options`) and the
+    /// top level over its instances (the BVH builder of `options`, one instance a leaf).
+    /// Refused as [`InstanceSet::new`] refuses, or as [`accel::build`](crate::accel::build)
+    /// refuses a mesh.
+    pub fn build(
+        kind: AccelKind,
+        set: &InstanceSet,
+        options: &BuildOptions,
+    ) -> crate::Result<TwoLevel> {
+        let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
+        let bottoms = set
+            .meshes
+            .iter()
+            .map(|m| crate::accel::build(kind, m, options))
+            .collect::<crate::Result<Vec<_>>>()?;
+        let bounds: Vec<Aabb> = bottoms.iter().map(|b| b.bounds()).collect();
+        let top = TopLevel::build(&set, &bounds, options);
+        log::debug!(
+            "two-level: {} meshes, {} instances ({} placed), {} top-level nodes",
+            set.meshes.len(),
+            set.instances.len(),
+            top.entries.len(),
+            top.nodes.len()
+        );
+        Ok(TwoLevel {
+            top,
+            bottoms,
+            meshes: set.meshes,
+        })
+    }
+
+    /// Nodes of the top level.
+    pub fn top_nodes(&self) -> usize {
+        self.top.nodes.len()
+    }
+
+    /// Instances in the top level (those whose mesh has a usable triangle).
+    pub fn placed_instances(&self) -> usize {
+        self.top.entries.len()
+    }
+}
+
+/// The prune bound a leaf step moves to when it takes triangle `tri`'s hit at `t` on `ray`
+/// (the same test again: [`TriHit::prune`](crate::geometry::TriHit::prune)), so the top
+/// level culls instances as a flattened traversal culls boxes after that hit.
+fn prune_after(tri: &Triangle, ray: &Ray, robustness: &Robustness, t: f32) -> f32 {
+    let h = match (robustness.precision, robustness.triangle_test) {
+        (Precision::F64, _) => triangle_hit_f64(tri, ray, ray.tmin, t),
+        (_, test) => {
+            intersect_triangle_bounded(test, tri, ray, &WatertightRay::new(ray.dir), ray.tmin, t)
+        }
+    };
+    h.map_or(prune_bound(t), |h| h.prune())
+}
+
+impl Accel for TwoLevel {
+    fn bounds(&self) -> Aabb {
+        self.top.bounds()
+    }
+
+    /// The top level walked as dfs-sign walks its nodes; at an instance, the ray in object
+    /// space goes to its bottom level with tmax cut to the top level's prune bound once a
+    /// hit is known (a bottom hit beyond the best one is then dropped by the tie rule).
+    fn intersect(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        let mut best = Hit::miss(ray.tmax);
+        if !ray.is_valid() || self.top.nodes.is_empty() {
+            return best;
+        }
+        let boxes = DfsNodeRay::new(ray, robustness);
+        let mut prune = prune_bound(best.t);
+        let mut stack = [0u32; MAX_DEPTH];
+        let mut sp = 0usize;
+        let mut idx = 0usize;
+        loop {
+            let node = &self.top.nodes[idx];
+            stats.nodes += 1;
+            if boxes.enters(node, prune) {
+                if !node.is_leaf() {
+                    let (first, second) = (idx + 1, node.a as usize);
+                    let (near, far) = if ray.dir[node.axis()] < 0.0 {
+                        (second, first)
+                    } else {
+                        (first, second)
+                    };
+                    stack[sp] = far as u32;
+                    sp += 1;
+                    idx = near;
+                    continue;
+                }
+                let first = node.a as usize;
+                for e in &self.top.entries[first..first + node.count() as usize] {
+                    let mut local = e.to_object.ray(ray);
+                    if best.is_hit() {
+                        local.tmax = prune;
+                    }
+                    let h =
+                        self.bottoms[e.mesh as usize].intersect(&local, query, robustness, stats);
+                    if !h.is_hit() {
+                        continue;
+                    }
+                    let prim = e.first_prim + h.prim;
+                    if !Hit::beats(h.t, prim, best.t, best.prim) {
+                        continue;
+                    }
+                    best = Hit { prim, ..h };
+                    if query == Query::Any {
+                        return best;
+                    }
+                    let tri = &self.meshes[e.mesh as usize].triangles[h.prim as usize];
+                    prune = prune_after(tri, &local, robustness, h.t);
+                }
+            }
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            idx = stack[sp] as usize;
+        }
+        best
+    }
+}

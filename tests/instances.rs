@@ -1,0 +1,217 @@
+//! Two-level acceleration on the CPU (`accel::instances`): an instanced scene traces as its
+//! flattened copy does — bit for bit where the maps are exact (identity), judged by the f64
+//! oracle on the world-space triangles where they round (rotations, scales, mirrors) — with
+//! every structure of the registry and every BVH layout as the bottom level, the tie rule
+//! kept across instances, and bad instances refused.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::accel_check::{brute_force, check};
+use common::{random_rays, soup, Rng};
+use glam::{Mat4, Quat, Vec3};
+use lancer::accel::bvh::BuildOptions;
+use lancer::accel::instances::{Affine, Instance, InstanceSet, TwoLevel};
+use lancer::accel::{build, Accel, AccelKind};
+use lancer::geometry::{Hit, Triangle};
+use lancer::mesh::Mesh;
+use lancer::trace::oracle::{judge, Verdict};
+use lancer::{LayoutKind, Query, RayStats, Robustness};
+
+/// Every bottom level: each structure of the registry, and the BVH in every layout.
+fn every_bottom() -> Vec<AccelKind> {
+    let layouts = LayoutKind::ALL.iter().map(|&l| AccelKind::Bvh(l));
+    AccelKind::ALL[1..].iter().copied().chain(layouts).collect()
+}
+
+fn placed(mesh: u32, to_world: Affine) -> Instance {
+    Instance { mesh, to_world }
+}
+
+fn two_level(kind: AccelKind, set: &InstanceSet) -> TwoLevel {
+    TwoLevel::build(kind, set, &BuildOptions::default())
+        .unwrap_or_else(|e| panic!("{kind:?} does not build: {e}"))
+}
+
+/// Three soups, placed five times at the identity: instances 0 and 2 (and 1 and 4) are the
+/// same triangles, so every hit on them is an exact tie across instances that the smaller
+/// index wins, as in the flattened scene.
+#[test]
+fn at_the_identity_every_bottom_level_traces_the_flattened_scene_bit_for_bit() {
+    let mut rng = Rng::new(3700);
+    let meshes: Vec<Arc<Mesh>> = (0..3).map(|_| Arc::new(soup(&mut rng, 400, 0.3))).collect();
+    let instances = [0, 1, 0, 2, 1]
+        .map(|m| placed(m, Affine::IDENTITY))
+        .to_vec();
+    let set = InstanceSet::new(meshes, instances).unwrap();
+    let flat = set.flatten();
+    assert_eq!(flat.len(), 2000);
+    let rays = random_rays(&mut rng, 2000, &flat);
+    let expected = brute_force(&flat, &rays);
+    let ties = expected.iter().filter(|h| h.is_hit()).count();
+    for kind in every_bottom() {
+        let name = format!("{kind:?}");
+        let two = two_level(kind, &set);
+        let (hits, _) = two.trace_batch(&rays, Query::Closest, &Robustness::default());
+        for (i, (got, want)) in hits.iter().zip(&expected).enumerate() {
+            assert_eq!(got, want, "{name}: ray {i} {:?}", rays[i]);
+        }
+        // Duplicates are exact ties: the hit is always on instance 0, 1 or 3.
+        let firsts = set.first_prims();
+        for h in hits.iter().filter(|h| h.is_hit()) {
+            assert!(
+                h.prim < firsts[2] || (firsts[3]..firsts[4]).contains(&h.prim),
+                "{h:?}"
+            );
+        }
+        check(&name, &flat, &two, &rays);
+    }
+    assert!(ties > 500, "only {ties} rays hit");
+}
+
+/// Rotated, scaled, mirrored and moved copies of a soup: every answer agrees with the
+/// oracle on the flattened (world-space) triangles, closest and any hit, and the closest hit
+/// is the flattened BVH's triangle on almost every ray (they differ only where rounding the
+/// map moves a ray across an edge or between near-equal hits).
+#[test]
+fn moved_instances_agree_with_the_oracle_and_their_flattened_copy() {
+    let mut rng = Rng::new(3701);
+    let meshes = vec![
+        Arc::new(soup(&mut rng, 600, 0.2)),
+        Arc::new(soup(&mut rng, 300, 0.4)),
+    ];
+    let maps = [
+        Mat4::from_scale_rotation_translation(
+            Vec3::splat(0.5),
+            Quat::from_rotation_y(0.8),
+            Vec3::new(0.3, 0.1, -0.2),
+        ),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(-1.0, 1.0, 1.0),
+            Quat::from_rotation_x(-0.4),
+            Vec3::new(-0.6, 0.0, 0.5),
+        ),
+        Mat4::from_translation(Vec3::new(0.7, -0.3, 0.9)),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(2.0, 0.7, 1.3),
+            Quat::from_rotation_z(2.1) * Quat::from_rotation_x(0.3),
+            Vec3::new(-1.1, 1.2, 0.0),
+        ),
+    ];
+    let instances = maps
+        .iter()
+        .enumerate()
+        .map(|(i, m)| placed(i as u32 % 2, Affine::from_mat4(m)))
+        .collect();
+    let set = InstanceSet::new(meshes, instances).unwrap();
+    let flat = set.flatten();
+    let rays = random_rays(&mut rng, 3000, &flat);
+    let rob = Robustness::default();
+    let bvh = build(AccelKind::ALL[0], &flat, &BuildOptions::default()).unwrap();
+    let (reference, _) = bvh.trace_batch(&rays, Query::Closest, &rob);
+    let hit = reference.iter().filter(|h| h.is_hit()).count();
+    assert!(hit > 1000, "only {hit} rays hit");
+    for kind in [
+        AccelKind::Bvh(LayoutKind::DfsSign),
+        AccelKind::Bvh(LayoutKind::Cwbvh),
+        AccelKind::KdTree,
+    ] {
+        let name = format!("{kind:?}, moved");
+        let two = two_level(kind, &set);
+        check(&name, &flat, &two, &rays);
+        let (hits, _) = two.trace_batch(&rays, Query::Closest, &rob);
+        let differ = (hits.iter().zip(&reference))
+            .filter(|(a, b)| a.prim != b.prim)
+            .count();
+        println!(
+            "{name}: {differ} of {} rays hit another triangle",
+            rays.len()
+        );
+        assert!(differ * 200 <= rays.len(), "{name}: {differ} differ");
+        for ((r, a), b) in rays.iter().zip(&hits).zip(&reference) {
+            if a.prim == b.prim && a.is_hit() {
+                let rel = (a.t - b.t).abs() / b.t.abs().max(1e-6);
+                assert!(rel < 1e-4, "{name}: {r:?}: t {} against {}", a.t, b.t);
+            }
+        }
+    }
+}
+
+/// A mirrored copy of a single triangle is hit with the same barycentrics as its flattened
+/// copy (corners are not reordered by a mirroring map), and hits are numbered by instance.
+#[test]
+fn hits_are_numbered_by_instance_with_the_same_barycentrics() {
+    let tri = Triangle::new(
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    );
+    let mesh = Arc::new(Mesh::from_triangles(vec![tri, tri]));
+    let mirror = Affine::from_mat4(&Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0)));
+    let far = Affine::translation(Vec3::new(0.0, 0.0, 4.0));
+    let set = InstanceSet::new(
+        vec![mesh],
+        vec![
+            placed(0, far),
+            placed(0, mirror),
+            placed(0, Affine::IDENTITY),
+        ],
+    )
+    .unwrap();
+    assert_eq!(set.first_prims(), [0, 2, 4]);
+    let ray = lancer::geometry::Ray::new(Vec3::new(0.3, -0.2, -5.0), Vec3::Z, 0.0, f32::INFINITY);
+    let flat = set.flatten();
+    let two = two_level(AccelKind::Bvh(LayoutKind::DfsSign), &set);
+    let mut stats = RayStats::default();
+    let got = two.intersect(&ray, Query::Closest, &Robustness::default(), &mut stats);
+    let want = brute_force(&flat, &[ray])[0];
+    assert_eq!(got, want);
+    // The mirror and the identity instance are coincident at z = 0: the mirror (2) wins.
+    assert_eq!(got.prim, 2);
+    assert_eq!(got.t, 5.0);
+    assert!(stats.nodes >= 3 && stats.tris >= 2, "{stats:?}");
+    let any = two.intersect(&ray, Query::Any, &Robustness::default(), &mut stats);
+    assert!(any.is_hit() && judge(&flat, &ray, &got) == Verdict::Agree);
+}
+
+/// A mesh with no usable triangle takes numbers but no place in the top level; one instance
+/// is one leaf; bad instances are refused with what is wrong.
+#[test]
+fn empty_meshes_keep_their_numbers_and_bad_instances_are_refused() {
+    let mut rng = Rng::new(3702);
+    let flat_only = Mesh::from_triangles(vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::X)]);
+    let meshes = vec![Arc::new(flat_only), Arc::new(soup(&mut rng, 100, 0.3))];
+    let instances = vec![
+        placed(1, Affine::IDENTITY),
+        placed(0, Affine::IDENTITY),
+        placed(1, Affine::translation(Vec3::splat(3.0))),
+    ];
+    let set = InstanceSet::new(meshes.clone(), instances).unwrap();
+    assert_eq!(set.first_prims(), [0, 100, 101]);
+    let two = two_level(AccelKind::Bvh(LayoutKind::Bvh8), &set);
+    assert_eq!((two.placed_instances(), two.top_nodes()), (2, 3));
+    let flat = set.flatten();
+    let rays = random_rays(&mut rng, 500, &flat);
+    check("instances after an empty mesh", &flat, &two, &rays);
+    let (hits, _) = two.trace_batch(&rays, Query::Closest, &Robustness::default());
+    assert!(hits.iter().any(|h| h.prim > 100) && hits.iter().any(|h| h.prim < 100));
+
+    let refused = |instances: Vec<Instance>| {
+        InstanceSet::new(meshes.clone(), instances)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    };
+    assert!(refused(vec![placed(2, Affine::IDENTITY)]).contains("places mesh 2 of 2"));
+    let singular = Affine::from_mat4(&Mat4::from_scale(Vec3::new(1.0, 0.0, 1.0)));
+    assert!(refused(vec![placed(0, singular)]).contains("not finite and invertible"));
+    let mut nan = Affine::IDENTITY;
+    nan.rows[2][3] = f32::NAN;
+    assert!(refused(vec![placed(1, Affine::IDENTITY), placed(1, nan)]).contains("instance 1"));
+    // A scene with nothing to hit misses everything.
+    let empty = InstanceSet::new(meshes, vec![placed(0, Affine::IDENTITY)]).unwrap();
+    let two = two_level(AccelKind::Bvh(LayoutKind::DfsSign), &empty);
+    let (hits, _) = two.trace_batch(&rays, Query::Closest, &Robustness::default());
+    assert!(hits.iter().all(|h| *h == Hit::miss(h.t) && !h.is_hit()));
+}
