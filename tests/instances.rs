@@ -2,22 +2,25 @@
 //! flattened copy does — bit for bit where the maps are exact (identity), judged by the f64
 //! oracle on the world-space triangles where they round (rotations, scales, mirrors) — with
 //! every structure of the registry and every BVH layout as the bottom level, the tie rule
-//! kept across instances, and bad instances refused.
+//! kept across instances, and bad instances refused; the top level's WGSL on the GPU equals
+//! its CPU twin bit for bit with every layout.
 
 mod common;
 
 use std::sync::Arc;
 
 use common::accel_check::{brute_force, check};
+use common::gpu_device;
+use common::gpu_twin::{bits, cpu_device, same_on_gpu};
 use common::{random_rays, soup, Rng};
 use glam::{Mat4, Quat, Vec3};
 use lancer::accel::bvh::BuildOptions;
-use lancer::accel::instances::{Affine, Instance, InstanceSet, TwoLevel};
-use lancer::accel::{build, Accel, AccelKind};
+use lancer::accel::instances::{Affine, GpuTwoLevel, Instance, InstanceSet, TwoLevel};
+use lancer::accel::{build, Accel, AccelKind, GpuForm};
 use lancer::geometry::{Hit, Triangle};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, Verdict};
-use lancer::{LayoutKind, Query, RayStats, Robustness};
+use lancer::{LayoutKind, Query, RayStats, Robustness, Tracer, TracerOptions};
 
 /// Every bottom level: each structure of the registry, and the BVH in every layout.
 fn every_bottom() -> Vec<AccelKind> {
@@ -214,4 +217,89 @@ fn empty_meshes_keep_their_numbers_and_bad_instances_are_refused() {
     let two = two_level(AccelKind::Bvh(LayoutKind::DfsSign), &empty);
     let (hits, _) = two.trace_batch(&rays, Query::Closest, &Robustness::default());
     assert!(hits.iter().all(|h| *h == Hit::miss(h.t) && !h.is_hit()));
+}
+
+/// The top level's WGSL against its CPU twin, bit for bit (hits and work counted, both BVH
+/// memories, closest and any hit), with every layout as the bottom level: moved, rotated,
+/// scaled and mirrored instances of two meshes, and duplicates at the identity (exact ties
+/// across instances).
+#[test]
+fn gpu_two_level_equals_its_cpu_twin_with_every_layout() {
+    let mut rng = Rng::new(3703);
+    let meshes = vec![
+        Arc::new(soup(&mut rng, 300, 0.25)),
+        Arc::new(soup(&mut rng, 200, 0.4)),
+    ];
+    let maps = [
+        Affine::IDENTITY,
+        Affine::from_mat4(&Mat4::from_scale_rotation_translation(
+            Vec3::new(-0.7, 0.7, 0.7),
+            Quat::from_rotation_y(0.8),
+            Vec3::new(0.4, 0.1, -0.3),
+        )),
+        Affine::IDENTITY,
+        Affine::from_mat4(&Mat4::from_scale_rotation_translation(
+            Vec3::new(1.5, 0.6, 1.1),
+            Quat::from_rotation_z(2.1) * Quat::from_rotation_x(0.3),
+            Vec3::new(-0.9, 0.8, 0.2),
+        )),
+    ];
+    let instances = [(0, 0), (1, 1), (0, 2), (1, 3), (1, 0)]
+        .map(|(m, a)| placed(m, maps[a]))
+        .to_vec();
+    let set = InstanceSet::new(meshes, instances).unwrap();
+    let flat = set.flatten();
+    let rays = random_rays(&mut rng, 1500, &flat);
+    for &layout in LayoutKind::ALL {
+        let two = GpuTwoLevel::build(layout, &set, &BuildOptions::default()).unwrap();
+        let tree: Arc<dyn GpuForm> = Arc::new(two);
+        let [closest, _] = same_on_gpu(
+            &format!("two-level {layout}"),
+            &tree,
+            &rays,
+            Robustness::default(),
+        );
+        let hits = closest.iter().filter(|h| h.is_hit()).count();
+        assert!(hits > 500, "{layout}: only {hits} hits");
+        for (r, h) in rays.iter().zip(&closest) {
+            let v = judge(&flat, r, h);
+            assert!(
+                !matches!(v, Verdict::Wrong(_)),
+                "{layout}: {r:?}: {h:?}: {v:?}"
+            );
+        }
+    }
+}
+
+/// The library's way in: a `Tracer` over instances, on the CPU and the GPU, answers as the
+/// flattened scene's tracer does at the identity (bit for bit), in the default layouts.
+#[test]
+fn tracers_over_instances_answer_as_over_the_flattened_scene() {
+    let mut rng = Rng::new(3704);
+    let meshes = vec![Arc::new(soup(&mut rng, 500, 0.3))];
+    let instances = [0, 0, 0].map(|m| placed(m, Affine::IDENTITY)).to_vec();
+    let set = InstanceSet::new(meshes, instances).unwrap();
+    let flat = set.flatten();
+    let rays = random_rays(&mut rng, 1000, &flat);
+    let want = brute_force(&flat, &rays);
+    let options = TracerOptions {
+        stats: true,
+        ..TracerOptions::default()
+    };
+    for device in [cpu_device(), gpu_device()] {
+        let mut two = Tracer::with_instances(device, &set, &options).unwrap();
+        let mut one = Tracer::new(device, &flat, &options).unwrap();
+        let got = two.trace(&rays, Query::Closest).unwrap();
+        let flat_hits = one.trace(&rays, Query::Closest).unwrap().hits;
+        assert_eq!(got.cpu_retraced, 0);
+        for (i, ((a, b), w)) in got.hits.iter().zip(&flat_hits).zip(&want).enumerate() {
+            assert!(
+                bits(a) == bits(w) && bits(b) == bits(w),
+                "ray {i}: {a:?} {b:?} {w:?}"
+            );
+        }
+        // Every hit is on the first copy: the tie rule across instances.
+        assert!(got.hits.iter().all(|h| !h.is_hit() || h.prim < 500));
+        assert!(got.stats.unwrap().iter().any(|s| s.nodes > 3));
+    }
 }

@@ -260,7 +260,7 @@ fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>) {
     }
 }
 
-// The integrator is resumable, so that every lane calls traverse() at the same time (a
+// The integrator is resumable, so that every lane calls trace_ray() at the same time (a
 // subgroup traversal walks with all the lanes of its subgroup): it runs CpuRenderer::sample
 // up to the next ray that function traces, leaves that ray in `query` and where to go on in
 // `step`, and the step functions below go on from there with the ray's hit (sample_alone
@@ -524,7 +524,7 @@ fn emitter_hit(hit: Hit) {
 
 // Traces `query`, noting a traversal the driver cut short.
 fn trace_query(any_hit: bool) -> Hit {
-    let hit = traverse(query, any_hit);
+    let hit = trace_ray(query, any_hit);
     sample_incomplete = sample_incomplete || !traversal_done;
     return hit;
 }
@@ -575,7 +575,7 @@ fn sample_together() {
         if has_ray {
             r = query;
         }
-        let hit = traverse(r, step != STEP_PATH);
+        let hit = trace_ray(r, step != STEP_PATH);
         sample_incomplete = sample_incomplete || (has_ray && !traversal_done);
         let traced = step;
         if lanes_any(traced == STEP_PATH) && traced == STEP_PATH {

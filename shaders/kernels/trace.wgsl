@@ -1,5 +1,6 @@
-// Closest-hit / any-hit trace kernel: one ray per invocation through the layout's traverse()
-// (its per-ray traversal, or its subgroup traversal: gpu::shaders::trace_subgroup_source).
+// Closest-hit / any-hit trace kernel: one ray per invocation through trace_ray(): the form's
+// traverse() (its per-ray traversal, or its subgroup traversal:
+// gpu::shaders::trace_subgroup_source), or a two-level form's walk of its top level.
 // Variants are override constants of this one source, never copies.
 
 override ANY_HIT: bool = false;          // Query::Any: stop at the first hit
@@ -22,7 +23,7 @@ struct Params {
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
-    // Every invocation calls traverse(), those past the last ray with an invalid one (a
+    // Every invocation calls trace_ray(), those past the last ray with an invalid one (a
     // miss at once), so a subgroup traversal (Layout::subgroup_wgsl) keeps all its lanes.
     let live = gid.x < params.count;
     let ri = params.offset + gid.x;
@@ -32,7 +33,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         let b = rays[2u * ri + 1u];
         r = Ray(a.xyz, a.w, b.xyz, b.w);
     }
-    var h = traverse(r, ANY_HIT);
+    var h = trace_ray(r, ANY_HIT);
     if !live {
         return;
     }

@@ -17,18 +17,40 @@ override BVH_TEXTURES: bool = false;
 @group(0) @binding(BINDING_NODE_TEXELS) var node_texels: texture_storage_2d<rgba32uint, read>;
 @group(0) @binding(BINDING_TRI_TEXELS) var tri_texels: texture_storage_2d<rgba32uint, read>;
 
-fn node_word(i: u32) -> vec4<u32> {
+// Two-level scenes (accel::instances): the bottom levels' arrays lie one after another in
+// the node and triangle arrays, the top level's after them. The top level's walk sets the
+// offsets of the bottom level it enters; a layout's traversal reads its own words through
+// node_word and tri_word as always. Compiled out (INSTANCES false) in a one-level scene.
+override INSTANCES: bool = false;
+var<private> bottom_node_base: u32;  // in words
+var<private> bottom_tri_base: u32;   // in words
+// The prune bound of the last hit a leaf step took (hit_prune): the top level carries it on.
+var<private> taken_prune: f32;
+
+// Word i of the node array as a whole (the top level's reads).
+fn array_node_word(i: u32) -> vec4<u32> {
     if BVH_TEXTURES {
         return textureLoad(node_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
     }
     return node_words[i];
 }
 
-fn tri_word(i: u32) -> vec4<u32> {
-    if BVH_TEXTURES {
-        return textureLoad(tri_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
+fn node_word(i: u32) -> vec4<u32> {
+    if INSTANCES {
+        return array_node_word(i + bottom_node_base);
     }
-    return tri_words[i];
+    return array_node_word(i);
+}
+
+fn tri_word(i: u32) -> vec4<u32> {
+    var j = i;
+    if INSTANCES {
+        j += bottom_tri_base;
+    }
+    if BVH_TEXTURES {
+        return textureLoad(tri_texels, vec2<u32>(j % TEXEL_ROW, j / TEXEL_ROW));
+    }
+    return tri_words[j];
 }
 
 // accel::LeafTri: vertices, original triangle index in v0's w slot.
@@ -60,6 +82,9 @@ fn test_tri(tri: Tri, r: Ray, w: Watertight, best: ptr<function, Hit>,
         && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
         *best = Hit(h.t, tri.prim, h.u, h.v);
         *prune = hit_prune(h);
+        if INSTANCES {
+            taken_prune = *prune;
+        }
         return true;
     }
     return false;

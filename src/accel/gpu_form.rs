@@ -54,6 +54,13 @@ pub trait GpuForm: Accel {
         None
     }
 
+    /// Whether its WGSL defines the kernels' `trace_ray(r: Ray, any_hit: bool) -> Hit` itself
+    /// (a two-level form, walking its top level over the bottom level's `traverse`);
+    /// otherwise the kernels' `trace_ray` is its `traverse`.
+    fn defines_trace_ray(&self) -> bool {
+        false
+    }
+
     /// Override constants its WGSL declares, with their values for this instance.
     fn overrides(&self) -> Vec<(&'static str, f64)> {
         Vec::new()

@@ -1,7 +1,9 @@
 //! Geometric primitives shared by the builders, the CPU tracers and (by layout) the GPU:
-//! boxes, rays, hits, triangle tests and the robustness settings.
+//! boxes, rays, hits, triangle tests, the robustness settings and the affine maps that place
+//! instances.
 
 mod aabb;
+mod affine;
 mod clip;
 mod hit;
 mod ray;
@@ -13,6 +15,7 @@ mod triangle_f64;
 mod vector;
 
 pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
+pub use affine::Affine;
 pub(crate) use clip::{chopped_bounds, clip_bounds, clipped_area, covered};
 pub use hit::{Hit, MISS};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};

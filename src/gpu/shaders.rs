@@ -101,13 +101,30 @@ pub fn trace_subgroup_source(layout: &dyn GpuForm) -> Option<String> {
     subgroup_kernel_source(layout, TRACE)
 }
 
+/// The kernels trace through `trace_ray`: a one-level form's own traversal, unless the form
+/// defines it ([`GpuForm::defines_trace_ray`]: a two-level form walks its top level).
+const TRACE_RAY: &str = "fn trace_ray(r: Ray, any_hit: bool) -> Hit {
+    return traverse(r, any_hit);
+}
+";
+
+/// [`TRACE_RAY`] where the form does not define `trace_ray` itself.
+fn trace_ray(layout: &dyn GpuForm) -> &'static str {
+    if layout.defines_trace_ray() {
+        ""
+    } else {
+        TRACE_RAY
+    }
+}
+
 /// The prelude, the shared library, the subgroup helpers, a GPU form's subgroup traversal
 /// and then `kernel`; None when the form has no subgroup traversal.
 pub fn subgroup_kernel_source(layout: &dyn GpuForm, kernel: &str) -> Option<String> {
     let traversal = layout.subgroup_wgsl()?;
     Some(format!(
-        "{}\n{SUBGROUP}\n{traversal}\n{kernel}",
-        library_source()
+        "{}\n{SUBGROUP}\n{traversal}\n{}\n{kernel}",
+        library_source(),
+        trace_ray(layout)
     ))
 }
 
@@ -122,7 +139,12 @@ pub fn driver_trace_source() -> String {
 
 /// The prelude, the shared library, a GPU form's traversal and then `kernel`.
 pub fn kernel_source(layout: &dyn GpuForm, kernel: &str) -> String {
-    format!("{}\n{}\n{kernel}", library_source(), layout.wgsl())
+    format!(
+        "{}\n{}\n{}\n{kernel}",
+        library_source(),
+        layout.wgsl(),
+        trace_ray(layout)
+    )
 }
 
 /// Every trace kernel's full source for a GPU form, by name, the subgroup kernel included

@@ -6,6 +6,7 @@ mod format;
 mod gltf;
 mod gltf_check;
 mod indexed;
+mod instanced;
 mod load;
 mod mtl;
 mod obj;
@@ -16,6 +17,7 @@ mod ply_layout;
 
 pub use format::{FileKind, KNOWN_EXTENSIONS};
 pub use gltf::{load_gltf, GltfImage, GltfMaterial, GltfScene};
+pub use instanced::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};
 pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};
 pub use obj::{load_obj, load_obj_scene, ObjScene};
 pub use ply::load_ply;

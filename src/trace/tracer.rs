@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use crate::accel::bvh::layouts::{self, LayoutKind};
 use crate::accel::bvh::{self, BuildOptions};
+use crate::accel::instances::{GpuTwoLevel, InstanceSet};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::accel::{self, Accel, AccelKind, Query, RayStats};
@@ -132,6 +133,29 @@ impl<'d> Tracer<'d> {
         };
         tracer.resolve_mode();
         Ok(tracer)
+    }
+
+    /// Builds a two-level structure over meshes placed by instances
+    /// ([`accel::instances`]): each mesh's BVH flattened into `options.layout` (None: the
+    /// device's default), a top-level BVH over the instances, uploaded when the device is a
+    /// GPU. Hits are numbered as in [`InstanceSet::flatten`]'s mesh.
+    pub fn with_instances(
+        device: &'d Device,
+        set: &InstanceSet,
+        options: &TracerOptions,
+    ) -> Result<Self> {
+        let start = std::time::Instant::now();
+        let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
+        let two = GpuTwoLevel::build(kind, set, &options.build)?;
+        log::info!(
+            "{} meshes built ({}) and flattened into {kind}, top level over {} instances, in \
+             {:.0} ms",
+            set.meshes.len(),
+            options.build.builder.name(),
+            set.instances.len(),
+            start.elapsed().as_secs_f64() * 1e3
+        );
+        Self::with_layout(device, Arc::new(two), options)
     }
 
     /// A tracer over an already flattened layout (`options.build` and `options.layout` are

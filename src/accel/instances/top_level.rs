@@ -8,8 +8,9 @@ use crate::accel::bvh::layouts::{dfs_nodes, DfsNode};
 use crate::accel::bvh::{self, BuildOptions};
 use crate::geometry::Aabb;
 
-/// One instance as the top level reads it, 64 bytes: the map into its object space, its
-/// first triangle index, its mesh (bottom level) and its position in the set.
+/// One instance as the top level reads it, 64 bytes (WGSL: four words read by
+/// `top_entry` in two_level.wgsl): the map into its object space, its first triangle index,
+/// its mesh (bottom level) and where that bottom level's arrays start on the GPU.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct TopEntry {
@@ -19,10 +20,10 @@ pub(crate) struct TopEntry {
     pub first_prim: u32,
     /// Index of its mesh and bottom level.
     pub mesh: u32,
-    /// Index of the instance in [`InstanceSet::instances`].
-    pub instance: u32,
-    /// Padding (zero).
-    pub pad: u32,
+    /// First 16-byte word of its bottom level's nodes in the GPU node array.
+    pub node_base: u32,
+    /// First 16-byte word of its bottom level's triangles in the GPU triangle array.
+    pub tri_base: u32,
 }
 
 /// The top-level tree: dfs-sign nodes whose leaves refer to ranges of `entries`.
@@ -68,8 +69,8 @@ impl TopLevel {
                     to_object: inst.to_world.inverse().unwrap_or(Affine::IDENTITY),
                     first_prim: firsts[i as usize],
                     mesh: inst.mesh,
-                    instance: i,
-                    pad: 0,
+                    node_base: 0,
+                    tri_base: 0,
                 }
             })
             .collect();

@@ -19,9 +19,12 @@ use crate::mesh::Mesh;
 /// nodes (the far child stacked, the near one by the ray's sign on the split axis), moves
 /// the ray into each instance's object space and continues the trace in its mesh's bottom
 /// level, numbering hits as the flattened scene does ([`InstanceSet::flatten`]).
-pub struct TwoLevel {
-    top: TopLevel,
-    bottoms: Vec<Box<dyn Accel>>,
+///
+/// `B` is the bottom levels' type: any structure (`dyn Accel`), or a GPU form for the
+/// two-level GPU form ([`GpuTwoLevel`](super::GpuTwoLevel)), whose CPU twin this is.
+pub struct TwoLevel<B: Accel + ?Sized = dyn Accel> {
+    pub(super) top: TopLevel,
+    pub(super) bottoms: Vec<Box<B>>,
     meshes: Vec<Arc<Mesh>>,
 }
 
@@ -35,11 +38,21 @@ impl TwoLevel {
         set: &InstanceSet,
         options: &BuildOptions,
     ) -> crate::Result<TwoLevel> {
+        TwoLevel::over(set, |m| crate::accel::build(kind, m, options), options)
+    }
+}
+
+impl<B: Accel + ?Sized> TwoLevel<B> {
+    /// The top level over `set`'s instances and the bottom levels `bottom(mesh)` made for
+    /// each of its meshes, after [`InstanceSet::new`]'s checks.
+    pub(super) fn over(
+        set: &InstanceSet,
+        bottom: impl Fn(&Mesh) -> crate::Result<Box<B>>,
+        options: &BuildOptions,
+    ) -> crate::Result<TwoLevel<B>> {
         let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
-        let bottoms = set
-            .meshes
-            .iter()
-            .map(|m| crate::accel::build(kind, m, options))
+        let bottoms = (set.meshes.iter())
+            .map(|m| bottom(m))
             .collect::<crate::Result<Vec<_>>>()?;
         let bounds: Vec<Aabb> = bottoms.iter().map(|b| b.bounds()).collect();
         let top = TopLevel::build(&set, &bounds, options);
@@ -81,7 +94,7 @@ fn prune_after(tri: &Triangle, ray: &Ray, robustness: &Robustness, t: f32) -> f3
     h.map_or(prune_bound(t), |h| h.prune())
 }
 
-impl Accel for TwoLevel {
+impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
     fn bounds(&self) -> Aabb {
         self.top.bounds()
     }

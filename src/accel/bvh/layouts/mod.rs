@@ -58,7 +58,7 @@ pub use bvh2_wide_node::Bvh2WideNode;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
-pub(crate) use dfs_sign::{dfs_nodes, DfsNode, DfsNodeRay};
+pub(crate) use dfs_sign::{dfs_nodes, DfsNode, DfsNodeRay, LEAF_TAG as DFS_LEAF_TAG};
 pub use threaded::Threaded;
 pub use wide_bvh::{Bvh4, Bvh8, WideBvh};
 

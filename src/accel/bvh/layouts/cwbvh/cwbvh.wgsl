@@ -40,6 +40,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                     && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
                     best = Hit(h.t, tri.prim, h.u, h.v);
                     prune = hit_prune(h);
+                    if INSTANCES {
+                        taken_prune = prune;
+                    }
                     if any_hit {
                         stop = true;
                         break;

@@ -1,9 +1,9 @@
-//! An instance's placement: an affine map as three rows of four f32 (48 bytes, the form a
+//! An instance's placement (`accel::instances`): an affine map as three rows of four f32 (48 bytes, the form a
 //! GPU reads too), applied in a fixed operation order so that every device rounds alike.
 
 use glam::{DMat3, DVec3, Mat4, Vec3};
 
-use crate::geometry::{Aabb, Ray};
+use super::{Aabb, Ray};
 
 /// An affine map x' = A·x + b as three rows `[a0, a1, a2, b]`.
 #[repr(C)]

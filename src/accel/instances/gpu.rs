@@ -1,0 +1,286 @@
+//! The two-level structure's GPU form: every mesh's bottom level flattened into one BVH
+//! layout, their arrays one after another, the top level's nodes and entries after the
+//! bottom levels' nodes; `two_level.wgsl` walks the top level and calls the layout's own
+//! `traverse` for each instance. Its CPU twin is [`TwoLevel`] over the same layouts.
+
+use super::top_level::TopEntry;
+use super::{InstanceSet, TwoLevel};
+use crate::accel::bvh::layouts::{self, DfsNode, LayoutKind, DFS_LEAF_TAG};
+use crate::accel::bvh::{self, BuildOptions, MAX_DEPTH};
+use crate::accel::{Accel, GpuArrays, GpuForm, Query, RayStats};
+use crate::geometry::{Aabb, Hit, Ray, Robustness};
+
+/// Bytes of one 16-byte word of the GPU arrays.
+const WORD: usize = 16;
+
+/// A two-level structure on the GPU: bottom levels in one BVH layout, a top-level BVH
+/// over the instances. Its [`Accel`] is the CPU twin of its WGSL.
+pub struct GpuTwoLevel {
+    twin: TwoLevel<dyn GpuForm>,
+    layout: LayoutKind,
+    /// The bottom layout's traversal.
+    bottom_wgsl: String,
+    /// The bottom levels' nodes, then the top level's nodes, then its entries.
+    nodes: Vec<u8>,
+    /// The bottom levels' triangles.
+    tris: Vec<u8>,
+    /// First word of the top level's nodes, and of its entries, in `nodes`.
+    top_node_base: u32,
+    top_entry_base: u32,
+}
+
+impl GpuTwoLevel {
+    /// Builds each of `set`'s meshes with `options` and flattens it into `layout`, then the
+    /// top level over the instances (as [`TwoLevel::build`]), and lays out the GPU arrays.
+    /// Refused as [`InstanceSet::new`] refuses, or as
+    /// [`layouts::try_flatten`] refuses a mesh.
+    pub fn build(
+        layout: LayoutKind,
+        set: &InstanceSet,
+        options: &BuildOptions,
+    ) -> crate::Result<GpuTwoLevel> {
+        let bottom = |m: &crate::mesh::Mesh| -> crate::Result<Box<dyn GpuForm>> {
+            layouts::try_flatten_owned(layout, bvh::build(m, options), m)
+        };
+        let mut twin = TwoLevel::over(set, bottom, options)?;
+        let Some(bottom_wgsl) = twin.bottoms.first().map(|b| b.wgsl()) else {
+            return Err(crate::Error::Usage(
+                "an instanced scene needs at least one mesh".into(),
+            ));
+        };
+        let (mut nodes, mut tris) = (Vec::new(), Vec::new());
+        let mut bases = Vec::with_capacity(twin.bottoms.len());
+        for b in &twin.bottoms {
+            let a = b.arrays();
+            bases.push(((nodes.len() / WORD) as u32, (tris.len() / WORD) as u32));
+            nodes.extend_from_slice(a.nodes);
+            tris.extend_from_slice(a.tris);
+        }
+        for e in &mut twin.top.entries {
+            (e.node_base, e.tri_base) = bases[e.mesh as usize];
+        }
+        let top_node_base = (nodes.len() / WORD) as u32;
+        nodes.extend_from_slice(bytemuck::cast_slice(&twin.top.nodes));
+        let top_entry_base = (nodes.len() / WORD) as u32;
+        nodes.extend_from_slice(bytemuck::cast_slice(&twin.top.entries));
+        if tris.is_empty() {
+            // Every array is bound, so none may be empty (no triangle is ever read).
+            tris.resize(3 * WORD, 0);
+        }
+        Ok(GpuTwoLevel {
+            twin,
+            layout,
+            bottom_wgsl,
+            nodes,
+            tris,
+            top_node_base,
+            top_entry_base,
+        })
+    }
+
+    /// The top level's structure: children forward and in range, depth within the stack,
+    /// every node reached once, leaves within the entries, each entry once; every box
+    /// holds its children's; entries name a bottom level and its arrays' offsets.
+    fn check_top(&self) -> Result<(), String> {
+        let (nodes, entries) = (&self.twin.top.nodes, &self.twin.top.entries);
+        if nodes.is_empty() {
+            return match entries.is_empty() {
+                true => Ok(()),
+                false => Err("top level has entries but no nodes".into()),
+            };
+        }
+        let mut seen_entries = vec![false; entries.len()];
+        let mut stack = vec![(0usize, 0usize, nodes.len())];
+        let mut seen = 0usize;
+        while let Some((i, depth, end)) = stack.pop() {
+            seen += 1;
+            if depth > MAX_DEPTH {
+                return Err(format!("top node {i} is at depth {depth} > {MAX_DEPTH}"));
+            }
+            let n: &DfsNode = &nodes[i];
+            if n.is_leaf() {
+                let (first, count) = (n.a as usize, n.count() as usize);
+                let Some(leaf) = seen_entries.get_mut(first..first + count) else {
+                    return Err(format!("top leaf {i} refers to entries past the end"));
+                };
+                if leaf.iter().any(|&s| s) {
+                    return Err(format!(
+                        "top leaf {i} refers to an entry another leaf holds"
+                    ));
+                }
+                leaf.fill(true);
+                continue;
+            }
+            let second = n.a as usize;
+            if i + 1 >= second || second >= end {
+                return Err(format!(
+                    "top node {i} has second child {second} outside {}..{end}",
+                    i + 2
+                ));
+            }
+            for c in [i + 1, second] {
+                if !n.bbox().contains(&nodes[c].bbox()) {
+                    return Err(format!("top node {i} does not hold its child {c}"));
+                }
+            }
+            stack.push((i + 1, depth + 1, second));
+            stack.push((second, depth + 1, end));
+        }
+        if seen != nodes.len() || seen_entries.contains(&false) {
+            return Err("top level has unreachable nodes or entries".into());
+        }
+        let mut base = (0u32, 0u32);
+        let mut bases = Vec::new();
+        for b in &self.twin.bottoms {
+            bases.push(base);
+            let a = b.arrays();
+            base.0 += (a.nodes.len() / WORD) as u32;
+            base.1 += (a.tris.len() / WORD) as u32;
+        }
+        for (k, e) in entries.iter().enumerate() {
+            let TopEntry {
+                mesh,
+                node_base,
+                tri_base,
+                ..
+            } = *e;
+            if bases.get(mesh as usize) != Some(&(node_base, tri_base)) {
+                return Err(format!(
+                    "top entry {k} names mesh {mesh} at offsets it does not have"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Accel for GpuTwoLevel {
+    fn bounds(&self) -> Aabb {
+        self.twin.bounds()
+    }
+
+    fn intersect(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        self.twin.intersect(ray, query, robustness, stats)
+    }
+}
+
+impl GpuForm for GpuTwoLevel {
+    fn name(&self) -> &'static str {
+        self.layout.name()
+    }
+
+    fn arrays(&self) -> GpuArrays<'_> {
+        GpuArrays {
+            nodes: &self.nodes,
+            tris: &self.tris,
+        }
+    }
+
+    /// The bottom layout's traversal, then the top level's walk (`trace_ray`).
+    fn wgsl(&self) -> String {
+        format!(
+            "{}\nconst TOP_LEAF_TAG: u32 = {DFS_LEAF_TAG}u;\n{}",
+            self.bottom_wgsl,
+            include_str!("two_level.wgsl")
+        )
+    }
+
+    fn defines_trace_ray(&self) -> bool {
+        true
+    }
+
+    fn overrides(&self) -> Vec<(&'static str, f64)> {
+        vec![
+            ("INSTANCES", 1.0),
+            ("TOP_NODE_BASE", self.top_node_base as f64),
+            ("TOP_ENTRY_BASE", self.top_entry_base as f64),
+        ]
+    }
+
+    /// Every bottom level's own checks, then the top level's ([`GpuTwoLevel::check_top`]).
+    fn validate(&self) -> Result<(), String> {
+        for (m, b) in self.twin.bottoms.iter().enumerate() {
+            b.validate().map_err(|e| format!("mesh {m}: {e}"))?;
+        }
+        self.check_top()
+    }
+
+    fn node_bytes(&self) -> usize {
+        self.twin.bottoms.first().map_or(32, |b| b.node_bytes())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{offset_of, size_of};
+    use std::sync::Arc;
+
+    use glam::Vec3;
+
+    use super::*;
+    use crate::accel::instances::{Affine, Instance};
+    use crate::geometry::Triangle;
+    use crate::mesh::Mesh;
+
+    /// two_level.wgsl reads an entry as four words: three map rows, then (first_prim, mesh,
+    /// node_base, tri_base).
+    #[test]
+    fn entry_words_are_where_the_wgsl_reads_them() {
+        assert_eq!(size_of::<TopEntry>(), 4 * WORD);
+        assert_eq!(offset_of!(TopEntry, to_object), 0);
+        assert_eq!(offset_of!(TopEntry, first_prim), 3 * WORD);
+        assert_eq!(offset_of!(TopEntry, mesh), 3 * WORD + 4);
+        assert_eq!(offset_of!(TopEntry, node_base), 3 * WORD + 8);
+        assert_eq!(offset_of!(TopEntry, tri_base), 3 * WORD + 12);
+        assert_eq!(size_of::<DfsNode>(), 2 * WORD);
+    }
+
+    fn two_meshes_three_instances() -> GpuTwoLevel {
+        let tri = |z: f32| Triangle::new(Vec3::new(0.0, 0.0, z), Vec3::X, Vec3::Y);
+        let meshes = vec![
+            Arc::new(Mesh::from_triangles(vec![tri(0.0), tri(1.0)])),
+            Arc::new(Mesh::from_triangles(vec![tri(0.5)])),
+        ];
+        let at = |mesh, x| Instance {
+            mesh,
+            to_world: Affine::translation(Vec3::new(x, 0.0, 0.0)),
+        };
+        let set = InstanceSet::new(meshes, vec![at(0, 0.0), at(1, 2.0), at(0, 4.0)]).unwrap();
+        GpuTwoLevel::build(LayoutKind::DfsSign, &set, &BuildOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn validate_names_a_broken_top_level() {
+        let good = two_meshes_three_instances();
+        assert_eq!(good.validate(), Ok(()));
+        assert_eq!(good.twin.top.entries.len(), 3);
+        let mut bad = two_meshes_three_instances();
+        bad.twin.top.entries[1].node_base += 1;
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("offsets it does not have"));
+        let mut bad = two_meshes_three_instances();
+        bad.twin.top.nodes[0].lo[0] += 1.0;
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("does not hold its child"));
+        let mut bad = two_meshes_three_instances();
+        let leaf = bad
+            .twin
+            .top
+            .nodes
+            .iter()
+            .rposition(|n| n.is_leaf())
+            .unwrap();
+        bad.twin.top.nodes[leaf].a = 7;
+        assert!(bad.validate().unwrap_err().contains("past the end"));
+    }
+}

@@ -1,0 +1,102 @@
+// The top level over instances (accel::instances), walked as dfs-sign walks its nodes: the
+// far child stacked, the near one by the ray's sign on the split axis. At an instance the ray
+// moves into object space and the bottom level's traverse() continues the trace in its own
+// arrays (bottom_node_base, bottom_tri_base). The CPU twin is two_level.rs
+// (TwoLevel::intersect), step for step. TOP_LEAF_TAG is generated from the Rust LEAF_TAG.
+
+override TOP_NODE_BASE: u32 = 0u;   // first word of the top level's dfs nodes
+override TOP_ENTRY_BASE: u32 = 0u;  // first word of its entries (top_level.rs TopEntry)
+
+// Affine::point and Affine::vector, in the same operation order, unfused.
+fn top_point(m0: vec4<f32>, m1: vec4<f32>, m2: vec4<f32>, p: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(m0.x * p.x + m0.y * p.y + m0.z * p.z + m0.w,
+                     m1.x * p.x + m1.y * p.y + m1.z * p.z + m1.w,
+                     m2.x * p.x + m2.y * p.y + m2.z * p.z + m2.w);
+}
+
+fn top_vector(m0: vec4<f32>, m1: vec4<f32>, m2: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(m0.x * v.x + m0.y * v.y + m0.z * v.z,
+                     m1.x * v.x + m1.y * v.y + m1.z * v.z,
+                     m2.x * v.x + m2.y * v.y + m2.z * v.z);
+}
+
+// The kernels' trace: closest hit in [tmin, tmax] over every instance, or with any_hit the
+// first hit met. Work counters and traversal_done cover both levels.
+fn trace_ray(r: Ray, any_hit: bool) -> Hit {
+    var best = Hit(r.tmax, MISS, 0.0, 0.0);
+    var nodes = 0u;
+    var tris = 0u;
+    var done = true;
+    if traversal_start(ray_is_valid(r)) {
+        let inv = safe_recip3(r.dir);
+        var prune = prune_bound(best.t);
+        var stack: array<u32, STACK_SIZE>;
+        var sp = 0u;
+        var idx = 0u;
+        loop {
+            let na = array_node_word(TOP_NODE_BASE + 2u * idx);
+            let nb = array_node_word(TOP_NODE_BASE + 2u * idx + 1u);
+            nodes += 1u;
+            var descended = false;
+            if slab_hit(bitcast<vec3<f32>>(na.xyz), bitcast<vec3<f32>>(nb.xyz), r.origin, inv,
+                        r.tmin, prune) {
+                if (nb.w & 3u) != TOP_LEAF_TAG {
+                    var near = idx + 1u;
+                    var far = na.w;
+                    if r.dir[nb.w & 3u] < 0.0 {
+                        near = na.w;
+                        far = idx + 1u;
+                    }
+                    stack[sp] = far;
+                    sp += 1u;
+                    idx = near;
+                    descended = true;
+                } else {
+                    let end = na.w + (nb.w >> 2u);
+                    for (var k = na.w; k < end; k += 1u) {
+                        let e = TOP_ENTRY_BASE + 4u * k;
+                        let m0 = bitcast<vec4<f32>>(array_node_word(e));
+                        let m1 = bitcast<vec4<f32>>(array_node_word(e + 1u));
+                        let m2 = bitcast<vec4<f32>>(array_node_word(e + 2u));
+                        let ids = array_node_word(e + 3u);  // first_prim, mesh, node_base, tri_base
+                        bottom_node_base = ids.z;
+                        bottom_tri_base = ids.w;
+                        var local = Ray(top_point(m0, m1, m2, r.origin), r.tmin,
+                                        top_vector(m0, m1, m2, r.dir), r.tmax);
+                        if best.prim != MISS {
+                            local.tmax = prune;
+                        }
+                        let h = traverse(local, any_hit);
+                        nodes += n_nodes;
+                        tris += n_tris;
+                        done = done && traversal_done;
+                        let prim = ids.x + h.prim;
+                        if h.prim != MISS && beats(h.t, prim, best.t, best.prim) {
+                            best = Hit(h.t, prim, h.u, h.v);
+                            prune = taken_prune;
+                            if any_hit {
+                                // Answered: empty the stack, the pop below ends the walk.
+                                sp = 0u;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+            if !descended {
+                if sp == 0u {
+                    traversal_end(bitcast<u32>(r.tmax));
+                    break;
+                }
+                sp -= 1u;
+                idx = stack[sp];
+            }
+        }
+    }
+    if COUNT_STATS {
+        n_nodes = nodes;
+        n_tris = tris;
+    }
+    traversal_done = traversal_done && done;
+    return best;
+}

@@ -1,0 +1,123 @@
+//! Meshes placed by instances: the unique meshes, each in its own space, and the affine maps
+//! that place them (the input of `accel::instances`). Triangles are numbered as the
+//! flattened scene numbers them: instances in order, each mesh's triangles in file order.
+
+use std::sync::Arc;
+
+use super::{Mesh, TriStatus};
+use crate::error::Error;
+use crate::geometry::{Affine, Triangle};
+
+/// One placement of a mesh: which one, and its object-to-world map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// Index into [`InstanceSet::meshes`].
+    pub mesh: u32,
+    /// Object space to world space.
+    pub to_world: Affine,
+}
+
+/// Most triangles an instanced scene may number (as for a flattened one: indices stay below
+/// the miss marker with room to spare).
+pub const MAX_INSTANCED_TRIANGLES: u64 = u32::MAX as u64 / 2;
+
+/// Meshes placed by instances: what a two-level structure (`accel::instances`) is built
+/// over.
+#[derive(Clone, Debug, Default)]
+pub struct InstanceSet {
+    /// The unique meshes, each in its own (object) space.
+    pub meshes: Vec<Arc<Mesh>>,
+    /// The placements, in numbering order.
+    pub instances: Vec<Instance>,
+}
+
+impl InstanceSet {
+    /// A set of `meshes` placed by `instances`, refused (naming the first bad instance)
+    /// when an instance names no mesh or has a map that is not finite and invertible, or
+    /// when the instanced triangles are more than [`MAX_INSTANCED_TRIANGLES`].
+    pub fn new(meshes: Vec<Arc<Mesh>>, instances: Vec<Instance>) -> crate::Result<InstanceSet> {
+        for (i, inst) in instances.iter().enumerate() {
+            if inst.mesh as usize >= meshes.len() {
+                return Err(Error::Usage(format!(
+                    "instance {i} places mesh {} of {}",
+                    inst.mesh,
+                    meshes.len()
+                )));
+            }
+            if inst.to_world.inverse().is_none() {
+                return Err(Error::Usage(format!(
+                    "instance {i} has a map that is not finite and invertible: {:?}",
+                    inst.to_world.rows
+                )));
+            }
+        }
+        let set = InstanceSet { meshes, instances };
+        let total = set.triangle_count();
+        if total > MAX_INSTANCED_TRIANGLES {
+            return Err(Error::Usage(format!(
+                "{total} instanced triangles, more than lancer numbers \
+                 ({MAX_INSTANCED_TRIANGLES}): place fewer instances"
+            )));
+        }
+        Ok(set)
+    }
+
+    /// Triangles of the flattened scene (every instance's mesh, excluded triangles
+    /// included, as they are numbered).
+    pub fn triangle_count(&self) -> u64 {
+        self.instances
+            .iter()
+            .map(|i| self.meshes[i.mesh as usize].len() as u64)
+            .sum()
+    }
+
+    /// Each instance's first triangle index in the flattened numbering.
+    pub fn first_prims(&self) -> Vec<u32> {
+        let mut next = 0u32;
+        self.instances
+            .iter()
+            .map(|i| {
+                let first = next;
+                next += self.meshes[i.mesh as usize].len() as u32;
+                first
+            })
+            .collect()
+    }
+
+    /// The scene as one mesh in world space, numbered as the instanced scene: each instance's
+    /// triangles mapped by [`Affine::point`] (corners kept in order, also under a mirroring
+    /// map, so that u and v mean the same). A triangle its mesh leaves out stays out; the
+    /// others are classified again in world space.
+    pub fn flatten(&self) -> Mesh {
+        let n = self.triangle_count() as usize;
+        let (mut triangles, mut status) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for inst in &self.instances {
+            let a = &inst.to_world;
+            let mesh = &self.meshes[inst.mesh as usize];
+            for (t, s) in mesh.triangles.iter().zip(&mesh.status) {
+                let world = Triangle {
+                    v: t.v.map(|p| a.point(p)),
+                };
+                status.push(match s {
+                    TriStatus::Ok => super::classify(&world),
+                    other => *other,
+                });
+                triangles.push(world);
+            }
+        }
+        Mesh {
+            triangles,
+            status,
+            short_faces: self
+                .instances
+                .iter()
+                .map(|i| self.meshes[i.mesh as usize].short_faces)
+                .sum(),
+            sources: self
+                .meshes
+                .iter()
+                .flat_map(|m| m.sources.iter().cloned())
+                .collect(),
+        }
+    }
+}
