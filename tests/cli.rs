@@ -1470,3 +1470,92 @@ fn bench_builders_counts_each_builds_peak_memory_and_takes_several_meshes() {
         assert!(b["peak_mib"].as_f64().unwrap() > 0.0, "{b}");
     }
 }
+
+/// A glTF mesh drawn by four nodes (one mirrored) is traced in two levels, on the CPU and
+/// on the GPU, numbering hits as `--flatten` does: the same triangle for (almost) every ray.
+#[test]
+fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
+    use common::writers::{data_uri, gltf_buffer, gltf_json, Indexed};
+    let dir = Scratch::new();
+    let n = 6u32;
+    let verts = (0..=n)
+        .flat_map(|j| {
+            (0..=n).map(move |i| {
+                [
+                    i as f32 / n as f32,
+                    j as f32 / n as f32,
+                    0.1 * (i % 2) as f32,
+                ]
+            })
+        })
+        .collect();
+    let faces = (0..n)
+        .flat_map(|j| (0..n).map(move |i| (j * (n + 1) + i, n + 1)))
+        .map(|(a, w)| vec![a, a + 1, a + w + 1, a + w])
+        .collect();
+    let grid = Indexed { verts, faces };
+    let mut doc = gltf_json(&grid, Some(data_uri(&gltf_buffer(&grid))));
+    doc["nodes"] = serde_json::json!([
+        { "mesh": 0 },
+        { "mesh": 0, "translation": [1.25, 0.0, 0.0] },
+        { "mesh": 0, "translation": [0.0, 1.25, 0.5], "rotation": [0.0, 0.0, 0.3826834, 0.9238795] },
+        { "mesh": 0, "scale": [-1.0, 1.0, 1.0], "translation": [2.5, 1.25, 0.0] }
+    ]);
+    doc["scenes"] = serde_json::json!([{ "nodes": [0, 1, 2, 3] }]);
+    let scene = dir.path("four.gltf");
+    std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let rays = dir.path("four.rays");
+    lancer_ok(&[
+        "rays",
+        s(&scene),
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "-o",
+        s(&rays),
+    ]);
+    let trace = |device: &str, extra: &[&str]| {
+        let hits = dir.path(&format!("{device}{}.hits", extra.len()));
+        let mut args = vec![
+            "-v",
+            "trace",
+            s(&scene),
+            "--rays",
+            s(&rays),
+            "--out",
+            s(&hits),
+        ];
+        args.extend(["--device", device]);
+        args.extend(extra);
+        let out = lancer_ok(&args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        (lancer::trace::files::read_hits(&hits).unwrap(), err)
+    };
+    let (flat, flat_log) = trace("cpu", &["--flatten"]);
+    assert!(!flat_log.contains("two levels"), "{flat_log}");
+    let hit = flat.iter().filter(|h| h.is_hit()).count();
+    assert!(hit > 150, "only {hit} of {} rays hit", flat.len());
+    assert!(
+        flat.iter().any(|h| h.is_hit() && h.prim >= 3 * 72),
+        "the mirrored copy is hit"
+    );
+    for device in ["cpu", "gpu"] {
+        let (two, log) = trace(device, &[]);
+        // The mirrored node draws a copy of the mesh with two corners swapped.
+        assert!(log.contains("2 meshes placed by 4 instances"), "{log}");
+        let differ = two
+            .iter()
+            .zip(&flat)
+            .filter(|(a, b)| a.prim != b.prim)
+            .count();
+        println!(
+            "{device}: {differ} of {} rays hit another triangle",
+            flat.len()
+        );
+        assert!(
+            differ * 100 <= flat.len(),
+            "{device}: {differ} rays hit another triangle"
+        );
+    }
+}

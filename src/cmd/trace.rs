@@ -1,14 +1,16 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use lancer::mesh::InstanceSet;
 use lancer::trace::files::encode_hits;
 use lancer::trace::stats::{TraceReport, TraceStats};
-use lancer::{Error, Query, Result, Tracer, TracerOptions, TraversalMode};
+use lancer::trace::TraceResult;
+use lancer::{AccelKind, Error, LayoutKind, Query, Result, Tracer, TracerOptions, TraversalMode};
 
 use super::input::load_bvh;
 use super::out::{check_output, is_std, print_json, read_rays, say, write_output, Say};
 use super::{BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
-use lancer::render::load_geometry;
+use lancer::render::{load_geometry, load_instances};
 
 #[derive(Args)]
 pub struct TraceCmd {
@@ -51,6 +53,11 @@ pub struct TraceCmd {
     /// refused with it), and MESH must be the mesh it was built from.
     #[arg(long, value_name = "FILE", conflicts_with_all = BVH_CONFLICTS)]
     bvh: Option<PathBuf>,
+    /// Trace one BVH over the whole scene, flattened, where the file places a mesh more than
+    /// once (a glTF mesh drawn by several nodes); without it such a scene is traced in two
+    /// levels, a BVH per mesh under one over the instances. Hits are numbered alike.
+    #[arg(long)]
+    flatten: bool,
 }
 
 impl TraceCmd {
@@ -62,6 +69,12 @@ impl TraceCmd {
             ));
         }
         let say = Say::new(to_stdout || self.json);
+        let two_level = matches!(self.accel, AccelKind::Bvh(_)) && self.bvh.is_none();
+        if two_level && !self.flatten {
+            if let Some(set) = load_instances(&self.mesh)? {
+                return self.run_instanced(&set, say);
+            }
+        }
         let mesh = load_geometry(&self.mesh)?;
         let mut inputs = mesh.sources.clone();
         inputs.push(self.rays.clone());
@@ -75,7 +88,50 @@ impl TraceCmd {
         let layout = bvh
             .as_ref()
             .map_or(self.build.layout_on(&device), |f| f.kind);
-        let options = TracerOptions {
+        let options = self.options(layout);
+        let kind = self.accel.with_layout(layout);
+        let mut tracer = match &bvh {
+            Some(file) => Tracer::with_layout(&device, file.layout.clone(), &options)?,
+            None => Tracer::with_structure(&device, &mesh, kind, &options)?,
+        };
+        let result = tracer.trace(&rays, self.query())?;
+        self.report(
+            &result,
+            TraceStats::new(&result, &device, kind, layout, &options),
+            say,
+        )
+    }
+
+    /// Traces a scene of meshes placed by instances in two levels.
+    fn run_instanced(&self, set: &InstanceSet, say: Say) -> Result<()> {
+        log::info!(
+            "{}: {} meshes placed by {} instances ({} triangles instanced): traced in two \
+             levels (--flatten: one BVH over the flattened scene)",
+            self.mesh.display(),
+            set.meshes.len(),
+            set.instances.len(),
+            set.triangle_count()
+        );
+        let mut inputs: Vec<PathBuf> = set.meshes.iter().flat_map(|m| m.sources.clone()).collect();
+        inputs.push(self.rays.clone());
+        check_output(&self.out, &inputs)?;
+        let rays = read_rays(&self.rays)?;
+        let device = self.device.open_for(self.accel)?;
+        let layout = self.build.layout_on(&device);
+        let options = self.options(layout);
+        let mut tracer = Tracer::with_instances(&device, set, &options)?;
+        let result = tracer.trace(&rays, self.query())?;
+        let kind = self.accel.with_layout(layout);
+        self.report(
+            &result,
+            TraceStats::new(&result, &device, kind, layout, &options),
+            say,
+        )
+    }
+
+    /// The tracer's options, the layout settled.
+    fn options(&self, layout: LayoutKind) -> TracerOptions {
+        TracerOptions {
             build: self.build.options(),
             layout: Some(layout),
             memory: self.device.bvh_memory,
@@ -83,26 +139,26 @@ impl TraceCmd {
             workgroup_size: self.workgroup_size,
             stats: self.stats,
             mode: self.mode,
-        };
-        let query = if self.any_hit {
+        }
+    }
+
+    fn query(&self) -> Query {
+        if self.any_hit {
             Query::Any
         } else {
             Query::Closest
-        };
-        let kind = self.accel.with_layout(layout);
-        let mut tracer = match &bvh {
-            Some(file) => Tracer::with_layout(&device, file.layout.clone(), &options)?,
-            None => Tracer::with_structure(&device, &mesh, kind, &options)?,
-        };
-        let result = tracer.trace(&rays, query)?;
-        let stats = TraceStats::new(&result, &device, kind, layout, &options);
+        }
+    }
+
+    /// Writes the hits and prints the summary (and the statistics).
+    fn report(&self, result: &TraceResult, stats: TraceStats, say: Say) -> Result<()> {
         if self.stats {
             stats.text().into_iter().for_each(|l| say!(say, "{l}"));
         }
         write_output(&self.out, &encode_hits(&result.hits))?;
-        let report = TraceReport::new(&result, &self.out.display().to_string(), None);
+        let report = TraceReport::new(result, &self.out.display().to_string(), None);
         report
-            .text(&result)
+            .text(result)
             .into_iter()
             .for_each(|l| say!(say, "{l}"));
         if self.json {

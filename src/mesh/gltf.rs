@@ -13,9 +13,9 @@ use ::gltf::{Accessor, Document, Node, Primitive};
 use base64::Engine;
 use glam::{Mat4, Vec2, Vec3};
 
-use super::{classify, placeholder, Mesh, TriStatus, BYTES_PER_TRIANGLE};
+use super::{classify, placeholder, Instance, InstanceSet, Mesh, TriStatus, BYTES_PER_TRIANGLE};
 use crate::error::{Error, Result};
-use crate::geometry::Triangle;
+use crate::geometry::{Affine, Triangle};
 
 /// Where a texture's encoded image is: bytes from a buffer or data URI, or a file.
 #[derive(Clone, Debug)]
@@ -68,17 +68,13 @@ pub struct GltfScene {
 /// Loads a glTF 2.0 file's default scene (or its first; or every root node when it has no
 /// scene) as world-space triangles, without materials' textures decoded.
 pub fn load_gltf(path: &Path) -> Result<GltfScene> {
-    let bytes = crate::input::read(path)?;
+    let Opened {
+        document,
+        buffers,
+        dir,
+        mut sources,
+    } = open(path)?;
     let bad = |msg: String| Error::input(path, None, msg);
-    // Checked first: the crate panics on some references out of range.
-    let json = super::gltf_check::json_of(&bytes).map_err(bad)?;
-    super::gltf_check::check(json).map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
-    let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(&bytes)
-        .map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
-    drop(bytes);
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut sources = vec![path.to_path_buf()];
-    let buffers = read_buffers(path, &dir, &document, &mut blob, &mut sources)?;
     let materials = document
         .materials()
         .map(|m| material(path, &dir, &buffers, &m, &mut sources))
@@ -122,7 +118,7 @@ pub fn load_gltf(path: &Path) -> Result<GltfScene> {
         };
         for s in read.iter() {
             match s {
-                Some(s) => add_instance(s, world, &mut out),
+                Some(s) => add_surface(s, world, world.determinant() < 0.0, &mut out),
                 None => skipped += 1,
             }
         }
@@ -135,6 +131,142 @@ pub fn load_gltf(path: &Path) -> Result<GltfScene> {
     }
     out.mesh.sources = sources;
     Ok(out)
+}
+
+/// A glTF file read and checked: its document, its buffers' bytes, its folder, and the
+/// files read (the file and its external buffers).
+struct Opened {
+    document: Document,
+    buffers: Vec<Vec<u8>>,
+    dir: PathBuf,
+    sources: Vec<PathBuf>,
+}
+
+/// Reads and checks a glTF file and its buffers.
+fn open(path: &Path) -> Result<Opened> {
+    let bytes = crate::input::read(path)?;
+    let bad = |msg: String| Error::input(path, None, msg);
+    // Checked first: the crate panics on some references out of range.
+    let json = super::gltf_check::json_of(&bytes).map_err(bad)?;
+    super::gltf_check::check(json).map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
+    let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(&bytes)
+        .map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
+    drop(bytes);
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut sources = vec![path.to_path_buf()];
+    let buffers = read_buffers(path, &dir, &document, &mut blob, &mut sources)?;
+    Ok(Opened {
+        document,
+        buffers,
+        dir,
+        sources,
+    })
+}
+
+/// The default scene's meshes placed by instances, when a mesh is drawn by several nodes
+/// (None when each is drawn once: the flattened scene of [`load_gltf`] is then no bigger).
+/// One mesh per glTF mesh (its primitives' triangles in order, in its own space), one
+/// instance per node that draws it, in the order [`load_gltf`] walks them, so triangles are
+/// numbered alike. A mirroring node draws a copy of its mesh with two corners swapped (as
+/// [`load_gltf`] swaps them); a node whose map is singular draws a copy whose triangles are
+/// all left out (they have no area), at the identity. Materials are not read.
+pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
+    let Opened {
+        document,
+        buffers,
+        sources,
+        ..
+    } = open(path)?;
+    let bad = |msg: String| Error::input(path, None, msg);
+    let placed = instances(path, &document)?;
+    /// How a node draws its glTF mesh: as it is, mirrored, or with no area.
+    #[derive(Clone, Copy, PartialEq, Eq, Hash)]
+    enum Drawn {
+        Plain,
+        Mirrored,
+        Flat,
+    }
+    let mut unique: HashMap<(usize, Drawn), u32> = HashMap::new();
+    let mut order: Vec<(usize, Drawn)> = Vec::new();
+    let mut placements = Vec::new();
+    for (node, world) in &placed {
+        let Some(mesh) = node.mesh() else { continue };
+        let to_world = Affine::from_mat4(world);
+        let drawn = match to_world.inverse() {
+            None => Drawn::Flat,
+            Some(_) if world.determinant() < 0.0 => Drawn::Mirrored,
+            Some(_) => Drawn::Plain,
+        };
+        let next = order.len() as u32;
+        let id = *unique.entry((mesh.index(), drawn)).or_insert(next);
+        if id == next {
+            order.push((mesh.index(), drawn));
+        }
+        let to_world = if drawn == Drawn::Flat {
+            Affine::IDENTITY
+        } else {
+            to_world
+        };
+        placements.push(Instance { mesh: id, to_world });
+    }
+    let drawn_meshes: std::collections::HashSet<usize> = order.iter().map(|k| k.0).collect();
+    if placements.len() <= drawn_meshes.len() {
+        return Ok(None);
+    }
+    let mut total: u128 = 0;
+    for &(m, _) in &order {
+        for p in document.meshes().nth(m).iter().flat_map(|m| m.primitives()) {
+            total += triangle_count(path, &p)? as u128;
+        }
+    }
+    crate::limits::check_memory(
+        &format!("{} ({total} triangles in its meshes)", path.display()),
+        total * BYTES_PER_TRIANGLE,
+        "use a smaller scene",
+    )?;
+    let mut surfaces: HashMap<usize, Vec<Option<Surface>>> = HashMap::new();
+    let mut meshes = Vec::with_capacity(order.len());
+    let mut skipped = 0usize;
+    for &(m, drawn) in &order {
+        let Some(mesh) = document.meshes().nth(m) else {
+            continue;
+        };
+        let read = match surfaces.entry(m) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => e.insert(
+                mesh.primitives()
+                    .map(|p| read_surface(path, &p, &buffers))
+                    .collect::<Result<Vec<_>>>()?,
+            ),
+        };
+        let mut out = GltfScene::default();
+        for s in read.iter() {
+            match s {
+                Some(s) => add_surface(s, &Mat4::IDENTITY, drawn == Drawn::Mirrored, &mut out),
+                None => skipped += 1,
+            }
+        }
+        if drawn == Drawn::Flat {
+            out.mesh.status.iter_mut().for_each(|s| {
+                if *s == TriStatus::Ok {
+                    *s = TriStatus::Degenerate;
+                }
+            });
+        }
+        meshes.push(std::sync::Arc::new(out.mesh));
+    }
+    if skipped > 0 {
+        log::warn!(
+            "{}: {skipped} primitives of points or lines left out (no surface to hit)",
+            path.display()
+        );
+    }
+    if let Some(first) = meshes.first_mut().and_then(std::sync::Arc::get_mut) {
+        first.sources = sources;
+    }
+    InstanceSet::new(meshes, placements)
+        .map(Some)
+        .map_err(|e| bad(e.to_string()))
 }
 
 /// Each buffer's bytes, checked to hold at least its declared byteLength, and every buffer
@@ -542,8 +674,9 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
     }))
 }
 
-/// Adds a surface's triangles, moved into world space by `world`.
-fn add_instance(s: &Surface, world: &Mat4, out: &mut GltfScene) {
+/// Adds a surface's triangles, moved into world space by `world`, two corners swapped when
+/// `flip` (a mirroring map turns faces inside out: the swap keeps the front).
+fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
     let Surface {
         positions,
         corners,
@@ -552,8 +685,6 @@ fn add_instance(s: &Surface, world: &Mat4, out: &mut GltfScene) {
         short,
     } = s;
     out.mesh.short_faces += usize::from(*short);
-    // A mirroring transform turns faces inside out: swap two corners to keep the front.
-    let flip = world.determinant() < 0.0;
     for &c in corners {
         let c = if flip { [c[0], c[2], c[1]] } else { c };
         let (t, s, uv) = match c.map(|k| positions.get(k)) {
