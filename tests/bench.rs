@@ -487,3 +487,48 @@ fn builders_on_the_gpu_give_every_run_a_gpu_speed() {
     let sah: Vec<f64> = report.builds[..2].iter().map(|b| b.sah.unwrap()).collect();
     assert!(sah[1] <= sah[0], "{sah:?}");
 }
+
+#[test]
+fn instances_measure_both_variants_on_both_devices_and_the_top_level_at_every_count() {
+    let config = bench::instances::Config {
+        mesh: cornell(),
+        name: "cornell".into(),
+        copies: 4,
+        width: 24,
+        height: 16,
+        device: DeviceChoice::Gpu,
+        bvh_memory: Default::default(),
+        layout: Some(LayoutKind::DfsSign),
+        repeat: 1,
+        build: Default::default(),
+    };
+    let report = with_progress(|p| bench::instances::run(&config, p));
+    let j = json(&report);
+    let tris = config.mesh.len() as u64;
+    assert_eq!(j["variants"][0]["triangles"], tris);
+    assert_eq!(j["variants"][1]["triangles"], 4 * tris);
+    assert!(report.variants[0].bytes < report.variants[1].bytes);
+    assert_eq!(report.runs.len(), 4);
+    for r in &report.runs {
+        assert!(
+            r.cpu_mrays_per_s > 0.0 && r.gpu_mrays_per_s.is_some_and(|g| g > 0.0),
+            "{r:?}"
+        );
+        assert!(r.nodes_per_ray >= 1.0, "{r:?}");
+    }
+    // The primary rays are the same set for both variants, and they see the same scene.
+    assert_eq!(report.runs[0].count, 24 * 16);
+    assert_eq!(report.runs[0].count, report.runs[2].count);
+    for rays in ["primary", "shadow"] {
+        for gpu in [false, true] {
+            assert!(report.cost_ratio(rays, gpu).is_some_and(f64::is_finite));
+        }
+    }
+    let counts: Vec<usize> = report.top_level.iter().map(|t| t.instances).collect();
+    assert_eq!(counts, bench::instances::TOP_LEVEL_COUNTS);
+    let text = report.text();
+    assert!(
+        text.contains("instanced ÷ flattened") && text.contains("100000"),
+        "{text}"
+    );
+}

@@ -11,7 +11,8 @@
 //!   the measured speed;
 //! - [`accuracy`]: what each robustness knob costs in time and the error it leaves;
 //! - [`render`]: milliseconds per sample, specialised and all-effects kernels;
-//! - [`trace`]: one structure's GPU kernel over BVH memory × workgroup × module.
+//! - [`trace`]: one structure's GPU kernel over BVH memory × workgroup × module;
+//! - [`instances`]: a mesh placed many times, in two levels against its flattened copy.
 //!
 //! Shared pieces: [`timing`] (medians, paired runs), [`rays`] (the ray sets every bench
 //! traces), [`markdown`] (tables), [`memory`] (peak heap bytes), [`rank`] (rank
@@ -25,6 +26,7 @@ pub mod chart;
 #[cfg(feature = "charts")]
 pub mod colour_bar;
 pub mod heatmap;
+pub mod instances;
 pub mod layouts;
 pub mod markdown;
 pub mod memory;

@@ -37,6 +37,10 @@ enum BenchWhat {
     /// Every BVH builder on one or more meshes: build time, peak memory, SAH and EPO, work
     /// and speed per ray, and which a-priori cost predicts the speed.
     Builders(super::bench_builders::BenchBuilders),
+    /// A mesh placed many times, in two levels against its flattened copy: build, bytes,
+    /// work and speed per ray (CPU and GPU), and the top level's build at 10² to 10⁵
+    /// instances.
+    Instances(super::bench_instances::BenchInstances),
 }
 
 impl BenchCmd {
@@ -48,6 +52,7 @@ impl BenchCmd {
             BenchWhat::Layouts(b) => b.run(),
             BenchWhat::Accuracy(b) => b.run(),
             BenchWhat::Builders(b) => b.run(),
+            BenchWhat::Instances(b) => b.run(),
         }
     }
 }

@@ -4,6 +4,7 @@ mod adapters;
 mod bench;
 mod bench_accuracy;
 mod bench_builders;
+mod bench_instances;
 mod bench_layouts;
 mod bench_render;
 mod bench_structures;
@@ -171,6 +172,11 @@ pub struct BuildArgs {
 impl BuildArgs {
     pub fn options(&self) -> BuildOptions {
         self.builder.options()
+    }
+
+    /// `--layout`, if given.
+    pub fn layout(&self) -> Option<LayoutKind> {
+        self.layout
     }
 
     /// `--layout`, else `device`'s default.

@@ -1,0 +1,429 @@
+//! `lancer bench instances`: a mesh placed many times, traced in two levels (a BVH per mesh
+//! under a BVH over the instances) against its flattened copy (one BVH over every copy's
+//! triangles), side by side in one run: build time, bytes, work per ray and speed for
+//! primary and shadow rays on the CPU twin and the GPU kernel; and the two-level build over
+//! 10² to 10⁵ instances of one triangle, where the top level is all the work.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::accel::bvh::layouts::{try_flatten, LayoutKind};
+use crate::accel::bvh::{build, BuildOptions};
+use crate::accel::instances::{Affine, GpuTwoLevel, Instance, InstanceSet};
+use crate::accel::{GpuForm, Query, RayStats};
+use crate::camera::Camera;
+use crate::device::DeviceChoice;
+use crate::error::Result;
+use crate::geometry::{Ray, Robustness, Triangle};
+use crate::gpu::BvhMemory;
+use crate::mesh::Mesh;
+use crate::trace::{Tracer, TracerOptions};
+
+use super::markdown::Table;
+use super::rays::primary_and_shadow;
+use super::timing::median;
+use super::{BenchReport, Progress, Ticker};
+
+/// Instance counts of the top-level build rows.
+pub const TOP_LEVEL_COUNTS: [usize; 4] = [100, 1_000, 10_000, 100_000];
+
+/// What `bench instances` measures.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// The mesh placed.
+    pub mesh: Mesh,
+    /// The mesh's name in the report (its file).
+    pub name: String,
+    /// Copies placed, on a square grid in x and z, each turned about y.
+    pub copies: usize,
+    /// Image size of the primary rays (the default view of all the copies).
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Where to run beside the CPU (auto and gpu: any adapter, software included).
+    pub device: DeviceChoice,
+    /// GPU: where the kernels read the arrays from.
+    pub bvh_memory: BvhMemory,
+    /// The bottom levels' layout (and the flattened copy's); None: the device's default.
+    pub layout: Option<LayoutKind>,
+    /// Timed runs per variant and ray set (the median is reported), at least 1.
+    pub repeat: usize,
+    /// How the BVHs are built.
+    pub build: BuildOptions,
+}
+
+/// One variant's build and memory (a JSON `variants` entry).
+#[derive(Clone, Debug, Serialize)]
+pub struct Size {
+    /// instanced or flattened.
+    pub variant: &'static str,
+    /// Wall-clock time to build and flatten (all threads).
+    pub build_ms: f64,
+    /// Bytes of the GPU arrays (nodes and triangles; for instanced, every mesh's and the
+    /// top level's).
+    pub bytes: u64,
+    /// Triangles stored (instanced: the mesh's, once).
+    pub triangles: u64,
+}
+
+/// One variant × ray set (a JSON `runs` entry).
+#[derive(Clone, Debug, Serialize)]
+pub struct Run {
+    /// instanced or flattened.
+    pub variant: &'static str,
+    /// primary (closest hit) or shadow (any hit).
+    pub rays: &'static str,
+    /// Rays in the set.
+    pub count: usize,
+    /// Mean nodes visited per ray (both levels).
+    pub nodes_per_ray: f64,
+    /// Mean triangles tested per ray.
+    pub triangles_per_ray: f64,
+    /// CPU twin, all threads, median of `repeat` runs.
+    pub cpu_mrays_per_s: f64,
+    /// GPU kernel, median of `repeat` runs; null without a GPU.
+    pub gpu_mrays_per_s: Option<f64>,
+}
+
+/// One top-level build (a JSON `top_level` entry).
+#[derive(Clone, Debug, Serialize)]
+pub struct TopLevelBuild {
+    /// Instances (of one triangle each).
+    pub instances: usize,
+    /// Median wall-clock time of `repeat` builds of the two-level structure, ms.
+    pub build_ms: f64,
+}
+
+/// `bench instances`' results (`--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// The mesh file.
+    pub mesh: String,
+    /// Triangles of the mesh.
+    pub mesh_triangles: usize,
+    /// Copies placed.
+    pub copies: usize,
+    /// The layout of every BVH.
+    pub layout: &'static str,
+    /// Width of the primary rays' image.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// The GPU adapter, or "none (CPU only)".
+    pub adapter: String,
+    /// CPU threads.
+    pub cpu_threads: usize,
+    /// Timed runs per measurement.
+    pub repeat: u64,
+    /// instanced and flattened.
+    pub variants: Vec<Size>,
+    /// Each variant × ray set.
+    pub runs: Vec<Run>,
+    /// The two-level build at [`TOP_LEVEL_COUNTS`] instances.
+    pub top_level: Vec<TopLevelBuild>,
+    /// The GPU's driver (None without a GPU).
+    #[serde(skip)]
+    pub gpu_driver: Option<String>,
+}
+
+/// `n` copies of a mesh with bounds `extent` (its largest side) on a square grid in x and
+/// z, 1.25 sides apart, copy i turned by 0.7·i radians about y.
+fn placements(n: usize, extent: f32) -> Vec<Instance> {
+    let side = (n as f64).sqrt().ceil().max(1.0) as usize;
+    let step = 1.25 * extent.max(f32::MIN_POSITIVE);
+    (0..n)
+        .map(|i| {
+            let at = glam::Vec3::new((i % side) as f32 * step, 0.0, (i / side) as f32 * step);
+            let m = glam::Mat4::from_rotation_translation(
+                glam::Quat::from_rotation_y(0.7 * i as f32),
+                at,
+            );
+            Instance {
+                mesh: 0,
+                to_world: Affine::from_mat4(&m),
+            }
+        })
+        .collect()
+}
+
+/// Median seconds of `repeat` runs of `f`.
+fn timed(repeat: usize, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
+    let mut times = Vec::with_capacity(repeat);
+    for _ in 0..repeat {
+        let t0 = Instant::now();
+        f()?;
+        times.push(t0.elapsed().as_secs_f64());
+    }
+    Ok(median(times))
+}
+
+/// Runs the bench.
+pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
+    let (width, height) = (config.width, config.height);
+    crate::limits::check_image(width, height, 200, "use a smaller --width/--height")?;
+    let repeat = config.repeat.max(1);
+    let mesh = Arc::new(config.mesh.clone());
+    let extent = mesh.bounds().extent().max_element();
+    let set = InstanceSet::new(vec![mesh.clone()], placements(config.copies, extent))?;
+    crate::limits::check_memory(
+        &format!("the flattened copy ({} triangles)", set.triangle_count()),
+        set.triangle_count() as u128 * 200,
+        "place fewer --copies",
+    )?;
+    let device = super::open_device(config.device)?;
+    let gpu = !device.is_cpu();
+    let layout = (config.layout).unwrap_or_else(|| crate::trace::default_layout(&device));
+    let sets = 2;
+    let total = 2 + 2 * sets * repeat * (1 + gpu as usize) + TOP_LEVEL_COUNTS.len() * repeat;
+    let ticker = Ticker::new(progress, total as u64);
+
+    ticker.say("building the flattened copy");
+    let flat_mesh = set.flatten();
+    let t0 = Instant::now();
+    let flat: Arc<dyn GpuForm> =
+        try_flatten(layout, &build(&flat_mesh, &config.build), &flat_mesh)?.into();
+    let flat_ms = t0.elapsed().as_secs_f64() * 1e3;
+    ticker.inc(1);
+    ticker.say("building the two levels");
+    let t0 = Instant::now();
+    let two: Arc<dyn GpuForm> = Arc::new(GpuTwoLevel::build(layout, &set, &config.build)?);
+    let two_ms = t0.elapsed().as_secs_f64() * 1e3;
+    ticker.inc(1);
+
+    let camera = Camera::default_view(&flat_mesh.bounds(), width, height);
+    let (primary, shadow) = primary_and_shadow(&flat_mesh, flat.as_ref(), &camera);
+    let ray_sets: [(&'static str, Query, &[Ray]); 2] = [
+        ("primary", Query::Closest, &primary),
+        ("shadow", Query::Any, &shadow),
+    ];
+    let options = TracerOptions {
+        memory: config.bvh_memory,
+        ..TracerOptions::default()
+    };
+    let rob = Robustness::default();
+    let mut runs = Vec::new();
+    for (variant, form) in [("instanced", &two), ("flattened", &flat)] {
+        let mut tracer = match gpu {
+            true => Some(Tracer::with_layout(&device, form.clone(), &options)?),
+            false => None,
+        };
+        for (name, query, rays) in ray_sets {
+            ticker.say(format!("{variant}, {name} rays"));
+            let n = rays.len() as f64;
+            let mut stats = Vec::<RayStats>::new();
+            let cpu_s = timed(repeat, || {
+                stats = form.trace_batch(rays, query, &rob).1;
+                ticker.inc(1);
+                Ok(())
+            })?;
+            let (nodes, tris) = RayStats::means(&stats);
+            let gpu_mrays = match tracer.as_mut() {
+                None => None,
+                Some(t) => {
+                    t.trace(&rays[..rays.len().min(1024)], query)?; // compile outside the timing
+                    let mut times = Vec::new();
+                    for _ in 0..repeat {
+                        times.push(super::timing::seconds(t, rays, query)?);
+                        ticker.inc(1);
+                    }
+                    Some(n / median(times) / 1e6)
+                }
+            };
+            runs.push(Run {
+                variant,
+                rays: name,
+                count: rays.len(),
+                nodes_per_ray: nodes,
+                triangles_per_ray: tris,
+                cpu_mrays_per_s: n / cpu_s / 1e6,
+                gpu_mrays_per_s: gpu_mrays,
+            });
+        }
+    }
+
+    let one = Arc::new(Mesh::from_triangles(vec![Triangle::new(
+        glam::Vec3::ZERO,
+        glam::Vec3::X,
+        glam::Vec3::Y,
+    )]));
+    let mut top_level = Vec::new();
+    for n in TOP_LEVEL_COUNTS {
+        ticker.say(format!("the two levels over {n} instances"));
+        let many = InstanceSet::new(vec![one.clone()], placements(n, 1.0))?;
+        let s = timed(repeat, || {
+            GpuTwoLevel::build(layout, &many, &config.build)?;
+            ticker.inc(1);
+            Ok(())
+        })?;
+        top_level.push(TopLevelBuild {
+            instances: n,
+            build_ms: s * 1e3,
+        });
+    }
+    let variants = vec![
+        Size {
+            variant: "instanced",
+            build_ms: two_ms,
+            bytes: two.bytes() as u64,
+            triangles: two.triangles() as u64,
+        },
+        Size {
+            variant: "flattened",
+            build_ms: flat_ms,
+            bytes: flat.bytes() as u64,
+            triangles: flat.triangles() as u64,
+        },
+    ];
+    Ok(Report {
+        mesh: config.name.clone(),
+        mesh_triangles: config.mesh.len(),
+        copies: config.copies,
+        layout: layout.name(),
+        width,
+        height,
+        adapter: super::adapter_of(&device).unwrap_or_else(|| "none (CPU only)".into()),
+        cpu_threads: super::cpu_threads(),
+        repeat: repeat as u64,
+        variants,
+        runs,
+        top_level,
+        gpu_driver: device.gpu_context().map(|c| c.adapter.driver.clone()),
+    })
+}
+
+impl Report {
+    /// Instanced ÷ flattened time per ray of one ray set on one device (>1: instanced is
+    /// slower), or None where either is missing.
+    pub fn cost_ratio(&self, rays: &str, gpu: bool) -> Option<f64> {
+        let speed = |variant: &str| {
+            let r = self
+                .runs
+                .iter()
+                .find(|r| r.variant == variant && r.rays == rays)?;
+            match gpu {
+                true => r.gpu_mrays_per_s,
+                false => Some(r.cpu_mrays_per_s),
+            }
+        };
+        Some(speed("flattened")? / speed("instanced")?)
+    }
+}
+
+impl BenchReport for Report {
+    const CHARTS: &'static [&'static str] = &[""];
+
+    fn title(&self) -> String {
+        format!(
+            "bench instances: {} × {}",
+            self.copies,
+            super::file_name(&self.mesh)
+        )
+    }
+
+    fn adapter(&self) -> Option<String> {
+        self.gpu_driver.as_ref().map(|_| self.adapter.clone())
+    }
+
+    fn text(&self) -> String {
+        let mut out = format!(
+            "mesh {}  {} triangles × {} copies  layout {}  {}x{} primary rays  {} CPU threads\n",
+            self.mesh,
+            self.mesh_triangles,
+            self.copies,
+            self.layout,
+            self.width,
+            self.height,
+            self.cpu_threads
+        );
+        out += &format!("adapter {}\n\n", self.adapter);
+        let mut sizes = Table::new(&["variant", "build ms", "bytes", "triangles stored"]);
+        for s in &self.variants {
+            sizes.row(vec![
+                s.variant.to_string(),
+                format!("{:.1}", s.build_ms),
+                s.bytes.to_string(),
+                s.triangles.to_string(),
+            ]);
+        }
+        out += &sizes.text();
+        out += "\n";
+        let mut runs = Table::new(&[
+            "variant",
+            "rays",
+            "count",
+            "nodes/ray",
+            "triangles/ray",
+            "CPU Mrays/s",
+            "GPU Mrays/s",
+        ]);
+        for r in &self.runs {
+            runs.row(vec![
+                r.variant.to_string(),
+                r.rays.to_string(),
+                r.count.to_string(),
+                format!("{:.1}", r.nodes_per_ray),
+                format!("{:.1}", r.triangles_per_ray),
+                format!("{:.2}", r.cpu_mrays_per_s),
+                super::markdown::dash(r.gpu_mrays_per_s, 2),
+            ]);
+        }
+        out += &runs.text();
+        out += "\n";
+        let mut ratios = Table::new(&[
+            "rays",
+            "CPU instanced ÷ flattened",
+            "GPU instanced ÷ flattened",
+        ]);
+        for rays in ["primary", "shadow"] {
+            ratios.row(vec![
+                rays.to_string(),
+                super::markdown::dash(self.cost_ratio(rays, false), 2),
+                super::markdown::dash(self.cost_ratio(rays, true), 2),
+            ]);
+        }
+        out += "Time per ray, instanced ÷ flattened:\n\n";
+        out += &ratios.text();
+        out += "\n";
+        let mut top = Table::new(&["instances (one triangle each)", "two-level build ms"]);
+        for t in &self.top_level {
+            top.row(vec![t.instances.to_string(), format!("{:.2}", t.build_ms)]);
+        }
+        out + &top.text()
+    }
+
+    /// Mrays/s, one group per ray set and device, one bar per variant.
+    #[cfg(feature = "charts")]
+    fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>> {
+        let gpu = self.gpu_driver.is_some();
+        let series: Vec<(String, Vec<f64>)> = ["instanced", "flattened"]
+            .iter()
+            .map(|v| {
+                let mut values = Vec::new();
+                for r in self.runs.iter().filter(|r| r.variant == *v) {
+                    values.push(r.cpu_mrays_per_s);
+                    if gpu {
+                        values.push(r.gpu_mrays_per_s.unwrap_or(f64::NAN));
+                    }
+                }
+                (v.to_string(), values)
+            })
+            .collect();
+        let title = format!(
+            "{} × {} ({}, {}x{}): CPU {} threads, GPU {}",
+            self.copies,
+            super::file_name(&self.mesh),
+            self.layout,
+            self.width,
+            self.height,
+            self.cpu_threads,
+            self.gpu_driver.as_deref().unwrap_or("none")
+        );
+        let categories = super::chart::device_categories(&["primary", "shadow"], gpu);
+        for path in paths {
+            super::chart::bar_chart(path, &title, "Mrays/s", &categories, &series)?;
+        }
+        Ok(paths.to_vec())
+    }
+}
