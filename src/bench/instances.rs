@@ -411,13 +411,10 @@ impl BenchReport for Report {
             })
             .collect();
         let title = format!(
-            "{} × {} ({}, {}x{}): CPU {} threads, GPU {}",
+            "{} × {}, {}: GPU {}",
             self.copies,
             super::file_name(&self.mesh),
             self.layout,
-            self.width,
-            self.height,
-            self.cpu_threads,
             self.gpu_driver.as_deref().unwrap_or("none")
         );
         let categories = super::chart::device_categories(&["primary", "shadow"], gpu);

@@ -3,6 +3,7 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::camera::Camera;
 use lancer::mesh::{load_mesh, FileKind};
+use lancer::render::load_instances;
 use lancer::trace::files::encode_rays;
 use lancer::{RenderScene, Result};
 
@@ -31,10 +32,20 @@ impl RaysCmd {
                 let scene = RenderScene::from_file(&self.mesh)?;
                 (scene.camera, scene.mesh.sources)
             }
-            _ => {
-                let mesh = load_mesh(&self.mesh)?;
-                (Camera::default_view(&mesh.bounds(), 512, 512), mesh.sources)
-            }
+            _ => match load_instances(&self.mesh)? {
+                // A mesh placed many times: the instances' boxes, without flattening.
+                Some(set) => {
+                    let sources = set.meshes.iter().flat_map(|m| m.sources.clone());
+                    (
+                        Camera::default_view(&set.bounds(), 512, 512),
+                        sources.collect(),
+                    )
+                }
+                None => {
+                    let mesh = load_mesh(&self.mesh)?;
+                    (Camera::default_view(&mesh.bounds(), 512, 512), mesh.sources)
+                }
+            },
         };
         check_output(&self.out, &sources)?;
         cam.width = self.width.unwrap_or(cam.width);

@@ -127,11 +127,21 @@ impl Affine {
         out.is_finite().then_some(out)
     }
 
-    /// A box holding the image of box `b` (its eight corners mapped in f64), padded by a
-    /// relative [`BOX_PAD`] of its largest coordinate and rounded outwards to f32.
-    pub fn bound_box(&self, b: &Aabb) -> Aabb {
+    /// The box of the image of box `b`: its eight corners mapped in f64, rounded to f32.
+    pub fn image_box(&self, b: &Aabb) -> Aabb {
+        match self.corners_box(b) {
+            None => Aabb::EMPTY,
+            Some((lo, hi)) => Aabb {
+                lo: lo.as_vec3(),
+                hi: hi.as_vec3(),
+            },
+        }
+    }
+
+    /// The f64 box of box `b`'s eight corners mapped, or None for an empty box.
+    fn corners_box(&self, b: &Aabb) -> Option<(DVec3, DVec3)> {
         if b.is_empty() {
-            return Aabb::EMPTY;
+            return None;
         }
         let (lo, hi) = (b.lo.as_dvec3(), b.hi.as_dvec3());
         let (mut out_lo, mut out_hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
@@ -145,6 +155,15 @@ impl Affine {
             out_lo = out_lo.min(p);
             out_hi = out_hi.max(p);
         }
+        Some((out_lo, out_hi))
+    }
+
+    /// A box holding the image of box `b` (its eight corners mapped in f64), padded by a
+    /// relative [`BOX_PAD`] of its largest coordinate and rounded outwards to f32.
+    pub fn bound_box(&self, b: &Aabb) -> Aabb {
+        let Some((out_lo, out_hi)) = self.corners_box(b) else {
+            return Aabb::EMPTY;
+        };
         let pad = out_lo.abs().max(out_hi.abs()).max_element() * BOX_PAD;
         Aabb {
             lo: (out_lo - pad).as_vec3().map(|x| x.next_down()),

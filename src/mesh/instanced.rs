@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use super::{Mesh, TriStatus};
 use crate::error::Error;
-use crate::geometry::{Affine, Triangle};
+use crate::geometry::{Aabb, Affine, Triangle};
 
 /// One placement of a mesh: which one, and its object-to-world map.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -69,6 +69,16 @@ impl InstanceSet {
             .iter()
             .map(|i| self.meshes[i.mesh as usize].len() as u64)
             .sum()
+    }
+
+    /// Bounds of the placed meshes: the union of each instance's mesh bounds mapped into
+    /// world space ([`Affine::image_box`]; for a rotated instance, looser than its
+    /// triangles' own bounds).
+    pub fn bounds(&self) -> Aabb {
+        let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(|m| m.bounds()).collect();
+        self.instances.iter().fold(Aabb::EMPTY, |b, i| {
+            b.union(i.to_world.image_box(&mesh_bounds[i.mesh as usize]))
+        })
     }
 
     /// Each instance's first triangle index in the flattened numbering.
