@@ -516,9 +516,15 @@ fn instances_measure_both_variants_on_both_devices_and_the_top_level_at_every_co
         );
         assert!(r.nodes_per_ray >= 1.0, "{r:?}");
     }
-    // The primary rays are the same set for both variants, and they see the same scene.
+    // The primary rays are the same set for both variants (runs: each ray set, instanced
+    // then flattened).
+    assert_eq!(
+        (report.runs[0].rays, report.runs[1].rays),
+        ("primary", "primary")
+    );
     assert_eq!(report.runs[0].count, 24 * 16);
-    assert_eq!(report.runs[0].count, report.runs[2].count);
+    assert_eq!(report.runs[0].count, report.runs[1].count);
+    assert_eq!(report.runs[2].count, report.runs[3].count);
     for rays in ["primary", "shadow"] {
         for gpu in [false, true] {
             assert!(report.cost_ratio(rays, gpu).is_some_and(f64::is_finite));

@@ -87,6 +87,18 @@ pub struct Run {
     pub gpu_mrays_per_s: Option<f64>,
 }
 
+/// Time per ray, instanced ÷ flattened, of one ray set (a JSON `ratios` entry): the
+/// median over timed pairs (the two variants run in turns), >1 where instanced is slower.
+#[derive(Clone, Debug, Serialize)]
+pub struct Ratio {
+    /// primary or shadow.
+    pub rays: &'static str,
+    /// CPU twins.
+    pub cpu: f64,
+    /// GPU kernels; null without a GPU.
+    pub gpu: Option<f64>,
+}
+
 /// One top-level build (a JSON `top_level` entry).
 #[derive(Clone, Debug, Serialize)]
 pub struct TopLevelBuild {
@@ -121,6 +133,8 @@ pub struct Report {
     pub variants: Vec<Size>,
     /// Each variant × ray set.
     pub runs: Vec<Run>,
+    /// Time per ray, instanced ÷ flattened, by ray set.
+    pub ratios: Vec<Ratio>,
     /// The two-level build at [`TOP_LEVEL_COUNTS`] instances.
     pub top_level: Vec<TopLevelBuild>,
     /// The GPU's driver (None without a GPU).
@@ -203,42 +217,59 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         ..TracerOptions::default()
     };
     let rob = Robustness::default();
-    let mut runs = Vec::new();
-    for (variant, form) in [("instanced", &two), ("flattened", &flat)] {
-        let mut tracer = match gpu {
-            true => Some(Tracer::with_layout(&device, form.clone(), &options)?),
-            false => None,
-        };
-        for (name, query, rays) in ray_sets {
-            ticker.say(format!("{variant}, {name} rays"));
-            let n = rays.len() as f64;
-            let mut stats = Vec::<RayStats>::new();
-            let cpu_s = timed(repeat, || {
-                stats = form.trace_batch(rays, query, &rob).1;
+    let forms = [&two, &flat];
+    let mut tracers = Vec::new();
+    for form in forms {
+        if gpu {
+            tracers.push(Tracer::with_layout(&device, form.clone(), &options)?);
+        }
+    }
+    let (mut runs, mut ratios) = (Vec::new(), Vec::new());
+    for (name, query, rays) in ray_sets {
+        ticker.say(format!("{name} rays"));
+        // Work per ray, untimed.
+        let work = forms.map(|f| RayStats::means(&f.trace_batch(rays, query, &rob).1));
+        // Each timed run right after an untimed one of the same variant, the two variants
+        // in turns: a slow or fast minute of the machine moves both sides of a pair.
+        let mut cpu_times = [Vec::new(), Vec::new()];
+        for _ in 0..repeat {
+            for (k, form) in forms.iter().enumerate() {
+                form.trace_hits(rays, query, &rob);
+                let t0 = Instant::now();
+                form.trace_hits(rays, query, &rob);
+                cpu_times[k].push(t0.elapsed().as_secs_f64());
                 ticker.inc(1);
-                Ok(())
-            })?;
-            let (nodes, tris) = RayStats::means(&stats);
-            let gpu_mrays = match tracer.as_mut() {
-                None => None,
-                Some(t) => {
-                    t.trace(&rays[..rays.len().min(1024)], query)?; // compile outside the timing
-                    let mut times = Vec::new();
-                    for _ in 0..repeat {
-                        times.push(super::timing::seconds(t, rays, query)?);
-                        ticker.inc(1);
-                    }
-                    Some(n / median(times) / 1e6)
+            }
+        }
+        let mut gpu_times = [Vec::new(), Vec::new()];
+        if gpu {
+            for _ in 0..repeat {
+                for (k, t) in tracers.iter_mut().enumerate() {
+                    t.trace(rays, query)?; // compiles the kernel on the first
+                    gpu_times[k].push(super::timing::seconds(t, rays, query)?);
+                    ticker.inc(1);
                 }
-            };
+            }
+        }
+        let pair_ratio = |times: &[Vec<f64>; 2]| {
+            (!times[0].is_empty())
+                .then(|| median(times[0].iter().zip(&times[1]).map(|(a, b)| a / b).collect()))
+        };
+        ratios.push(Ratio {
+            rays: name,
+            cpu: pair_ratio(&cpu_times).unwrap_or(f64::NAN),
+            gpu: pair_ratio(&gpu_times),
+        });
+        let n = rays.len() as f64;
+        for (k, variant) in ["instanced", "flattened"].into_iter().enumerate() {
             runs.push(Run {
                 variant,
                 rays: name,
                 count: rays.len(),
-                nodes_per_ray: nodes,
-                triangles_per_ray: tris,
-                cpu_mrays_per_s: n / cpu_s / 1e6,
-                gpu_mrays_per_s: gpu_mrays,
+                nodes_per_ray: work[k].0,
+                triangles_per_ray: work[k].1,
+                cpu_mrays_per_s: n / median(cpu_times[k].clone()) / 1e6,
+                gpu_mrays_per_s: gpu.then(|| n / median(gpu_times[k].clone()) / 1e6),
             });
         }
     }
@@ -288,6 +319,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         repeat: repeat as u64,
         variants,
         runs,
+        ratios,
         top_level,
         gpu_driver: device.gpu_context().map(|c| c.adapter.driver.clone()),
     })
@@ -295,19 +327,13 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
 
 impl Report {
     /// Instanced ÷ flattened time per ray of one ray set on one device (>1: instanced is
-    /// slower), or None where either is missing.
+    /// slower), or None where it was not measured.
     pub fn cost_ratio(&self, rays: &str, gpu: bool) -> Option<f64> {
-        let speed = |variant: &str| {
-            let r = self
-                .runs
-                .iter()
-                .find(|r| r.variant == variant && r.rays == rays)?;
-            match gpu {
-                true => r.gpu_mrays_per_s,
-                false => Some(r.cpu_mrays_per_s),
-            }
-        };
-        Some(speed("flattened")? / speed("instanced")?)
+        let r = self.ratios.iter().find(|r| r.rays == rays)?;
+        match gpu {
+            true => r.gpu,
+            false => Some(r.cpu),
+        }
     }
 }
 
@@ -383,7 +409,7 @@ impl BenchReport for Report {
                 super::markdown::dash(self.cost_ratio(rays, true), 2),
             ]);
         }
-        out += "Time per ray, instanced ÷ flattened:\n\n";
+        out += "Time per ray, instanced ÷ flattened (median of the timed pairs):\n\n";
         out += &ratios.text();
         out += "\n";
         let mut top = Table::new(&["instances (one triangle each)", "two-level build ms"]);

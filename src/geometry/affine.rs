@@ -104,6 +104,14 @@ impl Affine {
         self.to_f64().0.determinant()
     }
 
+    /// Whether the linear part keeps the axes (each row has at most one non-zero entry: a
+    /// scale, a mirror, a swap of axes), so that a box maps onto a box exactly.
+    pub fn keeps_axes(&self) -> bool {
+        self.rows
+            .iter()
+            .all(|r| r[..3].iter().filter(|&&x| x != 0.0).count() <= 1)
+    }
+
     /// The inverse map, computed in f64 and rounded to f32; None when the map is singular
     /// or its inverse does not fit in f32.
     pub fn inverse(&self) -> Option<Affine> {

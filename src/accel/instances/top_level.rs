@@ -7,6 +7,7 @@ use super::{Affine, InstanceSet};
 use crate::accel::bvh::layouts::{dfs_nodes, DfsNode};
 use crate::accel::bvh::{self, BuildOptions};
 use crate::geometry::Aabb;
+use crate::mesh::{Mesh, TriStatus};
 
 /// One instance as the top level reads it, 64 bytes (WGSL: four words read by
 /// `top_entry` in two_level.wgsl): the map into its object space, its first triangle index,
@@ -35,20 +36,57 @@ pub(crate) struct TopLevel {
     pub entries: Vec<TopEntry>,
 }
 
+/// A mesh's usable triangles in eight parts, by the octant of the bounds' centre their
+/// centroid lies in: each part's box (none for an empty part; none at all for a mesh with no
+/// usable triangle).
+pub(crate) fn parts(mesh: &Mesh) -> Vec<Aabb> {
+    let centre = mesh.bounds().center();
+    let boxes = (mesh.triangles.par_iter().zip(&mesh.status))
+        .filter(|(_, s)| **s == TriStatus::Ok)
+        .fold(
+            || [Aabb::EMPTY; 8],
+            |mut boxes, (t, _)| {
+                let b = t.bbox();
+                let c = b.center().cmpgt(centre).bitmask() as usize;
+                boxes[c] = boxes[c].union(b);
+                boxes
+            },
+        )
+        .reduce(
+            || [Aabb::EMPTY; 8],
+            |mut a, b| {
+                for (a, b) in a.iter_mut().zip(b) {
+                    *a = a.union(b);
+                }
+                a
+            },
+        );
+    boxes.into_iter().filter(|b| !b.is_empty()).collect()
+}
+
 impl TopLevel {
-    /// The top level over `set`'s instances whose mesh has a box (`mesh_bounds`, by mesh;
-    /// empty for a mesh with no usable triangle), built by `opts.builder` with one instance
-    /// a leaf. Maps must be invertible ([`InstanceSet::new`] checks them).
-    pub fn build(set: &InstanceSet, mesh_bounds: &[Aabb], opts: &BuildOptions) -> TopLevel {
+    /// The top level over `set`'s instances whose mesh has a triangle to hit, built by
+    /// `opts.builder` with one instance a leaf. An instance's world box is the union of its
+    /// mesh's [`parts`] mapped into world space (under a map that turns the axes, tighter
+    /// than the mapped box of the whole mesh). Maps must be invertible
+    /// ([`InstanceSet::new`] checks them).
+    pub fn build(set: &InstanceSet, opts: &BuildOptions) -> TopLevel {
         let firsts = set.first_prims();
+        let mesh_parts: Vec<Vec<Aabb>> = set.meshes.iter().map(|m| parts(m)).collect();
         let placed: Vec<u32> = (0..set.instances.len() as u32)
-            .filter(|&i| !mesh_bounds[set.instances[i as usize].mesh as usize].is_empty())
+            .filter(|&i| !mesh_parts[set.instances[i as usize].mesh as usize].is_empty())
             .collect();
         let boxes: Vec<Aabb> = placed
             .par_iter()
             .map(|&i| {
                 let inst = &set.instances[i as usize];
-                inst.to_world.bound_box(&mesh_bounds[inst.mesh as usize])
+                let parts = &mesh_parts[inst.mesh as usize];
+                let map = &inst.to_world;
+                if map.keeps_axes() {
+                    let whole = parts.iter().fold(Aabb::EMPTY, |b, p| b.union(*p));
+                    return map.bound_box(&whole);
+                }
+                (parts.iter()).fold(Aabb::EMPTY, |b, p| b.union(map.bound_box(p)))
             })
             .collect();
         if boxes.is_empty() {

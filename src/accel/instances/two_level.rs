@@ -54,8 +54,7 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
         let bottoms = (set.meshes.iter())
             .map(|m| bottom(m))
             .collect::<crate::Result<Vec<_>>>()?;
-        let bounds: Vec<Aabb> = bottoms.iter().map(|b| b.bounds()).collect();
-        let top = TopLevel::build(&set, &bounds, options);
+        let top = TopLevel::build(&set, options);
         log::debug!(
             "two-level: {} meshes, {} instances ({} placed), {} top-level nodes",
             set.meshes.len(),
