@@ -395,3 +395,79 @@ fn a_hundred_million_instanced_triangles_trace_on_both_devices() {
     println!("{} hits, {on_edges} within rounding of an edge", hits.len());
     assert!(on_edges * 50 < hits.len());
 }
+
+/// A scene file's `copies` and `grid` (scenes/copies.toml: 64 spheres on a grid, three
+/// boxes, a floor) become instances numbered as the assembled mesh: the flattened copy is
+/// that mesh, triangle for triangle, and every answer of the two-level trace that differs
+/// from the flattened trace's is judged right by the f64 oracle (a tie at an edge).
+#[test]
+fn scene_copies_trace_in_two_levels_as_the_assembled_scene() {
+    let path = std::path::Path::new("scenes/copies.toml");
+    let set = lancer::render::load_instances(path)
+        .unwrap()
+        .expect("copies make instances");
+    assert_eq!((set.meshes.len(), set.instances.len()), (3, 1 + 64 + 3));
+    let scene = lancer::RenderScene::from_file(path).unwrap();
+    let flat = set.flatten();
+    assert_eq!(flat.len(), scene.mesh.len());
+    assert_eq!(flat.status, scene.mesh.status);
+    for (a, b) in flat.triangles.iter().zip(&scene.mesh.triangles) {
+        let d =
+            a.v.iter()
+                .zip(&b.v)
+                .map(|(p, q)| (*p - *q).abs().max_element());
+        assert!(d.fold(0.0f32, f32::max) < 1e-5, "{a:?} {b:?}");
+    }
+    let rays = scene.camera.primary_rays();
+    let options = TracerOptions::default();
+    let two = Tracer::with_instances(cpu_device(), &set, &options).unwrap();
+    let one = Tracer::new(cpu_device(), &scene.mesh, &options).unwrap();
+    let (mut two, mut one) = (two, one);
+    let a = two.trace(&rays, Query::Closest).unwrap().hits;
+    let b = one.trace(&rays, Query::Closest).unwrap().hits;
+    let mut differ = 0;
+    for ((r, x), y) in rays.iter().zip(&a).zip(&b) {
+        if x.prim != y.prim {
+            differ += 1;
+            for h in [x, y] {
+                let v = judge(&scene.mesh, r, h);
+                assert!(!matches!(v, Verdict::Wrong(_)), "{r:?}: {h:?}: {v:?}");
+            }
+        }
+    }
+    println!(
+        "{differ} of {} rays hit another triangle, each judged right",
+        rays.len()
+    );
+    assert!(differ * 100 < rays.len());
+}
+
+/// `copies` and `grid` are checked as the rest of a scene is: one line naming the problem.
+#[test]
+fn bad_copies_are_refused_naming_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |object: &str| {
+        let path = dir.path().join("s.toml");
+        let text = format!(
+            "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\n\
+             [[objects]]\nshape = \"box\"\n{object}\n"
+        );
+        std::fs::write(&path, text).unwrap();
+        let a = lancer::render::load_instances(&path)
+            .err()
+            .map(|e| e.to_string());
+        let b = lancer::RenderScene::from_file(&path)
+            .err()
+            .map(|e| e.to_string());
+        assert_eq!(a, b, "the assembled scene and its instances refuse alike");
+        a.unwrap_or_default()
+    };
+    let both = "grid = { count = [2, 1, 1], step = [1.0, 0.0, 0.0] }\n[[objects.copies]]\n";
+    assert!(refused(both).contains("s.toml:5: use one of 'copies' and 'grid'"));
+    let empty = "grid = { count = [2, 0, 1], step = [1.0, 0.0, 0.0] }";
+    assert!(refused(empty).contains("makes 0 copies"));
+    let flat = "[[objects.copies]]\nscale = [1.0, 0.0, 1.0]";
+    assert!(refused(flat).contains("'scale' must be finite and non-zero"));
+    let unknown = "[[objects.copies]]\nmove = [1.0, 0.0, 1.0]";
+    assert!(refused(unknown).contains("unknown field"));
+}

@@ -41,6 +41,18 @@ impl Affine {
         }
     }
 
+    /// The map p ↦ m·p + t.
+    pub fn from_mat3_translation(m: glam::Mat3, t: Vec3) -> Affine {
+        let r = m.transpose();
+        Affine {
+            rows: [
+                r.x_axis.extend(t.x).to_array(),
+                r.y_axis.extend(t.y).to_array(),
+                r.z_axis.extend(t.z).to_array(),
+            ],
+        }
+    }
+
     /// A translation by `t`.
     pub fn translation(t: Vec3) -> Affine {
         let mut a = Affine::IDENTITY;

@@ -13,8 +13,10 @@ use super::file::{
 use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::Triangle;
-use crate::mesh::{check_traceable, classify, warn_exclusions, Mesh, ObjScene, TriStatus};
+use crate::geometry::{Affine, Triangle};
+use crate::mesh::{
+    check_traceable, classify, warn_exclusions, Instance, InstanceSet, Mesh, ObjScene, TriStatus,
+};
 
 /// A surface's material, as both renderers shade it.
 #[derive(Clone, Debug, PartialEq)]
@@ -264,6 +266,37 @@ impl Builder {
         }
     }
 
+    /// Replaces the triangles from `first` on (one object, under its own transform) by one
+    /// copy of them per placement, each moved by its transform, copies in order.
+    fn place_copies(&mut self, first: usize, copies: &[(Mat3, Vec3)]) -> Result<()> {
+        let n = (self.triangles.len() - first) as u128 * copies.len() as u128;
+        crate::limits::check_memory(
+            &format!("{} copies ({n} triangles)", copies.len()),
+            n * 256,
+            "place fewer copies",
+        )?;
+        let base: Vec<_> = (first..self.triangles.len())
+            .map(|i| {
+                (
+                    self.triangles[i],
+                    self.status[i],
+                    self.uvs[i],
+                    self.material_of[i],
+                )
+            })
+            .collect();
+        self.status.truncate(first);
+        self.triangles.truncate(first);
+        self.uvs.truncate(first);
+        self.material_of.truncate(first);
+        for &(m, t) in copies {
+            for &(tri, status, uv, material) in &base {
+                self.push(xf_copy(&tri, m, t), status, uv, material);
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
         // A transform can make a good triangle degenerate or overflow: classify again.
         let status = match status {
@@ -274,6 +307,13 @@ impl Builder {
         self.status.push(status);
         self.uvs.push(uv);
         self.material_of.push(material);
+    }
+}
+
+/// A triangle moved by `m·p + t`.
+fn xf_copy(tri: &Triangle, m: Mat3, t: Vec3) -> Triangle {
+    Triangle {
+        v: tri.v.map(|p| m * p + t),
     }
 }
 
@@ -307,14 +347,155 @@ fn mtl_material(b: &mut Builder, dir: &Path, m: &tobj::Material) -> Result<Mater
     Ok(mat)
 }
 
+/// Adds one object (a mesh file or a shape) under its own transform, in `mat` (None: the
+/// file's materials, `grey` where it has none); `bad` names its line in the scene file.
+fn add_object(
+    b: &mut Builder,
+    dir: &Path,
+    o: &ObjectDef,
+    mat: Option<u32>,
+    grey: u32,
+    bad: &dyn Fn(String) -> Error,
+) -> Result<()> {
+    check_placement(&o.scale, &o.rotate, &o.translate).map_err(bad)?;
+    let (m, t) = transform(o);
+    let xf = |p: Vec3| m * p + t;
+    match (&o.mesh, o.shape) {
+        (Some(file), None) => {
+            b.add_mesh_file(&dir.join(file), mat, grey, xf)?;
+        }
+        (None, Some(shape)) => {
+            let shape = match shape {
+                super::file::Shape::Quad => shapes::quad(),
+                super::file::Shape::Box => shapes::cube(),
+                round @ (super::file::Shape::Sphere | super::file::Shape::Stadium) => {
+                    let sphere = round == super::file::Shape::Sphere;
+                    let what = if sphere { "sphere" } else { "stadium" };
+                    if o.segments < 3 {
+                        return Err(bad(format!(
+                            "'segments' must be at least 3, got {}",
+                            o.segments
+                        )));
+                    }
+                    // ~256 bytes a triangle through the BVH build.
+                    let n = o.segments as u128;
+                    let tris = match sphere {
+                        true => n * n,
+                        false => n * shapes::STADIUM_TRIS_PER_SEGMENT as u128,
+                    };
+                    if tris >= u32::MAX as u128 / 2 {
+                        return Err(bad(format!(
+                            "'segments' {} makes {tris} triangles, more than lancer \
+                                 indexes: use fewer",
+                            o.segments
+                        )));
+                    }
+                    crate::limits::check_memory(
+                        &format!("a {what} of {} segments ({tris} triangles)", o.segments),
+                        tris * 256,
+                        "use fewer segments",
+                    )
+                    .map_err(|e| bad(error_message(&e)))?;
+                    match sphere {
+                        true => shapes::sphere(o.segments),
+                        false => shapes::stadium(o.segments),
+                    }
+                }
+            };
+            b.add_shape(shape, mat.unwrap_or(grey), xf);
+        }
+        _ => {
+            return Err(bad(
+                "an object needs exactly one of 'mesh' and 'shape'".into()
+            ))
+        }
+    }
+    Ok(())
+}
+
+/// An object's placements, each a transform applied after its own: its `copies`, or its
+/// `grid` (x fastest, then y, then z); None when it has neither (placed once, as it is).
+fn copies_of(o: &ObjectDef) -> std::result::Result<Option<Vec<(Mat3, Vec3)>>, String> {
+    let copies: Vec<(Mat3, Vec3)> = match (&o.copies[..], &o.grid) {
+        ([], None) => return Ok(None),
+        ([_, ..], Some(_)) => return Err("use one of 'copies' and 'grid', not both".into()),
+        (copies, None) => {
+            let mut out = Vec::with_capacity(copies.len());
+            for c in copies {
+                check_placement(&c.scale, &c.rotate, &c.translate)?;
+                out.push(transform_of(&c.scale, &c.rotate, &c.translate));
+            }
+            out
+        }
+        ([], Some(g)) => {
+            let n: u64 = g.count.iter().map(|&c| c as u64).product();
+            if n == 0 || n > MAX_COPIES {
+                return Err(format!(
+                    "'grid' count {:?} makes {n} copies: give 1 to {MAX_COPIES}",
+                    g.count
+                ));
+            }
+            if !g.step.iter().all(|x| x.is_finite()) {
+                return Err("'grid' step must be finite numbers".into());
+            }
+            let [nx, ny, nz] = g.count;
+            let mut out = Vec::with_capacity(n as usize);
+            for k in 0..nz {
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let at = Vec3::new(i as f32, j as f32, k as f32) * Vec3::from(g.step);
+                        out.push((Mat3::IDENTITY, at));
+                    }
+                }
+            }
+            out
+        }
+    };
+    if copies.len() as u64 > MAX_COPIES {
+        return Err(format!(
+            "{} copies: give at most {MAX_COPIES}",
+            copies.len()
+        ));
+    }
+    Ok(Some(copies))
+}
+
+/// Most copies of one object.
+const MAX_COPIES: u64 = 10_000_000;
+
+/// Refuses a non-finite or zero scale, and non-finite angles or offsets.
+fn check_placement(
+    scale: &Scale,
+    rotate: &[f32; 3],
+    translate: &[f32; 3],
+) -> std::result::Result<(), String> {
+    let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+    let scale_ok = match scale {
+        Scale::Uniform(s) => s.is_finite() && *s != 0.0,
+        Scale::Axes(a) => finite(a) && a.iter().all(|&x| x != 0.0),
+    };
+    if !scale_ok {
+        return Err("'scale' must be finite and non-zero".into());
+    }
+    if !finite(rotate) || !finite(translate) {
+        return Err("'rotate' and 'translate' must be finite numbers".into());
+    }
+    Ok(())
+}
+
 fn transform(o: &ObjectDef) -> (Mat3, Vec3) {
-    let s = match o.scale {
+    transform_of(&o.scale, &o.rotate, &o.translate)
+}
+
+/// Scale, then rotation about X, Y and Z (degrees), then translation.
+fn transform_of(scale: &Scale, rotate: &[f32; 3], translate: &[f32; 3]) -> (Mat3, Vec3) {
+    let s = match *scale {
         Scale::Uniform(s) => Vec3::splat(s),
         Scale::Axes(a) => Vec3::from(a),
     };
-    let [rx, ry, rz] = o.rotate.map(f32::to_radians);
+    let [rx, ry, rz] = rotate.map(f32::to_radians);
     let r = Mat3::from_rotation_z(rz) * Mat3::from_rotation_y(ry) * Mat3::from_rotation_x(rx);
-    (r * Mat3::from_diagonal(s), Vec3::from(o.translate))
+    (r * Mat3::from_diagonal(s), Vec3::from(*translate))
 }
 
 fn check_rgb(path: &Path, line: usize, what: &str, c: [f32; 3]) -> Result<Vec3> {
@@ -416,6 +597,50 @@ impl RenderScene {
 }
 
 impl RenderScene {
+    /// A scene file's objects as meshes placed by instances, where an object has `copies`
+    /// or a `grid`; None where none has (the assembled mesh is then no bigger). Each object
+    /// is one mesh under its own transform, its copies its instances (an object without
+    /// copies: one instance as it is), numbered as [`RenderScene::from_file`] numbers the
+    /// assembled mesh. Only geometry is kept: for tracing.
+    pub fn instances_of_file(path: &Path) -> Result<Option<InstanceSet>> {
+        let src = crate::input::read_text(path)?;
+        let f = SceneFile::parse(path, &src)?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let line = |span: std::ops::Range<usize>| line_of(&src, span.start);
+        let (mut meshes, mut instances, mut any) = (Vec::new(), Vec::new(), false);
+        for o in &f.objects {
+            let ln = line(o.span());
+            let o = o.get_ref();
+            let bad = |msg: String| Error::input(path, Some(ln), msg);
+            let copies = copies_of(o).map_err(bad)?;
+            any |= copies.is_some();
+            let mut b = Builder::default();
+            let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
+            add_object(&mut b, &dir, o, None, grey, &bad)?;
+            let mesh = meshes.len() as u32;
+            meshes.push(std::sync::Arc::new(Mesh {
+                triangles: b.triangles,
+                status: b.status,
+                short_faces: b.short_faces,
+                sources: b.sources,
+            }));
+            let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
+            instances.extend(copies.into_iter().map(|(m, t)| Instance {
+                mesh,
+                to_world: Affine::from_mat3_translation(m, t),
+            }));
+        }
+        if !any {
+            return Ok(None);
+        }
+        if let Some(first) = meshes.first_mut().and_then(std::sync::Arc::get_mut) {
+            first.sources.push(path.to_path_buf());
+        }
+        let set = InstanceSet::new(meshes, instances)
+            .map_err(|e| Error::input(path, None, error_message(&e)))?;
+        Ok(Some(set))
+    }
+
     /// Reads a TOML scene file and everything it names.
     pub fn from_file(path: &Path) -> Result<RenderScene> {
         let src = crate::input::read_text(path)?;
@@ -451,68 +676,12 @@ impl RenderScene {
                 ),
                 None => None,
             };
-            let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
-            let scale_ok = match o.scale {
-                Scale::Uniform(s) => s.is_finite() && s != 0.0,
-                Scale::Axes(a) => finite(&a) && a.iter().all(|&x| x != 0.0),
-            };
-            if !scale_ok {
-                return Err(bad("'scale' must be finite and non-zero".into()));
-            }
-            if !finite(&o.rotate) || !finite(&o.translate) {
-                return Err(bad("'rotate' and 'translate' must be finite numbers".into()));
-            }
-            let (m, t) = transform(o);
-            let xf = |p: Vec3| m * p + t;
-            match (&o.mesh, o.shape) {
-                (Some(file), None) => {
-                    b.add_mesh_file(&dir.join(file), mat, grey, xf)?;
-                }
-                (None, Some(shape)) => {
-                    let shape = match shape {
-                        super::file::Shape::Quad => shapes::quad(),
-                        super::file::Shape::Box => shapes::cube(),
-                        round @ (super::file::Shape::Sphere | super::file::Shape::Stadium) => {
-                            let sphere = round == super::file::Shape::Sphere;
-                            let what = if sphere { "sphere" } else { "stadium" };
-                            if o.segments < 3 {
-                                return Err(bad(format!(
-                                    "'segments' must be at least 3, got {}",
-                                    o.segments
-                                )));
-                            }
-                            // ~256 bytes a triangle through the BVH build.
-                            let n = o.segments as u128;
-                            let tris = match sphere {
-                                true => n * n,
-                                false => n * shapes::STADIUM_TRIS_PER_SEGMENT as u128,
-                            };
-                            if tris >= u32::MAX as u128 / 2 {
-                                return Err(bad(format!(
-                                    "'segments' {} makes {tris} triangles, more than lancer \
-                                     indexes: use fewer",
-                                    o.segments
-                                )));
-                            }
-                            crate::limits::check_memory(
-                                &format!("a {what} of {} segments ({tris} triangles)", o.segments),
-                                tris * 256,
-                                "use fewer segments",
-                            )
-                            .map_err(|e| bad(error_message(&e)))?;
-                            match sphere {
-                                true => shapes::sphere(o.segments),
-                                false => shapes::stadium(o.segments),
-                            }
-                        }
-                    };
-                    b.add_shape(shape, mat.unwrap_or(grey), xf);
-                }
-                _ => {
-                    return Err(bad(
-                        "an object needs exactly one of 'mesh' and 'shape'".into()
-                    ))
-                }
+            let copies = copies_of(o).map_err(bad)?;
+            let first = b.triangles.len();
+            add_object(&mut b, &dir, o, mat, grey, &bad)?;
+            if let Some(copies) = copies {
+                b.place_copies(first, &copies)
+                    .map_err(|e| bad(error_message(&e)))?;
             }
         }
 

@@ -167,6 +167,36 @@ pub struct ObjectDef {
     /// Sphere and stadium tessellation: segments around (a sphere's rings are half as many).
     #[serde(default = "segments")]
     pub segments: u32,
+    /// `[[objects.copies]]`: the object placed once per entry, each entry's transform
+    /// applied after the object's own (default: placed once, as it is).
+    #[serde(default)]
+    pub copies: Vec<CopyDef>,
+    /// `grid = { count = [nx, ny, nz], step = [dx, dy, dz] }`: the object placed on a grid
+    /// of offsets (x fastest, then y, then z), instead of `copies`.
+    pub grid: Option<GridDef>,
+}
+
+/// One placement of an object (`[[objects.copies]]`): scale, rotation, then translation.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CopyDef {
+    #[serde(default)]
+    pub scale: Scale,
+    /// Rotation in degrees about X, then Y, then Z.
+    #[serde(default)]
+    pub rotate: [f32; 3],
+    #[serde(default)]
+    pub translate: [f32; 3],
+}
+
+/// Copies of an object on a grid of offsets (`grid = { … }`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridDef {
+    /// Copies along x, y and z.
+    pub count: [u32; 3],
+    /// Offset between neighbours along x, y and z.
+    pub step: [f32; 3],
 }
 
 /// A light's `type`.

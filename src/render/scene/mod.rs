@@ -22,13 +22,15 @@ pub fn load_geometry(path: &std::path::Path) -> crate::Result<crate::mesh::Mesh>
 }
 
 /// The geometry of a file as meshes placed by instances, where the file places a mesh more
-/// than once (a glTF mesh drawn by several nodes: [`load_gltf_instances`]); None where it
-/// does not (then [`load_geometry`]'s one mesh is no bigger), and for the other formats.
+/// than once (a glTF mesh drawn by several nodes: [`load_gltf_instances`]; a scene object
+/// with `copies` or a `grid`: [`RenderScene::instances_of_file`]); None where it does not
+/// (then [`load_geometry`]'s one mesh is no bigger), and for OBJ and PLY.
 ///
 /// [`load_gltf_instances`]: crate::mesh::load_gltf_instances
 pub fn load_instances(path: &std::path::Path) -> crate::Result<Option<crate::mesh::InstanceSet>> {
     match crate::mesh::FileKind::of(path)? {
         crate::mesh::FileKind::Gltf => crate::mesh::load_gltf_instances(path),
+        crate::mesh::FileKind::Scene => RenderScene::instances_of_file(path),
         _ => Ok(None),
     }
 }
