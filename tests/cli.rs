@@ -1532,6 +1532,12 @@ fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
         let err = String::from_utf8_lossy(&out.stderr).into_owned();
         (lancer::trace::files::read_hits(&hits).unwrap(), err)
     };
+    let built = lancer_ok(&["build", s(&scene), "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&built.stdout).unwrap();
+    assert_eq!(
+        (j["instances"].as_u64(), j["instanced_triangles"].as_u64()),
+        (Some(4), Some(288))
+    );
     let (flat, flat_log) = trace("cpu", &["--flatten"]);
     assert!(!flat_log.contains("two levels"), "{flat_log}");
     let hit = flat.iter().filter(|h| h.is_hit()).count();

@@ -6,7 +6,7 @@ use lancer::Result;
 
 use super::out::{print_json, say, Say};
 use super::BuildArgs;
-use lancer::render::load_geometry;
+use lancer::render::{load_geometry, load_instances};
 
 #[derive(Args)]
 pub struct BuildCmd {
@@ -25,6 +25,9 @@ pub struct BuildCmd {
 
 impl BuildCmd {
     pub fn run(self) -> Result<()> {
+        // A scene that places a mesh many times is built flattened (a BVH file holds one
+        // level); the report counts its instances.
+        let instances = load_instances(&self.mesh)?;
         let mesh = load_geometry(&self.mesh)?;
         if let Some(out) = &self.out {
             lancer::output::check_output(out, &mesh.sources)?;
@@ -35,6 +38,10 @@ impl BuildCmd {
         if let Some(out) = &self.out {
             bvh_file::write(out, layout.as_ref(), mesh.len())?;
             report.out = Some(out.display().to_string());
+        }
+        if let Some(set) = &instances {
+            report.instances = Some(set.instances.len());
+            report.instanced_triangles = Some(set.triangle_count());
         }
         report.peak_memory_bytes = lancer::bench::memory::peak_resident();
         if self.json {

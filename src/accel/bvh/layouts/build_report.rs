@@ -26,6 +26,13 @@ pub struct BuildReport {
     pub build_ms: f64,
     /// Bytes of the flattened layout (what the GPU holds).
     pub bytes: usize,
+    /// Instances in the scene, where it places a mesh more than once (the BVH is built
+    /// over the flattened scene: every instance's triangles).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub instances: Option<usize>,
+    /// Triangles of the flattened scene, where it places a mesh more than once.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub instanced_triangles: Option<u64>,
     /// The BVH file written, if any (set by the caller that writes it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub out: Option<String>,
@@ -51,6 +58,8 @@ pub fn build_and_flatten(
         stats: BvhStats::of(&bvh, options),
         build_ms,
         bytes: flat.bytes(),
+        instances: None,
+        instanced_triangles: None,
         out: None,
         peak_memory_bytes: None,
     };
@@ -73,6 +82,9 @@ impl BuildReport {
             format!("build ms    {:.2}", self.build_ms),
             format!("GPU bytes   {}", self.bytes),
         ];
+        if let (Some(n), Some(t)) = (self.instances, self.instanced_triangles) {
+            lines.push(format!("instances   {n} ({t} triangles, built flattened)"));
+        }
         lines.extend(self.out.iter().map(|o| format!("written to  {o}")));
         lines.extend(
             (self.peak_memory_bytes.iter()).map(|b| format!("peak memory {}", human_bytes(*b))),
