@@ -58,6 +58,9 @@ impl GpuBvh {
         } else {
             arrays.tris
         };
+        // Both sizes checked before either array is uploaded.
+        fits(ctx, memory, "the BVH nodes", nodes.len())?;
+        fits(ctx, memory, "the triangles", tris.len())?;
         let (node_buf, node_tex) = words_in(ctx, memory, "the BVH nodes", nodes)?;
         let (tri_buf, tri_tex) = words_in(ctx, memory, "the triangles", tris)?;
         let bvh = GpuBvh {
@@ -116,30 +119,39 @@ pub(crate) fn words_in(
     let word = [0u8; 16];
     let storage =
         |label: &str, bytes: &[u8]| ctx.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE);
+    fits(ctx, memory, what, bytes.len())?;
     Ok(match memory {
-        BvhMemory::Buffers => {
-            ctx.check_binding(what, bytes.len() as u64)?;
-            (storage(what, bytes), texels(ctx, "unused texels", &word)?)
-        }
+        BvhMemory::Buffers => (storage(what, bytes), texels(ctx, "unused texels", &word)?),
         BvhMemory::Textures => (storage("unused words", &word), texels(ctx, what, bytes)?),
     })
 }
 
-/// An rgba32uint texture holding `bytes` (a multiple of 16) row by row, the last row padded
-/// with zeros.
-fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureView> {
-    let words = bytes.len() / 16;
-    let rows = words.div_ceil(TEXEL_ROW as usize).max(1);
+/// Refuses `len` bytes of words (`what`, for messages) that `memory` cannot hold on this
+/// device (one storage binding, or a texture of [`TEXEL_ROW`] texels a row), naming the size
+/// and the limit.
+fn fits(ctx: &GpuContext, memory: BvhMemory, what: &str, len: usize) -> Result<()> {
+    if memory == BvhMemory::Buffers {
+        return ctx.check_binding(what, len as u64);
+    }
+    let rows = (len / 16).div_ceil(TEXEL_ROW as usize).max(1);
     let max = ctx.limits.max_texture_dimension_2d as usize;
     if rows > max || TEXEL_ROW as usize > max {
         return Err(Error::Gpu(format!(
             "{what} need a texture of {TEXEL_ROW}×{rows} texels ({}) but {} allows at most \
              {max}×{max} (max_texture_dimension_2d); use --bvh-memory buffers, a smaller scene \
              or --device cpu",
-            human_bytes(bytes.len() as u64),
+            human_bytes(len as u64),
             ctx.adapter.name,
         )));
     }
+    Ok(())
+}
+
+/// An rgba32uint texture holding `bytes` (a multiple of 16) row by row, the last row padded
+/// with zeros (its size checked by [`fits`]).
+fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureView> {
+    let words = bytes.len() / 16;
+    let rows = words.div_ceil(TEXEL_ROW as usize).max(1);
     let size = |rows: usize| wgpu::Extent3d {
         width: TEXEL_ROW,
         height: rows as u32,
