@@ -3,6 +3,8 @@
 //! bottom levels' nodes; `two_level.wgsl` walks the top level and calls the layout's own
 //! `traverse` for each instance. Its CPU twin is [`TwoLevel`] over the same layouts.
 
+use std::sync::OnceLock;
+
 use super::top_level::TopEntry;
 use super::{InstanceSet, TwoLevel};
 use crate::accel::bvh::layouts::{self, DfsNode, LayoutKind, DFS_LEAF_TAG};
@@ -20,10 +22,9 @@ pub struct GpuTwoLevel {
     layout: LayoutKind,
     /// The bottom layout's traversal.
     bottom_wgsl: String,
-    /// The bottom levels' nodes, then the top level's nodes, then its entries.
-    nodes: Vec<u8>,
-    /// The bottom levels' triangles.
-    tris: Vec<u8>,
+    /// The GPU arrays, laid out on first use (a CPU device never asks): the bottom levels'
+    /// nodes, then the top level's nodes, then its entries; the bottom levels' triangles.
+    arrays: OnceLock<(Vec<u8>, Vec<u8>)>,
     /// First word of the top level's nodes, and of its entries, in `nodes`.
     top_node_base: u32,
     top_entry_base: u32,
@@ -48,34 +49,42 @@ impl GpuTwoLevel {
                 "an instanced scene needs at least one mesh".into(),
             ));
         };
-        let (mut nodes, mut tris) = (Vec::new(), Vec::new());
-        let mut bases = Vec::with_capacity(twin.bottoms.len());
-        for b in &twin.bottoms {
-            let a = b.arrays();
-            bases.push(((nodes.len() / WORD) as u32, (tris.len() / WORD) as u32));
-            nodes.extend_from_slice(a.nodes);
-            tris.extend_from_slice(a.tris);
-        }
+        let bases = bottom_bases(&twin.bottoms);
         for e in &mut twin.top.entries {
             (e.node_base, e.tri_base) = bases[e.mesh as usize];
         }
-        let top_node_base = (nodes.len() / WORD) as u32;
-        nodes.extend_from_slice(bytemuck::cast_slice(&twin.top.nodes));
-        let top_entry_base = (nodes.len() / WORD) as u32;
-        nodes.extend_from_slice(bytemuck::cast_slice(&twin.top.entries));
-        if tris.is_empty() {
-            // Every array is bound, so none may be empty (no triangle is ever read).
-            tris.resize(3 * WORD, 0);
-        }
+        let node_words: usize = twin
+            .bottoms
+            .iter()
+            .map(|b| b.arrays().nodes.len() / WORD)
+            .sum();
+        let top_node_base = node_words as u32;
+        let top_entry_base = top_node_base + (twin.top.nodes.len() * 2) as u32;
         Ok(GpuTwoLevel {
             twin,
             layout,
             bottom_wgsl,
-            nodes,
-            tris,
+            arrays: OnceLock::new(),
             top_node_base,
             top_entry_base,
         })
+    }
+
+    /// The GPU arrays laid out (see [`GpuTwoLevel::arrays`]).
+    fn lay_out(&self) -> (Vec<u8>, Vec<u8>) {
+        let (mut nodes, mut tris) = (Vec::new(), Vec::new());
+        for b in &self.twin.bottoms {
+            let a = b.arrays();
+            nodes.extend_from_slice(a.nodes);
+            tris.extend_from_slice(a.tris);
+        }
+        nodes.extend_from_slice(bytemuck::cast_slice(&self.twin.top.nodes));
+        nodes.extend_from_slice(bytemuck::cast_slice(&self.twin.top.entries));
+        if tris.is_empty() {
+            // Every array is bound, so none may be empty (no triangle is ever read).
+            tris.resize(3 * WORD, 0);
+        }
+        (nodes, tris)
     }
 
     /// The top level's structure: children forward and in range, depth within the stack,
@@ -129,14 +138,7 @@ impl GpuTwoLevel {
         if seen != nodes.len() || seen_entries.contains(&false) {
             return Err("top level has unreachable nodes or entries".into());
         }
-        let mut base = (0u32, 0u32);
-        let mut bases = Vec::new();
-        for b in &self.twin.bottoms {
-            bases.push(base);
-            let a = b.arrays();
-            base.0 += (a.nodes.len() / WORD) as u32;
-            base.1 += (a.tris.len() / WORD) as u32;
-        }
+        let bases = bottom_bases(&self.twin.bottoms);
         for (k, e) in entries.iter().enumerate() {
             let TopEntry {
                 mesh,
@@ -152,6 +154,19 @@ impl GpuTwoLevel {
         }
         Ok(())
     }
+}
+
+/// Each bottom level's first node word and first triangle word in the GPU arrays.
+fn bottom_bases(bottoms: &[Box<dyn GpuForm>]) -> Vec<(u32, u32)> {
+    let mut base = (0u32, 0u32);
+    let mut bases = Vec::with_capacity(bottoms.len());
+    for b in bottoms {
+        bases.push(base);
+        let a = b.arrays();
+        base.0 += (a.nodes.len() / WORD) as u32;
+        base.1 += (a.tris.len() / WORD) as u32;
+    }
+    bases
 }
 
 impl Accel for GpuTwoLevel {
@@ -176,10 +191,19 @@ impl GpuForm for GpuTwoLevel {
     }
 
     fn arrays(&self) -> GpuArrays<'_> {
-        GpuArrays {
-            nodes: &self.nodes,
-            tris: &self.tris,
-        }
+        let (nodes, tris) = self.arrays.get_or_init(|| self.lay_out());
+        GpuArrays { nodes, tris }
+    }
+
+    /// The arrays' bytes, counted without laying them out.
+    fn bytes(&self) -> usize {
+        let top = &self.twin.top;
+        let bottoms: usize = self.twin.bottoms.iter().map(|b| b.bytes()).sum();
+        bottoms + std::mem::size_of_val(&top.nodes[..]) + std::mem::size_of_val(&top.entries[..])
+    }
+
+    fn triangles(&self) -> usize {
+        self.twin.bottoms.iter().map(|b| b.triangles()).sum()
     }
 
     /// The bottom layout's traversal, then the top level's walk (`trace_ray`).
