@@ -179,7 +179,7 @@ impl Affine {
     }
 
     /// A box holding the image of box `b` (its eight corners mapped in f64), padded by a
-    /// relative [`BOX_PAD`] of its largest coordinate and rounded outwards to f32.
+    /// relative 2⁻²⁰ of its largest coordinate and rounded outwards to f32.
     pub fn bound_box(&self, b: &Aabb) -> Aabb {
         let Some((out_lo, out_hi)) = self.corners_box(b) else {
             return Aabb::EMPTY;

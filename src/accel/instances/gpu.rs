@@ -227,7 +227,8 @@ impl GpuForm for GpuTwoLevel {
         ]
     }
 
-    /// Every bottom level's own checks, then the top level's ([`GpuTwoLevel::check_top`]).
+    /// Every bottom level's own checks, then the top level's: its structure, its boxes and its
+    /// entries' offsets.
     fn validate(&self) -> Result<(), String> {
         for (m, b) in self.twin.bottoms.iter().enumerate() {
             b.validate().map_err(|e| format!("mesh {m}: {e}"))?;
