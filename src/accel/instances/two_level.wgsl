@@ -34,62 +34,74 @@ fn trace_ray(r: Ray, any_hit: bool) -> Hit {
         var sp = 0u;
         var idx = 0u;
         loop {
-            let na = array_node_word(TOP_NODE_BASE + 2u * idx);
-            let nb = array_node_word(TOP_NODE_BASE + 2u * idx + 1u);
-            nodes += 1u;
-            var descended = false;
-            if slab_hit(bitcast<vec3<f32>>(na.xyz), bitcast<vec3<f32>>(nb.xyz), r.origin, inv,
-                        r.tmin, prune) {
-                if (nb.w & 3u) != TOP_LEAF_TAG {
-                    var near = idx + 1u;
-                    var far = na.w;
-                    if r.dir[nb.w & 3u] < 0.0 {
-                        near = na.w;
-                        far = idx + 1u;
+            // Inner nodes until a hit leaf or the end of the walk, the next node popped
+            // first: the lanes of a SIMD group then enter their instances together, rather
+            // than one lane's bottom-level traversal waiting for another's inner steps. The
+            // nodes are visited in the order of a one-loop walk (the twin's).
+            var first = 0u;
+            var end = 0u;
+            var finished = false;
+            loop {
+                let na = array_node_word(TOP_NODE_BASE + 2u * idx);
+                let nb = array_node_word(TOP_NODE_BASE + 2u * idx + 1u);
+                nodes += 1u;
+                if slab_hit(bitcast<vec3<f32>>(na.xyz), bitcast<vec3<f32>>(nb.xyz), r.origin,
+                            inv, r.tmin, prune) {
+                    if (nb.w & 3u) != TOP_LEAF_TAG {
+                        var near = idx + 1u;
+                        var far = na.w;
+                        if r.dir[nb.w & 3u] < 0.0 {
+                            near = na.w;
+                            far = idx + 1u;
+                        }
+                        stack[sp] = far;
+                        sp += 1u;
+                        idx = near;
+                        continue;
                     }
-                    stack[sp] = far;
-                    sp += 1u;
-                    idx = near;
-                    descended = true;
+                    first = na.w;
+                    end = na.w + (nb.w >> 2u);
+                }
+                if sp == 0u {
+                    finished = true;
                 } else {
-                    let end = na.w + (nb.w >> 2u);
-                    for (var k = na.w; k < end; k += 1u) {
-                        let e = TOP_ENTRY_BASE + 4u * k;
-                        let m0 = bitcast<vec4<f32>>(array_node_word(e));
-                        let m1 = bitcast<vec4<f32>>(array_node_word(e + 1u));
-                        let m2 = bitcast<vec4<f32>>(array_node_word(e + 2u));
-                        let ids = array_node_word(e + 3u);  // first_prim, mesh, node_base, tri_base
-                        bottom_node_base = ids.z;
-                        bottom_tri_base = ids.w;
-                        var local = Ray(top_point(m0, m1, m2, r.origin), r.tmin,
-                                        top_vector(m0, m1, m2, r.dir), r.tmax);
-                        if best.prim != MISS {
-                            local.tmax = prune;
-                        }
-                        let h = traverse(local, any_hit);
-                        nodes += n_nodes;
-                        tris += n_tris;
-                        done = done && traversal_done;
-                        let prim = ids.x + h.prim;
-                        if h.prim != MISS && beats(h.t, prim, best.t, best.prim) {
-                            best = Hit(h.t, prim, h.u, h.v);
-                            prune = taken_prune;
-                            if any_hit {
-                                // Answered: empty the stack, the pop below ends the walk.
-                                sp = 0u;
-                                break;
-                            }
-                        }
+                    sp -= 1u;
+                    idx = stack[sp];
+                }
+                if end > first || finished {
+                    break;
+                }
+            }
+            for (var k = first; k < end; k += 1u) {
+                let e = TOP_ENTRY_BASE + 4u * k;
+                let m0 = bitcast<vec4<f32>>(array_node_word(e));
+                let m1 = bitcast<vec4<f32>>(array_node_word(e + 1u));
+                let m2 = bitcast<vec4<f32>>(array_node_word(e + 2u));
+                let ids = array_node_word(e + 3u);  // first_prim, mesh, node_base, tri_base
+                bottom_node_base = ids.z;
+                bottom_tri_base = ids.w;
+                var local = Ray(top_point(m0, m1, m2, r.origin), r.tmin,
+                                top_vector(m0, m1, m2, r.dir), r.tmax);
+                if best.prim != MISS {
+                    local.tmax = prune;
+                }
+                let h = traverse(local, any_hit);
+                nodes += n_nodes;
+                tris += n_tris;
+                done = done && traversal_done;
+                let prim = ids.x + h.prim;
+                if h.prim != MISS && beats(h.t, prim, best.t, best.prim) {
+                    best = Hit(h.t, prim, h.u, h.v);
+                    prune = taken_prune;
+                    if any_hit {
+                        finished = true;  // answered
+                        break;
                     }
                 }
             }
-            if !descended {
-                if sp == 0u {
-                    traversal_end(bitcast<u32>(r.tmax));
-                    break;
-                }
-                sp -= 1u;
-                idx = stack[sp];
+            if finished {
+                traversal_end(bitcast<u32>(r.tmax));
+                break;
             }
         }
     }
