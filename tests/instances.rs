@@ -19,6 +19,7 @@ use lancer::accel::instances::{Affine, GpuTwoLevel, Instance, InstanceSet, TwoLe
 use lancer::accel::{build, Accel, AccelKind, GpuForm};
 use lancer::geometry::{Hit, Triangle};
 use lancer::mesh::Mesh;
+use lancer::render::RenderOptions;
 use lancer::trace::oracle::{judge, Verdict};
 use lancer::{LayoutKind, Query, RayStats, Robustness, Tracer, TracerOptions};
 
@@ -304,11 +305,9 @@ fn tracers_over_instances_answer_as_over_the_flattened_scene() {
     }
 }
 
-/// 10⁸ instanced triangles: a wavy field of 100,352 triangles placed 1,000 times, turned and
-/// moved, built and traced on the CPU and the GPU (never flattened: that would take ~4 GB).
-/// The GPU equals the CPU twin bit for bit; every hit lies on its instance's triangle in f64.
-#[test]
-fn a_hundred_million_instanced_triangles_trace_on_both_devices() {
+/// A wavy field of 100,352 triangles placed 1,000 times, turned and moved: 10⁸ instanced
+/// triangles.
+fn hundred_million() -> (Arc<Mesh>, InstanceSet) {
     let n = 224u32;
     let positions: Vec<[f32; 3]> = (0..=n)
         .flat_map(|j| {
@@ -335,8 +334,20 @@ fn a_hundred_million_instanced_triangles_trace_on_both_devices() {
         .collect();
     let set = InstanceSet::new(vec![field.clone()], instances).unwrap();
     assert_eq!(set.triangle_count(), 100_352_000);
+    (field, set)
+}
+
+/// The view over [`hundred_million`]'s field.
+const FIELD_EYE: Vec3 = Vec3::new(16.0, 24.0, -4.0);
+
+/// 10⁸ instanced triangles ([`hundred_million`]) built and traced on the CPU and the GPU
+/// (never flattened: that would take ~4 GB). The GPU equals the CPU twin bit for bit; every
+/// hit lies on its instance's triangle in f64.
+#[test]
+fn a_hundred_million_instanced_triangles_trace_on_both_devices() {
+    let (field, set) = hundred_million();
     let camera = lancer::camera::Camera {
-        eye: Vec3::new(16.0, 24.0, -4.0),
+        eye: FIELD_EYE,
         look_at: Vec3::new(16.0, 0.0, 15.0),
         up: Vec3::Y,
         vfov_deg: 50.0,
@@ -397,32 +408,33 @@ fn a_hundred_million_instanced_triangles_trace_on_both_devices() {
 }
 
 /// A scene file's `copies` and `grid` (scenes/copies.toml: 64 spheres on a grid, three
-/// boxes, a floor) become instances numbered as the assembled mesh: the flattened copy is
-/// that mesh, triangle for triangle, and every answer of the two-level trace that differs
-/// from the flattened trace's is judged right by the f64 oracle (a tie at an edge).
+/// boxes, a floor) keep each object once, placed by instances numbered as the flattened
+/// scene: traced in two levels, rays hit what they hit in the flattened scene (where
+/// another triangle, the f64 oracle judges both right), and the render equals the
+/// flattened scene's render within the tolerance of a GPU against its CPU reference.
 #[test]
-fn scene_copies_trace_in_two_levels_as_the_assembled_scene() {
+fn scene_copies_trace_and_render_in_two_levels_as_the_flattened_scene() {
     let path = std::path::Path::new("scenes/copies.toml");
-    let set = lancer::render::load_instances(path)
-        .unwrap()
-        .expect("copies make instances");
+    let mut scene = lancer::RenderScene::from_file(path).unwrap();
+    scene.camera.width = 96;
+    scene.camera.height = 72;
+    let set = scene
+        .placements
+        .as_ref()
+        .expect("copies make placements")
+        .set()
+        .clone();
     assert_eq!((set.meshes.len(), set.instances.len()), (3, 1 + 64 + 3));
-    let scene = lancer::RenderScene::from_file(path).unwrap();
-    let flat = set.flatten();
-    assert_eq!(flat.len(), scene.mesh.len());
-    assert_eq!(flat.status, scene.mesh.status);
-    for (a, b) in flat.triangles.iter().zip(&scene.mesh.triangles) {
-        let d =
-            a.v.iter()
-                .zip(&b.v)
-                .map(|(p, q)| (*p - *q).abs().max_element());
-        assert!(d.fold(0.0f32, f32::max) < 1e-5, "{a:?} {b:?}");
-    }
+    let unique: usize = set.meshes.iter().map(|m| m.len()).sum();
+    assert_eq!(scene.mesh.len(), unique, "each object once");
+    let flat = scene.clone().flattened().unwrap();
+    assert_eq!(flat.mesh.len() as u64, set.triangle_count());
+    assert!(flat.placements.is_none());
+    assert_eq!(flat.emitters, scene.emitters);
     let rays = scene.camera.primary_rays();
     let options = TracerOptions::default();
-    let two = Tracer::with_instances(cpu_device(), &set, &options).unwrap();
-    let one = Tracer::new(cpu_device(), &scene.mesh, &options).unwrap();
-    let (mut two, mut one) = (two, one);
+    let mut two = Tracer::with_instances(cpu_device(), &set, &options).unwrap();
+    let mut one = Tracer::new(cpu_device(), &flat.mesh, &options).unwrap();
     let a = two.trace(&rays, Query::Closest).unwrap().hits;
     let b = one.trace(&rays, Query::Closest).unwrap().hits;
     let mut differ = 0;
@@ -430,7 +442,7 @@ fn scene_copies_trace_in_two_levels_as_the_assembled_scene() {
         if x.prim != y.prim {
             differ += 1;
             for h in [x, y] {
-                let v = judge(&scene.mesh, r, h);
+                let v = judge(&flat.mesh, r, h);
                 assert!(!matches!(v, Verdict::Wrong(_)), "{r:?}: {h:?}: {v:?}");
             }
         }
@@ -440,6 +452,173 @@ fn scene_copies_trace_in_two_levels_as_the_assembled_scene() {
         rays.len()
     );
     assert!(differ * 100 < rays.len());
+    // Renders: two levels on the CPU and the GPU, and the flattened scene on the CPU.
+    let opts = RenderOptions {
+        spp: Some(2),
+        ..RenderOptions::default()
+    };
+    let image = |s: &lancer::RenderScene, d: &lancer::Device| {
+        lancer::render::render(s, d, &opts).unwrap().image.pixels
+    };
+    let placed = image(&scene, cpu_device());
+    for (what, other) in [
+        ("the flattened scene", image(&flat, cpu_device())),
+        ("the GPU", image(&scene, gpu_device())),
+    ] {
+        let d: Vec<f32> = (placed.iter().zip(&other))
+            .map(|(x, y)| (*x - *y).abs().max_element())
+            .collect();
+        let over = d.iter().filter(|&&x| x > 2.0 / 255.0).count();
+        let mean = d.iter().sum::<f32>() / d.len() as f32;
+        println!(
+            "two levels against {what}: {over} of {} pixels over 2/255, mean {mean:e}",
+            d.len()
+        );
+        assert!(over * 50 <= d.len() && mean <= 0.004, "{what}");
+    }
+    let lum: Vec<f32> = placed.iter().map(|c| c.x + c.y + c.z).collect();
+    let spread = lum.iter().cloned().fold(0.0, f32::max) - lum.iter().cloned().fold(9.0, f32::min);
+    assert!(spread > 0.1, "a flat image");
+}
+
+/// 10⁸ instanced triangles ([`hundred_million`]) render at a small size on the CPU and the
+/// GPU, through two levels (the flattened scene would not fit CI's memory): the images
+/// agree within the renderer's GPU tolerance, and show the field.
+#[test]
+fn a_hundred_million_instanced_triangles_render_on_both_devices() {
+    let (field, set) = hundred_million();
+    let n = field.len();
+    let mut scene = lancer::RenderScene {
+        camera: lancer::camera::Camera {
+            eye: FIELD_EYE,
+            look_at: Vec3::new(16.0, 0.0, 15.0),
+            up: Vec3::Y,
+            vfov_deg: 50.0,
+            width: 48,
+            height: 32,
+        },
+        settings: lancer::render::Settings {
+            integrator: lancer::render::Integrator::Path,
+            max_bounces: 1,
+            spp: 1,
+            seed: 3,
+            background: Vec3::new(0.35, 0.45, 0.6),
+            ao_distance: 1.0,
+        },
+        mesh: (*field).clone(),
+        uvs: vec![[glam::Vec2::ZERO; 3]; n],
+        material_of: vec![0; n],
+        materials: vec![lancer::render::Material::diffuse(Vec3::splat(0.7))],
+        textures: Vec::new(),
+        lights: vec![lancer::render::Light::Directional {
+            direction: Vec3::new(-0.4, -1.0, -0.5).normalize(),
+            irradiance: Vec3::splat(2.5),
+        }],
+        emitters: Vec::new(),
+        emitter_cdf: Vec::new(),
+        placements: None,
+    };
+    scene.placements = Some(lancer::render::Placements::new(set, vec![0]));
+    assert_eq!(scene.triangle_count(), 100_352_000);
+    let opts = RenderOptions::default();
+    let cpu = lancer::render::render(&scene, cpu_device(), &opts)
+        .unwrap()
+        .image
+        .pixels;
+    let gpu = lancer::render::render(&scene, gpu_device(), &opts)
+        .unwrap()
+        .image
+        .pixels;
+    let d: Vec<f32> = (cpu.iter().zip(&gpu))
+        .map(|(x, y)| (*x - *y).abs().max_element())
+        .collect();
+    let over = d.iter().filter(|&&x| x > 2.0 / 255.0).count();
+    println!("GPU against CPU: {over} of {} pixels over 2/255", d.len());
+    assert!(over * 50 <= d.len());
+    let background = cpu
+        .iter()
+        .filter(|c| (**c - scene.settings.background).abs().max_element() < 1e-6)
+        .count();
+    println!("{background} of {} pixels see the sky", cpu.len());
+    assert!(
+        background * 3 < cpu.len() * 2,
+        "the field covers under a third of the image"
+    );
+}
+
+/// Secondary rays leaving placed triangles never re-hit them with the renderer's error
+/// bound, which counts the placements' rounding ([`Placements::error`]): here a box whose
+/// object space lies far from its origin, placed back near the world's origin, so that the
+/// world vertices are small but carry the rounding of large ones. Without the placements'
+/// term (the interpolation's bound alone) rays do re-hit: the test can fail.
+#[test]
+fn secondary_rays_leaving_placed_triangles_never_re_hit_them() {
+    use lancer::render::{offset_origin, point_error, Placements};
+    let mut rng = Rng::new(41);
+    let far = Vec3::new(3.0e4, -2.0e4, 1.0e4);
+    let mut mesh = soup(&mut rng, 300, 1.0);
+    for t in &mut mesh.triangles {
+        t.v = t.v.map(|p| p + far);
+    }
+    let mesh = Arc::new(mesh);
+    let instances: Vec<Instance> = (0..12)
+        .map(|k| {
+            let m = Mat4::from_scale_rotation_translation(
+                Vec3::splat([0.5f32, 1.0, 3.0][k % 3]),
+                Quat::from_rotation_y(0.9 * k as f32) * Quat::from_rotation_x(0.4 * k as f32),
+                Vec3::new(k as f32 * 0.3, 0.0, 0.0),
+            ) * Mat4::from_translation(-far);
+            placed(0, Affine::from_mat4(&m))
+        })
+        .collect();
+    let set = InstanceSet::new(vec![mesh.clone()], instances).unwrap();
+    let pl = Placements::new(set.clone(), vec![0]);
+    let (mut full, mut bare, mut own) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..4000 {
+        let prim = rng.u32() % set.triangle_count() as u32;
+        let t = pl.triangle(prim, &mesh);
+        let (mut u, mut v) = (rng.f32(), rng.f32());
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        let w = 1.0 - u - v;
+        let p = t.v[0] * w + t.v[1] * u + t.v[2] * v;
+        let err = point_error(&t.v, w, u, v);
+        let ng = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize();
+        for side in [ng, -ng] {
+            let mut d = rng.dir();
+            if d.dot(side) < 0.0 {
+                d = -d;
+            }
+            let ray =
+                |e: Vec3| lancer::geometry::Ray::new(offset_origin(p, e, side), d, 0.0, 3.4e38);
+            full.push(ray(err + pl.error(&t, p)));
+            bare.push(ray(err));
+            own.push(prim);
+        }
+    }
+    let self_hits = |device: &lancer::Device, rays: &[lancer::geometry::Ray]| {
+        let mut tracer = Tracer::with_instances(device, &set, &TracerOptions::default()).unwrap();
+        let hits = tracer.trace(rays, Query::Closest).unwrap().hits;
+        hits.iter().zip(&own).filter(|(h, o)| h.prim == **o).count()
+    };
+    let without = self_hits(cpu_device(), &bare);
+    println!(
+        "interpolation bound alone: {without} of {} rays re-hit",
+        bare.len()
+    );
+    assert!(
+        without > 0,
+        "no self-hit without the placements' term: the test cannot fail"
+    );
+    for device in [cpu_device(), gpu_device()] {
+        let with = self_hits(device, &full);
+        println!(
+            "{device}: with the placements' term: {with} of {} rays re-hit",
+            full.len()
+        );
+        assert_eq!(with, 0, "{device}");
+    }
 }
 
 /// `copies` and `grid` are checked as the rest of a scene is: one line naming the problem.

@@ -146,7 +146,8 @@ fn render_structs_match_rust() {
         "max_bounces" => max_bounces, "integrator" => integrator, "n_lights" => n_lights,
         "n_emitters" => n_emitters, "emit_total" => emit_total, "ao_distance" => ao_distance,
         "fixed_offset" => fixed_offset, "crop_x0" => crop_x0, "crop_y0" => crop_y0,
-        "crop_width" => crop_width, "aov_base" => aov_base, "pad2" => _pad2, "pad3" => _pad3),
+        "crop_width" => crop_width, "aov_base" => aov_base, "placement_base" => placement_base,
+        "n_placements" => n_placements),
     );
     assert_eq!(size_of::<RenderParams>(), 144);
 }

@@ -48,6 +48,67 @@ fn load_shade(i: u32) -> Shade {
                  bitcast<vec2<f32>>(d.zw), bitcast<vec2<f32>>(e.xy), e.zw);
 }
 
+// A scene with placements (INSTANCES, the two-level traversal): render::gpu::GpuPlacement,
+// seven shading words each from params.placement_base — to_world (3 rows), to_object (3
+// rows), (first_prim, shade_base, 0, 0). render::scene::Placements is the CPU's.
+fn placement_word(i: u32, k: u32) -> vec4<u32> {
+    return shade_word(params.placement_base + 7u * i + k);
+}
+
+// Placements::locate: the last placement whose first triangle is at most prim.
+fn placement_of(prim: u32) -> u32 {
+    var lo = 0u;
+    var hi = params.n_placements;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if placement_word(mid, 6u).x <= prim {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// The placement of the last placed_shade, and its object-space vertices' magnitudes.
+var<private> placed: u32;
+var<private> placed_vmax: vec3<f32>;
+
+// RenderScene::triangle: triangle number prim in world space, with its shading data.
+fn placed_shade(prim: u32) -> Shade {
+    if !INSTANCES {
+        return load_shade(prim);
+    }
+    placed = placement_of(prim);
+    let ids = placement_word(placed, 6u);
+    var s = load_shade(ids.y + prim - ids.x);
+    placed_vmax = max(max(abs(s.v0), abs(s.v1)), abs(s.v2));
+    let w0 = bitcast<vec4<f32>>(placement_word(placed, 0u));
+    let w1 = bitcast<vec4<f32>>(placement_word(placed, 1u));
+    let w2 = bitcast<vec4<f32>>(placement_word(placed, 2u));
+    s.v0 = affine_point(w0, w1, w2, s.v0);
+    s.v1 = affine_point(w0, w1, w2, s.v1);
+    s.v2 = affine_point(w0, w1, w2, s.v2);
+    return s;
+}
+
+// RenderScene::point_error: a point's error bound `err` (point_error) plus the rounding of
+// the last placed_shade's placement (Placements::error).
+fn placed_error(p: vec3<f32>, err: vec3<f32>) -> vec3<f32> {
+    if !INSTANCES {
+        return err;
+    }
+    let w0 = abs(bitcast<vec4<f32>>(placement_word(placed, 0u)));
+    let w1 = abs(bitcast<vec4<f32>>(placement_word(placed, 1u)));
+    let w2 = abs(bitcast<vec4<f32>>(placement_word(placed, 2u)));
+    let o0 = abs(bitcast<vec4<f32>>(placement_word(placed, 3u)));
+    let o1 = abs(bitcast<vec4<f32>>(placement_word(placed, 4u)));
+    let o2 = abs(bitcast<vec4<f32>>(placement_word(placed, 5u)));
+    let images = affine_point(w0, w1, w2, placed_vmax);
+    let back = affine_vector(w0, w1, w2, affine_point(o0, o1, o2, abs(p)));
+    return err + (images + back) * TRANSFORM_ERROR;
+}
+
 // render::gpu::GpuMaterial
 struct Material {
     albedo: vec3<f32>,
@@ -95,8 +156,8 @@ struct Params {
     crop_y0: u32,
     crop_width: u32,
     aov_base: u32,
-    pad2: u32,
-    pad3: u32,
+    placement_base: u32,
+    n_placements: u32,
 }
 
 // The shading triangles, five words each, in the BVH's memory (BVH_TEXTURES,
@@ -330,11 +391,11 @@ fn path_hit(hit: Hit) {
         step = STEP_DONE;
         return;
     }
-    let s = load_shade(hit.prim);
+    let s = placed_shade(hit.prim);
     let mat = materials[s.material];
     let w = 1.0 - hit.u - hit.v;
     let p = s.v0 * w + s.v1 * hit.u + s.v2 * hit.v;
-    let p_err = point_error(s.v0, s.v1, s.v2, w, hit.u, hit.v);
+    let p_err = placed_error(p, point_error(s.v0, s.v1, s.v2, w, hit.u, hit.v));
     let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
     let front = dot3(ng, ray.dir) < 0.0;
     let n = select(-ng, ng, front);
@@ -451,13 +512,13 @@ fn emitter_ray() {
                 lo = mid + 1u;
             }
         }
-        let s = load_shade(emitters[lo].x);
+        let s = placed_shade(emitters[lo].x);
         let su = sqrt(next_f32());
         let b0 = 1.0 - su;
         let b1 = next_f32() * su;
         let b2 = 1.0 - b0 - b1;
         let q = s.v0 * b0 + s.v1 * b1 + s.v2 * b2;
-        let q_err = point_error(s.v0, s.v1, s.v2, b0, b1, b2);
+        let q_err = placed_error(q, point_error(s.v0, s.v1, s.v2, b0, b1, b2));
         let nl = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
         let d = q - p;
         let d2 = dot3(d, d);

@@ -349,3 +349,17 @@ fn prune_bound(best_t: f32) -> f32 {
 fn beats(t: f32, prim: u32, best_t: f32, best_prim: u32) -> bool {
     return t < best_t || (t == best_t && prim < best_prim);
 }
+
+// geometry::Affine::point and Affine::vector (rows m0, m1, m2), in the same operation
+// order, unfused.
+fn affine_point(m0: vec4<f32>, m1: vec4<f32>, m2: vec4<f32>, p: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(m0.x * p.x + m0.y * p.y + m0.z * p.z + m0.w,
+                     m1.x * p.x + m1.y * p.y + m1.z * p.z + m1.w,
+                     m2.x * p.x + m2.y * p.y + m2.z * p.z + m2.w);
+}
+
+fn affine_vector(m0: vec4<f32>, m1: vec4<f32>, m2: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(m0.x * v.x + m0.y * v.y + m0.z * v.z,
+                     m1.x * v.x + m1.y * v.y + m1.z * v.z,
+                     m2.x * v.x + m2.y * v.y + m2.z * v.z);
+}

@@ -80,6 +80,11 @@ pub struct RenderCmd {
     mode: TraversalMode,
     #[command(flatten)]
     robustness: RobustnessArgs,
+    /// Render the scene flattened into one mesh where it places objects more than once
+    /// (`copies`, `grid`); without it such a scene renders in two levels, a BVH per object
+    /// under one over its copies.
+    #[arg(long)]
+    flatten: bool,
 }
 
 /// 8 or 16.
@@ -117,8 +122,11 @@ impl RenderCmd {
             height: self.height,
             scale: self.scale,
         };
-        let scene = RenderScene::open(&self.scene, &size)?;
+        let mut scene = RenderScene::open(&self.scene, &size)?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
+        if self.flatten {
+            scene = scene.flattened()?;
+        }
         let crop = match self.crop.as_deref() {
             Some(&[x0, y0, x1, y1]) => Some(Crop { x0, y0, x1, y1 }),
             _ => None,

@@ -62,6 +62,15 @@ impl Affine {
         a
     }
 
+    /// The map with every entry replaced by its magnitude: `abs().point(|x|)` bounds the
+    /// magnitude of each coordinate of the image of x (the renderer's transform error,
+    /// `render::scene::Placements`).
+    pub fn abs(&self) -> Affine {
+        Affine {
+            rows: self.rows.map(|r| r.map(f32::abs)),
+        }
+    }
+
     /// Whether every entry is finite.
     pub fn is_finite(&self) -> bool {
         self.rows.iter().flatten().all(|x| x.is_finite())

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::aov::FirstHit;
 use super::crop::Crop;
 use super::effects::EffectSet;
-use super::sampling::{cosine_direction, offset_origin, point_error, Rng};
+use super::sampling::{cosine_direction, offset_origin, Rng};
 use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
 use crate::accel::{Accel, Query, RayStats};
 use crate::camera::{CameraFrame, PRIMARY_TMAX};
@@ -141,20 +141,19 @@ impl<'a> CpuRenderer<'a> {
                     lo = mid + 1;
                 }
             }
-            let prim = self.scene.emitters[lo] as usize;
-            let tri = &self.scene.mesh.triangles[prim];
+            let tri = self.scene.triangle(self.scene.emitters[lo]);
             let su = rng.next_f32().sqrt();
             let b0 = 1.0 - su;
             let b1 = rng.next_f32() * su;
             let b2 = 1.0 - b0 - b1;
             let q = tri.v[0] * b0 + tri.v[1] * b1 + tri.v[2] * b2;
-            let q_err = point_error(&tri.v, b0, b1, b2);
+            let q_err = self.scene.point_error(&tri, q, [b0, b1, b2]);
             let nl = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
             let d = q - p;
             let d2 = dot(d, d);
             let dist = d2.sqrt();
             let cs = dot(n, d) / dist;
-            let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+            let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
             // One-sided lights emit from their front (the winding's normal) only.
             let cl = if mat.two_sided {
                 dot(nl, d).abs() / dist
@@ -183,12 +182,11 @@ impl<'a> CpuRenderer<'a> {
 
     /// The reflectance at a hit: the material's texture there (when textures are
     /// simulated), else its albedo.
-    fn albedo(&self, fx: EffectSet, hit: &Hit) -> Vec3 {
-        let prim = hit.prim as usize;
-        let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+    fn albedo(&self, fx: EffectSet, shade: usize, hit: &Hit) -> Vec3 {
+        let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
         match mat.texture {
             Some(t) if fx.textures => {
-                let uv = self.scene.uvs[prim];
+                let uv = self.scene.uvs[shade];
                 let uv = uv[0] * (1.0 - hit.u - hit.v) + uv[1] * hit.u + uv[2] * hit.v;
                 sample_texture(&self.scene.textures[t], uv)
             }
@@ -203,11 +201,11 @@ impl<'a> CpuRenderer<'a> {
         if !hit.is_hit() {
             return FirstHit::MISS;
         }
-        let tri = &self.scene.mesh.triangles[hit.prim as usize];
+        let tri = self.scene.triangle(hit.prim);
         FirstHit {
             depth: hit.t,
             normal: facing(&tri.v, ray.dir).1,
-            albedo: self.albedo(fx, &hit),
+            albedo: self.albedo(fx, tri.shade, &hit),
         }
     }
 
@@ -226,12 +224,11 @@ impl<'a> CpuRenderer<'a> {
                 radiance += beta * s.background;
                 break;
             }
-            let prim = hit.prim as usize;
-            let tri = &self.scene.mesh.triangles[prim];
-            let mat = &self.scene.materials[self.scene.material_of[prim] as usize];
+            let tri = self.scene.triangle(hit.prim);
+            let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
             let w = 1.0 - hit.u - hit.v;
             let p = tri.v[0] * w + tri.v[1] * hit.u + tri.v[2] * hit.v;
-            let p_err = point_error(&tri.v, w, hit.u, hit.v);
+            let p_err = self.scene.point_error(&tri, p, [w, hit.u, hit.v]);
             let (front, n) = facing(&tri.v, ray.dir);
             if mat.kind == MaterialKind::Emissive {
                 if count_emission && (front || mat.two_sided) {
@@ -281,7 +278,7 @@ impl<'a> CpuRenderer<'a> {
                 continue;
             }
             // Diffuse.
-            let albedo = self.albedo(fx, &hit);
+            let albedo = self.albedo(fx, tri.shade, &hit);
             radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, p_err, n, &mut rng);
             if !(fx.indirect && s.integrator == Integrator::Path) || last {
                 break;

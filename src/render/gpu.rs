@@ -12,7 +12,7 @@ use super::scene::{Light, LightKind, RenderScene};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::error::Result;
-use crate::geometry::Robustness;
+use crate::geometry::{Affine, Robustness};
 use crate::gpu::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, texel_entry,
     uniform_binding, wait, Chunks, Kernel, Readback,
@@ -50,6 +50,23 @@ pub struct GpuShade {
     pub uv2: [f32; 2],
     /// Padding (zero).
     pub _pad3: [u32; 2],
+}
+
+/// An instance of a scene with placements ([`RenderScene::placements`]), as the render
+/// kernel reads it: seven words after the shading triangles (WGSL `placed_shade`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuPlacement {
+    /// Object space to world space.
+    pub to_world: Affine,
+    /// World space to object space (the f32 inverse).
+    pub to_object: Affine,
+    /// Its first triangle number.
+    pub first_prim: u32,
+    /// Where its mesh's shading triangles start.
+    pub shade_base: u32,
+    /// Padding (zero).
+    pub _pad: [u32; 2],
 }
 
 /// WGSL `Material`.
@@ -150,10 +167,10 @@ pub struct RenderParams {
     pub crop_width: u32,
     /// With AOVs: the accumulator entry where they start (two per pixel, after the sums).
     pub aov_base: u32,
-    /// Padding (zero).
-    pub _pad2: u32,
-    /// Padding (zero).
-    pub _pad3: u32,
+    /// With placements: the shading word where the [`GpuPlacement`]s start.
+    pub placement_base: u32,
+    /// Placements (0 without).
+    pub n_placements: u32,
 }
 
 /// The scene and a layout on the device, the render kernel compiled for them, and the
@@ -191,7 +208,7 @@ impl<'a> GpuRenderer<'a> {
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
         // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
         let pixels = crop.pixels() as u32;
-        let shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
+        let mut shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
             .map(|(i, t)| {
                 let uv = scene.uvs[i];
                 GpuShade {
@@ -208,6 +225,9 @@ impl<'a> GpuRenderer<'a> {
                 }
             })
             .collect();
+        let placement_base = shades.len() * 5;
+        let placements = placements_of(scene);
+        shades.extend_from_slice(bytemuck::cast_slice(&placements));
         let mut texels: Vec<[f32; 4]> = Vec::new();
         let mut tex_at = Vec::new();
         for t in &scene.textures {
@@ -379,6 +399,10 @@ impl<'a> GpuRenderer<'a> {
             crop_y0: crop.y0,
             crop_width: crop.width(),
             aov_base: pixels,
+            // Placements need not fit: placement_base is read only with placements, which
+            // the upload's size check bounds.
+            placement_base: placement_base as u32,
+            n_placements: (scene.placements.as_ref()).map_or(0, |p| p.set().instances.len()) as u32,
             ..RenderParams::default()
         };
         Ok(GpuRenderer {
@@ -526,4 +550,24 @@ impl<'a> GpuRenderer<'a> {
         let cut = px.iter().map(|p| p[3] as u32).collect();
         Ok((sums, cut))
     }
+}
+
+/// The scene's placements as the kernel reads them, padded to a whole number of
+/// [`GpuShade`]s (five placements fill seven): empty without placements.
+fn placements_of(scene: &RenderScene) -> Vec<GpuPlacement> {
+    let Some(pl) = &scene.placements else {
+        return Vec::new();
+    };
+    let set = pl.set();
+    let mut v: Vec<GpuPlacement> = (set.instances.iter().enumerate())
+        .map(|(i, inst)| GpuPlacement {
+            to_world: inst.to_world,
+            to_object: pl.to_object()[i],
+            first_prim: pl.first_prims()[i],
+            shade_base: pl.mesh_base()[inst.mesh as usize],
+            _pad: [0; 2],
+        })
+        .collect();
+    v.resize(v.len().next_multiple_of(5), bytemuck::Zeroable::zeroed());
+    v
 }

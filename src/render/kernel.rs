@@ -7,7 +7,7 @@ use crate::accel::GpuForm;
 use crate::gpu::shaders::{self, Shared};
 
 use super::sampling::POINT_ERROR;
-use super::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED};
+use super::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED, TRANSFORM_ERROR};
 
 /// The render kernel (one sample of one pixel per invocation).
 pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
@@ -39,6 +39,7 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("MAT_TEXTURED", U32(MAT_TEXTURED)),
         ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
+        ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
     ]
 }
 

@@ -23,7 +23,8 @@ pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
 pub use exr::ExrImage;
 pub use gpu::{
-    GpuLight, GpuMaterial, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED, MAT_TWO_SIDED,
+    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED,
+    MAT_TWO_SIDED,
 };
 pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};
@@ -33,7 +34,7 @@ pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
 pub use scene::{load_geometry, load_instances};
 pub use scene::{
-    ImageSize, Integrator, Light, LightKind, Material, MaterialKind, RenderScene, SceneFile,
-    Settings, Texture,
+    ImageSize, Integrator, Light, LightKind, Material, MaterialKind, PlacedTriangle, Placements,
+    RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;

@@ -18,6 +18,7 @@ use super::image::Image;
 use super::scene::RenderScene;
 use crate::accel::bvh::layouts;
 use crate::accel::bvh::{self, BuildOptions, BvhStats};
+use crate::accel::instances::{GpuTwoLevel, TwoLevel};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::accel::{self, Accel, AccelKind};
@@ -163,31 +164,50 @@ impl<'a> Renderer<'a> {
         // The tree's statistics are taken before it is flattened (which consumes it), and
         // their time is not the build's.
         let mut stats_time = std::time::Duration::ZERO;
-        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) = match kind {
-            AccelKind::Bvh(layout_kind) => {
-                let tree = bvh::build(&scene.mesh, &options.build);
-                let stats_start = Instant::now();
-                let stats = BvhStats::of(&tree, &options.build);
-                stats_time = stats_start.elapsed();
-                let flat: Arc<dyn GpuForm> =
-                    layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
-                (flat.clone(), Some(flat), Some(stats))
-            }
-            _ if device.is_cpu() => (
-                accel::build(kind, &scene.mesh, &options.build)?.into(),
-                None,
-                None,
-            ),
-            _ => match accel::build_gpu(kind, &scene.mesh, &options.build)? {
-                Some(flat) => (flat.clone(), Some(flat), None),
-                None => {
+        let placed = scene.placements.as_ref().map(|p| p.set());
+        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) =
+            match (placed, kind) {
+                // Placements: two levels, a bottom level per object and a top level over its
+                // copies (accel::instances).
+                (Some(set), AccelKind::Bvh(layout_kind)) => {
+                    let two: Arc<dyn GpuForm> =
+                        Arc::new(GpuTwoLevel::build(layout_kind, set, &options.build)?);
+                    (two.clone(), Some(two), None)
+                }
+                (Some(set), _) if device.is_cpu() => {
+                    let two = TwoLevel::build(kind, set, &options.build)?;
+                    (Arc::new(two), None, None)
+                }
+                (Some(_), _) => {
                     return Err(Error::Usage(format!(
-                        "the {kind} structure runs on the CPU only (only the BVH, the kd-tree \
-                         and the BIH have GPU kernels): use --device cpu"
+                        "a scene with copies renders on the GPU through a BVH, not the {kind}: \
+                     use a BVH, or render it flattened (--flatten)"
                     )))
                 }
-            },
-        };
+                (None, AccelKind::Bvh(layout_kind)) => {
+                    let tree = bvh::build(&scene.mesh, &options.build);
+                    let stats_start = Instant::now();
+                    let stats = BvhStats::of(&tree, &options.build);
+                    stats_time = stats_start.elapsed();
+                    let flat: Arc<dyn GpuForm> =
+                        layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
+                    (flat.clone(), Some(flat), Some(stats))
+                }
+                _ if device.is_cpu() => (
+                    accel::build(kind, &scene.mesh, &options.build)?.into(),
+                    None,
+                    None,
+                ),
+                _ => match accel::build_gpu(kind, &scene.mesh, &options.build)? {
+                    Some(flat) => (flat.clone(), Some(flat), None),
+                    None => {
+                        return Err(Error::Usage(format!(
+                            "the {kind} structure runs on the CPU only (only the BVH, the kd-tree \
+                         and the BIH have GPU kernels): use --device cpu"
+                        )))
+                    }
+                },
+            };
         let build_ms = (start.elapsed() - stats_time).as_secs_f64() * 1e3;
         let start = Instant::now();
         let gpu = match (device.gpu_context(), &gpu_form) {
@@ -245,6 +265,11 @@ impl<'a> Renderer<'a> {
         self.gpu
             .as_ref()
             .map_or(TraversalMode::PerRay, GpuRenderer::mode)
+    }
+
+    /// The scene's placements, rendered in two levels (None: one level).
+    pub fn placements(&self) -> Option<&crate::render::Placements> {
+        self.scene.placements.as_ref()
     }
 
     /// The structure rendered through.

@@ -41,8 +41,12 @@ pub struct RenderStats {
     pub structure: &'static str,
     /// The BVH's flattened layout (a BVH only).
     pub layout: Option<&'static str>,
-    /// triangles, nodes, leaves, max_depth, sah_cost (a BVH only).
+    /// triangles, nodes, leaves, max_depth, sah_cost (a BVH over one mesh only).
     pub bvh: Option<BvhStats>,
+    /// A scene with copies, rendered in two levels: its instances.
+    pub instances: Option<usize>,
+    /// A scene with copies, rendered in two levels: the triangles its instances place.
+    pub instanced_triangles: Option<u64>,
     /// The effects simulated, space-separated.
     pub effects: String,
     /// GPU: textures or buffers.
@@ -71,6 +75,9 @@ pub struct RenderStats {
     /// The traversal mode asked for (the text's; not serialised).
     #[serde(skip)]
     pub asked: TraversalMode,
+    /// The BVH layout asked for (the text's; not serialised).
+    #[serde(skip)]
+    pub layout_asked: &'static str,
 }
 
 impl RenderStats {
@@ -105,6 +112,8 @@ impl RenderStats {
             structure: renderer.structure().name(),
             layout: renderer.bvh_stats().map(|_| layout.name()),
             bvh: renderer.bvh_stats().copied(),
+            instances: renderer.placements().map(|p| p.set().instances.len()),
+            instanced_triangles: renderer.placements().map(|p| p.set().triangle_count()),
             effects: done.effects.to_string(),
             bvh_memory: gpu.then(|| memory_name(options.memory).to_string()),
             mode: gpu.then(|| done.mode.name()),
@@ -118,6 +127,7 @@ impl RenderStats {
             cpu_pixels: done.cpu_pixels,
             structure_text: renderer.structure().to_string(),
             asked: options.mode,
+            layout_asked: layout.name(),
         }
     }
 
@@ -133,6 +143,12 @@ impl RenderStats {
                 s.triangles, s.nodes, s.leaves, s.max_depth, s.sah_cost,
             ));
             lines.push(format!("layout: {layout}"));
+        }
+        if let (Some(n), Some(tris)) = (self.instances, self.instanced_triangles) {
+            lines.push(format!(
+                "two levels: {n} instances placing {tris} triangles, layout {}",
+                self.layout_asked
+            ));
         }
         lines.push(format!("effects: {}", self.effects));
         if let (Some(memory), Some(mode)) = (&self.bvh_memory, self.mode) {

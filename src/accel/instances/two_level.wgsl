@@ -7,19 +7,6 @@
 override TOP_NODE_BASE: u32 = 0u;   // first word of the top level's dfs nodes
 override TOP_ENTRY_BASE: u32 = 0u;  // first word of its entries (top_level.rs TopEntry)
 
-// Affine::point and Affine::vector, in the same operation order, unfused.
-fn top_point(m0: vec4<f32>, m1: vec4<f32>, m2: vec4<f32>, p: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(m0.x * p.x + m0.y * p.y + m0.z * p.z + m0.w,
-                     m1.x * p.x + m1.y * p.y + m1.z * p.z + m1.w,
-                     m2.x * p.x + m2.y * p.y + m2.z * p.z + m2.w);
-}
-
-fn top_vector(m0: vec4<f32>, m1: vec4<f32>, m2: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(m0.x * v.x + m0.y * v.y + m0.z * v.z,
-                     m1.x * v.x + m1.y * v.y + m1.z * v.z,
-                     m2.x * v.x + m2.y * v.y + m2.z * v.z);
-}
-
 // The kernels' trace: closest hit in [tmin, tmax] over every instance, or with any_hit the
 // first hit met. Work counters and traversal_done cover both levels.
 fn trace_ray(r: Ray, any_hit: bool) -> Hit {
@@ -80,8 +67,8 @@ fn trace_ray(r: Ray, any_hit: bool) -> Hit {
                 let ids = array_node_word(e + 3u);  // first_prim, mesh, node_base, tri_base
                 bottom_node_base = ids.z;
                 bottom_tri_base = ids.w;
-                var local = Ray(top_point(m0, m1, m2, r.origin), r.tmin,
-                                top_vector(m0, m1, m2, r.dir), r.tmax);
+                var local = Ray(affine_point(m0, m1, m2, r.origin), r.tmin,
+                                affine_vector(m0, m1, m2, r.dir), r.tmax);
                 if best.prim != MISS {
                     local.tmax = prune;
                 }

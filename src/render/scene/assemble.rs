@@ -10,10 +10,11 @@ use glam::{Mat3, Vec2, Vec3};
 use super::file::{
     line_of, Integrator, LightKind, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
 };
+use super::placements::{PlacedTriangle, Placements};
 use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{Affine, Triangle};
+use crate::geometry::{Aabb, Affine, Triangle};
 use crate::mesh::{
     check_traceable, classify, warn_exclusions, Instance, InstanceSet, Mesh, ObjScene, TriStatus,
 };
@@ -99,18 +100,21 @@ pub struct Settings {
 }
 
 /// A scene ready to render: one mesh with per-triangle texture coordinates and materials,
-/// lights, and the emissive triangles that act as area lights.
+/// lights, and the emissive triangles that act as area lights. A scene that places an
+/// object more than once keeps each object once, with its placements.
 #[derive(Clone, Debug)]
 pub struct RenderScene {
     /// The view and image size.
     pub camera: Camera,
     /// Integrator and sampling settings.
     pub settings: Settings,
-    /// Every object's triangles: objects in file order, then file order within each.
+    /// Every object's triangles: objects in file order, then file order within each. With
+    /// [`placements`](Self::placements), each object once, as its placements' meshes; the
+    /// triangles rendered are numbered as those placements number them ([`Self::triangle`]).
     pub mesh: Mesh,
-    /// Texture coordinates of each triangle's vertices, by triangle index.
+    /// Texture coordinates of the vertices of each triangle of [`Self::mesh`].
     pub uvs: Vec<[Vec2; 3]>,
-    /// Material index of every triangle.
+    /// Material index of each triangle of [`Self::mesh`].
     pub material_of: Vec<u32>,
     /// Distinct materials, indexed by `material_of`.
     pub materials: Vec<Material>,
@@ -118,10 +122,14 @@ pub struct RenderScene {
     pub textures: Vec<Texture>,
     /// Point and directional lights.
     pub lights: Vec<Light>,
-    /// Emissive triangles in the BVH (area lights), with the running sum of their areas.
+    /// Emissive triangles by number (area lights), with the running sum of their areas.
     pub emitters: Vec<u32>,
     /// Running sum of the emitters' areas: `emitter_cdf[i]` = area of `emitters[..=i]`.
     pub emitter_cdf: Vec<f32>,
+    /// Where the scene places objects more than once (`copies`, `grid`): the objects as
+    /// meshes placed by instances, rendered in two levels. None: [`Self::mesh`] is the
+    /// scene, in world space.
+    pub placements: Option<Placements>,
 }
 
 /// sRGB 8-bit → linear, exactly as the image would be displayed.
@@ -172,6 +180,10 @@ pub(super) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, Strin
     })
 }
 
+/// A scene file's object as the builder records it: its first triangle, and its copies'
+/// transforms (None: placed once, as it is).
+type PlacedObject = (usize, Option<Vec<(Mat3, Vec3)>>);
+
 /// Accumulates objects into one mesh.
 #[derive(Default)]
 pub(super) struct Builder {
@@ -185,6 +197,9 @@ pub(super) struct Builder {
     pub(super) short_faces: usize,
     /// Every file read: the scene, meshes, MTL libraries, textures.
     pub(super) sources: Vec<PathBuf>,
+    /// A scene file's objects: the first triangle of each, and its copies (None: placed
+    /// once as it is). Empty where the triangles are not objects of a scene file.
+    objects: Vec<PlacedObject>,
 }
 
 impl Builder {
@@ -266,37 +281,6 @@ impl Builder {
         }
     }
 
-    /// Replaces the triangles from `first` on (one object, under its own transform) by one
-    /// copy of them per placement, each moved by its transform, copies in order.
-    fn place_copies(&mut self, first: usize, copies: &[(Mat3, Vec3)]) -> Result<()> {
-        let n = (self.triangles.len() - first) as u128 * copies.len() as u128;
-        crate::limits::check_memory(
-            &format!("{} copies ({n} triangles)", copies.len()),
-            n * 256,
-            "place fewer copies",
-        )?;
-        let base: Vec<_> = (first..self.triangles.len())
-            .map(|i| {
-                (
-                    self.triangles[i],
-                    self.status[i],
-                    self.uvs[i],
-                    self.material_of[i],
-                )
-            })
-            .collect();
-        self.status.truncate(first);
-        self.triangles.truncate(first);
-        self.uvs.truncate(first);
-        self.material_of.truncate(first);
-        for &(m, t) in copies {
-            for &(tri, status, uv, material) in &base {
-                self.push(xf_copy(&tri, m, t), status, uv, material);
-            }
-        }
-        Ok(())
-    }
-
     pub(super) fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
         // A transform can make a good triangle degenerate or overflow: classify again.
         let status = match status {
@@ -307,13 +291,6 @@ impl Builder {
         self.status.push(status);
         self.uvs.push(uv);
         self.material_of.push(material);
-    }
-}
-
-/// A triangle moved by `m·p + t`.
-fn xf_copy(tri: &Triangle, m: Mat3, t: Vec3) -> Triangle {
-    Triangle {
-        v: tri.v.map(|p| m * p + t),
     }
 }
 
@@ -592,53 +569,18 @@ impl RenderScene {
     /// The epsilon of [`RayOffset::Fixed`](crate::geometry::RayOffset::Fixed): a fixed
     /// fraction of the scene's bounding-box diagonal.
     pub fn fixed_offset(&self) -> f32 {
-        crate::geometry::FIXED_OFFSET * self.mesh.bounds().extent().length()
+        crate::geometry::FIXED_OFFSET * self.bounds().extent().length()
     }
 }
 
 impl RenderScene {
     /// A scene file's objects as meshes placed by instances, where an object has `copies`
-    /// or a `grid`; None where none has (the assembled mesh is then no bigger). Each object
-    /// is one mesh under its own transform, its copies its instances (an object without
-    /// copies: one instance as it is), numbered as [`RenderScene::from_file`] numbers the
-    /// assembled mesh. Only geometry is kept: for tracing.
+    /// or a `grid` (its [`placements`](Self::placements)); None where none has (the
+    /// assembled mesh is then no bigger).
     pub fn instances_of_file(path: &Path) -> Result<Option<InstanceSet>> {
-        let src = crate::input::read_text(path)?;
-        let f = SceneFile::parse(path, &src)?;
-        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let line = |span: std::ops::Range<usize>| line_of(&src, span.start);
-        let (mut meshes, mut instances, mut any) = (Vec::new(), Vec::new(), false);
-        for o in &f.objects {
-            let ln = line(o.span());
-            let o = o.get_ref();
-            let bad = |msg: String| Error::input(path, Some(ln), msg);
-            let copies = copies_of(o).map_err(bad)?;
-            any |= copies.is_some();
-            let mut b = Builder::default();
-            let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
-            add_object(&mut b, &dir, o, None, grey, &bad)?;
-            let mesh = meshes.len() as u32;
-            meshes.push(std::sync::Arc::new(Mesh {
-                triangles: b.triangles,
-                status: b.status,
-                short_faces: b.short_faces,
-                sources: b.sources,
-            }));
-            let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
-            instances.extend(copies.into_iter().map(|(m, t)| Instance {
-                mesh,
-                to_world: Affine::from_mat3_translation(m, t),
-            }));
-        }
-        if !any {
-            return Ok(None);
-        }
-        if let Some(first) = meshes.first_mut().and_then(std::sync::Arc::get_mut) {
-            first.sources.push(path.to_path_buf());
-        }
-        let set = InstanceSet::new(meshes, instances)
-            .map_err(|e| Error::input(path, None, error_message(&e)))?;
-        Ok(Some(set))
+        Ok(RenderScene::from_file(path)?
+            .placements
+            .map(|p| p.set().clone()))
     }
 
     /// Reads a TOML scene file and everything it names.
@@ -677,12 +619,8 @@ impl RenderScene {
                 None => None,
             };
             let copies = copies_of(o).map_err(bad)?;
-            let first = b.triangles.len();
+            b.objects.push((b.triangles.len(), copies));
             add_object(&mut b, &dir, o, mat, grey, &bad)?;
-            if let Some(copies) = copies {
-                b.place_copies(first, &copies)
-                    .map_err(|e| bad(error_message(&e)))?;
-            }
         }
 
         let mut lights = Vec::new();
@@ -835,31 +773,187 @@ impl Builder {
         };
         // Exclusions were counted per mesh file as each was added (add_obj).
         check_traceable(path, &mesh)?;
-        if settings.ao_distance <= 0.0 {
-            settings.ao_distance = 0.1 * mesh.bounds().extent().length();
-        }
-        let mut emitters = Vec::new();
-        let mut emitter_cdf = Vec::new();
-        let mut total = 0.0f32;
-        for i in mesh.included() {
-            let m = &self.materials[self.material_of[i as usize] as usize];
-            if m.kind == MaterialKind::Emissive && m.emission.max_element() > 0.0 {
-                total += mesh.triangles[i as usize].area();
-                emitters.push(i);
-                emitter_cdf.push(total);
-            }
-        }
-        Ok(RenderScene {
+        let placements = match self.objects.iter().any(|(_, c)| c.is_some()) {
+            true => Some(place_objects(path, &mesh, self.objects)?),
+            false => None,
+        };
+        let mut scene = RenderScene {
             camera,
-            settings,
+            settings: settings.clone(),
             mesh,
             uvs: self.uvs,
             material_of: self.material_of,
             materials: self.materials,
             textures: self.textures,
             lights,
-            emitters,
-            emitter_cdf,
+            emitters: Vec::new(),
+            emitter_cdf: Vec::new(),
+            placements,
+        };
+        if settings.ao_distance <= 0.0 {
+            settings.ao_distance = 0.1 * scene.bounds().extent().length();
+            scene.settings = settings;
+        }
+        scene.find_emitters()?;
+        Ok(scene)
+    }
+}
+
+/// A scene file's objects as meshes (each object's triangles, in `mesh` from its first
+/// triangle to the next object's) placed by their copies (an object without: once, as it
+/// is).
+fn place_objects(
+    path: &Path,
+    mesh: &Mesh,
+    objects: Vec<PlacedObject>,
+) -> Result<Placements> {
+    let ends: Vec<usize> = (objects.iter().skip(1).map(|o| o.0))
+        .chain([mesh.len()])
+        .collect();
+    let (mut meshes, mut mesh_base, mut instances) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, ((first, copies), end)) in objects.into_iter().zip(ends).enumerate() {
+        mesh_base.push(first as u32);
+        meshes.push(std::sync::Arc::new(Mesh {
+            triangles: mesh.triangles[first..end].to_vec(),
+            status: mesh.status[first..end].to_vec(),
+            short_faces: 0,
+            // Every file read, once (the first mesh's).
+            sources: if k == 0 {
+                mesh.sources.clone()
+            } else {
+                Vec::new()
+            },
+        }));
+        let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
+        instances.extend(copies.into_iter().map(|(m, t)| Instance {
+            mesh: k as u32,
+            to_world: Affine::from_mat3_translation(m, t),
+        }));
+    }
+    let set = InstanceSet::new(meshes, instances)
+        .map_err(|e| Error::input(path, None, error_message(&e)))?;
+    Ok(Placements::new(set, mesh_base))
+}
+
+impl RenderScene {
+    /// Fills [`Self::emitters`] and [`Self::emitter_cdf`]: the included triangles of
+    /// emissive materials, by number, with their world-space areas.
+    fn find_emitters(&mut self) -> Result<()> {
+        let emissive: Vec<u32> = (self.mesh.included().into_iter())
+            .filter(|&i| {
+                let m = &self.materials[self.material_of[i as usize] as usize];
+                m.kind == MaterialKind::Emissive && m.emission.max_element() > 0.0
+            })
+            .collect();
+        let numbers: Vec<u32> = match &self.placements {
+            None => emissive,
+            Some(pl) => {
+                let set = pl.set();
+                let per_mesh: Vec<Vec<u32>> = (set.meshes.iter().enumerate())
+                    .map(|(k, m)| {
+                        let base = pl.mesh_base()[k];
+                        let range = base..base + m.len() as u32;
+                        let lo = emissive.partition_point(|&i| i < range.start);
+                        let hi = emissive.partition_point(|&i| i < range.end);
+                        emissive[lo..hi].iter().map(|i| i - base).collect()
+                    })
+                    .collect();
+                let n: u128 = (set.instances.iter())
+                    .map(|i| per_mesh[i.mesh as usize].len() as u128)
+                    .sum();
+                crate::limits::check_memory(
+                    &format!("{n} placed emissive triangles"),
+                    n * 8,
+                    "place fewer copies of emissive objects",
+                )?;
+                (set.instances.iter().zip(pl.first_prims()))
+                    .flat_map(|(inst, &first)| {
+                        per_mesh[inst.mesh as usize].iter().map(move |l| first + l)
+                    })
+                    .collect()
+            }
+        };
+        let mut total = 0.0f32;
+        self.emitter_cdf = (numbers.iter())
+            .map(|&prim| {
+                total += Triangle {
+                    v: self.triangle(prim).v,
+                }
+                .area();
+                total
+            })
+            .collect();
+        self.emitters = numbers;
+        Ok(())
+    }
+
+    /// Triangle number `prim` (as the traversal numbers them) as shading sees it: in world
+    /// space, with the index of its shading data.
+    pub fn triangle(&self, prim: u32) -> PlacedTriangle {
+        match &self.placements {
+            Some(pl) => pl.triangle(prim, &self.mesh),
+            None => PlacedTriangle::unplaced(self.mesh.triangles[prim as usize].v, prim as usize),
+        }
+    }
+
+    /// The error bound of the point p = b0·v0 + b1·v1 + b2·v2 of triangle `t`: the
+    /// interpolation's ([`point_error`](crate::render::point_error)) and, for a placed
+    /// triangle, its placement's rounding ([`Placements::error`]).
+    pub fn point_error(&self, t: &PlacedTriangle, p: Vec3, b: [f32; 3]) -> Vec3 {
+        let e = crate::render::point_error(&t.v, b[0], b[1], b[2]);
+        match (&self.placements, t.instance) {
+            (Some(pl), Some(_)) => e + pl.error(t, p),
+            _ => e,
+        }
+    }
+
+    /// The scene's bounds in world space (with placements, the union of the instances'
+    /// mapped mesh bounds).
+    pub fn bounds(&self) -> Aabb {
+        match &self.placements {
+            Some(pl) => pl.bounds(),
+            None => self.mesh.bounds(),
+        }
+    }
+
+    /// Triangles rendered: those of [`Self::mesh`], or with placements those they place.
+    pub fn triangle_count(&self) -> u64 {
+        match &self.placements {
+            Some(pl) => pl.set().triangle_count(),
+            None => self.mesh.len() as u64,
+        }
+    }
+
+    /// The scene with its placements flattened: every placed triangle in one mesh in world
+    /// space, numbered as before (so hits, emitters and materials keep their numbers).
+    /// A scene without placements is returned as it is.
+    pub fn flattened(self) -> Result<RenderScene> {
+        let Some(pl) = &self.placements else {
+            return Ok(self);
+        };
+        let n = pl.set().triangle_count() as u128;
+        crate::limits::check_memory(
+            &format!("the flattened scene ({n} triangles)"),
+            n * 256,
+            "render it with its placements (without --flatten)",
+        )?;
+        let mut mesh = pl.set().flatten();
+        mesh.sources = self.mesh.sources.clone();
+        mesh.short_faces = self.mesh.short_faces;
+        let (mut uvs, mut material_of) = (Vec::with_capacity(n as usize), Vec::new());
+        material_of.reserve(n as usize);
+        for inst in &pl.set().instances {
+            let base = pl.mesh_base()[inst.mesh as usize] as usize;
+            let range = base..base + pl.set().meshes[inst.mesh as usize].len();
+            uvs.extend_from_slice(&self.uvs[range.clone()]);
+            material_of.extend_from_slice(&self.material_of[range]);
+        }
+        Ok(RenderScene {
+            mesh,
+            uvs,
+            material_of,
+            placements: None,
+            ..self
         })
     }
 }

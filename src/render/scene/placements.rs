@@ -1,0 +1,141 @@
+//! A scene that places meshes more than once: its meshes and their placements (the
+//! [`InstanceSet`] the renderer traces in two levels, `accel::instances`), and what shading
+//! needs at a hit: the instance a triangle number falls in, the triangle in world space,
+//! and the rounding the placements add to the hit point's error bound.
+//!
+//! The error bound. A hit point p is interpolated from the world vertices W = fl(A·V) of
+//! an object-space triangle V, and a ray leaving p is moved back into object space by the
+//! f32 inverse B before it meets V again. Two roundings lie between p and the surface the
+//! traversal tests, per coordinate i:
+//! - the vertices' images: |W − A·V|ᵢ ≤ γ₄ (|A|·|V|max + |b|)ᵢ (three products, three sums);
+//! - the origin's image in object space, off by γ₅ (|B|·|p| + |b'|) (the same sums plus B's
+//!   own rounding to f32), which is |A|·that in world space.
+//!
+//! [`TRANSFORM_ERROR`] = γ₆ covers both with the interpolation's weights (which sum to one
+//! within a few ulps) and the f32 evaluation of the bound itself. The renderer adds it to
+//! the interpolation's own bound ([`point_error`](crate::render::point_error)) before it
+//! offsets a secondary ray's origin, on the CPU and in WGSL (`placed_error`) alike.
+
+use glam::Vec3;
+
+use crate::geometry::{gamma, Aabb, Affine};
+use crate::mesh::InstanceSet;
+
+/// The relative rounding of a placement in a hit point's error bound (see the module
+/// comment).
+pub const TRANSFORM_ERROR: f32 = gamma(6.0);
+
+/// A scene's meshes placed by instances, with where each mesh's shading triangles start in
+/// [`RenderScene::mesh`](super::RenderScene::mesh).
+#[derive(Clone, Debug)]
+pub struct Placements {
+    set: InstanceSet,
+    mesh_base: Vec<u32>,
+    first_prims: Vec<u32>,
+    to_object: Vec<Affine>,
+}
+
+/// A triangle of the scene as shading sees it: in world space, with where its shading data
+/// is.
+#[derive(Clone, Copy, Debug)]
+pub struct PlacedTriangle {
+    /// Vertices in world space (each mapped by its instance's [`Affine::point`]).
+    pub v: [Vec3; 3],
+    /// Index of its shading data in [`RenderScene::mesh`](super::RenderScene::mesh),
+    /// `uvs` and `material_of`.
+    pub shade: usize,
+    /// The instance that places it (None in a scene without placements).
+    pub instance: Option<u32>,
+    /// Per coordinate, the largest magnitude of its object-space vertices.
+    vmax: Vec3,
+}
+
+impl PlacedTriangle {
+    /// A triangle of a scene without placements: as it is.
+    pub fn unplaced(v: [Vec3; 3], shade: usize) -> Self {
+        PlacedTriangle {
+            v,
+            shade,
+            instance: None,
+            vmax: Vec3::ZERO,
+        }
+    }
+}
+
+impl Placements {
+    /// `set`'s meshes, mesh k's shading triangles starting at `mesh_base[k]`. The set was
+    /// checked ([`InstanceSet::new`]): every map has an inverse.
+    pub fn new(set: InstanceSet, mesh_base: Vec<u32>) -> Self {
+        let first_prims = set.first_prims();
+        let to_object = (set.instances.iter())
+            .map(|i| i.to_world.inverse().unwrap_or(Affine::IDENTITY))
+            .collect();
+        Placements {
+            set,
+            mesh_base,
+            first_prims,
+            to_object,
+        }
+    }
+
+    /// The meshes and their instances.
+    pub fn set(&self) -> &InstanceSet {
+        &self.set
+    }
+
+    /// Where mesh k's shading triangles start in the scene's mesh.
+    pub fn mesh_base(&self) -> &[u32] {
+        &self.mesh_base
+    }
+
+    /// Each instance's first triangle number.
+    pub fn first_prims(&self) -> &[u32] {
+        &self.first_prims
+    }
+
+    /// Each instance's world-to-object map (the inverse of its placement, in f32).
+    pub fn to_object(&self) -> &[Affine] {
+        &self.to_object
+    }
+
+    /// Bounds of the placed meshes in world space.
+    pub fn bounds(&self) -> Aabb {
+        self.set.bounds()
+    }
+
+    /// The instance triangle number `prim` falls in: the last one whose first triangle is
+    /// at most `prim` (instances of empty meshes share their successor's first number and
+    /// come before it). WGSL `placement_of` finds the same.
+    pub fn locate(&self, prim: u32) -> usize {
+        self.first_prims
+            .partition_point(|&f| f <= prim)
+            .saturating_sub(1)
+    }
+
+    /// Triangle `prim` of the scene, whose object-space vertices are `mesh` (the scene's
+    /// shading triangles).
+    pub fn triangle(&self, prim: u32, mesh: &crate::mesh::Mesh) -> PlacedTriangle {
+        let i = self.locate(prim);
+        let inst = &self.set.instances[i];
+        let shade = (self.mesh_base[inst.mesh as usize] + prim - self.first_prims[i]) as usize;
+        let v = mesh.triangles[shade].v;
+        PlacedTriangle {
+            v: v.map(|p| inst.to_world.point(p)),
+            shade,
+            instance: Some(i as u32),
+            vmax: v[0].abs().max(v[1].abs()).max(v[2].abs()),
+        }
+    }
+
+    /// The rounding the placement of `t` adds to the error bound of a point `p` on it (see
+    /// the module comment); zero for an unplaced triangle. WGSL `placed_error` is the same.
+    pub fn error(&self, t: &PlacedTriangle, p: Vec3) -> Vec3 {
+        let Some(i) = t.instance else {
+            return Vec3::ZERO;
+        };
+        let world = self.set.instances[i as usize].to_world.abs();
+        let images = world.point(t.vmax);
+        let back = world.vector(self.to_object[i as usize].abs().point(p.abs()));
+        (images + back) * TRANSFORM_ERROR
+    }
+}
