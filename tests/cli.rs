@@ -1564,4 +1564,22 @@ fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
             "{device}: {differ} rays hit another triangle"
         );
     }
+    // Rendered in two levels too, with the file's materials, on both devices, as its
+    // flattened copy renders (within 2 % of the pixels at the default threshold).
+    let render = |device: &str, extra: &[&str]| {
+        let img = dir.path(&format!("{device}{}.exr", extra.len()));
+        let mut args = vec!["render", s(&scene), "--width", "48", "--height", "36"];
+        args.extend(["--spp", "2", "--stats", "--json", "-o", s(&img), "--device", device]);
+        args.extend(extra);
+        let out = lancer_ok(&args);
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (img, j)
+    };
+    let (flat_img, j) = render("cpu", &["--flatten"]);
+    assert!(j["instances"].is_null(), "{j}");
+    for device in ["cpu", "gpu"] {
+        let (img, j) = render(device, &[]);
+        assert_eq!(j["instances"].as_u64(), Some(4 + 1), "the nodes and the ground: {j}");
+        lancer_ok(&["compare", s(&flat_img), s(&img), "--tolerance", "2"]);
+    }
 }

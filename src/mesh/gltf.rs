@@ -163,19 +163,49 @@ fn open(path: &Path) -> Result<Opened> {
     })
 }
 
+/// A glTF scene whose meshes are drawn by several nodes: each mesh once, in its own space,
+/// with its texture coordinates and materials, and the nodes that draw it as instances.
+#[derive(Clone, Debug, Default)]
+pub struct GltfPlaced {
+    /// The meshes, each as [`GltfScene`] holds a flattened scene (the first also names
+    /// every file read; `materials` empty: they are [`GltfPlaced::materials`]).
+    pub meshes: Vec<GltfScene>,
+    /// The file's materials, by glTF material index.
+    pub materials: Vec<GltfMaterial>,
+    /// The meshes placed (index into `meshes`), in the order [`load_gltf`] walks the nodes.
+    pub instances: Vec<Instance>,
+}
+
+impl GltfPlaced {
+    /// The geometry alone, for tracing.
+    pub fn instance_set(&self) -> Result<InstanceSet> {
+        let meshes = (self.meshes.iter())
+            .map(|m| std::sync::Arc::new(m.mesh.clone()))
+            .collect();
+        InstanceSet::new(meshes, self.instances.clone())
+    }
+}
+
+/// The default scene's meshes placed by instances ([`load_gltf_placed`]), geometry alone.
+pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
+    (load_gltf_placed(path)?.map(|p| p.instance_set()))
+        .transpose()
+        .map_err(|e| Error::input(path, None, e.to_string()))
+}
+
 /// The default scene's meshes placed by instances, when a mesh is drawn by several nodes
 /// (None when each is drawn once: the flattened scene of [`load_gltf`] is then no bigger).
 /// One mesh per glTF mesh (its primitives' triangles in order, in its own space), one
 /// instance per node that draws it, in the order [`load_gltf`] walks them, so triangles are
 /// numbered alike. A mirroring node draws a copy of its mesh with two corners swapped (as
 /// [`load_gltf`] swaps them); a node whose map is singular draws a copy whose triangles are
-/// all left out (they have no area), at the identity. Materials are not read.
-pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
+/// all left out (they have no area), at the identity.
+pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
     let Opened {
         document,
         buffers,
-        sources,
-        ..
+        dir,
+        mut sources,
     } = open(path)?;
     let bad = |msg: String| Error::input(path, None, msg);
     let placed = instances(path, &document)?;
@@ -213,6 +243,9 @@ pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
     if placements.len() <= drawn_meshes.len() {
         return Ok(None);
     }
+    let materials = (document.materials())
+        .map(|m| material(path, &dir, &buffers, &m, &mut sources))
+        .collect::<Result<Vec<_>>>()?;
     let mut total: u128 = 0;
     for &(m, _) in &order {
         for p in document.meshes().nth(m).iter().flat_map(|m| m.primitives()) {
@@ -253,7 +286,7 @@ pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
                 }
             });
         }
-        meshes.push(std::sync::Arc::new(out.mesh));
+        meshes.push(out);
     }
     if skipped > 0 {
         log::warn!(
@@ -261,12 +294,26 @@ pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
             path.display()
         );
     }
-    if let Some(first) = meshes.first_mut().and_then(std::sync::Arc::get_mut) {
-        first.sources = sources;
+    if let Some(first) = meshes.first_mut() {
+        first.mesh.sources = sources;
     }
-    InstanceSet::new(meshes, placements)
-        .map(Some)
-        .map_err(|e| bad(e.to_string()))
+    let placed = GltfPlaced {
+        meshes,
+        materials,
+        instances: placements,
+    };
+    // The maps were checked above (a singular one placed at the identity); the count is
+    // what InstanceSet::new would refuse.
+    let placed_triangles: u64 = (placed.instances.iter())
+        .map(|i| placed.meshes[i.mesh as usize].mesh.len() as u64)
+        .sum();
+    if placed_triangles > super::MAX_INSTANCED_TRIANGLES {
+        return Err(bad(format!(
+            "{placed_triangles} triangles after instancing, more than lancer numbers: split \
+             the scene"
+        )));
+    }
+    Ok(Some(placed))
 }
 
 /// Each buffer's bytes, checked to hold at least its declared byteLength, and every buffer

@@ -16,7 +16,9 @@ mod ply_binary;
 mod ply_layout;
 
 pub use format::{FileKind, KNOWN_EXTENSIONS};
-pub use gltf::{load_gltf, load_gltf_instances, GltfImage, GltfMaterial, GltfScene};
+pub use gltf::{
+    load_gltf, load_gltf_instances, load_gltf_placed, GltfImage, GltfMaterial, GltfPlaced, GltfScene,
+};
 pub use instanced::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};
 pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};
 pub use obj::{load_obj, load_obj_scene, ObjScene};

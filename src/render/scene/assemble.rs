@@ -180,10 +180,6 @@ pub(super) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, Strin
     })
 }
 
-/// A scene file's object as the builder records it: its first triangle, and its copies'
-/// transforms (None: placed once, as it is).
-type PlacedObject = (usize, Option<Vec<(Mat3, Vec3)>>);
-
 /// Accumulates objects into one mesh.
 #[derive(Default)]
 pub(super) struct Builder {
@@ -197,9 +193,12 @@ pub(super) struct Builder {
     pub(super) short_faces: usize,
     /// Every file read: the scene, meshes, MTL libraries, textures.
     pub(super) sources: Vec<PathBuf>,
-    /// A scene file's objects: the first triangle of each, and its copies (None: placed
-    /// once as it is). Empty where the triangles are not objects of a scene file.
-    objects: Vec<PlacedObject>,
+    /// The triangles as meshes placed by instances: where each mesh starts (its triangles
+    /// run to the next one's start), and the instances in numbering order. Used where
+    /// `placed` (a mesh placed other than once as it is).
+    pub(super) mesh_starts: Vec<usize>,
+    pub(super) instances: Vec<Instance>,
+    pub(super) placed: bool,
 }
 
 impl Builder {
@@ -279,6 +278,13 @@ impl Builder {
             let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
             self.push(t, TriStatus::Ok, uv, material);
         }
+    }
+
+    /// Starts a mesh at the next triangle, placed by `maps` (after the instances so far).
+    pub(super) fn start_mesh(&mut self, maps: impl IntoIterator<Item = Affine>) {
+        let mesh = self.mesh_starts.len() as u32;
+        self.mesh_starts.push(self.triangles.len());
+        (self.instances).extend(maps.into_iter().map(|to_world| Instance { mesh, to_world }));
     }
 
     pub(super) fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
@@ -619,7 +625,9 @@ impl RenderScene {
                 None => None,
             };
             let copies = copies_of(o).map_err(bad)?;
-            b.objects.push((b.triangles.len(), copies));
+            b.placed |= copies.is_some();
+            let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
+            b.start_mesh(copies.into_iter().map(|(m, t)| Affine::from_mat3_translation(m, t)));
             add_object(&mut b, &dir, o, mat, grey, &bad)?;
         }
 
@@ -733,11 +741,19 @@ impl RenderScene {
     pub fn from_mesh(path: &Path, width: u32, height: u32) -> Result<RenderScene> {
         let mut b = Builder::default();
         let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
-        let bounds = b.add_mesh_file(path, None, grey, |p| p)?;
+        // A glTF file that draws a mesh with several nodes: its meshes placed by its nodes.
+        let bounds = match b.add_gltf_placed(path, grey)? {
+            Some(bounds) => bounds,
+            None => {
+                b.start_mesh([Affine::IDENTITY]);
+                b.add_mesh_file(path, None, grey, |p| p)?
+            }
+        };
         if !bounds.is_empty() {
             let r = 0.5 * bounds.extent().length();
             let ground = b.material(Material::diffuse(Vec3::splat(0.5)));
             let c = Vec3::new(bounds.center().x, bounds.lo.y, bounds.center().z);
+            b.start_mesh([Affine::IDENTITY]);
             b.add_shape(shapes::quad(), ground, |p| c + p * 20.0 * r);
         }
         let camera = Camera::default_view(&bounds, width, height);
@@ -773,8 +789,8 @@ impl Builder {
         };
         // Exclusions were counted per mesh file as each was added (add_obj).
         check_traceable(path, &mesh)?;
-        let placements = match self.objects.iter().any(|(_, c)| c.is_some()) {
-            true => Some(place_objects(path, &mesh, self.objects)?),
+        let placements = match self.placed {
+            true => Some(place_meshes(path, &mesh, &self.mesh_starts, self.instances)?),
             false => None,
         };
         let mut scene = RenderScene {
@@ -799,40 +815,28 @@ impl Builder {
     }
 }
 
-/// A scene file's objects as meshes (each object's triangles, in `mesh` from its first
-/// triangle to the next object's) placed by their copies (an object without: once, as it
-/// is).
-fn place_objects(
+/// The meshes of `mesh` (from each start to the next) placed by `instances`.
+fn place_meshes(
     path: &Path,
     mesh: &Mesh,
-    objects: Vec<PlacedObject>,
+    starts: &[usize],
+    instances: Vec<Instance>,
 ) -> Result<Placements> {
-    let ends: Vec<usize> = (objects.iter().skip(1).map(|o| o.0))
-        .chain([mesh.len()])
+    let ends = starts.iter().skip(1).copied().chain([mesh.len()]);
+    let meshes = (starts.iter().zip(ends).enumerate())
+        .map(|(k, (&first, end))| {
+            std::sync::Arc::new(Mesh {
+                triangles: mesh.triangles[first..end].to_vec(),
+                status: mesh.status[first..end].to_vec(),
+                short_faces: 0,
+                // Every file read, once (the first mesh's).
+                sources: if k == 0 { mesh.sources.clone() } else { Vec::new() },
+            })
+        })
         .collect();
-    let (mut meshes, mut mesh_base, mut instances) = (Vec::new(), Vec::new(), Vec::new());
-    for (k, ((first, copies), end)) in objects.into_iter().zip(ends).enumerate() {
-        mesh_base.push(first as u32);
-        meshes.push(std::sync::Arc::new(Mesh {
-            triangles: mesh.triangles[first..end].to_vec(),
-            status: mesh.status[first..end].to_vec(),
-            short_faces: 0,
-            // Every file read, once (the first mesh's).
-            sources: if k == 0 {
-                mesh.sources.clone()
-            } else {
-                Vec::new()
-            },
-        }));
-        let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
-        instances.extend(copies.into_iter().map(|(m, t)| Instance {
-            mesh: k as u32,
-            to_world: Affine::from_mat3_translation(m, t),
-        }));
-    }
     let set = InstanceSet::new(meshes, instances)
         .map_err(|e| Error::input(path, None, error_message(&e)))?;
-    Ok(Placements::new(set, mesh_base))
+    Ok(Placements::new(set, starts.iter().map(|&s| s as u32).collect()))
 }
 
 impl RenderScene {

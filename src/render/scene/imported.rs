@@ -13,7 +13,7 @@ use super::file::MaterialKind;
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Triangle};
 use crate::mesh::{
-    load_gltf, load_obj_scene, load_ply, warn_exclusions, FileKind, GltfImage, GltfMaterial,
+    load_gltf, load_gltf_placed, load_obj_scene, Instance, load_ply, warn_exclusions, FileKind, GltfImage, GltfMaterial,
     TriStatus,
 };
 
@@ -78,6 +78,51 @@ impl Builder {
             .zip(&self.status[first..])
             .filter(|(_, s)| **s == TriStatus::Ok)
             .fold(Aabb::EMPTY, |b, (t, _)| b.union(t.bbox())))
+    }
+}
+
+impl Builder {
+    /// Adds a glTF file that draws a mesh with several nodes as its meshes placed by its
+    /// nodes (after the meshes so far; numbered as the flattened file), with their
+    /// materials, and returns the bounds of what it placed; None, adding nothing, for any
+    /// other file.
+    pub(super) fn add_gltf_placed(&mut self, path: &Path, grey: u32) -> Result<Option<Aabb>> {
+        if !matches!(FileKind::of(path)?, FileKind::Gltf) {
+            return Ok(None);
+        }
+        let Some(g) = load_gltf_placed(path)? else {
+            return Ok(None);
+        };
+        let mut ids = Vec::with_capacity(g.materials.len());
+        for m in &g.materials {
+            let m = gltf_material(self, path, m)?;
+            ids.push(self.material(m));
+        }
+        let first_mesh = self.mesh_starts.len() as u32;
+        let mut mesh_bounds = Vec::with_capacity(g.meshes.len());
+        for m in &g.meshes {
+            self.mesh_starts.push(self.triangles.len());
+            for (i, t) in m.mesh.triangles.iter().enumerate() {
+                let id = (m.material_ids[i])
+                    .and_then(|k| ids.get(k).copied())
+                    .unwrap_or(grey);
+                self.push(*t, m.mesh.status[i], m.uvs[i], id);
+            }
+            warn_exclusions(path, &m.mesh);
+            self.short_faces += m.mesh.short_faces;
+            self.sources.extend(m.mesh.sources.iter().cloned());
+            mesh_bounds.push(m.mesh.bounds());
+        }
+        let mut bounds = Aabb::EMPTY;
+        for inst in &g.instances {
+            bounds = bounds.union(inst.to_world.image_box(&mesh_bounds[inst.mesh as usize]));
+            self.instances.push(Instance {
+                mesh: first_mesh + inst.mesh,
+                to_world: inst.to_world,
+            });
+        }
+        self.placed = true;
+        Ok(Some(bounds))
     }
 }
 
