@@ -301,7 +301,26 @@ fn tracers_over_instances_answer_as_over_the_flattened_scene() {
         }
         // Every hit is on the first copy: the tie rule across instances.
         assert!(got.hits.iter().all(|h| !h.is_hit() || h.prim < 500));
-        assert!(got.stats.unwrap().iter().any(|s| s.nodes > 3));
+        let two_stats = got.stats.unwrap();
+        assert!(two_stats.iter().any(|s| s.nodes > 3));
+        // TracerOptions::flatten: the set traced as its flattened mesh, work counters too.
+        let flatten = TracerOptions {
+            flatten: true,
+            ..options
+        };
+        let mut flattened = Tracer::with_instances(device, &set, &flatten).unwrap();
+        let got = flattened.trace(&rays, Query::Closest).unwrap();
+        let one_stats = one.trace(&rays, Query::Closest).unwrap().stats.unwrap();
+        assert!(got
+            .hits
+            .iter()
+            .zip(&flat_hits)
+            .all(|(a, b)| bits(a) == bits(b)));
+        assert_eq!(got.stats.unwrap(), one_stats);
+        assert_ne!(
+            two_stats, one_stats,
+            "two levels count their top level's work"
+        );
     }
 }
 

@@ -6,7 +6,7 @@ use lancer::Result;
 
 use super::out::{print_json, say, Say};
 use super::BuildArgs;
-use lancer::render::{load_geometry, load_instances};
+use lancer::render::{load_geometry, load_traceable, Geometry};
 
 #[derive(Args)]
 pub struct BuildCmd {
@@ -27,8 +27,11 @@ impl BuildCmd {
     pub fn run(self) -> Result<()> {
         // A scene that places a mesh many times is built flattened (a BVH file holds one
         // level); the report counts its instances.
-        let instances = load_instances(&self.mesh)?;
-        let mesh = load_geometry(&self.mesh)?;
+        // The flattened mesh as every command flattens it (a placed file is read again).
+        let (mesh, instances) = match load_traceable(&self.mesh)? {
+            Geometry::Mesh(mesh) => (mesh, None),
+            Geometry::Placed(set) => (load_geometry(&self.mesh)?, Some(set)),
+        };
         if let Some(out) = &self.out {
             lancer::output::check_output(out, &mesh.sources)?;
         }

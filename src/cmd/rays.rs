@@ -2,8 +2,8 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::camera::Camera;
-use lancer::mesh::{load_mesh, FileKind};
-use lancer::render::load_instances;
+use lancer::mesh::FileKind;
+use lancer::render::{load_traceable, Geometry};
 use lancer::trace::files::encode_rays;
 use lancer::{RenderScene, Result};
 
@@ -32,17 +32,16 @@ impl RaysCmd {
                 let scene = RenderScene::from_file(&self.mesh)?;
                 (scene.camera, scene.mesh.sources)
             }
-            _ => match load_instances(&self.mesh)? {
+            _ => match load_traceable(&self.mesh)? {
                 // A mesh placed many times: the instances' boxes, without flattening.
-                Some(set) => {
+                Geometry::Placed(set) => {
                     let sources = set.meshes.iter().flat_map(|m| m.sources.clone());
                     (
                         Camera::default_view(&set.bounds(), 512, 512),
                         sources.collect(),
                     )
                 }
-                None => {
-                    let mesh = load_mesh(&self.mesh)?;
+                Geometry::Mesh(mesh) => {
                     (Camera::default_view(&mesh.bounds(), 512, 512), mesh.sources)
                 }
             },

@@ -10,7 +10,7 @@ use lancer::{AccelKind, Error, LayoutKind, Query, Result, Tracer, TracerOptions,
 use super::input::load_bvh;
 use super::out::{check_output, is_std, print_json, read_rays, say, write_output, Say};
 use super::{BuildArgs, DeviceArgs, RobustnessArgs, BVH_CONFLICTS};
-use lancer::render::{load_geometry, load_instances};
+use lancer::render::{load_geometry, load_traceable, Geometry};
 
 #[derive(Args)]
 pub struct TraceCmd {
@@ -70,12 +70,13 @@ impl TraceCmd {
         }
         let say = Say::new(to_stdout || self.json);
         let two_level = matches!(self.accel, AccelKind::Bvh(_)) && self.bvh.is_none();
-        if two_level && !self.flatten {
-            if let Some(set) = load_instances(&self.mesh)? {
-                return self.run_instanced(&set, say);
-            }
-        }
-        let mesh = load_geometry(&self.mesh)?;
+        let mesh = match two_level && !self.flatten {
+            true => match load_traceable(&self.mesh)? {
+                Geometry::Placed(set) => return self.run_instanced(&set, say),
+                Geometry::Mesh(mesh) => mesh,
+            },
+            false => load_geometry(&self.mesh)?,
+        };
         let mut inputs = mesh.sources.clone();
         inputs.push(self.rays.clone());
         inputs.extend(self.bvh.clone());
@@ -139,6 +140,7 @@ impl TraceCmd {
             workgroup_size: self.workgroup_size,
             stats: self.stats,
             mode: self.mode,
+            flatten: self.flatten,
         }
     }
 

@@ -68,12 +68,17 @@ pub struct GltfScene {
 /// Loads a glTF 2.0 file's default scene (or its first; or every root node when it has no
 /// scene) as world-space triangles, without materials' textures decoded.
 pub fn load_gltf(path: &Path) -> Result<GltfScene> {
+    flatten_opened(path, open(path)?)
+}
+
+/// [`load_gltf`] of a file opened.
+fn flatten_opened(path: &Path, opened: Opened) -> Result<GltfScene> {
     let Opened {
         document,
         buffers,
         dir,
         mut sources,
-    } = open(path)?;
+    } = opened;
     let bad = |msg: String| Error::input(path, None, msg);
     let materials = document
         .materials()
@@ -186,29 +191,46 @@ impl GltfPlaced {
     }
 }
 
+/// A glTF file read once: its meshes placed by instances where a mesh is drawn by several
+/// nodes, else its scene flattened.
+#[derive(Clone, Debug)]
+pub enum GltfLoaded {
+    /// Each mesh drawn once: [`load_gltf`]'s flattened scene.
+    Flat(GltfScene),
+    /// A mesh drawn by several nodes: [`load_gltf_placed`]'s meshes and instances.
+    Placed(GltfPlaced),
+}
+
 /// The default scene's meshes placed by instances ([`load_gltf_placed`]), geometry alone.
 pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
-    (load_gltf_placed(path)?.map(|p| p.instance_set()))
-        .transpose()
-        .map_err(|e| Error::input(path, None, e.to_string()))
+    match read_gltf(path)? {
+        GltfLoaded::Flat(_) => Ok(None),
+        GltfLoaded::Placed(p) => (p.instance_set())
+            .map(Some)
+            .map_err(|e| Error::input(path, None, e.to_string())),
+    }
 }
 
 /// The default scene's meshes placed by instances, when a mesh is drawn by several nodes
-/// (None when each is drawn once: the flattened scene of [`load_gltf`] is then no bigger).
-/// One mesh per glTF mesh (its primitives' triangles in order, in its own space), one
+/// (as [`read_gltf`] reads it; None when each is drawn once).
+pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
+    Ok(match read_gltf(path)? {
+        GltfLoaded::Flat(_) => None,
+        GltfLoaded::Placed(p) => Some(p),
+    })
+}
+
+/// Reads a glTF file once: the default scene's meshes placed by instances, when a mesh is
+/// drawn by several nodes; else (the flattened scene is then no bigger) [`load_gltf`]'s
+/// flattened scene. One mesh per glTF mesh (its primitives' triangles in order, in its own space), one
 /// instance per node that draws it, in the order [`load_gltf`] walks them, so triangles are
 /// numbered alike. A mirroring node draws a copy of its mesh with two corners swapped (as
 /// [`load_gltf`] swaps them); a node whose map is singular draws a copy whose triangles are
 /// all left out (they have no area), at the identity.
-pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
-    let Opened {
-        document,
-        buffers,
-        dir,
-        mut sources,
-    } = open(path)?;
+pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
+    let opened = open(path)?;
     let bad = |msg: String| Error::input(path, None, msg);
-    let placed = instances(path, &document)?;
+    let placed = instances(path, &opened.document)?;
     /// How a node draws its glTF mesh: as it is, mirrored, or with no area.
     #[derive(Clone, Copy, PartialEq, Eq, Hash)]
     enum Drawn {
@@ -241,8 +263,14 @@ pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
     }
     let drawn_meshes: std::collections::HashSet<usize> = order.iter().map(|k| k.0).collect();
     if placements.len() <= drawn_meshes.len() {
-        return Ok(None);
+        return flatten_opened(path, opened).map(GltfLoaded::Flat);
     }
+    let Opened {
+        document,
+        buffers,
+        dir,
+        mut sources,
+    } = opened;
     let materials = (document.materials())
         .map(|m| material(path, &dir, &buffers, &m, &mut sources))
         .collect::<Result<Vec<_>>>()?;
@@ -313,7 +341,7 @@ pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
              the scene"
         )));
     }
-    Ok(Some(placed))
+    Ok(GltfLoaded::Placed(placed))
 }
 
 /// Each buffer's bytes, checked to hold at least its declared byteLength, and every buffer

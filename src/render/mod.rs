@@ -32,7 +32,7 @@ pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
 pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
-pub use scene::{load_geometry, load_instances};
+pub use scene::{load_geometry, load_instances, load_traceable, Geometry};
 pub use scene::{
     ImageSize, Integrator, Light, LightKind, Material, MaterialKind, PlacedTriangle, Placements,
     RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,

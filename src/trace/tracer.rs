@@ -36,6 +36,10 @@ pub struct TracerOptions {
     /// GPU: how the kernel walks the BVH (per ray, or a subgroup together); a mode that
     /// cannot run falls back to per-ray with a warning ([`TraceResult::mode`]).
     pub mode: TraversalMode,
+    /// [`Tracer::with_instances`]: trace one BVH over the flattened scene
+    /// ([`InstanceSet::flatten`]) instead of two levels, for comparison; hits are numbered
+    /// alike.
+    pub flatten: bool,
 }
 
 impl Default for TracerOptions {
@@ -48,6 +52,7 @@ impl Default for TracerOptions {
             workgroup_size: 64,
             stats: false,
             mode: TraversalMode::PerRay,
+            flatten: false,
         }
     }
 }
@@ -138,12 +143,22 @@ impl<'d> Tracer<'d> {
     /// Builds a two-level structure over meshes placed by instances
     /// ([`accel::instances`]): each mesh's BVH flattened into `options.layout` (None: the
     /// device's default), a top-level BVH over the instances, uploaded when the device is a
-    /// GPU. Hits are numbered as in [`InstanceSet::flatten`]'s mesh.
+    /// GPU. Hits are numbered as in [`InstanceSet::flatten`]'s mesh. With
+    /// [`TracerOptions::flatten`], one BVH over that mesh instead.
     pub fn with_instances(
         device: &'d Device,
         set: &InstanceSet,
         options: &TracerOptions,
     ) -> Result<Self> {
+        if options.flatten {
+            let n = set.triangle_count() as u128;
+            crate::limits::check_memory(
+                &format!("the flattened scene ({n} triangles)"),
+                n * 256,
+                "trace it in two levels (without flatten)",
+            )?;
+            return Self::new(device, &set.flatten(), options);
+        }
         let start = std::time::Instant::now();
         let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
         let two = GpuTwoLevel::build(kind, set, &options.build)?;

@@ -627,7 +627,11 @@ impl RenderScene {
             let copies = copies_of(o).map_err(bad)?;
             b.placed |= copies.is_some();
             let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
-            b.start_mesh(copies.into_iter().map(|(m, t)| Affine::from_mat3_translation(m, t)));
+            b.start_mesh(
+                copies
+                    .into_iter()
+                    .map(|(m, t)| Affine::from_mat3_translation(m, t)),
+            );
             add_object(&mut b, &dir, o, mat, grey, &bad)?;
         }
 
@@ -741,14 +745,7 @@ impl RenderScene {
     pub fn from_mesh(path: &Path, width: u32, height: u32) -> Result<RenderScene> {
         let mut b = Builder::default();
         let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
-        // A glTF file that draws a mesh with several nodes: its meshes placed by its nodes.
-        let bounds = match b.add_gltf_placed(path, grey)? {
-            Some(bounds) => bounds,
-            None => {
-                b.start_mesh([Affine::IDENTITY]);
-                b.add_mesh_file(path, None, grey, |p| p)?
-            }
-        };
+        let bounds = b.add_placed_file(path, grey)?;
         if !bounds.is_empty() {
             let r = 0.5 * bounds.extent().length();
             let ground = b.material(Material::diffuse(Vec3::splat(0.5)));
@@ -790,7 +787,12 @@ impl Builder {
         // Exclusions were counted per mesh file as each was added (add_obj).
         check_traceable(path, &mesh)?;
         let placements = match self.placed {
-            true => Some(place_meshes(path, &mesh, &self.mesh_starts, self.instances)?),
+            true => Some(place_meshes(
+                path,
+                &mesh,
+                &self.mesh_starts,
+                self.instances,
+            )?),
             false => None,
         };
         let mut scene = RenderScene {
@@ -830,13 +832,20 @@ fn place_meshes(
                 status: mesh.status[first..end].to_vec(),
                 short_faces: 0,
                 // Every file read, once (the first mesh's).
-                sources: if k == 0 { mesh.sources.clone() } else { Vec::new() },
+                sources: if k == 0 {
+                    mesh.sources.clone()
+                } else {
+                    Vec::new()
+                },
             })
         })
         .collect();
     let set = InstanceSet::new(meshes, instances)
         .map_err(|e| Error::input(path, None, error_message(&e)))?;
-    Ok(Placements::new(set, starts.iter().map(|&s| s as u32).collect()))
+    Ok(Placements::new(
+        set,
+        starts.iter().map(|&s| s as u32).collect(),
+    ))
 }
 
 impl RenderScene {

@@ -13,8 +13,8 @@ use super::file::MaterialKind;
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Triangle};
 use crate::mesh::{
-    load_gltf, load_gltf_placed, load_obj_scene, Instance, load_ply, warn_exclusions, FileKind, GltfImage, GltfMaterial,
-    TriStatus,
+    load_gltf, load_obj_scene, load_ply, read_gltf, warn_exclusions, FileKind, GltfImage,
+    GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, Instance, TriStatus,
 };
 
 impl Builder {
@@ -44,27 +44,7 @@ impl Builder {
                 self.short_faces += mesh.short_faces;
                 self.sources.extend(mesh.sources);
             }
-            FileKind::Gltf => {
-                let g = load_gltf(path)?;
-                let mut ids = Vec::with_capacity(g.materials.len());
-                if material.is_none() {
-                    for m in &g.materials {
-                        let m = gltf_material(self, path, m)?;
-                        ids.push(self.material(m));
-                    }
-                }
-                for (i, t) in g.mesh.triangles.iter().enumerate() {
-                    let id = material.unwrap_or_else(|| {
-                        g.material_ids[i]
-                            .and_then(|k| ids.get(k).copied())
-                            .unwrap_or(grey)
-                    });
-                    self.push(xf_triangle(t, &xf), g.mesh.status[i], g.uvs[i], id);
-                }
-                warn_exclusions(path, &g.mesh);
-                self.short_faces += g.mesh.short_faces;
-                self.sources.extend(g.mesh.sources);
-            }
+            FileKind::Gltf => self.add_gltf(path, load_gltf(path)?, material, grey, xf)?,
             FileKind::Scene => {
                 return Err(Error::input(
                     path,
@@ -73,26 +53,71 @@ impl Builder {
                 ))
             }
         }
-        Ok(self.triangles[first..]
-            .iter()
-            .zip(&self.status[first..])
-            .filter(|(_, s)| **s == TriStatus::Ok)
-            .fold(Aabb::EMPTY, |b, (t, _)| b.union(t.bbox())))
+        Ok(self.bounds_from(first))
     }
 }
 
 impl Builder {
-    /// Adds a glTF file that draws a mesh with several nodes as its meshes placed by its
-    /// nodes (after the meshes so far; numbered as the flattened file), with their
-    /// materials, and returns the bounds of what it placed; None, adding nothing, for any
-    /// other file.
-    pub(super) fn add_gltf_placed(&mut self, path: &Path, grey: u32) -> Result<Option<Aabb>> {
-        if !matches!(FileKind::of(path)?, FileKind::Gltf) {
-            return Ok(None);
+    /// Adds a flattened glTF scene read from `path`, as [`Builder::add_mesh_file`] adds it.
+    fn add_gltf(
+        &mut self,
+        path: &Path,
+        g: GltfScene,
+        material: Option<u32>,
+        grey: u32,
+        xf: impl Fn(Vec3) -> Vec3,
+    ) -> Result<()> {
+        let mut ids = Vec::with_capacity(g.materials.len());
+        if material.is_none() {
+            for m in &g.materials {
+                let m = gltf_material(self, path, m)?;
+                ids.push(self.material(m));
+            }
         }
-        let Some(g) = load_gltf_placed(path)? else {
-            return Ok(None);
-        };
+        for (i, t) in g.mesh.triangles.iter().enumerate() {
+            let id = material.unwrap_or_else(|| {
+                g.material_ids[i]
+                    .and_then(|k| ids.get(k).copied())
+                    .unwrap_or(grey)
+            });
+            self.push(xf_triangle(t, &xf), g.mesh.status[i], g.uvs[i], id);
+        }
+        warn_exclusions(path, &g.mesh);
+        self.short_faces += g.mesh.short_faces;
+        self.sources.extend(g.mesh.sources);
+        Ok(())
+    }
+
+    /// Adds a mesh file as `render MESH` shows it, after the meshes so far, and returns the
+    /// bounds of what it added: a glTF file that draws a mesh with several nodes as its
+    /// meshes placed by its nodes (numbered as the flattened file), any other as one mesh
+    /// placed once. The file is read once.
+    pub(super) fn add_placed_file(&mut self, path: &Path, grey: u32) -> Result<Aabb> {
+        if matches!(FileKind::of(path)?, FileKind::Gltf) {
+            match read_gltf(path)? {
+                GltfLoaded::Placed(g) => return self.add_gltf_placed(path, grey, g),
+                GltfLoaded::Flat(g) => {
+                    self.start_mesh([crate::geometry::Affine::IDENTITY]);
+                    let first = self.triangles.len();
+                    self.add_gltf(path, g, None, grey, |p| p)?;
+                    return Ok(self.bounds_from(first));
+                }
+            }
+        }
+        self.start_mesh([crate::geometry::Affine::IDENTITY]);
+        self.add_mesh_file(path, None, grey, |p| p)
+    }
+
+    /// Bounds of the included triangles from `first` on.
+    fn bounds_from(&self, first: usize) -> Aabb {
+        (self.triangles[first..].iter())
+            .zip(&self.status[first..])
+            .filter(|(_, s)| **s == TriStatus::Ok)
+            .fold(Aabb::EMPTY, |b, (t, _)| b.union(t.bbox()))
+    }
+
+    /// Adds a glTF file's meshes placed by its nodes, with their materials.
+    fn add_gltf_placed(&mut self, path: &Path, grey: u32, g: GltfPlaced) -> Result<Aabb> {
         let mut ids = Vec::with_capacity(g.materials.len());
         for m in &g.materials {
             let m = gltf_material(self, path, m)?;
@@ -122,7 +147,7 @@ impl Builder {
             });
         }
         self.placed = true;
-        Ok(Some(bounds))
+        Ok(bounds)
     }
 }
 

@@ -24,16 +24,47 @@ pub fn load_geometry(path: &std::path::Path) -> crate::Result<crate::mesh::Mesh>
     }
 }
 
+/// A file's geometry as `trace` takes it, the file read once: one mesh, or meshes placed by
+/// instances where the file places a mesh more than once.
+#[derive(Clone, Debug)]
+pub enum Geometry {
+    /// The file's mesh ([`load_geometry`]'s).
+    Mesh(crate::mesh::Mesh),
+    /// A glTF mesh drawn by several nodes ([`load_gltf_placed`]), or a scene object with
+    /// `copies` or a `grid` ([`RenderScene::placements`]).
+    ///
+    /// [`load_gltf_placed`]: crate::mesh::load_gltf_placed
+    Placed(crate::mesh::InstanceSet),
+}
+
+/// Reads a file's [`Geometry`]: a mesh file (.obj, .ply, .gltf, .glb) or a scene (.toml),
+/// chosen by the extension.
+pub fn load_traceable(path: &std::path::Path) -> crate::Result<Geometry> {
+    use crate::mesh::{FileKind, GltfLoaded};
+    Ok(match FileKind::of(path)? {
+        FileKind::Gltf => match crate::mesh::read_gltf(path)? {
+            GltfLoaded::Flat(g) => Geometry::Mesh(g.mesh),
+            GltfLoaded::Placed(p) => Geometry::Placed(
+                (p.instance_set()).map_err(|e| crate::Error::input(path, None, e.to_string()))?,
+            ),
+        },
+        FileKind::Scene => {
+            let scene = RenderScene::from_file(path)?;
+            match scene.placements {
+                Some(p) => Geometry::Placed(p.set().clone()),
+                None => Geometry::Mesh(scene.mesh),
+            }
+        }
+        _ => Geometry::Mesh(crate::mesh::load_mesh(path)?),
+    })
+}
+
 /// The geometry of a file as meshes placed by instances, where the file places a mesh more
-/// than once (a glTF mesh drawn by several nodes: [`load_gltf_instances`]; a scene object
-/// with `copies` or a `grid`: [`RenderScene::instances_of_file`]); None where it does not
-/// (then [`load_geometry`]'s one mesh is no bigger), and for OBJ and PLY.
-///
-/// [`load_gltf_instances`]: crate::mesh::load_gltf_instances
+/// than once ([`Geometry::Placed`]); None where it does not (then [`load_geometry`]'s one
+/// mesh is no bigger).
 pub fn load_instances(path: &std::path::Path) -> crate::Result<Option<crate::mesh::InstanceSet>> {
-    match crate::mesh::FileKind::of(path)? {
-        crate::mesh::FileKind::Gltf => crate::mesh::load_gltf_instances(path),
-        crate::mesh::FileKind::Scene => RenderScene::instances_of_file(path),
-        _ => Ok(None),
-    }
+    Ok(match load_traceable(path)? {
+        Geometry::Placed(set) => Some(set),
+        Geometry::Mesh(_) => None,
+    })
 }
