@@ -1569,7 +1569,16 @@ fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
     let render = |device: &str, extra: &[&str]| {
         let img = dir.path(&format!("{device}{}.exr", extra.len()));
         let mut args = vec!["render", s(&scene), "--width", "48", "--height", "36"];
-        args.extend(["--spp", "2", "--stats", "--json", "-o", s(&img), "--device", device]);
+        args.extend([
+            "--spp",
+            "2",
+            "--stats",
+            "--json",
+            "-o",
+            s(&img),
+            "--device",
+            device,
+        ]);
         args.extend(extra);
         let out = lancer_ok(&args);
         let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -1579,7 +1588,11 @@ fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
     assert!(j["instances"].is_null(), "{j}");
     for device in ["cpu", "gpu"] {
         let (img, j) = render(device, &[]);
-        assert_eq!(j["instances"].as_u64(), Some(4 + 1), "the nodes and the ground: {j}");
+        assert_eq!(
+            j["instances"].as_u64(),
+            Some(4 + 1),
+            "the nodes and the ground: {j}"
+        );
         lancer_ok(&["compare", s(&flat_img), s(&img), "--tolerance", "2"]);
     }
 }
