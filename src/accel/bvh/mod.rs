@@ -10,6 +10,7 @@ mod options;
 mod ploc;
 mod prim_ref;
 mod prims;
+mod refit;
 mod reinsert;
 mod sbvh;
 mod stats;
