@@ -538,3 +538,40 @@ fn instances_measure_both_variants_on_both_devices_and_the_top_level_at_every_co
         "{text}"
     );
 }
+
+#[test]
+fn refit_measures_every_step_against_a_rebuild_on_both_devices() {
+    let config = bench::refit::Config {
+        mesh: cornell(),
+        name: "cornell".into(),
+        steps: 2,
+        max_twist: 60.0,
+        width: 24,
+        height: 16,
+        device: DeviceChoice::Gpu,
+        bvh_memory: Default::default(),
+        layout: Some(LayoutKind::DfsSign),
+        repeat: 1,
+        build: Default::default(),
+    };
+    let report = with_progress(|p| bench::refit::run(&config, p));
+    let twists: Vec<f64> = report.steps.iter().map(|s| s.twist_deg).collect();
+    assert_eq!(twists, [0.0, 30.0, 60.0]);
+    // Undeformed, the refit tree is the built tree: the same cost, the same work.
+    let first = &report.steps[0];
+    assert_eq!(first.refit_sah, first.rebuild_sah);
+    assert_eq!(first.refit_nodes_per_ray, first.rebuild_nodes_per_ray);
+    for s in &report.steps {
+        assert!(s.refit_ms > 0.0 && s.rebuild_ms > 0.0, "{s:?}");
+        assert!(s.cpu_mrays_per_s.iter().all(|&m| m > 0.0), "{s:?}");
+        assert!(s
+            .gpu_mrays_per_s
+            .is_some_and(|g| g.iter().all(|&m| m > 0.0)));
+    }
+    // Twisted, the meshes differ from the undeformed one: the trees' bounds moved.
+    let twisted = bench::refit::twisted(&config.mesh, 60.0);
+    assert_ne!(twisted.bounds(), config.mesh.bounds());
+    let text = report.text();
+    assert!(text.contains("SAH refit ÷ rebuilt"), "{text}");
+    assert_eq!(json(&report)["steps"].as_array().unwrap().len(), 3);
+}

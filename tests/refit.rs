@@ -11,7 +11,7 @@ use common::gpu_twin::{bits, same_on_gpu};
 use common::{random_rays, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::{build, layouts, BuildOptions, Builder, BvhStats};
-use lancer::accel::{Accel, GpuForm};
+use lancer::accel::GpuForm;
 use lancer::geometry::Triangle;
 use lancer::mesh::Mesh;
 use lancer::{LayoutKind, Query, Robustness};

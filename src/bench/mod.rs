@@ -32,6 +32,7 @@ pub mod markdown;
 pub mod memory;
 pub mod page;
 pub mod rank;
+pub mod refit;
 pub mod rays;
 pub mod render;
 pub mod structures;

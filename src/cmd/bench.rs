@@ -41,6 +41,9 @@ enum BenchWhat {
     /// work and speed per ray (CPU and GPU), and the top level's build at 10² to 10⁵
     /// instances.
     Instances(super::bench_instances::BenchInstances),
+    /// A deforming mesh: its BVH refit against rebuilt at every step (time), and how the
+    /// refit tree's SAH and speed per ray decay.
+    Refit(super::bench_refit::BenchRefit),
 }
 
 impl BenchCmd {
@@ -53,6 +56,7 @@ impl BenchCmd {
             BenchWhat::Accuracy(b) => b.run(),
             BenchWhat::Builders(b) => b.run(),
             BenchWhat::Instances(b) => b.run(),
+            BenchWhat::Refit(b) => b.run(),
         }
     }
 }

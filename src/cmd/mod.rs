@@ -5,6 +5,7 @@ mod bench;
 mod bench_accuracy;
 mod bench_builders;
 mod bench_instances;
+mod bench_refit;
 mod bench_layouts;
 mod bench_render;
 mod bench_structures;
