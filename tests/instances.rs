@@ -669,3 +669,94 @@ fn bad_copies_are_refused_naming_the_line() {
     let unknown = "[[objects.copies]]\nmove = [1.0, 0.0, 1.0]";
     assert!(refused(unknown).contains("unknown field"));
 }
+
+/// `Tracer::set_transforms` moves the instances of a tracer: only the top level is built
+/// again and written over the uploaded arrays (in both memories; 1,000 instances make a
+/// top level of ~8,000 words, more than a texture row), and the tracer then answers as one
+/// built over the moved instances, bit for bit with the same work. Bad maps are refused and
+/// leave the tracer as it was.
+#[test]
+fn moving_instances_traces_as_a_tracer_built_over_them() {
+    let mut rng = Rng::new(77);
+    let meshes = vec![
+        Arc::new(soup(&mut rng, 40, 0.2)),
+        Arc::new(soup(&mut rng, 25, 0.3)),
+    ];
+    let maps = |turn: f32| -> Vec<Affine> {
+        (0..1000)
+            .map(|k| {
+                let m = Mat4::from_scale_rotation_translation(
+                    Vec3::splat(0.5 + (k % 3) as f32 * 0.25),
+                    Quat::from_rotation_y(turn * k as f32),
+                    Vec3::new(
+                        (k % 40) as f32,
+                        (k / 40) as f32 * 0.1 + turn,
+                        (k / 40) as f32,
+                    ),
+                );
+                Affine::from_mat4(&m)
+            })
+            .collect()
+    };
+    let set_of = |maps: &[Affine]| {
+        let instances = (maps.iter().enumerate())
+            .map(|(k, &m)| placed((k % 2) as u32, m))
+            .collect();
+        InstanceSet::new(meshes.clone(), instances).unwrap()
+    };
+    let (first, second) = (maps(0.3), maps(1.1));
+    let moved_set = set_of(&second);
+    let rays = random_rays(&mut rng, 3000, &moved_set.flatten());
+    for device in [cpu_device(), gpu_device()] {
+        for memory in [
+            lancer::gpu::BvhMemory::Buffers,
+            lancer::gpu::BvhMemory::Textures,
+        ] {
+            let options = TracerOptions {
+                stats: true,
+                memory,
+                ..TracerOptions::default()
+            };
+            let mut tracer = Tracer::with_instances(device, &set_of(&first), &options).unwrap();
+            let before = tracer.trace(&rays, Query::Closest).unwrap().hits;
+            // Refused: too few maps, a singular map. The tracer is unchanged.
+            assert!(tracer.set_transforms(&second[1..]).is_err());
+            let mut singular = second.clone();
+            singular[5] = Affine {
+                rows: [[0.0; 4]; 3],
+            };
+            assert!(tracer.set_transforms(&singular).is_err());
+            let again = tracer.trace(&rays, Query::Closest).unwrap().hits;
+            assert!(before.iter().zip(&again).all(|(a, b)| bits(a) == bits(b)));
+            tracer.set_transforms(&second).unwrap();
+            let mut fresh = Tracer::with_instances(device, &moved_set, &options).unwrap();
+            for query in [Query::Closest, Query::Any] {
+                let got = tracer.trace(&rays, query).unwrap();
+                let want = fresh.trace(&rays, query).unwrap();
+                assert!(
+                    got.hits
+                        .iter()
+                        .zip(&want.hits)
+                        .all(|(a, b)| bits(a) == bits(b)),
+                    "{device} {memory:?} {query:?}"
+                );
+                assert_eq!(got.stats, want.stats, "{device} {memory:?} {query:?}");
+            }
+            let hits = tracer.trace(&rays, Query::Closest).unwrap().hits;
+            let moved = hits
+                .iter()
+                .zip(&before)
+                .filter(|(a, b)| a.prim != b.prim)
+                .count();
+            assert!(moved * 2 > rays.len(), "only {moved} rays see the move");
+        }
+    }
+    // A tracer not over instances has nothing to move.
+    let mut one = Tracer::new(
+        cpu_device(),
+        &moved_set.flatten(),
+        &TracerOptions::default(),
+    )
+    .unwrap();
+    assert!(one.set_transforms(&second).is_err());
+}

@@ -38,6 +38,8 @@ pub struct GpuBvh {
     pub memory: BvhMemory,
     node_buf: wgpu::Buffer,
     tri_buf: wgpu::Buffer,
+    /// The node texture (a placeholder in buffer memory), for writes over part of it.
+    node_texture: wgpu::Texture,
     node_tex: wgpu::TextureView,
     tri_tex: wgpu::TextureView,
 }
@@ -61,16 +63,78 @@ impl GpuBvh {
         // Both sizes checked before either array is uploaded.
         fits(ctx, memory, "the BVH nodes", nodes.len())?;
         fits(ctx, memory, "the triangles", tris.len())?;
-        let (node_buf, node_tex) = words_in(ctx, memory, "the BVH nodes", nodes)?;
+        let (node_buf, node_texture) = words_in_memory(ctx, memory, "the BVH nodes", nodes)?;
         let (tri_buf, tri_tex) = words_in(ctx, memory, "the triangles", tris)?;
         let bvh = GpuBvh {
             memory,
             node_buf,
             tri_buf,
-            node_tex,
+            node_tex: node_texture.create_view(&Default::default()),
+            node_texture,
             tri_tex,
         };
         Ok(bvh)
+    }
+
+    /// Writes `bytes` (whole 16-byte words) over the node words from word `first` on, in
+    /// either memory: for a structure whose part changed in place
+    /// ([`GpuTwoLevel::moved`](crate::accel::instances::GpuTwoLevel::moved)). The caller
+    /// has checked that the words so written make a valid structure.
+    pub fn write_node_words(&self, ctx: &GpuContext, first: u32, bytes: &[u8]) -> Result<()> {
+        let words = bytes.len() / 16;
+        if words * 16 != bytes.len() {
+            return Err(Error::Usage("node words are 16 bytes each".into()));
+        }
+        match self.memory {
+            BvhMemory::Buffers => {
+                let end = (first as u64 + words as u64) * 16;
+                if end > self.node_buf.size() {
+                    return Err(Error::Usage(format!(
+                        "node words {first}..{} lie past the uploaded {} words",
+                        first as u64 + words as u64,
+                        self.node_buf.size() / 16
+                    )));
+                }
+                ctx.queue
+                    .write_buffer(&self.node_buf, first as u64 * 16, bytes);
+            }
+            BvhMemory::Textures => {
+                let row = TEXEL_ROW as usize;
+                let (mut at, mut rest) = (first as usize, bytes);
+                let rows = self.node_texture.height() as usize;
+                if (at + words).div_ceil(row) > rows {
+                    return Err(Error::Usage(format!(
+                        "node words {first}..{} lie past the uploaded texture",
+                        at + words
+                    )));
+                }
+                // One write per row touched: its part of the words.
+                while !rest.is_empty() {
+                    let (x, y) = (at % row, at / row);
+                    let n = (row - x).min(rest.len() / 16);
+                    let mut to = self.node_texture.as_image_copy();
+                    to.origin = wgpu::Origin3d {
+                        x: x as u32,
+                        y: y as u32,
+                        z: 0,
+                    };
+                    let layout = wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some((n * 16) as u32),
+                        rows_per_image: None,
+                    };
+                    let size = wgpu::Extent3d {
+                        width: n as u32,
+                        height: 1,
+                        depth_or_array_layers: 1,
+                    };
+                    ctx.queue.write_texture(to, &rest[..n * 16], layout, size);
+                    (at, rest) = (at + n, &rest[n * 16..]);
+                }
+            }
+        }
+        ctx.finish_writes();
+        Ok(())
     }
 
     /// The override constant that tells traversal.wgsl which bindings to read.
@@ -116,9 +180,21 @@ pub(crate) fn words_in(
     what: &str,
     bytes: &[u8],
 ) -> Result<(wgpu::Buffer, wgpu::TextureView)> {
+    let (buffer, texture) = words_in_memory(ctx, memory, what, bytes)?;
+    Ok((buffer, texture.create_view(&Default::default())))
+}
+
+/// [`words_in`], the texture itself rather than its view.
+fn words_in_memory(
+    ctx: &GpuContext,
+    memory: BvhMemory,
+    what: &str,
+    bytes: &[u8],
+) -> Result<(wgpu::Buffer, wgpu::Texture)> {
     let word = [0u8; 16];
-    let storage =
-        |label: &str, bytes: &[u8]| ctx.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE);
+    // COPY_DST: a part may be written over later (GpuBvh::write_node_words).
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+    let storage = |label: &str, bytes: &[u8]| ctx.buffer_with(label, bytes, usage);
     fits(ctx, memory, what, bytes.len())?;
     Ok(match memory {
         BvhMemory::Buffers => (storage(what, bytes), texels(ctx, "unused texels", &word)?),
@@ -149,7 +225,7 @@ fn fits(ctx: &GpuContext, memory: BvhMemory, what: &str, len: usize) -> Result<(
 
 /// An rgba32uint texture holding `bytes` (a multiple of 16) row by row, the last row padded
 /// with zeros (its size checked by [`fits`]).
-fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureView> {
+fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::Texture> {
     let words = bytes.len() / 16;
     let rows = words.div_ceil(TEXEL_ROW as usize).max(1);
     let size = |rows: usize| wgpu::Extent3d {
@@ -194,5 +270,5 @@ fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::TextureVie
         at.origin.y = full as u32;
         ctx.queue.write_texture(at, &last, layout, size(1));
     }
-    Ok(texture.create_view(&Default::default()))
+    Ok(texture)
 }

@@ -98,6 +98,12 @@ pub struct GpuTracer<'a> {
 }
 
 impl<'a> GpuTracer<'a> {
+    /// Writes `bytes` over the uploaded node words from word `first` on
+    /// ([`GpuBvh::write_node_words`]): the caller has checked the structure they make.
+    pub fn write_node_words(&self, first: u32, bytes: &[u8]) -> Result<()> {
+        self.bvh.write_node_words(self.ctx, first, bytes)
+    }
+
     /// Validates and uploads a layout in the given memory and compiles the kernel.
     pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
         let start = std::time::Instant::now();

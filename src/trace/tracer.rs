@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::accel::bvh::layouts::{self, LayoutKind};
 use crate::accel::bvh::{self, BuildOptions};
-use crate::accel::instances::{GpuTwoLevel, InstanceSet};
+use crate::accel::instances::{Affine, GpuTwoLevel, InstanceSet};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::accel::{self, Accel, AccelKind, Query, RayStats};
@@ -87,6 +87,8 @@ pub struct Tracer<'d> {
     options: TracerOptions,
     /// The mode that runs, [`Tracer::resolve_mode`] of the options.
     mode: TraversalMode,
+    /// A tracer over instances: its two levels, which [`Tracer::set_transforms`] moves.
+    two_level: Option<Arc<GpuTwoLevel>>,
 }
 
 impl<'d> Tracer<'d> {
@@ -135,6 +137,7 @@ impl<'d> Tracer<'d> {
             gpu: None,
             options: *options,
             mode: TraversalMode::PerRay,
+            two_level: None,
         };
         tracer.resolve_mode();
         Ok(tracer)
@@ -170,7 +173,34 @@ impl<'d> Tracer<'d> {
             set.instances.len(),
             start.elapsed().as_secs_f64() * 1e3
         );
-        Self::with_layout(device, Arc::new(two), options)
+        let two = Arc::new(two);
+        let mut tracer = Self::with_layout(device, two.clone(), options)?;
+        tracer.two_level = Some(two);
+        Ok(tracer)
+    }
+
+    /// Moves the instances of a tracer over instances ([`Tracer::with_instances`]):
+    /// `maps[i]` places instance i, in order. Only the top level is built again
+    /// ([`GpuTwoLevel::moved`]); on a GPU only its words are written over the uploaded
+    /// arrays (the meshes' bottom levels stay where they are) and no kernel is compiled
+    /// again. The hits are then those of a tracer built over the moved instances. Refused
+    /// (nothing moved) for a tracer not over instances, or as [`GpuTwoLevel::moved`]
+    /// refuses the maps.
+    pub fn set_transforms(&mut self, maps: &[Affine]) -> Result<()> {
+        let Some(two) = &self.two_level else {
+            return Err(Error::Usage(
+                "set_transforms moves the instances of a tracer made by with_instances".into(),
+            ));
+        };
+        let moved = Arc::new(two.moved(maps, &self.options.build)?);
+        if let Some(gpu) = &self.gpu {
+            let (first, bytes) = moved.top_words();
+            gpu.write_node_words(first, &bytes)?;
+        }
+        self.cpu = moved.clone();
+        self.layout = Some(moved.clone());
+        self.two_level = Some(moved);
+        Ok(())
     }
 
     /// A tracer over an already flattened layout (`options.build` and `options.layout` are
@@ -190,6 +220,7 @@ impl<'d> Tracer<'d> {
             gpu,
             options: *options,
             mode: TraversalMode::PerRay,
+            two_level: None,
         };
         tracer.resolve_mode();
         Ok(tracer)

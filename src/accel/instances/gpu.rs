@@ -10,7 +10,7 @@ use super::{InstanceSet, TwoLevel};
 use crate::accel::bvh::layouts::{self, DfsNode, LayoutKind, DFS_LEAF_TAG};
 use crate::accel::bvh::{self, BuildOptions, MAX_DEPTH};
 use crate::accel::{Accel, GpuArrays, GpuForm, Query, RayStats};
-use crate::geometry::{Aabb, Hit, Ray, Robustness};
+use crate::geometry::{Aabb, Affine, Hit, Ray, Robustness};
 
 /// Bytes of one 16-byte word of the GPU arrays.
 const WORD: usize = 16;
@@ -70,10 +70,60 @@ impl GpuTwoLevel {
         })
     }
 
+    /// The same bottom levels (shared: not built, flattened or laid out again) with the
+    /// instances moved ([`TwoLevel::moved`]). Only the top level is new, and it fills the
+    /// same words of the node array as this one's: a GPU copy of this structure becomes the
+    /// moved one by writing [`GpuTwoLevel::top_words`] over it, and the kernels' override
+    /// constants stay the same (no pipeline is compiled again). Refused as
+    /// [`TwoLevel::moved`] refuses, or where the new top level would not fill the same
+    /// words.
+    pub fn moved(&self, maps: &[Affine], options: &BuildOptions) -> crate::Result<GpuTwoLevel> {
+        let mut twin = self.twin.moved(maps, options)?;
+        let bases = bottom_bases(&twin.bottoms);
+        for e in &mut twin.top.entries {
+            (e.node_base, e.tri_base) = bases[e.mesh as usize];
+        }
+        let (old, new) = (&self.twin.top, &twin.top);
+        if (old.nodes.len(), old.entries.len()) != (new.nodes.len(), new.entries.len()) {
+            return Err(crate::Error::Usage(format!(
+                "the moved top level has {} nodes and {} entries where the first had {} and \
+                 {}: build the structure again",
+                new.nodes.len(),
+                new.entries.len(),
+                old.nodes.len(),
+                old.entries.len()
+            )));
+        }
+        let moved = GpuTwoLevel {
+            twin,
+            layout: self.layout,
+            bottom_wgsl: self.bottom_wgsl.clone(),
+            arrays: OnceLock::new(),
+            top_node_base: self.top_node_base,
+            top_entry_base: self.top_entry_base,
+        };
+        moved
+            .check_top()
+            .map_err(|e| crate::Error::Usage(format!("the moved top level is invalid: {e}")))?;
+        Ok(moved)
+    }
+
+    /// The top level's words in the node array: the first one's index, and their bytes (its
+    /// nodes, then its entries).
+    pub fn top_words(&self) -> (u32, Vec<u8>) {
+        let top = &self.twin.top;
+        let mut bytes = Vec::with_capacity(
+            std::mem::size_of_val(&top.nodes[..]) + std::mem::size_of_val(&top.entries[..]),
+        );
+        bytes.extend_from_slice(bytemuck::cast_slice(&top.nodes));
+        bytes.extend_from_slice(bytemuck::cast_slice(&top.entries));
+        (self.top_node_base, bytes)
+    }
+
     /// The GPU arrays laid out (see [`GpuTwoLevel::arrays`]).
     fn lay_out(&self) -> (Vec<u8>, Vec<u8>) {
         let (mut nodes, mut tris) = (Vec::new(), Vec::new());
-        for b in &self.twin.bottoms {
+        for b in self.twin.bottoms.iter() {
             let a = b.arrays();
             nodes.extend_from_slice(a.nodes);
             tris.extend_from_slice(a.tris);

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use super::top_level::TopLevel;
-use super::InstanceSet;
+use super::{Affine, Instance, InstanceSet};
 use crate::accel::bvh::layouts::DfsNodeRay;
 use crate::accel::bvh::{BuildOptions, MAX_DEPTH};
 use crate::accel::{Accel, AccelKind, Query, RayStats};
@@ -24,8 +24,11 @@ use crate::mesh::Mesh;
 /// two-level GPU form ([`GpuTwoLevel`](super::GpuTwoLevel)), whose CPU twin this is.
 pub struct TwoLevel<B: Accel + ?Sized = dyn Accel> {
     pub(super) top: TopLevel,
-    pub(super) bottoms: Vec<Box<B>>,
+    /// Shared with the structures moved from this one ([`TwoLevel::moved`]).
+    pub(super) bottoms: Arc<[Box<B>]>,
     meshes: Vec<Arc<Mesh>>,
+    /// The instances' meshes, in order (their maps are the top level's).
+    instance_meshes: Vec<u32>,
 }
 
 impl TwoLevel {
@@ -53,7 +56,8 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
         let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
         let bottoms = (set.meshes.iter())
             .map(|m| bottom(m))
-            .collect::<crate::Result<Vec<_>>>()?;
+            .collect::<crate::Result<Vec<_>>>()?
+            .into();
         let top = TopLevel::build(&set, options);
         log::debug!(
             "two-level: {} meshes, {} instances ({} placed), {} top-level nodes",
@@ -66,6 +70,31 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
             top,
             bottoms,
             meshes: set.meshes,
+            instance_meshes: set.instances.iter().map(|i| i.mesh).collect(),
+        })
+    }
+
+    /// The same meshes and bottom levels (shared, not rebuilt) with the instances moved:
+    /// `maps[i]` places instance i, in order; only the top level is built again (with
+    /// `options`' builder). Refused, as [`InstanceSet::new`] refuses a map, or when
+    /// `maps` is not one map an instance.
+    pub fn moved(&self, maps: &[Affine], options: &BuildOptions) -> crate::Result<TwoLevel<B>> {
+        if maps.len() != self.instance_meshes.len() {
+            return Err(crate::Error::Usage(format!(
+                "{} maps for {} instances: give one map an instance, in order",
+                maps.len(),
+                self.instance_meshes.len()
+            )));
+        }
+        let instances = (self.instance_meshes.iter().zip(maps))
+            .map(|(&mesh, &to_world)| Instance { mesh, to_world })
+            .collect();
+        let set = InstanceSet::new(self.meshes.clone(), instances)?;
+        Ok(TwoLevel {
+            top: TopLevel::build(&set, options),
+            bottoms: self.bottoms.clone(),
+            meshes: self.meshes.clone(),
+            instance_meshes: self.instance_meshes.clone(),
         })
     }
 
