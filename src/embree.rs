@@ -1,13 +1,15 @@
 //! Embree 3 (the `embree` feature) as a reference CPU tracer: one Embree scene over the mesh's
-//! triangles, traced one ray at a time (`rtcIntersect1`, `rtcOccluded1`) on rayon's threads.
-//! `lancer bench layouts` times it beside lancer's layouts; `tests/embree.rs` judges its
-//! answers against the CPU twin with the f64 oracle.
+//! triangles ([`EmbreeTracer`]), or Embree's own two levels over an [`InstanceSet`]
+//! ([`EmbreeInstances`]), traced one ray at a time (`rtcIntersect1`, `rtcOccluded1`) on
+//! rayon's threads. `lancer bench layouts` times the first beside lancer's layouts, `lancer
+//! bench instances` both beside lancer's two levels and flattened copy; `tests/embree.rs`
+//! judges their answers against lancer's CPU twins.
 
 use std::time::Instant;
 
 use crate::accel::trace_in_chunks;
-use crate::geometry::{Hit, Ray};
-use crate::mesh::Mesh;
+use crate::geometry::{Affine, Hit, Ray};
+use crate::mesh::{InstanceSet, Mesh};
 use crate::{Error, Result};
 use embree3::{
     BufferUsage, BuildQuality, Config, Device, DeviceProperty, Format, GeometryKind,
@@ -66,40 +68,191 @@ impl EmbreeTracer {
     /// Closest hits (`rtcIntersect1`), one ray at a time on rayon's threads: original triangle
     /// indices, Embree's t and barycentrics; [`Hit::miss`] on a miss or an invalid ray.
     pub fn closest(&self, rays: &[Ray]) -> Vec<Hit> {
-        trace_in_chunks(
-            rays,
-            Hit::miss(0.0),
-            IntersectContext::incoherent,
-            |ctx, r| {
-                let miss = Hit::miss(r.tmax);
-                if !r.is_valid() {
-                    return miss;
-                }
-                let mut rh = RayHit::from(embree_ray(r));
-                self.scene.intersect(ctx, &mut rh);
-                if rh.hit.geomID == INVALID_ID {
-                    return miss;
-                }
-                match self.prims.get(rh.hit.primID as usize) {
-                    Some(&prim) => Hit {
-                        t: rh.ray.tfar,
-                        prim,
-                        u: rh.hit.u,
-                        v: rh.hit.v,
-                    },
-                    None => miss,
-                }
-            },
-        )
+        closest_hits(&self.scene, rays, |hit| {
+            self.prims.get(hit.primID as usize).copied()
+        })
     }
 
     /// Whether each ray is blocked (`rtcOccluded1`), one ray at a time on rayon's threads;
     /// false for an invalid ray. Embree's any-hit names no triangle.
     pub fn occluded(&self, rays: &[Ray]) -> Vec<bool> {
-        trace_in_chunks(rays, false, IntersectContext::incoherent, |ctx, r| {
-            r.is_valid() && self.scene.occluded(ctx, &mut embree_ray(r))
+        occluded_rays(&self.scene, rays)
+    }
+}
+
+/// Closest hits on `scene` (`rtcIntersect1`), one ray at a time on rayon's threads, each
+/// hit's triangle numbered by `prim` (None: a miss); [`Hit::miss`] on a miss or an invalid
+/// ray.
+fn closest_hits(
+    scene: &Scene<'static>,
+    rays: &[Ray],
+    prim: impl Fn(&embree3::Hit) -> Option<u32> + Sync,
+) -> Vec<Hit> {
+    trace_in_chunks(
+        rays,
+        Hit::miss(0.0),
+        IntersectContext::incoherent,
+        |ctx, r| {
+            let miss = Hit::miss(r.tmax);
+            if !r.is_valid() {
+                return miss;
+            }
+            let mut rh = RayHit::from(embree_ray(r));
+            scene.intersect(ctx, &mut rh);
+            if rh.hit.geomID == INVALID_ID {
+                return miss;
+            }
+            match prim(&rh.hit) {
+                Some(prim) => Hit {
+                    t: rh.ray.tfar,
+                    prim,
+                    u: rh.hit.u,
+                    v: rh.hit.v,
+                },
+                None => miss,
+            }
+        },
+    )
+}
+
+/// Whether each ray is blocked on `scene` (`rtcOccluded1`), one ray at a time on rayon's
+/// threads; false for an invalid ray.
+fn occluded_rays(scene: &Scene<'static>, rays: &[Ray]) -> Vec<bool> {
+    trace_in_chunks(rays, false, IntersectContext::incoherent, |ctx, r| {
+        r.is_valid() && scene.occluded(ctx, &mut embree_ray(r))
+    })
+}
+
+/// Bytes an instance may take in Embree's top-level scene, for the memory check up front:
+/// its geometry object, the crate's handle and the top level's share of the BVH.
+const BYTES_PER_INSTANCE: u128 = 1024;
+
+/// Embree's own two levels over an [`InstanceSet`]: one committed scene per unique mesh (a
+/// triangle geometry over the triangles lancer's BVH includes, as [`EmbreeTracer`] builds
+/// it), and a top-level scene of instance geometries (`rtcSetGeometryInstancedScene`, the
+/// instance's map as Embree's transform), one per instance, at Embree's default build
+/// quality (medium). Hits are numbered as lancer numbers the flattened scene
+/// ([`InstanceSet::first_prims`] + the triangle's index in its mesh), as lancer's
+/// [`TwoLevel`](crate::accel::instances::TwoLevel) numbers them.
+pub struct EmbreeInstances {
+    top: Scene<'static>,
+    /// The meshes' scenes, which the top scene's instances refer to (dropped after it).
+    _meshes: Vec<Scene<'static>>,
+    /// Per mesh: Embree's primitive ID → the triangle's index in the mesh.
+    prims: Vec<Vec<u32>>,
+    /// Per instance, by its geometry ID in the top scene: its mesh and its first triangle
+    /// index in the flattened numbering.
+    instances: Vec<(u32, u32)>,
+    build_ms: f64,
+    version: String,
+}
+
+impl EmbreeInstances {
+    /// Builds the scenes with `threads` build threads (0: all). Refused as
+    /// [`InstanceSet::new`] refuses a set, or when the scenes would not fit in memory.
+    /// Instances of a mesh with no usable triangle are left out of the top scene.
+    pub fn new(set: &InstanceSet, threads: usize) -> Result<EmbreeInstances> {
+        let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
+        let ids = u32::try_from(set.instances.len()).map_err(|_| {
+            Error::Usage(format!(
+                "Embree: {} instances, more than its geometry IDs number",
+                set.instances.len()
+            ))
+        })?;
+        let triangles: usize = set.meshes.iter().map(|m| m.len()).sum();
+        crate::limits::check_memory(
+            &format!("Embree's two levels over {triangles} triangles and {ids} instances"),
+            triangles as u128 * BYTES_PER_TRIANGLE + u128::from(ids) * BYTES_PER_INSTANCE,
+            "place fewer instances",
+        )?;
+        let prims: Vec<Vec<u32>> = set.meshes.iter().map(|m| m.included()).collect();
+        let counts = (prims.iter().map(|p| vertex_count(p.len()))).collect::<Result<Vec<_>>>()?;
+        let (device, version) = open_device(threads)?;
+        let start = Instant::now();
+        let mut meshes = Vec::with_capacity(set.meshes.len());
+        for ((mesh, prims), &count) in set.meshes.iter().zip(&prims).zip(&counts) {
+            meshes.push(build_scene(&device, mesh, prims, count)?.0);
+        }
+        let mut top = device
+            .create_scene()
+            .map_err(|e| embree_error("cannot create the top-level scene", e))?;
+        top.set_build_quality(BuildQuality::MEDIUM);
+        let first_prims = set.first_prims();
+        let mut instances = Vec::with_capacity(set.instances.len());
+        for (id, (inst, &first)) in (0..ids).zip(set.instances.iter().zip(&first_prims)) {
+            instances.push((inst.mesh, first));
+            if counts[inst.mesh as usize] == 0 {
+                continue;
+            }
+            let mut geometry = device
+                .create_geometry(GeometryKind::INSTANCE)
+                .map_err(|e| embree_error("cannot create an instance", e))?;
+            geometry.set_instanced_scene(&meshes[inst.mesh as usize]);
+            geometry.set_transform(0, &column_major(&inst.to_world));
+            let geometry = geometry.commit();
+            top.attach_geometry_by_id(&geometry, id);
+        }
+        top.commit();
+        match device.get_error() {
+            embree3::Error::NONE => {}
+            e => return Err(embree_error("the two-level build failed", e)),
+        }
+        let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        log::info!(
+            "Embree {version}: two levels over {} meshes ({triangles} triangles) and {ids} \
+             instances built in {build_ms:.1} ms",
+            set.meshes.len()
+        );
+        Ok(EmbreeInstances {
+            top,
+            _meshes: meshes,
+            prims,
+            instances,
+            build_ms,
+            version,
         })
     }
+
+    /// Wall time of the build (every mesh's scene, the instances and the top level, each
+    /// committed), in milliseconds.
+    pub fn build_ms(&self) -> f64 {
+        self.build_ms
+    }
+
+    /// The Embree library's version, as it reports it ("3.13.5").
+    pub fn version(&self) -> &str {
+        &self.version
+    }
+
+    /// Closest hits (`rtcIntersect1`), one ray at a time on rayon's threads: triangle
+    /// indices of the flattened numbering (the instance's first index + the triangle's in
+    /// its mesh), Embree's t (of the world ray) and barycentrics; [`Hit::miss`] on a miss or
+    /// an invalid ray.
+    pub fn closest(&self, rays: &[Ray]) -> Vec<Hit> {
+        closest_hits(&self.top, rays, |hit| {
+            let &(mesh, first) = self.instances.get(hit.instID[0] as usize)?;
+            let prim = *self.prims.get(mesh as usize)?.get(hit.primID as usize)?;
+            first.checked_add(prim)
+        })
+    }
+
+    /// Whether each ray is blocked (`rtcOccluded1`), one ray at a time on rayon's threads;
+    /// false for an invalid ray. Embree's any-hit names no triangle.
+    pub fn occluded(&self, rays: &[Ray]) -> Vec<bool> {
+        occluded_rays(&self.top, rays)
+    }
+}
+
+/// An affine map as Embree's 4×4 column-major transform (last row 0, 0, 0, 1).
+fn column_major(a: &Affine) -> [f32; 16] {
+    let mut m = [0.0; 16];
+    for (column, out) in m.chunks_exact_mut(4).enumerate() {
+        for (row, o) in out.iter_mut().take(3).enumerate() {
+            *o = a.rows[row][column];
+        }
+    }
+    m[15] = 1.0;
+    m
 }
 
 /// lancer's ray as Embree's: the same origin, direction and interval.

@@ -2,7 +2,9 @@
 //! under a BVH over the instances) against its flattened copy (one BVH over every copy's
 //! triangles), side by side in one run: build time, bytes, work per ray and speed for
 //! primary and shadow rays on the CPU twin and the GPU kernel; and the two-level build over
-//! 10² to 10⁵ instances of one triangle, where the top level is all the work.
+//! 10² to 10⁵ instances of one triangle, where the top level is all the work. With the
+//! `embree` feature, Embree 3 on the same rays as the reference: its own instances (one
+//! scene over the mesh, an instance geometry per copy) and one scene over the flattened copy.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -23,7 +25,7 @@ use crate::trace::{Tracer, TracerOptions};
 
 use super::markdown::Table;
 use super::rays::primary_and_shadow;
-use super::timing::median;
+use super::timing::{median, TimeRun};
 use super::{BenchReport, Progress, Ticker};
 
 /// Instance counts of the top-level build rows.
@@ -99,6 +101,43 @@ pub struct Ratio {
     pub gpu: Option<f64>,
 }
 
+/// Embree 3's rows (the `embree` feature; the JSON `embree` object): its own instances and
+/// its scene over the flattened copy, traced on the CPU on the same rays in turns with
+/// lancer's variants.
+#[derive(Clone, Debug, Serialize)]
+pub struct EmbreeRows {
+    /// Embree's version ("3.13.5").
+    pub version: String,
+    /// Build time of each variant (instanced, flattened).
+    pub builds: Vec<EmbreeBuild>,
+    /// Each variant × ray set.
+    pub runs: Vec<EmbreeRun>,
+    /// Time per ray, Embree's instanced ÷ its flattened, by ray set (`gpu` null).
+    pub ratios: Vec<Ratio>,
+}
+
+/// One of Embree's builds (a JSON `embree.builds` entry).
+#[derive(Clone, Debug, Serialize)]
+pub struct EmbreeBuild {
+    /// instanced (Embree's instances) or flattened (one scene over the flattened copy).
+    pub variant: &'static str,
+    /// Wall-clock time to fill Embree's buffers and commit its scenes (all threads).
+    pub build_ms: f64,
+}
+
+/// One of Embree's variants × ray set (a JSON `embree.runs` entry).
+#[derive(Clone, Debug, Serialize)]
+pub struct EmbreeRun {
+    /// instanced or flattened.
+    pub variant: &'static str,
+    /// primary (`rtcIntersect1`) or shadow (`rtcOccluded1`).
+    pub rays: &'static str,
+    /// Rays in the set.
+    pub count: usize,
+    /// One ray per call on the CPU twin's threads, median of `repeat` runs.
+    pub cpu_mrays_per_s: f64,
+}
+
 /// One top-level build (a JSON `top_level` entry).
 #[derive(Clone, Debug, Serialize)]
 pub struct TopLevelBuild {
@@ -137,6 +176,8 @@ pub struct Report {
     pub ratios: Vec<Ratio>,
     /// The two-level build at [`TOP_LEVEL_COUNTS`] instances.
     pub top_level: Vec<TopLevelBuild>,
+    /// Embree 3's rows; null without the `embree` feature.
+    pub embree: Option<EmbreeRows>,
     /// The GPU's driver (None without a GPU).
     #[serde(skip)]
     pub gpu_driver: Option<String>,
@@ -160,6 +201,65 @@ fn placements(n: usize, extent: f32) -> Vec<Instance> {
             }
         })
         .collect()
+}
+
+/// The variants' names, in the order of every array of two.
+const VARIANTS: [&str; 2] = ["instanced", "flattened"];
+
+/// Embree's two variants (the `embree` feature), the bench's reference.
+#[cfg_attr(not(feature = "embree"), allow(dead_code))]
+struct Reference {
+    /// Its version ("3.13.5").
+    version: String,
+    /// Build ms of each variant.
+    build_ms: [f64; 2],
+    /// One timed run of each variant.
+    time: [TimeRun; 2],
+}
+
+/// Embree's instances over `set` and its scene over the flattened copy `flat`, built on
+/// rayon's thread count after an untimed build over `set`'s first mesh (which starts
+/// Embree's threads, as lancer's are running already when its builds are timed):
+/// `rtcIntersect1` for closest hits, `rtcOccluded1` for any hit, one ray per call on
+/// rayon's threads, each run timed on the wall clock.
+#[cfg(feature = "embree")]
+fn reference(set: &InstanceSet, flat: &Mesh) -> Result<Option<Reference>> {
+    use crate::embree::{EmbreeInstances, EmbreeTracer};
+    let threads = rayon::current_num_threads();
+    if let Some(mesh) = set.meshes.first() {
+        EmbreeTracer::new(mesh, threads)?;
+    }
+    let instanced = EmbreeInstances::new(set, threads)?;
+    let flattened = EmbreeTracer::new(flat, threads)?;
+    let build_ms = [instanced.build_ms(), flattened.build_ms()];
+    let version = instanced.version().to_string();
+    let time_instanced = move |rays: &[Ray], query: Query| {
+        let start = Instant::now();
+        match query {
+            Query::Closest => drop(instanced.closest(rays)),
+            Query::Any => drop(instanced.occluded(rays)),
+        }
+        start.elapsed().as_secs_f64()
+    };
+    let time_flattened = move |rays: &[Ray], query: Query| {
+        let start = Instant::now();
+        match query {
+            Query::Closest => drop(flattened.closest(rays)),
+            Query::Any => drop(flattened.occluded(rays)),
+        }
+        start.elapsed().as_secs_f64()
+    };
+    Ok(Some(Reference {
+        version,
+        build_ms,
+        time: [Box::new(time_instanced), Box::new(time_flattened)],
+    }))
+}
+
+/// Without the `embree` feature: no reference.
+#[cfg(not(feature = "embree"))]
+fn reference(_: &InstanceSet, _: &Mesh) -> Result<Option<Reference>> {
+    Ok(None)
 }
 
 /// Median seconds of `repeat` runs of `f`.
@@ -205,6 +305,11 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     let two: Arc<dyn GpuForm> = Arc::new(GpuTwoLevel::build(layout, &set, &config.build)?);
     let two_ms = t0.elapsed().as_secs_f64() * 1e3;
     ticker.inc(1);
+    ticker.say("building Embree's instances and flattened copy");
+    let reference = reference(&set, &flat_mesh)?;
+    if reference.is_some() {
+        ticker.grow((2 * sets * repeat) as u64);
+    }
 
     let camera = Camera::default_view(&flat_mesh.bounds(), width, height);
     let (primary, shadow) = primary_and_shadow(&flat_mesh, flat.as_ref(), &camera);
@@ -225,19 +330,27 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         }
     }
     let (mut runs, mut ratios) = (Vec::new(), Vec::new());
+    let (mut embree_runs, mut embree_ratios) = (Vec::new(), Vec::new());
     for (name, query, rays) in ray_sets {
         ticker.say(format!("{name} rays"));
         // Work per ray, untimed.
         let work = forms.map(|f| RayStats::means(&f.trace_batch(rays, query, &rob).1));
         // Each timed run right after an untimed one of the same variant, the two variants
         // in turns: a slow or fast minute of the machine moves both sides of a pair.
+        // Embree's variants take their turns after lancer's, in the same way.
         let mut cpu_times = [Vec::new(), Vec::new()];
+        let mut embree_times = [Vec::new(), Vec::new()];
         for _ in 0..repeat {
             for (k, form) in forms.iter().enumerate() {
                 form.trace_hits(rays, query, &rob);
                 let t0 = Instant::now();
                 form.trace_hits(rays, query, &rob);
                 cpu_times[k].push(t0.elapsed().as_secs_f64());
+                ticker.inc(1);
+            }
+            for (k, time) in reference.iter().flat_map(|r| &r.time).enumerate() {
+                time(rays, query);
+                embree_times[k].push(time(rays, query));
                 ticker.inc(1);
             }
         }
@@ -261,7 +374,22 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
             gpu: pair_ratio(&gpu_times),
         });
         let n = rays.len() as f64;
-        for (k, variant) in ["instanced", "flattened"].into_iter().enumerate() {
+        if let Some(cpu) = pair_ratio(&embree_times) {
+            embree_ratios.push(Ratio {
+                rays: name,
+                cpu,
+                gpu: None,
+            });
+            for (k, variant) in VARIANTS.into_iter().enumerate() {
+                embree_runs.push(EmbreeRun {
+                    variant,
+                    rays: name,
+                    count: rays.len(),
+                    cpu_mrays_per_s: n / median(embree_times[k].clone()) / 1e6,
+                });
+            }
+        }
+        for (k, variant) in VARIANTS.into_iter().enumerate() {
             runs.push(Run {
                 variant,
                 rays: name,
@@ -321,6 +449,14 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         runs,
         ratios,
         top_level,
+        embree: reference.map(|r| EmbreeRows {
+            version: r.version,
+            builds: (VARIANTS.iter().zip(r.build_ms))
+                .map(|(&variant, build_ms)| EmbreeBuild { variant, build_ms })
+                .collect(),
+            runs: embree_runs,
+            ratios: embree_ratios,
+        }),
         gpu_driver: device.gpu_context().map(|c| c.adapter.driver.clone()),
     })
 }
@@ -334,6 +470,13 @@ impl Report {
             true => r.gpu,
             false => Some(r.cpu),
         }
+    }
+
+    /// Embree's instanced ÷ flattened time per ray of one ray set (>1: its instances are
+    /// slower), or None without the `embree` feature.
+    pub fn embree_cost_ratio(&self, rays: &str) -> Option<f64> {
+        let e = self.embree.as_ref()?;
+        Some(e.ratios.iter().find(|r| r.rays == rays)?.cpu)
     }
 }
 
@@ -373,6 +516,14 @@ impl BenchReport for Report {
                 s.triangles.to_string(),
             ]);
         }
+        for b in self.embree.iter().flat_map(|e| &e.builds) {
+            sizes.row(vec![
+                format!("embree {}", b.variant),
+                format!("{:.1}", b.build_ms),
+                "–".into(),
+                "–".into(),
+            ]);
+        }
         out += &sizes.text();
         out += "\n";
         let mut runs = Table::new(&[
@@ -395,19 +546,38 @@ impl BenchReport for Report {
                 super::markdown::dash(r.gpu_mrays_per_s, 2),
             ]);
         }
+        for r in self.embree.iter().flat_map(|e| &e.runs) {
+            runs.row(vec![
+                format!("embree {}", r.variant),
+                r.rays.to_string(),
+                r.count.to_string(),
+                "–".into(),
+                "–".into(),
+                format!("{:.2}", r.cpu_mrays_per_s),
+                "–".into(),
+            ]);
+        }
         out += &runs.text();
         out += "\n";
-        let mut ratios = Table::new(&[
+        let mut head = vec![
             "rays",
             "CPU instanced ÷ flattened",
             "GPU instanced ÷ flattened",
-        ]);
+        ];
+        if self.embree.is_some() {
+            head.push("Embree instanced ÷ flattened");
+        }
+        let mut ratios = Table::new(&head);
         for rays in ["primary", "shadow"] {
-            ratios.row(vec![
+            let mut cells = vec![
                 rays.to_string(),
                 super::markdown::dash(self.cost_ratio(rays, false), 2),
                 super::markdown::dash(self.cost_ratio(rays, true), 2),
-            ]);
+            ];
+            if self.embree.is_some() {
+                cells.push(super::markdown::dash(self.embree_cost_ratio(rays), 2));
+            }
+            ratios.row(cells);
         }
         out += "Time per ray, instanced ÷ flattened (median of the timed pairs):\n\n";
         out += &ratios.text();
@@ -416,14 +586,28 @@ impl BenchReport for Report {
         for t in &self.top_level {
             top.row(vec![t.instances.to_string(), format!("{:.2}", t.build_ms)]);
         }
-        out + &top.text()
+        out += &top.text();
+        if let Some(e) = &self.embree {
+            out += &format!(
+                "\nembree rows: Embree {}, build quality medium (Embree's default), on {} \
+                 threads after an untimed build that starts them: instanced is its own \
+                 instances (one scene over the mesh, one instance geometry per copy in a \
+                 top-level scene), flattened one scene over the flattened copy's triangles. \
+                 One ray per call (rtcIntersect1 for primary, rtcOccluded1 for shadow rays) \
+                 on the CPU twin's threads, each run right after an untimed one and in turns \
+                 with lancer's variants; it reports no work counts or bytes.\n",
+                e.version, self.cpu_threads
+            );
+        }
+        out
     }
 
-    /// Mrays/s, one group per ray set and device, one bar per variant.
+    /// Mrays/s, one group per ray set and device, one bar per variant (Embree's rows: CPU
+    /// bars only).
     #[cfg(feature = "charts")]
     fn draw_charts(&self, paths: &[std::path::PathBuf]) -> Result<Vec<std::path::PathBuf>> {
         let gpu = self.gpu_driver.is_some();
-        let series: Vec<(String, Vec<f64>)> = ["instanced", "flattened"]
+        let mut series: Vec<(String, Vec<f64>)> = VARIANTS
             .iter()
             .map(|v| {
                 let mut values = Vec::new();
@@ -436,6 +620,19 @@ impl BenchReport for Report {
                 (v.to_string(), values)
             })
             .collect();
+        // Embree's bars: CPU only.
+        if let Some(e) = &self.embree {
+            for v in VARIANTS {
+                let mut values = Vec::new();
+                for r in e.runs.iter().filter(|r| r.variant == v) {
+                    values.push(r.cpu_mrays_per_s);
+                    if gpu {
+                        values.push(f64::NAN);
+                    }
+                }
+                series.push((format!("embree {v}"), values));
+            }
+        }
         let title = format!(
             "{} × {}, {}: GPU {}",
             self.copies,
