@@ -1596,3 +1596,40 @@ fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
         lancer_ok(&["compare", s(&flat_img), s(&img), "--tolerance", "2"]);
     }
 }
+
+/// `render --frames A..B` writes one numbered image a frame of a scene whose objects move;
+/// an empty range is refused as a usage error.
+#[test]
+fn render_frames_writes_a_numbered_sequence() {
+    let dir = Scratch::new();
+    let src = std::fs::read_to_string("scenes/copies.toml").unwrap();
+    let moving = src.replacen("scale = 0.4\n", "scale = 0.4\nmove = [0.2, 0.0, 0.0]\n", 1);
+    assert_ne!(moving, src);
+    let scene = dir.path("moving.toml");
+    std::fs::write(&scene, moving).unwrap();
+    let out = dir.path("f.png");
+    let args = [
+        "render",
+        s(&scene),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--spp",
+        "1",
+    ];
+    let mut ok = args.to_vec();
+    ok.extend(["--frames", "3..5", "-o", s(&out)]);
+    lancer_ok(&ok);
+    let frames: Vec<Vec<u8>> = ["f-0003.png", "f-0004.png"]
+        .iter()
+        .map(|f| std::fs::read(dir.path(f)).unwrap())
+        .collect();
+    assert_ne!(frames[0], frames[1], "the spheres moved");
+    assert!(!out.exists() && !dir.path("f-0005.png").exists());
+    let mut empty = args.to_vec();
+    empty.extend(["--frames", "5..5", "-o", s(&out)]);
+    let refused = lancer(&empty);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("no frame in 5..5"));
+}

@@ -668,6 +668,8 @@ fn bad_copies_are_refused_naming_the_line() {
     assert!(refused(flat).contains("'scale' must be finite and non-zero"));
     let unknown = "[[objects.copies]]\nmove = [1.0, 0.0, 1.0]";
     assert!(refused(unknown).contains("unknown field"));
+    let runaway = "spin = [0.0, inf, 0.0]";
+    assert!(refused(runaway).contains("s.toml:5: 'move' and 'spin' must be finite numbers"));
 }
 
 /// `Tracer::set_transforms` moves the instances of a tracer: only the top level is built
@@ -759,4 +761,67 @@ fn moving_instances_traces_as_a_tracer_built_over_them() {
     )
     .unwrap();
     assert!(one.set_transforms(&second).is_err());
+}
+
+/// Objects that move (`move`, `spin` in a scene file) render frame by frame: frame f of a
+/// renderer handed the two levels of frame 0 (only the top level built again) is the image
+/// of the scene moved to frame f and rendered from scratch, bit for bit, on the CPU and the
+/// GPU; frame 0 is the scene as placed; and the frames differ (things move).
+#[test]
+fn moving_objects_render_each_frame_as_a_render_from_scratch() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string("scenes/copies.toml").unwrap();
+    let moving = src.replacen(
+        "grid = { count = [8, 1, 8], step = [1.0, 0.0, 1.0] }",
+        "grid = { count = [8, 1, 8], step = [1.0, 0.0, 1.0] }\nmove = [0.05, 0.02, 0.0]\nspin = [0.0, 0.0, 25.0]",
+        1,
+    );
+    assert_ne!(moving, src);
+    let path = dir.path().join("moving.toml");
+    std::fs::write(&path, moving).unwrap();
+    let mut scene = lancer::RenderScene::from_file(&path).unwrap();
+    scene.camera.width = 40;
+    scene.camera.height = 30;
+    assert!(scene.moves());
+    let still = lancer::RenderScene::from_file(std::path::Path::new("scenes/copies.toml")).unwrap();
+    assert!(!still.moves());
+    let maps = |s: &lancer::RenderScene| {
+        let set = s.placements.as_ref().unwrap().set();
+        set.instances.iter().map(|i| i.to_world).collect::<Vec<_>>()
+    };
+    assert_eq!(maps(&scene.at_frame(0).unwrap()), maps(&scene));
+    let opts = RenderOptions {
+        spp: Some(1),
+        ..RenderOptions::default()
+    };
+    for device in [cpu_device(), gpu_device()] {
+        let first = lancer::render::Renderer::new(&scene, device, &opts).unwrap();
+        let two = first.two_level().expect("two levels");
+        let mut images = Vec::new();
+        for frame in [2u32, 5] {
+            let moved = scene.at_frame(frame).unwrap();
+            let reuse = RenderOptions {
+                two_level: Some(two.clone()),
+                ..opts.clone()
+            };
+            let mut next = lancer::render::Renderer::new(&moved, device, &reuse).unwrap();
+            let got = next.render(&reuse).unwrap().image.pixels;
+            let fresh = lancer::render::render(&moved, device, &opts)
+                .unwrap()
+                .image
+                .pixels;
+            let differ = got.iter().zip(&fresh).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{device} frame {frame}");
+            images.push(got);
+        }
+        let moved = images[0]
+            .iter()
+            .zip(&images[1])
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(
+            moved * 20 > images[0].len(),
+            "{device}: only {moved} pixels change"
+        );
+    }
 }

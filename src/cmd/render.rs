@@ -7,7 +7,7 @@ use clap::Args;
 use indicatif::ProgressStyle;
 use lancer::render::{
     image_kind, AovSet, Crop, EffectSet, ImageKind, ImageSize, Progress, RenderOptions,
-    RenderStats, Renderer, Stop,
+    RenderStats, Rendered, Renderer, Stop,
 };
 use lancer::{Error, RenderScene, Result, TraversalMode};
 
@@ -85,6 +85,37 @@ pub struct RenderCmd {
     /// under one over its copies.
     #[arg(long)]
     flatten: bool,
+    /// Render frames A to B−1 of a scene whose objects move (`move`, `spin`), each into the
+    /// output's name numbered (out-0000.png, …); in two levels only the top level is built
+    /// again from frame to frame.
+    #[arg(long, value_name = "A..B", value_parser = frame_range, conflicts_with = "flatten")]
+    frames: Option<(u32, u32)>,
+}
+
+/// `--frames A..B`: first frame, one past the last.
+fn frame_range(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("{s}: give frames as A..B (B excluded), e.g. 0..24"))?;
+    let parse = |x: &str| x.trim().parse::<u32>().map_err(|e| format!("{s}: {e}"));
+    let (a, b) = (parse(a)?, parse(b)?);
+    if a >= b {
+        return Err(format!("{s}: no frame in {a}..{b} (B is excluded)"));
+    }
+    Ok((a, b))
+}
+
+/// `out` numbered for frame `frame`: out-0007.png.
+fn numbered(out: &std::path::Path, frame: u32) -> std::path::PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match out.extension() {
+        Some(e) => format!("{stem}-{frame:04}.{}", e.to_string_lossy()),
+        None => format!("{stem}-{frame:04}"),
+    };
+    out.with_file_name(name)
 }
 
 /// 8 or 16.
@@ -169,61 +200,104 @@ impl RenderCmd {
             crop,
             aovs: aovs.any(),
             mode: self.mode,
+            two_level: None,
         };
-        let mut renderer = Renderer::new(&scene, &device, &options)?;
-        let done = renderer.render(&options);
-        bar.finish_and_clear();
-        let done = done?;
+        let frames: Vec<Option<u32>> = match self.frames {
+            None => vec![None],
+            Some((a, b)) => {
+                if !scene.moves() {
+                    log::warn!(
+                        "{}: nothing moves (no object has 'move' or 'spin'): every frame is \
+                         the same image",
+                        self.scene.display()
+                    );
+                }
+                for f in a..b {
+                    lancer::output::check_output(&numbered(&self.out, f), &scene.mesh.sources)?;
+                }
+                (a..b).map(Some).collect()
+            }
+        };
+        let mut two_level = None;
+        for frame in frames {
+            let (out, at_frame) = match frame {
+                Some(f) => (numbered(&self.out, f), Some(scene.at_frame(f)?)),
+                None => (self.out.clone(), None),
+            };
+            let scene = at_frame.as_ref().unwrap_or(&scene);
+            let options = RenderOptions {
+                two_level: two_level.take(),
+                ..options.clone()
+            };
+            bar.reset();
+            let mut renderer = Renderer::new(scene, &device, &options)?;
+            two_level = renderer.two_level();
+            let done = renderer.render(&options);
+            bar.finish_and_clear();
+            let done = done?;
+            self.save(&done, &out, kind, aovs)?;
+            let (w, h) = (done.image.width, done.image.height);
+            let tile = match crop {
+                Some(c) => format!(
+                    " tile {} {} {} {} of {}x{}",
+                    c.x0, c.y0, c.x1, c.y1, scene.camera.width, scene.camera.height
+                ),
+                None => String::new(),
+            };
+            let why = match done.stop {
+                Stop::Cancelled => " (interrupted: saved what had accumulated)",
+                Stop::TimeLimit => " (time limit)",
+                Stop::Complete => "",
+            };
+            // With --json the JSON object is stdout's only line; people read the rest on
+            // stderr.
+            let to = Say::new(self.json);
+            let say = |line: String| say!(to, "{line}");
+            say(format!(
+                "{w}x{h}{tile} {}/{} spp -> {} ({device}, {:.2} s){why}",
+                done.samples,
+                done.requested,
+                out.display(),
+                done.seconds
+            ));
+            if self.stats {
+                let full = (scene.camera.width, scene.camera.height);
+                let stats =
+                    RenderStats::new(&renderer, &done, &device, &options, full, layout, &out);
+                stats.text().into_iter().for_each(say);
+                if self.json {
+                    print_json(&stats)?;
+                }
+            }
+            if done.stop == Stop::Cancelled {
+                return Err(Error::Cancelled(format!(
+                    "interrupted after {} of {} samples; saved {}",
+                    done.samples,
+                    done.requested,
+                    out.display()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes a finished render to `out`: PNG (8 or 16 bits), or EXR with the AOVs asked for.
+    fn save(
+        &self,
+        done: &Rendered,
+        out: &std::path::Path,
+        kind: ImageKind,
+        aovs: AovSet,
+    ) -> Result<()> {
         match (kind, &done.aovs) {
-            (ImageKind::Png, _) if self.png_bits == 16 => done.image.save_png16(&self.out)?,
+            (ImageKind::Png, _) if self.png_bits == 16 => done.image.save_png16(out),
             (ImageKind::Exr, Some(a)) => {
                 let mut exr = done.image.to_exr();
                 exr.channels.extend(a.channels(aovs));
-                exr.write(&self.out)?;
+                exr.write(out)
             }
-            _ => done.image.save(&self.out)?,
+            _ => done.image.save(out),
         }
-        let (w, h) = (done.image.width, done.image.height);
-        let tile = match crop {
-            Some(c) => format!(
-                " tile {} {} {} {} of {}x{}",
-                c.x0, c.y0, c.x1, c.y1, scene.camera.width, scene.camera.height
-            ),
-            None => String::new(),
-        };
-        let why = match done.stop {
-            Stop::Cancelled => " (interrupted: saved what had accumulated)",
-            Stop::TimeLimit => " (time limit)",
-            Stop::Complete => "",
-        };
-        // With --json the JSON object is stdout's only line; people read the rest on stderr.
-        let to = Say::new(self.json);
-        let say = |line: String| say!(to, "{line}");
-        say(format!(
-            "{w}x{h}{tile} {}/{} spp -> {} ({device}, {:.2} s){why}",
-            done.samples,
-            done.requested,
-            self.out.display(),
-            done.seconds
-        ));
-        if self.stats {
-            let full = (scene.camera.width, scene.camera.height);
-            let stats =
-                RenderStats::new(&renderer, &done, &device, &options, full, layout, &self.out);
-            stats.text().into_iter().for_each(say);
-            if self.json {
-                print_json(&stats)?;
-            }
-        }
-        if done.stop == Stop::Cancelled {
-            return Err(Error::Cancelled(format!(
-                "interrupted after {} of {} samples; saved {}",
-                done.samples,
-                done.requested,
-                self.out.display()
-            )));
-        }
-        Ok(())
     }
 }
 

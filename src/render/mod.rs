@@ -34,7 +34,7 @@ pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
 pub use scene::{load_geometry, load_instances, load_traceable, Geometry};
 pub use scene::{
-    ImageSize, Integrator, Light, LightKind, Material, MaterialKind, PlacedTriangle, Placements,
-    RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,
+    ImageSize, Integrator, Light, LightKind, Material, MaterialKind, Motion, PlacedTriangle,
+    Placements, RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;

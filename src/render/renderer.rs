@@ -79,6 +79,11 @@ pub struct RenderOptions {
     /// cannot run falls back to per ray with a warning ([`Renderer::mode`]). The image is
     /// the same in every mode.
     pub mode: TraversalMode,
+    /// A scene with placements in a BVH: the two levels of this scene at another frame
+    /// ([`Renderer::two_level`]), whose meshes' bottom levels [`Renderer::new`] reuses,
+    /// building only the top level (where the scene's meshes are that structure's and the
+    /// layout is the same; else it builds both levels).
+    pub two_level: Option<Arc<GpuTwoLevel>>,
 }
 
 /// Why a render stopped.
@@ -134,6 +139,7 @@ pub struct Renderer<'a> {
     crop: Crop,
     aovs: bool,
     gpu: Option<GpuRenderer<'a>>,
+    two_level: Option<Arc<GpuTwoLevel>>,
 }
 
 impl<'a> Renderer<'a> {
@@ -165,14 +171,23 @@ impl<'a> Renderer<'a> {
         // their time is not the build's.
         let mut stats_time = std::time::Duration::ZERO;
         let placed = scene.placements.as_ref().map(|p| p.set());
+        let mut two_level = None;
         let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) =
             match (placed, kind) {
                 // Placements: two levels, a bottom level per object and a top level over its
-                // copies (accel::instances).
+                // copies (accel::instances); at another frame, the same bottom levels.
                 (Some(set), AccelKind::Bvh(layout_kind)) => {
-                    let two: Arc<dyn GpuForm> =
-                        Arc::new(GpuTwoLevel::build(layout_kind, set, &options.build)?);
-                    (two.clone(), Some(two), None)
+                    let reuse = (options.two_level.as_ref())
+                        .filter(|t| t.name() == layout_kind.name() && t.places(set));
+                    let two = Arc::new(match reuse {
+                        Some(t) => {
+                            let maps: Vec<_> = set.instances.iter().map(|i| i.to_world).collect();
+                            t.moved(&maps, &options.build)?
+                        }
+                        None => GpuTwoLevel::build(layout_kind, set, &options.build)?,
+                    });
+                    two_level = Some(two.clone());
+                    (two.clone(), Some(two as Arc<dyn GpuForm>), None)
                 }
                 (Some(set), _) if device.is_cpu() => {
                     let two = TwoLevel::build(kind, set, &options.build)?;
@@ -239,7 +254,14 @@ impl<'a> Renderer<'a> {
             crop,
             aovs: options.aovs,
             gpu,
+            two_level,
         })
+    }
+
+    /// A scene with placements rendered through a BVH: its two levels, to hand to the
+    /// renderer of the same scene at another frame ([`RenderOptions::two_level`]).
+    pub fn two_level(&self) -> Option<Arc<GpuTwoLevel>> {
+        self.two_level.clone()
     }
 
     /// The BVH's shape and cost (None for the other structures).

@@ -108,6 +108,12 @@ impl GpuTwoLevel {
         Ok(moved)
     }
 
+    /// Whether `set` places the meshes this structure was built over (the same meshes, by
+    /// pointer, and as many instances): [`GpuTwoLevel::moved`] then takes its maps.
+    pub fn places(&self, set: &InstanceSet) -> bool {
+        self.twin.places(set)
+    }
+
     /// The top level's words in the node array: the first one's index, and their bytes (its
     /// nodes, then its entries).
     pub fn top_words(&self) -> (u32, Vec<u8>) {

@@ -98,6 +98,15 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
         })
     }
 
+    /// Whether `set` places the meshes this structure was built over (the same meshes, by
+    /// pointer, each instance the same mesh): [`TwoLevel::moved`] then takes its maps.
+    pub fn places(&self, set: &InstanceSet) -> bool {
+        set.meshes.len() == self.meshes.len()
+            && (set.meshes.iter().zip(&self.meshes)).all(|(a, b)| Arc::ptr_eq(a, b))
+            && set.instances.len() == self.instance_meshes.len()
+            && (set.instances.iter().zip(&self.instance_meshes)).all(|(i, &m)| i.mesh == m)
+    }
+
     /// Nodes of the top level.
     pub fn top_nodes(&self) -> usize {
         self.top.nodes.len()

@@ -10,7 +10,7 @@ use glam::{Mat3, Vec2, Vec3};
 use super::file::{
     line_of, Integrator, LightKind, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
 };
-use super::placements::{PlacedTriangle, Placements};
+use super::placements::{Motion, PlacedTriangle, Placements};
 use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -199,6 +199,9 @@ pub(super) struct Builder {
     pub(super) mesh_starts: Vec<usize>,
     pub(super) instances: Vec<Instance>,
     pub(super) placed: bool,
+    /// Each instance's motion from frame to frame, where a scene file gives any (else
+    /// empty: nothing moves).
+    motions: Vec<Motion>,
 }
 
 impl Builder {
@@ -625,8 +628,20 @@ impl RenderScene {
                 None => None,
             };
             let copies = copies_of(o).map_err(bad)?;
-            b.placed |= copies.is_some();
+            if !o.velocity.iter().chain(&o.spin).all(|x| x.is_finite()) {
+                return Err(bad("'move' and 'spin' must be finite numbers".into()));
+            }
+            let (velocity, spin) = (Vec3::from(o.velocity), Vec3::from(o.spin));
+            let moves = velocity != Vec3::ZERO || spin != Vec3::ZERO;
+            b.placed |= copies.is_some() || moves;
             let copies = copies.unwrap_or_else(|| vec![(Mat3::IDENTITY, Vec3::ZERO)]);
+            // Each copy turns about where the object's origin lies in it.
+            let origin = Vec3::from(o.translate);
+            b.motions.extend(copies.iter().map(|&(m, t)| Motion {
+                pivot: m * origin + t,
+                velocity,
+                spin,
+            }));
             b.start_mesh(
                 copies
                     .into_iter()
@@ -787,12 +802,10 @@ impl Builder {
         // Exclusions were counted per mesh file as each was added (add_obj).
         check_traceable(path, &mesh)?;
         let placements = match self.placed {
-            true => Some(place_meshes(
-                path,
-                &mesh,
-                &self.mesh_starts,
-                self.instances,
-            )?),
+            true => Some(
+                place_meshes(path, &mesh, &self.mesh_starts, self.instances)?
+                    .with_motions(&self.motions),
+            ),
             false => None,
         };
         let mut scene = RenderScene {
@@ -927,6 +940,23 @@ impl RenderScene {
             Some(pl) => pl.bounds(),
             None => self.mesh.bounds(),
         }
+    }
+
+    /// Whether anything moves from frame to frame (`move`, `spin`).
+    pub fn moves(&self) -> bool {
+        self.placements.as_ref().is_some_and(Placements::moves)
+    }
+
+    /// The scene at frame `frame`: its placements moved to that frame (and its emitters'
+    /// areas with them); the scene itself where nothing moves. Refused where a moved map is
+    /// not invertible.
+    pub fn at_frame(&self, frame: u32) -> Result<RenderScene> {
+        let mut scene = self.clone();
+        if let Some(pl) = self.placements.as_ref().filter(|p| p.moves()) {
+            scene.placements = Some(pl.at_frame(frame)?);
+            scene.find_emitters()?;
+        }
+        Ok(scene)
     }
 
     /// Triangles rendered: those of [`Self::mesh`], or with placements those they place.

@@ -174,6 +174,13 @@ pub struct ObjectDef {
     /// `grid = { count = [nx, ny, nz], step = [dx, dy, dz] }`: the object placed on a grid
     /// of offsets (x fastest, then y, then z), instead of `copies`.
     pub grid: Option<GridDef>,
+    /// Motion per frame (`render --frames`): each copy moves by this much a frame.
+    #[serde(default, rename = "move")]
+    pub velocity: [f32; 3],
+    /// Motion per frame: each copy turns by these degrees a frame about X, then Y, then Z,
+    /// about where the object's origin lies in that copy.
+    #[serde(default)]
+    pub spin: [f32; 3],
 }
 
 /// One placement of an object (`[[objects.copies]]`): scale, rotation, then translation.

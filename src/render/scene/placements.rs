@@ -16,10 +16,10 @@
 //! the interpolation's own bound ([`point_error`](crate::render::point_error)) before it
 //! offsets a secondary ray's origin, on the CPU and in WGSL (`placed_error`) alike.
 
-use glam::Vec3;
+use glam::{DMat3, DVec3, Vec3};
 
 use crate::geometry::{gamma, Aabb, Affine};
-use crate::mesh::InstanceSet;
+use crate::mesh::{Instance, InstanceSet};
 
 /// The relative rounding of a placement in a hit point's error bound (see the module
 /// comment).
@@ -33,6 +33,58 @@ pub struct Placements {
     mesh_base: Vec<u32>,
     first_prims: Vec<u32>,
     to_object: Vec<Affine>,
+    /// Each instance's motion per frame and its map at frame 0; empty when nothing moves.
+    motions: Vec<(Motion, Affine)>,
+}
+
+/// How an instance moves from frame to frame (`render --frames`): at frame f its map is
+/// its frame-0 map followed by a turn of f·`spin` degrees (about X, then Y, then Z) about
+/// `pivot` and a move by f·`velocity`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Motion {
+    /// The point it turns about, world space (at frame 0).
+    pub pivot: Vec3,
+    /// World units a frame.
+    pub velocity: Vec3,
+    /// Degrees a frame about X, then Y, then Z.
+    pub spin: Vec3,
+}
+
+impl Motion {
+    /// Whether it moves at all.
+    pub fn moves(&self) -> bool {
+        self.velocity != Vec3::ZERO || self.spin != Vec3::ZERO
+    }
+
+    /// `map` (an instance's frame-0 map) at frame `frame`, composed in f64 and rounded once.
+    pub fn at(&self, map: &Affine, frame: u32) -> Affine {
+        if frame == 0 || !self.moves() {
+            return *map;
+        }
+        let f = frame as f64;
+        let [rx, ry, rz] = (self.spin.as_dvec3() * f).to_array().map(f64::to_radians);
+        let turn =
+            DMat3::from_rotation_z(rz) * DMat3::from_rotation_y(ry) * DMat3::from_rotation_x(rx);
+        let pivot = self.pivot.as_dvec3();
+        let r = map.rows.map(|r| r.map(f64::from));
+        let linear = DMat3::from_cols_array_2d(&[
+            [r[0][0], r[1][0], r[2][0]],
+            [r[0][1], r[1][1], r[2][1]],
+            [r[0][2], r[1][2], r[2][2]],
+        ]);
+        let offset = DVec3::new(r[0][3], r[1][3], r[2][3]);
+        let (l, t) = (
+            turn * linear,
+            turn * (offset - pivot) + pivot + self.velocity.as_dvec3() * f,
+        );
+        let row = |i: usize| {
+            let c = l.row(i);
+            [c.x as f32, c.y as f32, c.z as f32, t[i] as f32]
+        };
+        Affine {
+            rows: [row(0), row(1), row(2)],
+        }
+    }
 }
 
 /// A triangle of the scene as shading sees it: in world space, with where its shading data
@@ -75,7 +127,49 @@ impl Placements {
             mesh_base,
             first_prims,
             to_object,
+            motions: Vec::new(),
         }
+    }
+
+    /// The placements with each instance moving by `motions[i]` from frame to frame (one
+    /// per instance, in order; none moves where all are still).
+    pub fn with_motions(mut self, motions: &[Motion]) -> Self {
+        if motions.len() == self.set.instances.len() && motions.iter().any(Motion::moves) {
+            self.motions = (motions.iter().zip(&self.set.instances))
+                .map(|(&m, i)| (m, i.to_world))
+                .collect();
+        }
+        self
+    }
+
+    /// Whether an instance moves from frame to frame.
+    pub fn moves(&self) -> bool {
+        !self.motions.is_empty()
+    }
+
+    /// Each instance's map at frame `frame` (its own where nothing moves).
+    pub fn maps_at(&self, frame: u32) -> Vec<Affine> {
+        match self.motions.is_empty() {
+            true => self.set.instances.iter().map(|i| i.to_world).collect(),
+            false => (self.motions.iter())
+                .map(|(motion, first)| motion.at(first, frame))
+                .collect(),
+        }
+    }
+
+    /// The same meshes placed as at frame `frame`, the motions kept. Refused where a moved
+    /// map is not invertible (a motion that overflows f32).
+    pub fn at_frame(&self, frame: u32) -> crate::Result<Placements> {
+        let instances = (self.set.instances.iter().zip(self.maps_at(frame)))
+            .map(|(i, to_world)| Instance {
+                mesh: i.mesh,
+                to_world,
+            })
+            .collect();
+        let set = InstanceSet::new(self.set.meshes.clone(), instances)?;
+        let mut moved = Placements::new(set, self.mesh_base.clone());
+        moved.motions = self.motions.clone();
+        Ok(moved)
     }
 
     /// The meshes and their instances.
