@@ -42,7 +42,7 @@ fn compilation_is_timed_before_the_first_sample_and_once() {
     assert!(cpu.first_sample_ms > 0.0);
 }
 
-const KEYS: [&str; 24] = [
+const KEYS: [&str; 26] = [
     "output",
     "width",
     "height",
@@ -57,6 +57,8 @@ const KEYS: [&str; 24] = [
     "layout",
     "mode",
     "bvh",
+    "instances",
+    "instanced_triangles",
     "effects",
     "bvh_memory",
     "build_ms",
