@@ -825,3 +825,81 @@ fn moving_objects_render_each_frame_as_a_render_from_scratch() {
         );
     }
 }
+
+/// `Tracer::refit_mesh` deforms one mesh of a tracer over instances: its BVH is refit and
+/// flattened again, and on a GPU only that mesh's words and the top level's are written
+/// over the uploaded arrays (both memories). The tracer then answers as one built over the
+/// deformed mesh, bit for bit (closest and any hit). Refused without the trees, for another
+/// triangle count, and for a mesh out of range.
+#[test]
+fn refitting_a_mesh_traces_as_a_tracer_built_over_it() {
+    let mut rng = Rng::new(5150);
+    let a = soup(&mut rng, 300, 0.2);
+    let b = soup(&mut rng, 120, 0.3);
+    let mut deformed = a.clone();
+    for t in &mut deformed.triangles {
+        t.v =
+            t.v.map(|p| p + Vec3::new(0.3 * (3.0 * p.y).sin(), 0.1 * p.x, 0.0));
+    }
+    let maps: Vec<Affine> = (0..60)
+        .map(|k| {
+            let m = Mat4::from_rotation_translation(
+                Quat::from_rotation_y(0.4 * k as f32),
+                Vec3::new((k % 8) as f32 * 2.5, 0.0, (k / 8) as f32 * 2.5),
+            );
+            Affine::from_mat4(&m)
+        })
+        .collect();
+    let set_of = |first: Mesh| {
+        let instances = (maps.iter().enumerate())
+            .map(|(k, &m)| placed((k % 3 == 0) as u32, m))
+            .collect();
+        InstanceSet::new(vec![Arc::new(first), Arc::new(b.clone())], instances).unwrap()
+    };
+    let moved_set = set_of(deformed.clone());
+    let rays = random_rays(&mut rng, 3000, &moved_set.flatten());
+    for device in [cpu_device(), gpu_device()] {
+        for memory in [
+            lancer::gpu::BvhMemory::Buffers,
+            lancer::gpu::BvhMemory::Textures,
+        ] {
+            let options = TracerOptions {
+                memory,
+                refit: true,
+                ..TracerOptions::default()
+            };
+            let mut tracer = Tracer::with_instances(device, &set_of(a.clone()), &options).unwrap();
+            let before = tracer.trace(&rays, Query::Closest).unwrap().hits;
+            assert!(tracer.refit_mesh(2, &deformed).is_err());
+            assert!(tracer.refit_mesh(0, &b).is_err());
+            tracer.refit_mesh(0, &deformed).unwrap();
+            let mut fresh = Tracer::with_instances(device, &moved_set, &options).unwrap();
+            for query in [Query::Closest, Query::Any] {
+                let got = tracer.trace(&rays, query).unwrap().hits;
+                let want = fresh.trace(&rays, query).unwrap().hits;
+                let differ = (got.iter().zip(&want))
+                    .filter(|(x, y)| match query {
+                        Query::Closest => bits(x) != bits(y),
+                        Query::Any => x.is_hit() != y.is_hit(),
+                    })
+                    .count();
+                assert_eq!(differ, 0, "{device} {memory:?} {query:?}");
+            }
+            let after = tracer.trace(&rays, Query::Closest).unwrap().hits;
+            let changed = after
+                .iter()
+                .zip(&before)
+                .filter(|(x, y)| bits(x) != bits(y))
+                .count();
+            assert!(
+                changed * 10 > rays.len(),
+                "only {changed} rays see the deformation"
+            );
+        }
+    }
+    // Without the trees, nothing to refit.
+    let mut plain =
+        Tracer::with_instances(cpu_device(), &set_of(a.clone()), &TracerOptions::default())
+            .unwrap();
+    assert!(plain.refit_mesh(0, &deformed).is_err());
+}

@@ -140,6 +140,7 @@ impl TraceCmd {
             workgroup_size: self.workgroup_size,
             stats: self.stats,
             mode: self.mode,
+            refit: false,
             flatten: self.flatten,
         }
     }

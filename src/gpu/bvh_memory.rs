@@ -38,8 +38,10 @@ pub struct GpuBvh {
     pub memory: BvhMemory,
     node_buf: wgpu::Buffer,
     tri_buf: wgpu::Buffer,
-    /// The node texture (a placeholder in buffer memory), for writes over part of it.
+    /// The node and triangle textures (placeholders in buffer memory), for writes over
+    /// part of them.
     node_texture: wgpu::Texture,
+    tri_texture: wgpu::Texture,
     node_tex: wgpu::TextureView,
     tri_tex: wgpu::TextureView,
 }
@@ -64,14 +66,15 @@ impl GpuBvh {
         fits(ctx, memory, "the BVH nodes", nodes.len())?;
         fits(ctx, memory, "the triangles", tris.len())?;
         let (node_buf, node_texture) = words_in_memory(ctx, memory, "the BVH nodes", nodes)?;
-        let (tri_buf, tri_tex) = words_in(ctx, memory, "the triangles", tris)?;
+        let (tri_buf, tri_texture) = words_in_memory(ctx, memory, "the triangles", tris)?;
         let bvh = GpuBvh {
             memory,
             node_buf,
             tri_buf,
             node_tex: node_texture.create_view(&Default::default()),
+            tri_tex: tri_texture.create_view(&Default::default()),
             node_texture,
-            tri_tex,
+            tri_texture,
         };
         Ok(bvh)
     }
@@ -81,6 +84,22 @@ impl GpuBvh {
     /// ([`GpuTwoLevel::moved`](crate::accel::instances::GpuTwoLevel::moved)). The caller
     /// has checked that the words so written make a valid structure.
     pub fn write_node_words(&self, ctx: &GpuContext, first: u32, bytes: &[u8]) -> Result<()> {
+        self.write_words(ctx, (&self.node_buf, &self.node_texture), first, bytes)
+    }
+
+    /// [`GpuBvh::write_node_words`] for the triangles' words.
+    pub fn write_tri_words(&self, ctx: &GpuContext, first: u32, bytes: &[u8]) -> Result<()> {
+        self.write_words(ctx, (&self.tri_buf, &self.tri_texture), first, bytes)
+    }
+
+    /// Writes `bytes` over the words of one array (its buffer and texture) from `first` on.
+    fn write_words(
+        &self,
+        ctx: &GpuContext,
+        (buffer, texture): (&wgpu::Buffer, &wgpu::Texture),
+        first: u32,
+        bytes: &[u8],
+    ) -> Result<()> {
         let words = bytes.len() / 16;
         if words * 16 != bytes.len() {
             return Err(Error::Usage("node words are 16 bytes each".into()));
@@ -88,23 +107,22 @@ impl GpuBvh {
         match self.memory {
             BvhMemory::Buffers => {
                 let end = (first as u64 + words as u64) * 16;
-                if end > self.node_buf.size() {
+                if end > buffer.size() {
                     return Err(Error::Usage(format!(
-                        "node words {first}..{} lie past the uploaded {} words",
+                        "words {first}..{} lie past the uploaded {} words",
                         first as u64 + words as u64,
-                        self.node_buf.size() / 16
+                        buffer.size() / 16
                     )));
                 }
-                ctx.queue
-                    .write_buffer(&self.node_buf, first as u64 * 16, bytes);
+                ctx.queue.write_buffer(buffer, first as u64 * 16, bytes);
             }
             BvhMemory::Textures => {
                 let row = TEXEL_ROW as usize;
                 let (mut at, mut rest) = (first as usize, bytes);
-                let rows = self.node_texture.height() as usize;
+                let rows = texture.height() as usize;
                 if (at + words).div_ceil(row) > rows {
                     return Err(Error::Usage(format!(
-                        "node words {first}..{} lie past the uploaded texture",
+                        "words {first}..{} lie past the uploaded texture",
                         at + words
                     )));
                 }
@@ -112,7 +130,7 @@ impl GpuBvh {
                 while !rest.is_empty() {
                     let (x, y) = (at % row, at / row);
                     let n = (row - x).min(rest.len() / 16);
-                    let mut to = self.node_texture.as_image_copy();
+                    let mut to = texture.as_image_copy();
                     to.origin = wgpu::Origin3d {
                         x: x as u32,
                         y: y as u32,

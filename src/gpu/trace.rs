@@ -104,6 +104,11 @@ impl<'a> GpuTracer<'a> {
         self.bvh.write_node_words(self.ctx, first, bytes)
     }
 
+    /// [`GpuTracer::write_node_words`] for the triangles' words.
+    pub fn write_tri_words(&self, first: u32, bytes: &[u8]) -> Result<()> {
+        self.bvh.write_tri_words(self.ctx, first, bytes)
+    }
+
     /// Validates and uploads a layout in the given memory and compiles the kernel.
     pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
         let start = std::time::Instant::now();

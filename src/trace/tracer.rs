@@ -36,6 +36,10 @@ pub struct TracerOptions {
     /// GPU: how the kernel walks the BVH (per ray, or a subgroup together); a mode that
     /// cannot run falls back to per-ray with a warning ([`TraceResult::mode`]).
     pub mode: TraversalMode,
+    /// [`Tracer::with_instances`]: keep each mesh's BVH tree, so that
+    /// [`Tracer::refit_mesh`] can refit it (about as much memory again as the meshes'
+    /// bottom levels).
+    pub refit: bool,
     /// [`Tracer::with_instances`]: trace one BVH over the flattened scene
     /// ([`InstanceSet::flatten`]) instead of two levels, for comparison; hits are numbered
     /// alike.
@@ -52,6 +56,7 @@ impl Default for TracerOptions {
             workgroup_size: 64,
             stats: false,
             mode: TraversalMode::PerRay,
+            refit: false,
             flatten: false,
         }
     }
@@ -164,7 +169,10 @@ impl<'d> Tracer<'d> {
         }
         let start = std::time::Instant::now();
         let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
-        let two = GpuTwoLevel::build(kind, set, &options.build)?;
+        let two = match options.refit {
+            true => GpuTwoLevel::build_refittable(kind, set, &options.build)?,
+            false => GpuTwoLevel::build(kind, set, &options.build)?,
+        };
         log::info!(
             "{} meshes built ({}) and flattened into {kind}, top level over {} instances, in \
              {:.0} ms",
@@ -200,6 +208,34 @@ impl<'d> Tracer<'d> {
         self.cpu = moved.clone();
         self.layout = Some(moved.clone());
         self.two_level = Some(moved);
+        Ok(())
+    }
+
+    /// Moves the triangles of mesh `k` of a tracer over instances made with
+    /// [`TracerOptions::refit`]: `moved` is that mesh deformed (the same triangles, in the
+    /// same order). Its BVH is refit (bounds recomputed, shape kept) and flattened again,
+    /// the top level built again; on a GPU only that mesh's words and the top level's are
+    /// written over the uploaded arrays (the other meshes stay where they are) and no kernel
+    /// is compiled again. The hits are then those of a tracer built over the moved mesh.
+    /// Refused (nothing changed) as [`GpuTwoLevel::refit_mesh`] refuses.
+    pub fn refit_mesh(&mut self, k: usize, moved: &Mesh) -> Result<()> {
+        let Some(two) = &self.two_level else {
+            return Err(Error::Usage(
+                "refit_mesh refits a mesh of a tracer made by with_instances".into(),
+            ));
+        };
+        let refit = Arc::new(two.refit_mesh(k, moved, &self.options.build)?);
+        if let Some(gpu) = &self.gpu {
+            if let Some(w) = refit.mesh_words(k) {
+                gpu.write_node_words(w.node_base, w.nodes)?;
+                gpu.write_tri_words(w.tri_base, w.tris)?;
+            }
+            let (first, bytes) = refit.top_words();
+            gpu.write_node_words(first, &bytes)?;
+        }
+        self.cpu = refit.clone();
+        self.layout = Some(refit.clone());
+        self.two_level = Some(refit);
         Ok(())
     }
 

@@ -3,7 +3,7 @@
 //! bottom levels' nodes; `two_level.wgsl` walks the top level and calls the layout's own
 //! `traverse` for each instance. Its CPU twin is [`TwoLevel`] over the same layouts.
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use super::top_level::TopEntry;
 use super::{InstanceSet, TwoLevel};
@@ -14,6 +14,18 @@ use crate::geometry::{Aabb, Affine, Hit, Ray, Robustness};
 
 /// Bytes of one 16-byte word of the GPU arrays.
 const WORD: usize = 16;
+
+/// One mesh's bottom level in a [`GpuTwoLevel`]'s arrays ([`GpuTwoLevel::mesh_words`]).
+pub struct MeshWords<'a> {
+    /// Its first node word.
+    pub node_base: u32,
+    /// Its node words' bytes.
+    pub nodes: &'a [u8],
+    /// Its first triangle word.
+    pub tri_base: u32,
+    /// Its triangle words' bytes.
+    pub tris: &'a [u8],
+}
 
 /// A two-level structure on the GPU: bottom levels in one BVH layout, a top-level BVH
 /// over the instances. Its [`Accel`] is the CPU twin of its WGSL.
@@ -28,6 +40,9 @@ pub struct GpuTwoLevel {
     /// First word of the top level's nodes, and of its entries, in `nodes`.
     top_node_base: u32,
     top_entry_base: u32,
+    /// Each mesh's BVH before flattening, kept for [`GpuTwoLevel::refit_mesh`] (empty when
+    /// built without: [`GpuTwoLevel::build`]).
+    trees: Vec<Arc<bvh::Bvh>>,
 }
 
 impl GpuTwoLevel {
@@ -40,10 +55,37 @@ impl GpuTwoLevel {
         set: &InstanceSet,
         options: &BuildOptions,
     ) -> crate::Result<GpuTwoLevel> {
-        let bottom = |m: &crate::mesh::Mesh| -> crate::Result<Box<dyn GpuForm>> {
+        let bottom = |_: usize, m: &crate::mesh::Mesh| -> crate::Result<Box<dyn GpuForm>> {
             layouts::try_flatten_owned(layout, bvh::build(m, options), m)
         };
-        let mut twin = TwoLevel::over(set, bottom, options)?;
+        let twin = TwoLevel::over(set, bottom, options)?;
+        GpuTwoLevel::over(layout, twin, Vec::new())
+    }
+
+    /// [`GpuTwoLevel::build`], keeping each mesh's BVH tree so that
+    /// [`GpuTwoLevel::refit_mesh`] can refit it (the trees' memory, about as much again as
+    /// the bottom levels', is held as long as the structure).
+    pub fn build_refittable(
+        layout: LayoutKind,
+        set: &InstanceSet,
+        options: &BuildOptions,
+    ) -> crate::Result<GpuTwoLevel> {
+        let trees: Vec<Arc<bvh::Bvh>> = (set.meshes.iter())
+            .map(|m| Arc::new(bvh::build(m, options)))
+            .collect();
+        let bottom = |k: usize, m: &crate::mesh::Mesh| -> crate::Result<Box<dyn GpuForm>> {
+            layouts::try_flatten(layout, &trees[k], m)
+        };
+        let twin = TwoLevel::over(set, bottom, options)?;
+        GpuTwoLevel::over(layout, twin, trees)
+    }
+
+    /// The GPU form of `twin`, its bottom levels in `layout`.
+    fn over(
+        layout: LayoutKind,
+        mut twin: TwoLevel<dyn GpuForm>,
+        trees: Vec<Arc<bvh::Bvh>>,
+    ) -> crate::Result<GpuTwoLevel> {
         let Some(bottom_wgsl) = twin.bottoms.first().map(|b| b.wgsl()) else {
             return Err(crate::Error::Usage(
                 "an instanced scene needs at least one mesh".into(),
@@ -67,6 +109,82 @@ impl GpuTwoLevel {
             arrays: OnceLock::new(),
             top_node_base,
             top_entry_base,
+            trees,
+        })
+    }
+
+    /// The same instances with mesh `k`'s triangles moved to `moved` (the same triangles in
+    /// the same order: a deforming mesh): its tree refit ([`bvh::Bvh::refit`]) and flattened
+    /// again, the top level built again over the moved mesh. Mesh k's arrays keep their size
+    /// and place, and so does the top level: a GPU copy becomes the refit structure by
+    /// writing [`GpuTwoLevel::mesh_words`] of mesh k and [`GpuTwoLevel::top_words`] over it.
+    /// Refused for a structure built without its trees ([`GpuTwoLevel::build`]), a mesh
+    /// index out of range, or a mesh of another triangle count.
+    pub fn refit_mesh(
+        &self,
+        k: usize,
+        moved: &crate::mesh::Mesh,
+        options: &BuildOptions,
+    ) -> crate::Result<GpuTwoLevel> {
+        let usage = |m: String| crate::Error::Usage(m);
+        let Some(tree) = self.trees.get(k) else {
+            return Err(usage(match self.trees.is_empty() {
+                true => "refit needs the meshes' trees: build with build_refittable \
+                         (TracerOptions::refit)"
+                    .into(),
+                false => format!("no mesh {k} of {}", self.trees.len()),
+            }));
+        };
+        let had = self.twin.meshes[k].len();
+        if moved.len() != had {
+            return Err(usage(format!(
+                "mesh {k} has {had} triangles, the moved one {}: refit moves the same \
+                 triangles",
+                moved.len()
+            )));
+        }
+        let mut tree = (**tree).clone();
+        tree.refit(moved)?;
+        let bottom: Arc<dyn GpuForm> = layouts::try_flatten(self.layout, &tree, moved)?.into();
+        let old = self.twin.bottoms[k].arrays();
+        let new = bottom.arrays();
+        if (old.nodes.len(), old.tris.len()) != (new.nodes.len(), new.tris.len()) {
+            return Err(usage(format!(
+                "mesh {k} refit flattens to other array sizes: build the structure again"
+            )));
+        }
+        let mut moved_mesh = moved.clone();
+        moved_mesh.status = self.twin.meshes[k].status.clone();
+        let twin = self
+            .twin
+            .with_mesh(k, Arc::new(moved_mesh), bottom, options)?;
+        let mut trees = self.trees.clone();
+        trees[k] = Arc::new(tree);
+        let refit = GpuTwoLevel::over(self.layout, twin, trees)?;
+        if (refit.top_node_base, refit.top_entry_base) != (self.top_node_base, self.top_entry_base)
+            || refit.twin.top.nodes.len() != self.twin.top.nodes.len()
+        {
+            return Err(usage(
+                "the refit top level has another size: build the structure again".into(),
+            ));
+        }
+        refit
+            .check_top()
+            .map_err(|e| usage(format!("the refit top level is invalid: {e}")))?;
+        Ok(refit)
+    }
+
+    /// Mesh `k`'s bottom level in the GPU arrays: where its node words and its triangle
+    /// words start, and their bytes.
+    pub fn mesh_words(&self, k: usize) -> Option<MeshWords<'_>> {
+        let b = self.twin.bottoms.get(k)?;
+        let (node_base, tri_base) = bottom_bases(&self.twin.bottoms)[k];
+        let a = b.arrays();
+        Some(MeshWords {
+            node_base,
+            nodes: a.nodes,
+            tri_base,
+            tris: a.tris,
         })
     }
 
@@ -101,6 +219,7 @@ impl GpuTwoLevel {
             arrays: OnceLock::new(),
             top_node_base: self.top_node_base,
             top_entry_base: self.top_entry_base,
+            trees: self.trees.clone(),
         };
         moved
             .check_top()
@@ -213,7 +332,7 @@ impl GpuTwoLevel {
 }
 
 /// Each bottom level's first node word and first triangle word in the GPU arrays.
-fn bottom_bases(bottoms: &[Box<dyn GpuForm>]) -> Vec<(u32, u32)> {
+fn bottom_bases(bottoms: &[Arc<dyn GpuForm>]) -> Vec<(u32, u32)> {
     let mut base = (0u32, 0u32);
     let mut bases = Vec::with_capacity(bottoms.len());
     for b in bottoms {

@@ -18,5 +18,5 @@ mod two_level;
 
 pub use crate::geometry::Affine;
 pub use crate::mesh::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};
-pub use gpu::GpuTwoLevel;
+pub use gpu::{GpuTwoLevel, MeshWords};
 pub use two_level::TwoLevel;

@@ -24,11 +24,11 @@ use crate::mesh::Mesh;
 /// two-level GPU form ([`GpuTwoLevel`](super::GpuTwoLevel)), whose CPU twin this is.
 pub struct TwoLevel<B: Accel + ?Sized = dyn Accel> {
     pub(super) top: TopLevel,
-    /// Shared with the structures moved from this one ([`TwoLevel::moved`]).
-    pub(super) bottoms: Arc<[Box<B>]>,
-    meshes: Vec<Arc<Mesh>>,
-    /// The instances' meshes, in order (their maps are the top level's).
-    instance_meshes: Vec<u32>,
+    /// Shared with the structures made from this one ([`TwoLevel::moved`]).
+    pub(super) bottoms: Vec<Arc<B>>,
+    pub(super) meshes: Vec<Arc<Mesh>>,
+    /// The instances, in order.
+    instances: Vec<Instance>,
 }
 
 impl TwoLevel {
@@ -41,7 +41,7 @@ impl TwoLevel {
         set: &InstanceSet,
         options: &BuildOptions,
     ) -> crate::Result<TwoLevel> {
-        TwoLevel::over(set, |m| crate::accel::build(kind, m, options), options)
+        TwoLevel::over(set, |_, m| crate::accel::build(kind, m, options), options)
     }
 }
 
@@ -50,14 +50,13 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
     /// each of its meshes, after [`InstanceSet::new`]'s checks.
     pub(super) fn over(
         set: &InstanceSet,
-        bottom: impl Fn(&Mesh) -> crate::Result<Box<B>>,
+        bottom: impl Fn(usize, &Mesh) -> crate::Result<Box<B>>,
         options: &BuildOptions,
     ) -> crate::Result<TwoLevel<B>> {
         let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
-        let bottoms = (set.meshes.iter())
-            .map(|m| bottom(m))
-            .collect::<crate::Result<Vec<_>>>()?
-            .into();
+        let bottoms = (set.meshes.iter().enumerate())
+            .map(|(k, m)| bottom(k, m).map(Arc::from))
+            .collect::<crate::Result<Vec<_>>>()?;
         let top = TopLevel::build(&set, options);
         log::debug!(
             "two-level: {} meshes, {} instances ({} placed), {} top-level nodes",
@@ -70,7 +69,7 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
             top,
             bottoms,
             meshes: set.meshes,
-            instance_meshes: set.instances.iter().map(|i| i.mesh).collect(),
+            instances: set.instances,
         })
     }
 
@@ -79,22 +78,56 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
     /// `options`' builder). Refused, as [`InstanceSet::new`] refuses a map, or when
     /// `maps` is not one map an instance.
     pub fn moved(&self, maps: &[Affine], options: &BuildOptions) -> crate::Result<TwoLevel<B>> {
-        if maps.len() != self.instance_meshes.len() {
+        if maps.len() != self.instances.len() {
             return Err(crate::Error::Usage(format!(
                 "{} maps for {} instances: give one map an instance, in order",
                 maps.len(),
-                self.instance_meshes.len()
+                self.instances.len()
             )));
         }
-        let instances = (self.instance_meshes.iter().zip(maps))
-            .map(|(&mesh, &to_world)| Instance { mesh, to_world })
+        let instances = (self.instances.iter().zip(maps))
+            .map(|(i, &to_world)| Instance {
+                mesh: i.mesh,
+                to_world,
+            })
             .collect();
-        let set = InstanceSet::new(self.meshes.clone(), instances)?;
+        self.with(
+            self.meshes.clone(),
+            self.bottoms.clone(),
+            instances,
+            options,
+        )
+    }
+
+    /// The same instances with mesh `k` replaced by `mesh` (its triangles moved) under the
+    /// bottom level `bottom`; the top level is built again over the moved mesh.
+    pub(super) fn with_mesh(
+        &self,
+        k: usize,
+        mesh: Arc<Mesh>,
+        bottom: Arc<B>,
+        options: &BuildOptions,
+    ) -> crate::Result<TwoLevel<B>> {
+        let (mut meshes, mut bottoms) = (self.meshes.clone(), self.bottoms.clone());
+        meshes[k] = mesh;
+        bottoms[k] = bottom;
+        self.with(meshes, bottoms, self.instances.clone(), options)
+    }
+
+    /// A top level built over `instances` of `meshes`, above `bottoms`.
+    fn with(
+        &self,
+        meshes: Vec<Arc<Mesh>>,
+        bottoms: Vec<Arc<B>>,
+        instances: Vec<Instance>,
+        options: &BuildOptions,
+    ) -> crate::Result<TwoLevel<B>> {
+        let set = InstanceSet::new(meshes, instances)?;
         Ok(TwoLevel {
             top: TopLevel::build(&set, options),
-            bottoms: self.bottoms.clone(),
-            meshes: self.meshes.clone(),
-            instance_meshes: self.instance_meshes.clone(),
+            bottoms,
+            meshes: set.meshes,
+            instances: set.instances,
         })
     }
 
@@ -103,8 +136,8 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
     pub fn places(&self, set: &InstanceSet) -> bool {
         set.meshes.len() == self.meshes.len()
             && (set.meshes.iter().zip(&self.meshes)).all(|(a, b)| Arc::ptr_eq(a, b))
-            && set.instances.len() == self.instance_meshes.len()
-            && (set.instances.iter().zip(&self.instance_meshes)).all(|(i, &m)| i.mesh == m)
+            && set.instances.len() == self.instances.len()
+            && (set.instances.iter().zip(&self.instances)).all(|(i, j)| i.mesh == j.mesh)
     }
 
     /// Nodes of the top level.
