@@ -110,6 +110,48 @@ fn rays_then_trace_writes_hits_of_the_default_view() {
 }
 
 #[test]
+fn rays_and_render_take_the_view_from_the_command_line() {
+    let dir = Scratch::new();
+    let q = dir.quad();
+    let rays = |extra: &[&str]| {
+        let r = dir.path("v.rays");
+        let size = ["rays", s(&q), "--width", "4", "--height", "2", "-o", s(&r)];
+        lancer_ok(&[&size[..], extra].concat());
+        lancer::trace::files::read_rays(&r).unwrap()
+    };
+    let default = rays(&[]);
+    // The eye where it is asked to be, looking at the point asked for.
+    let from = rays(&["--look-from", "-1,2,3", "--look-at", "0,0,-1"]);
+    assert!(from
+        .iter()
+        .all(|r| r.origin == glam::Vec3::new(-1.0, 2.0, 3.0)));
+    let mean = from.iter().map(|r| r.dir).sum::<glam::Vec3>().normalize();
+    let toward = (glam::Vec3::new(1.0, -2.0, -4.0)).normalize();
+    assert!(mean.dot(toward) > 0.99, "{mean} vs {toward}");
+    // A narrower field of view keeps a mesh framed: the eye moves back, the rays narrow.
+    let narrow = rays(&["--fov", "10"]);
+    let spread = |rs: &[lancer::geometry::Ray]| rs[0].dir.dot(rs[rs.len() - 1].dir);
+    assert!(spread(&narrow) > spread(&default));
+    assert!(narrow[0].origin.length() > 3.0 * default[0].origin.length());
+    for bad in [
+        &["--fov", "180"][..],
+        &["--look-from", "1,2"],
+        &["--look-from", "0,1,0", "--look-at", "0,1,0"],
+    ] {
+        let out = dir.path("bad.png");
+        let o = lancer(
+            &[
+                &["render", s(&q), "-o", s(&out), "--device", "cpu"][..],
+                bad,
+            ]
+            .concat(),
+        );
+        assert_eq!(o.status.code(), Some(2), "{bad:?}: {o:?}");
+        assert!(!out.exists());
+    }
+}
+
+#[test]
 fn bad_input_is_one_line_and_exit_2() {
     let dir = Scratch::new();
     let q = dir.quad();

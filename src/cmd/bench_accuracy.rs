@@ -70,7 +70,7 @@ impl BenchAccuracy {
         let mut inputs: Vec<PathBuf> = self.scene.iter().cloned().collect();
         let (scene, name) = match &self.scene {
             Some(path) => (
-                RenderScene::open(path, &ImageSize::default())?,
+                RenderScene::open(path, &ImageSize::default(), &Default::default())?,
                 path.display().to_string(),
             ),
             None => (

@@ -42,7 +42,7 @@ impl BenchRender {
             height: self.height,
             scale: None,
         };
-        let scene = RenderScene::open(&self.scene, &size)?;
+        let scene = RenderScene::open(&self.scene, &size, &Default::default())?;
         self.out.check::<Report>(&scene.mesh.sources, None)?;
         let config = Config {
             scene,

@@ -270,6 +270,42 @@ impl RobustnessArgs {
     }
 }
 
+/// Where the camera looks from and at, and its field of view.
+#[derive(Args)]
+pub struct ViewArgs {
+    /// Put the eye at X,Y,Z (scene units), instead of the scene's or the default view's.
+    #[arg(long, value_name = "X,Y,Z", value_parser = point, allow_hyphen_values = true)]
+    look_from: Option<glam::Vec3>,
+    /// Look at X,Y,Z (scene units).
+    #[arg(long, value_name = "X,Y,Z", value_parser = point, allow_hyphen_values = true)]
+    look_at: Option<glam::Vec3>,
+    /// Vertical field of view in degrees; a mesh's default view moves to keep it framed.
+    #[arg(long, value_name = "DEGREES", value_parser = positive_finite)]
+    fov: Option<f32>,
+}
+
+impl ViewArgs {
+    pub fn change(&self) -> lancer::camera::ViewChange {
+        lancer::camera::ViewChange {
+            look_from: self.look_from,
+            look_at: self.look_at,
+            fov: self.fov,
+        }
+    }
+}
+
+/// Three finite numbers x,y,z.
+fn point(s: &str) -> std::result::Result<glam::Vec3, String> {
+    let v: Vec<f32> = (s.split(','))
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| format!("{s}: {e}; give a point as x,y,z"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glam::Vec3::new(x, y, z)),
+        _ => Err(format!("{s}: give a point as three finite numbers x,y,z")),
+    }
+}
+
 /// A finite number above zero.
 fn positive_finite(s: &str) -> std::result::Result<f32, String> {
     match s.parse::<f32>() {

@@ -12,7 +12,7 @@ use lancer::render::{
 use lancer::{Error, RenderScene, Result, TraversalMode};
 
 use super::out::{print_json, say, Say};
-use super::{BuildArgs, DeviceArgs, RobustnessArgs};
+use super::{BuildArgs, DeviceArgs, RobustnessArgs, ViewArgs};
 
 #[derive(Args)]
 pub struct RenderCmd {
@@ -34,6 +34,8 @@ pub struct RenderCmd {
     /// a quick preview.
     #[arg(long, value_parser = super::positive_finite)]
     scale: Option<f32>,
+    #[command(flatten)]
+    view: ViewArgs,
     /// Samples per pixel (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -153,7 +155,7 @@ impl RenderCmd {
             height: self.height,
             scale: self.scale,
         };
-        let mut scene = RenderScene::open(&self.scene, &size)?;
+        let mut scene = RenderScene::open(&self.scene, &size, &self.view.change())?;
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
         if self.flatten {
             scene = scene.flattened()?;

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use super::RenderScene;
+use crate::camera::ViewChange;
 use crate::mesh::FileKind;
 use crate::{Error, Result};
 
@@ -41,8 +42,9 @@ const MESH_SIZE: (u32, u32) = (640, 480);
 impl RenderScene {
     /// What `lancer render PATH` renders: a scene file (.toml), or a mesh (.obj, .ply,
     /// .gltf, .glb) from its default view at 640×480 ([`RenderScene::from_mesh`]), at the
-    /// image size `size` asks for.
-    pub fn open(path: &Path, size: &ImageSize) -> Result<RenderScene> {
+    /// image size `size` asks for, seen as `view` changes it. A mesh's default view fits
+    /// the final image size, and a new field of view alone keeps it framed.
+    pub fn open(path: &Path, size: &ImageSize, view: &ViewChange) -> Result<RenderScene> {
         if size.width == Some(0) || size.height == Some(0) {
             return Err(Error::Usage(
                 "the image width and height must be positive".into(),
@@ -53,13 +55,17 @@ impl RenderScene {
                 "the image scale must be a positive finite number".into(),
             ));
         }
-        let mut scene = if FileKind::of(path)? == FileKind::Scene {
-            RenderScene::from_file(path)?
+        let mesh = FileKind::of(path)? != FileKind::Scene;
+        let mut scene = if mesh {
+            let (w, h) = size.of(MESH_SIZE);
+            RenderScene::from_mesh(path, w, h)?
         } else {
-            RenderScene::from_mesh(path, MESH_SIZE.0, MESH_SIZE.1)?
+            let mut scene = RenderScene::from_file(path)?;
+            let camera = &mut scene.camera;
+            (camera.width, camera.height) = size.of((camera.width, camera.height));
+            scene
         };
-        let camera = &mut scene.camera;
-        (camera.width, camera.height) = size.of((camera.width, camera.height));
+        view.apply(&mut scene.camera, mesh).map_err(Error::Usage)?;
         Ok(scene)
     }
 }
