@@ -116,8 +116,8 @@ fn render_structs_match_rust() {
         "Shade",
         size_of::<GpuShade>(),
         fields!(GpuShade;
-        "v0" => v0, "material" => material, "v1" => v1, "pad1" => _pad1, "v2" => v2,
-        "pad2" => _pad2, "uv0" => uv0, "uv1" => uv1, "uv2" => uv2, "pad3" => _pad3),
+        "v0" => v0, "material" => material, "v1" => v1, "n0" => n0, "v2" => v2,
+        "n1" => n1, "uv0" => uv0, "uv1" => uv1, "uv2" => uv2, "n2" => n2, "pad3" => _pad3),
     );
     check(
         m,

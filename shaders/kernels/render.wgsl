@@ -9,6 +9,7 @@ override REFRACTION: bool = true;
 override INDIRECT: bool = true;
 override TEXTURES: bool = true;
 override AO: bool = true;
+override SHADING_NORMALS: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 // AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
 // accumulator; false compiles that code out.
@@ -21,13 +22,14 @@ struct Shade {
     v0: vec3<f32>,
     material: u32,
     v1: vec3<f32>,
-    pad1: u32,
+    n0: u32,
     v2: vec3<f32>,
-    pad2: u32,
+    n1: u32,
     uv0: vec2<f32>,
     uv1: vec2<f32>,
     uv2: vec2<f32>,
-    pad3: vec2<u32>,
+    n2: u32,
+    pad3: u32,
 }
 
 fn shade_word(i: u32) -> vec4<u32> {
@@ -45,7 +47,7 @@ fn load_shade(i: u32) -> Shade {
     let e = shade_word(5u * i + 4u);
     return Shade(bitcast<vec3<f32>>(a.xyz), a.w, bitcast<vec3<f32>>(b.xyz), b.w,
                  bitcast<vec3<f32>>(c.xyz), c.w, bitcast<vec2<f32>>(d.xy),
-                 bitcast<vec2<f32>>(d.zw), bitcast<vec2<f32>>(e.xy), e.zw);
+                 bitcast<vec2<f32>>(d.zw), bitcast<vec2<f32>>(e.xy), e.z, e.w);
 }
 
 // A scene with placements (INSTANCES, the two-level traversal): render::gpu::GpuPlacement,
@@ -107,6 +109,35 @@ fn placed_error(p: vec3<f32>, err: vec3<f32>) -> vec3<f32> {
     let images = affine_point(w0, w1, w2, placed_vmax);
     let back = affine_vector(w0, w1, w2, affine_point(o0, o1, o2, abs(p)));
     return err + (images + back) * TRANSFORM_ERROR;
+}
+
+// geometry::unpack_unit: a packed shading normal, not normalised.
+fn unpack_normal(w: u32) -> vec3<f32> {
+    let x = f32(bitcast<i32>(w << 16u) >> 16u) * SNORM16_SCALE;
+    let y = f32(bitcast<i32>(w) >> 16u) * SNORM16_SCALE;
+    let z = 1.0 - abs(x) - abs(y);
+    if z < 0.0 {
+        return vec3<f32>((1.0 - abs(y)) * select(-1.0, 1.0, x >= 0.0),
+                         (1.0 - abs(x)) * select(-1.0, 1.0, y >= 0.0), z);
+    }
+    return vec3<f32>(x, y, z);
+}
+
+// RenderScene::shading_normal: the last placed_shade's corner normals interpolated, in
+// world space (moved by the placement's inverse transpose), not normalised; zero where the
+// triangle shades flat.
+fn shading_normal(s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
+    if s.n0 == NO_NORMAL {
+        return vec3<f32>(0.0);
+    }
+    let n = unpack_normal(s.n0) * w + unpack_normal(s.n1) * u + unpack_normal(s.n2) * v;
+    if !INSTANCES {
+        return n;
+    }
+    let o0 = bitcast<vec4<f32>>(placement_word(placed, 3u)).xyz;
+    let o1 = bitcast<vec4<f32>>(placement_word(placed, 4u)).xyz;
+    let o2 = bitcast<vec4<f32>>(placement_word(placed, 5u)).xyz;
+    return o0 * n.x + o1 * n.y + o2 * n.z;
 }
 
 // render::gpu::GpuMaterial
@@ -301,6 +332,24 @@ fn sample_texture(m: Material, uv: vec2<f32>) -> vec3<f32> {
     return top + (bottom - top) * fy;
 }
 
+// cpu::shading_side: the shading normal turned to n's side, or n.
+fn shading_side(s: Shade, w: f32, u: f32, v: f32, n: vec3<f32>) -> vec3<f32> {
+    if !SHADING_NORMALS {
+        return n;
+    }
+    let sn = shading_normal(s, w, u, v);
+    if !(dot3(sn, sn) > 0.0) {
+        return n;
+    }
+    let ns = normalize3(sn);
+    return select(ns, -ns, dot3(ns, n) < 0.0);
+}
+
+// cpu::keeps_side: d leaves on the side `toward` says of the geometric normal n.
+fn keeps_side(d: vec3<f32>, n: vec3<f32>, toward: bool) -> bool {
+    return !SHADING_NORMALS || (dot3(d, n) > 0.0) == toward;
+}
+
 // CpuRenderer::albedo
 fn surface_albedo(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
     if TEXTURES && (mat.flags & MAT_TEXTURED) != 0u {
@@ -348,7 +397,8 @@ var<private> bounce: u32;
 // shadow rays' origin, the light summed so far, and what the light of the
 // shadow ray in flight adds if nothing blocks it.
 var<private> at_p: vec3<f32>;
-var<private> at_n: vec3<f32>;
+var<private> at_n: vec3<f32>;  // the shading normal
+var<private> at_ng: vec3<f32>; // the geometric normal
 var<private> at_albedo: vec3<f32>;
 var<private> at_o: vec3<f32>;
 var<private> light_sum: vec3<f32>;
@@ -399,8 +449,9 @@ fn path_hit(hit: Hit) {
     let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
     let front = dot3(ng, ray.dir) < 0.0;
     let n = select(-ng, ng, front);
+    let ns = shading_side(s, w, hit.u, hit.v, n);
     if bounce == 0u {
-        write_aovs(hit.t, n, surface_albedo(mat, s, w, hit.u, hit.v));
+        write_aovs(hit.t, ns, surface_albedo(mat, s, w, hit.u, hit.v));
     }
     if mat.kind == KIND_EMISSIVE {
         if count_emission && (front || (mat.flags & MAT_TWO_SIDED) != 0u) {
@@ -410,7 +461,11 @@ fn path_hit(hit: Hit) {
         return;
     }
     if AO && params.integrator == INTEGRATOR_AO {
-        let d = cosine_direction(n);
+        let d = cosine_direction(ns);
+        if !keeps_side(d, n, true) {
+            step = STEP_DONE;
+            return;
+        }
         query = Ray(offset_origin(p, p_err, n), 0.0, d, params.ao_distance);
         step = STEP_AO;
         return;
@@ -419,19 +474,23 @@ fn path_hit(hit: Hit) {
     let mirror = MIRROR && mat.kind == KIND_MIRROR;
     let glass = REFRACTION && mat.kind == KIND_GLASS;
     let d = ray.dir;
-    let reflected = d - n * (2.0 * dot3(d, n));
+    let reflected = d - ns * (2.0 * dot3(d, ns));
     if (mirror || glass) && last {
         step = STEP_DONE;
         return;
     }
     if mirror {
+        if !keeps_side(reflected, n, true) {
+            step = STEP_DONE;
+            return;
+        }
         beta *= mat.albedo;
         count_emission = true;
         next_bounce(Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX));
         return;
     }
     if glass {
-        let cos_i = -dot3(d, n);
+        let cos_i = -dot3(d, ns);
         let eta = select(mat.ior, 1.0 / mat.ior, front);
         let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
         var r0 = (1.0 - mat.ior) / (1.0 + mat.ior);
@@ -442,17 +501,26 @@ fn path_hit(hit: Hit) {
         beta *= mat.albedo;
         count_emission = true;
         if sin2_t >= 1.0 || u < fresnel {
+            if !keeps_side(reflected, n, true) {
+                step = STEP_DONE;
+                return;
+            }
             next_bounce(Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX));
         } else {
             let cos_t = sqrt(1.0 - sin2_t);
-            let t = d * eta + n * (eta * cos_i - cos_t);
+            let t = d * eta + ns * (eta * cos_i - cos_t);
+            if !keeps_side(t, n, false) {
+                step = STEP_DONE;
+                return;
+            }
             next_bounce(Ray(offset_origin(p, p_err, -n), 0.0, t, PRIMARY_TMAX));
         }
         return;
     }
     // Diffuse: CpuRenderer::direct, from its first light.
     at_p = p;
-    at_n = n;
+    at_n = ns;
+    at_ng = n;
     at_albedo = surface_albedo(mat, s, w, hit.u, hit.v);
     at_o = offset_origin(p, p_err, n);
     light_sum = vec3<f32>(0.0);
@@ -471,7 +539,7 @@ fn light_rays() {
             let d = l.v - p;
             let d2 = dot3(d, d);
             let c = dot3(n, d) / sqrt(d2);
-            if c > 0.0 {
+            if c > 0.0 && keeps_side(d, at_ng, true) {
                 pending = l.power * (c / d2);
                 if SHADOWS {
                     query = Ray(o, 0.0, l.v - o, 1.0);
@@ -482,7 +550,7 @@ fn light_rays() {
             }
         } else {
             let c = -dot3(n, l.v);
-            if c > 0.0 {
+            if c > 0.0 && keeps_side(-l.v, at_ng, true) {
                 pending = l.power * c;
                 if SHADOWS {
                     query = Ray(o, 0.0, -l.v, PRIMARY_TMAX);
@@ -530,7 +598,7 @@ fn emitter_ray() {
         if (lm.flags & MAT_TWO_SIDED) != 0u {
             cl = abs(dot3(nl, d)) / dist;
         }
-        if cs > 0.0 && cl > 0.0 {
+        if cs > 0.0 && cl > 0.0 && keeps_side(d, at_ng, true) {
             let toward = select(nl, -nl, dot3(nl, d) > 0.0);
             let qt = offset_origin(q, q_err, toward);
             pending = lm.emission * (cs * cl / d2 * params.emit_total);
@@ -555,6 +623,10 @@ fn end_direct() {
     }
     beta *= at_albedo;
     let dir = cosine_direction(at_n);
+    if !keeps_side(dir, at_ng, true) {
+        step = STEP_DONE;
+        return;
+    }
     count_emission = !(SOFT_SHADOWS && params.n_emitters > 0u);
     // at_o is the CPU's second leave(p, p_err, n): the same origin.
     next_bounce(Ray(at_o, 0.0, dir, PRIMARY_TMAX));

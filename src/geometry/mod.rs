@@ -6,6 +6,7 @@ mod aabb;
 mod affine;
 mod clip;
 mod hit;
+mod octahedral;
 mod ray;
 mod robustness;
 mod slab4;
@@ -18,6 +19,7 @@ pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use affine::Affine;
 pub(crate) use clip::{chopped_bounds, clip_bounds, clipped_area, covered};
 pub use hit::{Hit, MISS};
+pub use octahedral::{pack_unit, unpack_unit, NO_NORMAL, SNORM16_SCALE};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{
     prune_bound, Precision, RayOffset, Robustness, SlabTest, FIXED_OFFSET, TIE_SLACK,

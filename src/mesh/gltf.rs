@@ -11,11 +11,13 @@ use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use ::gltf::{Accessor, Document, Node, Primitive};
 use base64::Engine;
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 
-use super::{classify, placeholder, Instance, InstanceSet, Mesh, TriStatus, BYTES_PER_TRIANGLE};
+use super::{
+    classify, pack_corners, placeholder, Instance, InstanceSet, Mesh, TriStatus, BYTES_PER_TRIANGLE,
+};
 use crate::error::{Error, Result};
-use crate::geometry::{Affine, Triangle};
+use crate::geometry::{Affine, Triangle, NO_NORMAL};
 
 /// Where a texture's encoded image is: bytes from a buffer or data URI, or a file.
 #[derive(Clone, Debug)]
@@ -59,6 +61,9 @@ pub struct GltfScene {
     /// Texture coordinates of each triangle's corners, of the set its material's base
     /// colour texture uses, with v pointing up as in OBJ (zero where the file gives none).
     pub uvs: Vec<[Vec2; 3]>,
+    /// Each triangle's corner normals (`NORMAL`, moved as the positions are), packed
+    /// ([`pack_corners`]); empty where no primitive has normals.
+    pub normals: Vec<[u32; 3]>,
     /// Per triangle: index into `materials`, or None (a primitive with no material).
     pub material_ids: Vec<Option<usize>>,
     /// The file's materials, by glTF material index.
@@ -672,6 +677,8 @@ struct Surface {
     corners: Vec<[usize; 3]>,
     /// Texture coordinates by vertex, v pointing up.
     uvs: Vec<Vec2>,
+    /// Normals by vertex (empty where the primitive has none).
+    normals: Vec<Vec3>,
     material: Option<usize>,
     /// Indices left over after the last whole triangle (a short face).
     short: bool,
@@ -726,6 +733,18 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
         }
         None => Vec::new(),
     };
+    let normals: Vec<Vec3> = match p.get(&Semantic::Normals) {
+        Some(a) => {
+            let n = check_accessor(path, &a, "NORMAL", Dimensions::Vec3, &[DataType::F32])?;
+            match n {
+                0 => Vec::new(),
+                _ => (reader.read_normals())
+                    .map(|it| it.map(Vec3::from).collect())
+                    .unwrap_or_default(),
+            }
+        }
+        None => Vec::new(),
+    };
     let corners: Vec<[usize; 3]> = match mode {
         Mode::Triangles => indices
             .chunks_exact(3)
@@ -744,6 +763,7 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
         positions,
         corners,
         uvs,
+        normals,
         material: p.material().index(),
         short: mode == Mode::Triangles && !indices.len().is_multiple_of(3),
     }))
@@ -756,10 +776,17 @@ fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
         positions,
         corners,
         uvs,
+        normals,
         material,
         short,
     } = s;
     out.mesh.short_faces += usize::from(*short);
+    // Normals move by the inverse transpose of the map's linear part.
+    let normal_map = Mat3::from_mat4(*world).inverse().transpose();
+    let with_normals = !normals.is_empty() || !out.normals.is_empty();
+    if with_normals {
+        out.normals.resize(out.mesh.triangles.len(), [NO_NORMAL; 3]);
+    }
     for &c in corners {
         let c = if flip { [c[0], c[2], c[1]] } else { c };
         let (t, s, uv) = match c.map(|k| positions.get(k)) {
@@ -774,6 +801,10 @@ fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
             }
             _ => (placeholder(), TriStatus::OutOfRange, [Vec2::ZERO; 3]),
         };
+        if with_normals {
+            let n = c.map(|k| normals.get(k).map_or(Vec3::ZERO, |&n| normal_map * n));
+            out.normals.push(pack_corners(n));
+        }
         out.mesh.triangles.push(t);
         out.mesh.status.push(s);
         out.uvs.push(uv);

@@ -143,6 +143,17 @@ pub(crate) fn classify(t: &Triangle) -> TriStatus {
     }
 }
 
+/// A triangle's corner normals packed ([`pack_unit`](crate::geometry::pack_unit)), or
+/// [`NO_NORMAL`](crate::geometry::NO_NORMAL) on every corner where one of them has no
+/// direction (zero, NaN or infinite): such a triangle shades flat.
+pub fn pack_corners(n: [Vec3; 3]) -> [u32; 3] {
+    use crate::geometry::{pack_unit, NO_NORMAL};
+    match n.map(pack_unit) {
+        [Some(a), Some(b), Some(c)] => [a, b, c],
+        _ => [NO_NORMAL; 3],
+    }
+}
+
 /// Placeholder for a face that could not be resolved: keeps the numbering.
 pub(crate) fn placeholder() -> Triangle {
     Triangle::new(Vec3::NAN, Vec3::NAN, Vec3::NAN)

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::{check_triangle_count, classify, mtl, placeholder, Mesh, TriStatus};
+use super::{check_triangle_count, classify, mtl, pack_corners, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
-use crate::geometry::Triangle;
+use crate::geometry::{Triangle, NO_NORMAL};
 
 /// Result of the line scan.
 struct Scan {
@@ -121,6 +121,9 @@ pub struct ObjScene {
     pub mesh: Mesh,
     /// Texture coordinates of each triangle's corners (zero where the file gives none).
     pub uvs: Vec<[Vec2; 3]>,
+    /// Each triangle's corner normals (`vn`), packed ([`pack_corners`]); empty where the
+    /// file has none.
+    pub normals: Vec<[u32; 3]>,
     /// Per triangle: index into `materials`, or None (no `usemtl`, or a placeholder).
     pub material_ids: Vec<Option<usize>>,
     /// The materials of the MTL files the OBJ names (empty if they could not be read).
@@ -155,6 +158,7 @@ fn from_bulk(path: &Path, bulk: super::obj_bulk::Bulk) -> ObjScene {
             sources: vec![path.to_path_buf()],
         },
         uvs: bulk.uvs,
+        normals: bulk.normals,
         material_ids: vec![None; n],
         materials: Vec::new(),
         mtl_error: None,
@@ -203,11 +207,13 @@ fn load_with_tobj(path: &Path, src: &str) -> Result<ObjScene> {
     let mut triangles = Vec::new();
     let mut status = Vec::new();
     let mut uvs = Vec::new();
+    let mut normals = Vec::new();
     let mut material_ids = Vec::new();
     let mut pending = scan.out_of_range.iter().peekable();
     let mut fill = |triangles: &mut Vec<Triangle>,
                     status: &mut Vec<TriStatus>,
                     uvs: &mut Vec<[Vec2; 3]>,
+                    normals: &mut Vec<[u32; 3]>,
                     material_ids: &mut Vec<Option<usize>>| {
         while let Some(&&(at, n)) = pending.peek() {
             if at != triangles.len() {
@@ -217,6 +223,7 @@ fn load_with_tobj(path: &Path, src: &str) -> Result<ObjScene> {
                 triangles.push(placeholder());
                 status.push(TriStatus::OutOfRange);
                 uvs.push([Vec2::ZERO; 3]);
+                normals.push([NO_NORMAL; 3]);
                 material_ids.push(None);
             }
             pending.next();
@@ -235,16 +242,52 @@ fn load_with_tobj(path: &Path, src: &str) -> Result<ObjScene> {
                 Vec2::new(tc[i], tc[i + 1])
             })
         };
+        // Normals where every corner of the model names one.
+        let (nv, ni) = (&m.mesh.normals, &m.mesh.normal_indices);
+        let has_normals = !ni.is_empty() && ni.len() == m.mesh.indices.len();
+        let normal = |k: usize| {
+            let i = ni[k] as usize * 3;
+            match nv.get(i..i + 3) {
+                Some(n) => Vec3::new(n[0], n[1], n[2]),
+                None => Vec3::ZERO,
+            }
+        };
         for (fi, f) in m.mesh.indices.chunks_exact(3).enumerate() {
-            fill(&mut triangles, &mut status, &mut uvs, &mut material_ids);
+            fill(
+                &mut triangles,
+                &mut status,
+                &mut uvs,
+                &mut normals,
+                &mut material_ids,
+            );
             let t = Triangle::new(vert(f[0]), vert(f[1]), vert(f[2]));
             status.push(classify(&t));
             triangles.push(t);
             uvs.push([uv(3 * fi), uv(3 * fi + 1), uv(3 * fi + 2)]);
+            normals.push(match has_normals {
+                true => pack_corners([normal(3 * fi), normal(3 * fi + 1), normal(3 * fi + 2)]),
+                false => [NO_NORMAL; 3],
+            });
             material_ids.push(m.mesh.material_id);
         }
     }
-    fill(&mut triangles, &mut status, &mut uvs, &mut material_ids);
+    fill(
+        &mut triangles,
+        &mut status,
+        &mut uvs,
+        &mut normals,
+        &mut material_ids,
+    );
+    // Normals only where every corner names one (the bulk reader's rule; tobj fills a
+    // corner without one from elsewhere, so the text says).
+    let has_vn = models.iter().any(|m| !m.mesh.normals.is_empty());
+    let flat = normals.iter().all(|n| n[0] == NO_NORMAL);
+    if flat || !every_corner_names_a_normal(src) {
+        normals = Vec::new();
+        if has_vn && !flat {
+            warn_partial_normals(path);
+        }
+    }
     let (materials, mtl_error) = match materials {
         Ok(m) => (m, None),
         Err(e) => (
@@ -277,10 +320,29 @@ fn load_with_tobj(path: &Path, src: &str) -> Result<ObjScene> {
             sources,
         },
         uvs,
+        normals,
         material_ids,
         materials,
         mtl_error,
     })
+}
+
+/// Whether every corner of every face (`f`) of an OBJ text names a normal (`v//vn`,
+/// `v/vt/vn`).
+fn every_corner_names_a_normal(src: &str) -> bool {
+    (src.lines())
+        .filter_map(|l| l.trim_start().strip_prefix("f "))
+        .flat_map(str::split_ascii_whitespace)
+        .all(|c| c.split('/').nth(2).is_some_and(|n| !n.is_empty()))
+}
+
+/// Warns that an OBJ's `vn` normals are not used: some face corners name none.
+pub(super) fn warn_partial_normals(path: &Path) {
+    log::warn!(
+        "{}: some face corners name no normal (vn): the mesh's normals are not used, it \
+         shades flat",
+        path.display()
+    );
 }
 
 /// Warns, with the OBJ's file and line, about each `usemtl` that names no material of the
@@ -446,6 +508,7 @@ mod tests {
         prop_assert_eq!(a.mesh.short_faces, b.mesh.short_faces, "short faces");
         prop_assert_eq!(&a.mesh.sources, &b.mesh.sources, "sources");
         prop_assert_eq!(uv_bits(a), uv_bits(b), "texture coordinates");
+        prop_assert_eq!(&a.normals, &b.normals, "normals");
         prop_assert_eq!(&a.material_ids, &b.material_ids, "materials");
         prop_assert!(a.materials.is_empty() && b.materials.is_empty());
         prop_assert_eq!(&a.mtl_error, &b.mtl_error);

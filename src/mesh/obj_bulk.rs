@@ -14,9 +14,10 @@ use std::path::Path;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::{check_triangle_count, classify, placeholder, TriStatus};
+use super::{check_triangle_count, classify, pack_corners, placeholder, TriStatus};
 use crate::error::Result;
 use crate::geometry::Triangle;
+use crate::geometry::NO_NORMAL;
 
 /// Bytes of text per chunk: enough to keep both passes busy, few enough to balance.
 const CHUNK: usize = 1 << 20;
@@ -30,6 +31,9 @@ pub(super) struct Bulk {
     pub status: Vec<TriStatus>,
     /// Texture coordinates of each triangle's corners (zero where the file has none).
     pub uvs: Vec<[Vec2; 3]>,
+    /// Each triangle's corner normals, packed ([`super::pack_corners`]); empty where the
+    /// file has no `vn`.
+    pub normals: Vec<[u32; 3]>,
     pub short_faces: usize,
 }
 
@@ -52,26 +56,33 @@ impl std::ops::Add for Counts {
     }
 }
 
-/// One triangle of a face: position indices (`v[0] == NONE` for a placeholder) and texture
-/// coordinate indices (`NONE` where the corner names none), 0-based.
+/// One triangle of a face: position indices (`v[0] == NONE` for a placeholder), texture
+/// coordinate and normal indices (`NONE` where the corner names none), 0-based.
 #[derive(Clone, Copy)]
 struct Tri {
     v: [u32; 3],
     vt: [u32; 3],
+    vn: [u32; 3],
 }
 
-/// Triangles, their status and their corners' texture coordinates.
-type Made = (Vec<Triangle>, (Vec<TriStatus>, Vec<[Vec2; 3]>));
+/// Triangles, their status, and their corners' texture coordinates and packed normals.
+type Made = (
+    Vec<Triangle>,
+    (Vec<TriStatus>, (Vec<[Vec2; 3]>, Vec<[u32; 3]>)),
+);
 
 /// A chunk parsed: its vertices and texture coordinates, and its faces' triangles.
 #[derive(Default)]
 struct Parsed {
     positions: Vec<Vec3>,
     texcoords: Vec<Vec2>,
+    normals: Vec<Vec3>,
     tris: Vec<Tri>,
     short_faces: usize,
     /// Whether some corner names no texture coordinate.
     corner_without_vt: bool,
+    /// Whether some corner names no normal.
+    corner_without_vn: bool,
 }
 
 /// Reads `src` (the text of `path`) if it is a plain OBJ file; `None` leaves it to tobj.
@@ -91,7 +102,7 @@ pub(super) fn read_in_chunks(path: &Path, src: &str, chunk: usize) -> Option<Res
         starts.push(total.0);
         total = (total.0 + c, total.1 + tris);
     }
-    if total.0.v >= NONE as usize || total.0.vt >= NONE as usize {
+    if total.0.v >= NONE as usize || total.0.vt >= NONE as usize || total.0.vn >= NONE as usize {
         return None;
     }
     if let Err(e) = check_triangle_count(path, total.1 as u128) {
@@ -107,6 +118,11 @@ pub(super) fn read_in_chunks(path: &Path, src: &str, chunk: usize) -> Option<Res
         // tobj gives such corners the previous corner's coordinate: its rule, its reader.
         return None;
     }
+    // Normals only where every corner names one (tobj's reader keeps the same rule).
+    let has_vn = total.0.vn > 0 && !parsed.iter().any(|p| p.corner_without_vn);
+    if total.0.vn > 0 && !has_vn {
+        super::obj::warn_partial_normals(path);
+    }
     let positions: Vec<Vec3> = parsed
         .iter()
         .flat_map(|p| p.positions.iter().copied())
@@ -115,24 +131,39 @@ pub(super) fn read_in_chunks(path: &Path, src: &str, chunk: usize) -> Option<Res
         .iter()
         .flat_map(|p| p.texcoords.iter().copied())
         .collect();
+    let normals: Vec<Vec3> = (parsed.iter())
+        .flat_map(|p| p.normals.iter().copied())
+        .collect();
     let tris: Vec<&Tri> = parsed.iter().flat_map(|p| &p.tris).collect();
-    let (triangles, (status, uvs)): Made = tris
+    let (triangles, (status, (uvs, mut packed))): Made = tris
         .par_iter()
         .map(|t| {
             if t.v[0] == NONE {
-                return (placeholder(), (TriStatus::OutOfRange, [Vec2::ZERO; 3]));
+                let none = [NO_NORMAL; 3];
+                return (
+                    placeholder(),
+                    (TriStatus::OutOfRange, ([Vec2::ZERO; 3], none)),
+                );
             }
             let [a, b, c] = t.v.map(|i| positions[i as usize]);
             let tri = Triangle::new(a, b, c);
             let uv =
                 t.vt.map(|i| texcoords.get(i as usize).copied().unwrap_or(Vec2::ZERO));
-            (tri, (classify(&tri), uv))
+            let n = match has_vn {
+                true => pack_corners(t.vn.map(|i| normals[i as usize])),
+                false => [NO_NORMAL; 3],
+            };
+            (tri, (classify(&tri), (uv, n)))
         })
         .unzip();
+    if packed.iter().all(|n| n[0] == NO_NORMAL) {
+        packed = Vec::new();
+    }
     Some(Ok(Bulk {
         triangles,
         status,
         uvs,
+        normals: packed,
         short_faces: parsed.iter().map(|p| p.short_faces).sum(),
     }))
 }
@@ -190,7 +221,7 @@ fn left_to_tobj(keyword: &str) -> bool {
 fn parse(chunk: &str, before: Counts) -> Option<Parsed> {
     let mut out = Parsed::default();
     let mut n = before;
-    let mut corners: Vec<(u32, u32)> = Vec::with_capacity(8);
+    let mut corners: Vec<(u32, u32, u32)> = Vec::with_capacity(8);
     for line in chunk.lines() {
         let mut words = line.split_ascii_whitespace();
         match words.next() {
@@ -211,20 +242,23 @@ fn parse(chunk: &str, before: Counts) -> Option<Parsed> {
                 n.vt += 1;
             }
             Some("vn") => {
-                for _ in 0..3 {
-                    words.next()?.parse::<f32>().ok()?;
+                let mut c = [0.0f32; 3];
+                for x in &mut c {
+                    *x = words.next()?.parse::<f32>().ok()?;
                 }
                 all_numbers(words)?;
+                out.normals.push(Vec3::from(c));
                 n.vn += 1;
             }
             Some("f") => {
                 corners.clear();
                 let mut in_range = true;
                 for w in words {
-                    let (v, vt) = corner(w, n)?;
+                    let (v, vt, vn) = corner(w, n)?;
                     in_range &= v != NONE;
                     out.corner_without_vt |= vt == NONE;
-                    corners.push((v, vt));
+                    out.corner_without_vn |= vn == NONE;
+                    corners.push((v, vt, vn));
                 }
                 if corners.len() < 3 {
                     out.short_faces += 1;
@@ -237,11 +271,13 @@ fn parse(chunk: &str, before: Counts) -> Option<Parsed> {
                         Tri {
                             v: [a.0, b.0, c.0],
                             vt: [a.1, b.1, c.1],
+                            vn: [a.2, b.2, c.2],
                         }
                     } else {
                         Tri {
                             v: [NONE; 3],
                             vt: [NONE; 3],
+                            vn: [NONE; 3],
                         }
                     });
                 }
@@ -258,9 +294,10 @@ fn all_numbers<'a>(mut words: impl Iterator<Item = &'a str>) -> Option<()> {
 }
 
 /// A face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`) with `n` of each defined so far: its
-/// 0-based position index (`NONE` when it points nowhere: the face becomes placeholders) and
-/// texture coordinate index (`NONE` when absent); `None` for anything the line scan refuses.
-fn corner(word: &str, n: Counts) -> Option<(u32, u32)> {
+/// 0-based position index (`NONE` when it points nowhere: the face becomes placeholders),
+/// texture coordinate and normal indices (`NONE` when absent); `None` for anything the
+/// line scan refuses.
+fn corner(word: &str, n: Counts) -> Option<(u32, u32, u32)> {
     let mut parts = word.split('/');
     let v = parts.next().filter(|p| !p.is_empty())?;
     let vt = parts.next().unwrap_or("");
@@ -284,10 +321,11 @@ fn corner(word: &str, n: Counts) -> Option<(u32, u32)> {
         "" => NONE,
         t => index(t, n.vt)??,
     };
-    if !vn.is_empty() {
-        index(vn, n.vn)??;
-    }
-    Some((v, vt))
+    let vn = match vn {
+        "" => NONE,
+        t => index(t, n.vn)??,
+    };
+    Some((v, vt, vn))
 }
 
 #[cfg(test)]
@@ -307,15 +345,15 @@ mod tests {
     #[test]
     fn corners_resolve_relative_indices_and_refuse_what_the_scan_refuses() {
         let n = Counts { v: 4, vt: 2, vn: 1 };
-        assert_eq!(corner("1", n), Some((0, NONE)));
-        assert_eq!(corner("-1/2", n), Some((3, 1)));
-        assert_eq!(corner("4//1", n), Some((3, NONE)));
+        assert_eq!(corner("1", n), Some((0, NONE, NONE)));
+        assert_eq!(corner("-1/2", n), Some((3, 1, NONE)));
+        assert_eq!(corner("4//1", n), Some((3, NONE, 0)));
         assert_eq!(
             corner("5/1/1", n),
-            Some((NONE, 0)),
+            Some((NONE, 0, 0)),
             "points nowhere: placeholder"
         );
-        assert_eq!(corner("0", n), Some((NONE, NONE)));
+        assert_eq!(corner("0", n), Some((NONE, NONE, NONE)));
         assert_eq!(corner("1/3", n), None, "texture coordinate past the end");
         assert_eq!(corner("1//2", n), None, "normal past the end");
         assert_eq!(corner("/1", n), None);

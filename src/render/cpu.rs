@@ -11,7 +11,7 @@ use super::aov::FirstHit;
 use super::crop::Crop;
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, offset_origin, Rng};
-use super::scene::{Integrator, Light, MaterialKind, RenderScene, Texture};
+use super::scene::{Integrator, Light, MaterialKind, PlacedTriangle, RenderScene, Texture};
 use crate::accel::{Accel, Query, RayStats};
 use crate::camera::{CameraFrame, PRIMARY_TMAX};
 use crate::geometry::{cross, dot, normalize};
@@ -44,6 +44,31 @@ fn facing(v: &[Vec3; 3], dir: Vec3) -> (bool, Vec3) {
     let ng = normalize(cross(v[1] - v[0], v[2] - v[0]));
     let front = dot(ng, dir) < 0.0;
     (front, if front { ng } else { -ng })
+}
+
+/// The normal shading uses at a hit: the scene's shading normal `s` (not normalised; None:
+/// flat) turned to the side of `n` (the geometric normal facing where the ray comes from),
+/// or `n` itself where the effect is off or `s` has no direction. WGSL `shading_side`.
+fn shading_side(fx: EffectSet, s: Option<Vec3>, n: Vec3) -> Vec3 {
+    match s {
+        Some(s) if fx.shading_normals && dot(s, s) > 0.0 => {
+            let s = normalize(s);
+            if dot(s, n) < 0.0 {
+                -s
+            } else {
+                s
+            }
+        }
+        _ => n,
+    }
+}
+
+/// Whether a direction `d` leaving a surface of geometric normal `n` (facing the side it
+/// was hit from) stays on the side `toward` says (true: n's side): with shading normals,
+/// light never passes through the geometric surface; without them, `d` was chosen about
+/// `n` and is on its side already.
+fn keeps_side(fx: EffectSet, d: Vec3, n: Vec3, toward: bool) -> bool {
+    !fx.shading_normals || (dot(d, n) > 0.0) == toward
 }
 
 /// The CPU renderer of one scene over one acceleration structure.
@@ -99,9 +124,16 @@ impl<'a> CpuRenderer<'a> {
         }
     }
 
-    /// Light arriving at p (error bound `err`, normal n facing the viewer) from every light,
-    /// times cosine.
-    fn direct(&self, fx: EffectSet, p: Vec3, err: Vec3, n: Vec3, rng: &mut Rng) -> Vec3 {
+    /// Light arriving at p (error bound `err`, geometric normal n facing the viewer,
+    /// shading normal ns) from every light, times the cosine to ns; none from below n.
+    fn direct(
+        &self,
+        fx: EffectSet,
+        p: Vec3,
+        err: Vec3,
+        (n, ns): (Vec3, Vec3),
+        rng: &mut Rng,
+    ) -> Vec3 {
         let o = self.leave(p, err, n);
         let mut sum = Vec3::ZERO;
         for l in &self.scene.lights {
@@ -112,8 +144,9 @@ impl<'a> CpuRenderer<'a> {
                 } => {
                     let d = position - p;
                     let d2 = dot(d, d);
-                    let c = dot(n, d) / d2.sqrt();
-                    if c > 0.0 && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
+                    let c = dot(ns, d) / d2.sqrt();
+                    let lit = c > 0.0 && keeps_side(fx, d, n, true);
+                    if lit && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
                         sum += intensity * (c / d2);
                     }
                 }
@@ -121,8 +154,9 @@ impl<'a> CpuRenderer<'a> {
                     direction,
                     irradiance,
                 } => {
-                    let c = -dot(n, direction);
-                    if c > 0.0 && !(fx.shadows && self.occluded(o, -direction, PRIMARY_TMAX)) {
+                    let c = -dot(ns, direction);
+                    let lit = c > 0.0 && keeps_side(fx, -direction, n, true);
+                    if lit && !(fx.shadows && self.occluded(o, -direction, PRIMARY_TMAX)) {
                         sum += irradiance * c;
                     }
                 }
@@ -152,7 +186,7 @@ impl<'a> CpuRenderer<'a> {
             let d = q - p;
             let d2 = dot(d, d);
             let dist = d2.sqrt();
-            let cs = dot(n, d) / dist;
+            let cs = dot(ns, d) / dist;
             let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
             // One-sided lights emit from their front (the winding's normal) only.
             let cl = if mat.two_sided {
@@ -160,7 +194,7 @@ impl<'a> CpuRenderer<'a> {
             } else {
                 -dot(nl, d) / dist
             };
-            if cs > 0.0 && cl > 0.0 {
+            if cs > 0.0 && cl > 0.0 && keeps_side(fx, d, n, true) {
                 let toward = if dot(nl, d) > 0.0 { -nl } else { nl };
                 let qt = self.leave(q, q_err, toward);
                 if !(fx.shadows && self.occluded(o, qt - o, 1.0)) {
@@ -194,6 +228,14 @@ impl<'a> CpuRenderer<'a> {
         }
     }
 
+    /// The scene's shading normal at a hit where shading normals are simulated.
+    fn shading_normal(&self, fx: EffectSet, tri: &PlacedTriangle, hit: &Hit) -> Option<Vec3> {
+        let w = 1.0 - hit.u - hit.v;
+        (fx.shading_normals)
+            .then(|| self.scene.shading_normal(tri, w, hit.u, hit.v))
+            .flatten()
+    }
+
     /// The AOVs of pixel (x, y): the first hit of its camera ray in sample 0.
     pub fn first_hit(&self, fx: EffectSet, seed: u32, x: u32, y: u32) -> FirstHit {
         let (ray, _) = self.camera_ray(seed, x, y, 0);
@@ -202,9 +244,11 @@ impl<'a> CpuRenderer<'a> {
             return FirstHit::MISS;
         }
         let tri = self.scene.triangle(hit.prim);
+        let n = facing(&tri.v, ray.dir).1;
+        let s = self.shading_normal(fx, &tri, &hit);
         FirstHit {
             depth: hit.t,
-            normal: facing(&tri.v, ray.dir).1,
+            normal: shading_side(fx, s, n),
             albedo: self.albedo(fx, tri.shade, &hit),
         }
     }
@@ -230,6 +274,7 @@ impl<'a> CpuRenderer<'a> {
             let p = tri.v[0] * w + tri.v[1] * hit.u + tri.v[2] * hit.v;
             let p_err = self.scene.point_error(&tri, p, [w, hit.u, hit.v]);
             let (front, n) = facing(&tri.v, ray.dir);
+            let ns = shading_side(fx, self.shading_normal(fx, &tri, &hit), n);
             if mat.kind == MaterialKind::Emissive {
                 if count_emission && (front || mat.two_sided) {
                     radiance += beta * mat.emission;
@@ -237,8 +282,9 @@ impl<'a> CpuRenderer<'a> {
                 break;
             }
             if fx.ao && s.integrator == Integrator::Ao {
-                let d = cosine_direction(n, &mut rng);
-                if !self.occluded(self.leave(p, p_err, n), d, s.ao_distance) {
+                let d = cosine_direction(ns, &mut rng);
+                let open = keeps_side(fx, d, n, true);
+                if open && !self.occluded(self.leave(p, p_err, n), d, s.ao_distance) {
                     radiance += beta;
                 }
                 break;
@@ -247,18 +293,21 @@ impl<'a> CpuRenderer<'a> {
             let mirror = fx.mirror && mat.kind == MaterialKind::Mirror;
             let glass = fx.refraction && mat.kind == MaterialKind::Glass;
             let d = ray.dir;
-            let reflected = d - n * (2.0 * dot(d, n));
+            let reflected = d - ns * (2.0 * dot(d, ns));
             if (mirror || glass) && last {
                 break;
             }
             if mirror {
+                if !keeps_side(fx, reflected, n, true) {
+                    break;
+                }
                 beta *= mat.albedo;
                 ray = Ray::new(self.leave(p, p_err, n), reflected, 0.0, PRIMARY_TMAX);
                 count_emission = true;
                 continue;
             }
             if glass {
-                let cos_i = -dot(d, n);
+                let cos_i = -dot(d, ns);
                 let eta = if front { 1.0 / mat.ior } else { mat.ior };
                 let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
                 let r0 = (1.0 - mat.ior) / (1.0 + mat.ior);
@@ -269,22 +318,31 @@ impl<'a> CpuRenderer<'a> {
                 beta *= mat.albedo;
                 count_emission = true;
                 if sin2_t >= 1.0 || u < fresnel {
+                    if !keeps_side(fx, reflected, n, true) {
+                        break;
+                    }
                     ray = Ray::new(self.leave(p, p_err, n), reflected, 0.0, PRIMARY_TMAX);
                 } else {
                     let cos_t = (1.0 - sin2_t).sqrt();
-                    let t = d * eta + n * (eta * cos_i - cos_t);
+                    let t = d * eta + ns * (eta * cos_i - cos_t);
+                    if !keeps_side(fx, t, n, false) {
+                        break;
+                    }
                     ray = Ray::new(self.leave(p, p_err, -n), t, 0.0, PRIMARY_TMAX);
                 }
                 continue;
             }
             // Diffuse.
             let albedo = self.albedo(fx, tri.shade, &hit);
-            radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, p_err, n, &mut rng);
+            radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, p_err, (n, ns), &mut rng);
             if !(fx.indirect && s.integrator == Integrator::Path) || last {
                 break;
             }
             beta *= albedo;
-            let dir = cosine_direction(n, &mut rng);
+            let dir = cosine_direction(ns, &mut rng);
+            if !keeps_side(fx, dir, n, true) {
+                break;
+            }
             ray = Ray::new(self.leave(p, p_err, n), dir, 0.0, PRIMARY_TMAX);
             count_emission = !nee;
         }

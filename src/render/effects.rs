@@ -2,6 +2,7 @@
 //! (WGSL `override` constants of one shader source) and which the CPU renderer runs.
 
 use super::scene::{Integrator, MaterialKind, RenderScene};
+use crate::geometry::NO_NORMAL;
 
 /// Which effects a render simulates; code for the others is compiled out of the kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -20,6 +21,8 @@ pub struct EffectSet {
     pub textures: bool,
     /// Ambient occlusion (ao integrator).
     pub ao: bool,
+    /// Shading normals interpolated from the vertices' (smooth surfaces).
+    pub shading_normals: bool,
 }
 
 impl EffectSet {
@@ -32,13 +35,15 @@ impl EffectSet {
         indirect: true,
         textures: true,
         ao: true,
+        shading_normals: true,
     };
 
     /// What `scene` needs, and nothing more.
     pub fn of(scene: &RenderScene) -> EffectSet {
         let s = &scene.settings;
         // The materials of the triangles that are in the BVH (only those can be hit).
-        let used: Vec<_> = (scene.mesh.included().iter())
+        let included = scene.mesh.included();
+        let used: Vec<_> = (included.iter())
             .map(|&i| &scene.materials[scene.material_of[i as usize] as usize])
             .collect();
         let kind_used = |k: MaterialKind| used.iter().any(|m| m.kind == k);
@@ -51,11 +56,17 @@ impl EffectSet {
             indirect: s.integrator == Integrator::Path && s.max_bounces >= 1,
             textures: !ao && used.iter().any(|m| m.texture.is_some()),
             ao,
+            shading_normals: (included.iter()).any(|&i| {
+                scene
+                    .normals
+                    .get(i as usize)
+                    .is_some_and(|n| n[0] != NO_NORMAL)
+            }),
         }
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 7] {
+    pub fn flags(&self) -> [(&'static str, bool); 8] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -64,6 +75,7 @@ impl EffectSet {
             ("INDIRECT", self.indirect),
             ("TEXTURES", self.textures),
             ("AO", self.ao),
+            ("SHADING_NORMALS", self.shading_normals),
         ]
     }
 }

@@ -12,7 +12,7 @@ use super::scene::{Light, LightKind, RenderScene};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::error::Result;
-use crate::geometry::{Affine, Robustness};
+use crate::geometry::{Affine, Robustness, NO_NORMAL};
 use crate::gpu::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, texel_entry,
     uniform_binding, wait, Chunks, Kernel, Readback,
@@ -36,20 +36,23 @@ pub struct GpuShade {
     pub material: u32,
     /// Vertex 1 (barycentric weight `u` of a hit).
     pub v1: [f32; 3],
-    /// Padding (zero).
-    pub _pad1: u32,
+    /// Vertex 0's shading normal, packed ([`RenderScene::normals`]; [`NO_NORMAL`]: the
+    /// triangle shades flat).
+    pub n0: u32,
     /// Vertex 2 (barycentric weight `v` of a hit).
     pub v2: [f32; 3],
-    /// Padding (zero).
-    pub _pad2: u32,
+    /// Vertex 1's shading normal, packed.
+    pub n1: u32,
     /// Texture coordinates of vertex 0.
     pub uv0: [f32; 2],
     /// Texture coordinates of vertex 1.
     pub uv1: [f32; 2],
     /// Texture coordinates of vertex 2.
     pub uv2: [f32; 2],
+    /// Vertex 2's shading normal, packed.
+    pub n2: u32,
     /// Padding (zero).
-    pub _pad3: [u32; 2],
+    pub _pad3: u32,
 }
 
 /// An instance of a scene with placements ([`RenderScene::placements`]), as the render
@@ -211,17 +214,19 @@ impl<'a> GpuRenderer<'a> {
         let mut shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
             .map(|(i, t)| {
                 let uv = scene.uvs[i];
+                let n = scene.normals.get(i).copied().unwrap_or([NO_NORMAL; 3]);
                 GpuShade {
                     v0: t.v[0].into(),
                     material: scene.material_of[i],
-                    _pad1: 0,
                     v1: t.v[1].into(),
-                    _pad2: 0,
+                    n0: n[0],
                     v2: t.v[2].into(),
+                    n1: n[1],
                     uv0: uv[0].into(),
                     uv1: uv[1].into(),
                     uv2: uv[2].into(),
-                    _pad3: [0; 2],
+                    n2: n[2],
+                    _pad3: 0,
                 }
             })
             .collect();

@@ -8,6 +8,7 @@ use crate::gpu::shaders::{self, Shared};
 
 use super::sampling::POINT_ERROR;
 use super::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED, TRANSFORM_ERROR};
+use crate::geometry::{NO_NORMAL, SNORM16_SCALE};
 
 /// The render kernel (one sample of one pixel per invocation).
 pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
@@ -40,6 +41,8 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
         ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
+        ("NO_NORMAL", U32(NO_NORMAL)),     // geometry::NO_NORMAL
+        ("SNORM16_SCALE", F32(SNORM16_SCALE)), // geometry::SNORM16_SCALE
     ]
 }
 

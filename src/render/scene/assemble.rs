@@ -14,7 +14,7 @@ use super::placements::{Motion, PlacedTriangle, Placements};
 use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{Aabb, Affine, Triangle};
+use crate::geometry::{unpack_unit, Aabb, Affine, Triangle, NO_NORMAL};
 use crate::mesh::{
     check_traceable, classify, warn_exclusions, Instance, InstanceSet, Mesh, ObjScene, TriStatus,
 };
@@ -114,6 +114,10 @@ pub struct RenderScene {
     pub mesh: Mesh,
     /// Texture coordinates of the vertices of each triangle of [`Self::mesh`].
     pub uvs: Vec<[Vec2; 3]>,
+    /// Shading normals of the vertices of each triangle of [`Self::mesh`] (in its object's
+    /// space where it is placed), packed ([`pack_unit`](crate::geometry::pack_unit));
+    /// [`NO_NORMAL`] on a triangle that shades flat. Empty where no triangle has normals.
+    pub normals: Vec<[u32; 3]>,
     /// Material index of each triangle of [`Self::mesh`].
     pub material_of: Vec<u32>,
     /// Distinct materials, indexed by `material_of`.
@@ -186,6 +190,9 @@ pub(super) struct Builder {
     pub(super) triangles: Vec<Triangle>,
     pub(super) status: Vec<TriStatus>,
     uvs: Vec<[Vec2; 3]>,
+    /// Packed corner normals, by triangle from the first object that has any (empty
+    /// before: [`Builder::push`] fills the triangles before it flat).
+    normals: Vec<[u32; 3]>,
     material_of: Vec<u32>,
     materials: Vec<Material>,
     textures: Vec<Texture>,
@@ -245,6 +252,7 @@ impl Builder {
         material: Option<u32>,
         grey: u32,
         xf: impl Fn(Vec3) -> Vec3,
+        nm: NormalMap,
     ) -> Result<()> {
         if let Some(e) = &obj.mtl_error {
             log::warn!("{}: materials not read ({e}); using grey", path.display());
@@ -262,7 +270,8 @@ impl Builder {
                     .unwrap_or(grey)
             });
             let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
-            self.push(t, obj.mesh.status[i], obj.uvs[i], id);
+            let n = map_normals(nm, obj.normals.get(i));
+            self.push(t, obj.mesh.status[i], obj.uvs[i], n, id);
         }
         warn_exclusions(path, &obj.mesh);
         self.short_faces += obj.mesh.short_faces;
@@ -270,16 +279,22 @@ impl Builder {
         Ok(())
     }
 
-    /// Adds a built-in shape, transformed, in one material.
+    /// Adds a built-in shape, transformed, in one material; `smooth`: with its vertices as
+    /// normals (a unit sphere's), else flat.
     fn add_shape(
         &mut self,
         (tris, uvs): shapes::ShapeMesh,
         material: u32,
         xf: impl Fn(Vec3) -> Vec3,
+        smooth: Option<NormalMap>,
     ) {
         for (tri, uv) in tris.iter().zip(uvs) {
             let t = Triangle::new(xf(tri.v[0]), xf(tri.v[1]), xf(tri.v[2]));
-            self.push(t, TriStatus::Ok, uv, material);
+            let n = match smooth {
+                Some(nm) => map_normals(nm, Some(&crate::mesh::pack_corners(tri.v))),
+                None => [NO_NORMAL; 3],
+            };
+            self.push(t, TriStatus::Ok, uv, n, material);
         }
     }
 
@@ -290,16 +305,42 @@ impl Builder {
         (self.instances).extend(maps.into_iter().map(|to_world| Instance { mesh, to_world }));
     }
 
-    pub(super) fn push(&mut self, t: Triangle, status: TriStatus, uv: [Vec2; 3], material: u32) {
+    pub(super) fn push(
+        &mut self,
+        t: Triangle,
+        status: TriStatus,
+        uv: [Vec2; 3],
+        normals: [u32; 3],
+        material: u32,
+    ) {
         // A transform can make a good triangle degenerate or overflow: classify again.
         let status = match status {
             TriStatus::Ok => classify(&t),
             s => s,
         };
+        if normals[0] != NO_NORMAL || !self.normals.is_empty() {
+            self.normals.resize(self.triangles.len(), [NO_NORMAL; 3]);
+            self.normals.push(normals);
+        }
         self.triangles.push(t);
         self.status.push(status);
         self.uvs.push(uv);
         self.material_of.push(material);
+    }
+}
+
+/// How an object's map moves its normals: by the inverse transpose of its linear part;
+/// None: as they are (the packed words kept). A map's `Some(None)` at a call that takes
+/// `Option<NormalMap>` keeps normals, where `None` drops them (flat shading).
+pub(super) type NormalMap = Option<Mat3>;
+
+/// A triangle's packed corner normals moved by `nm` ([`NO_NORMAL`] where it has none).
+pub(super) fn map_normals(nm: NormalMap, n: Option<&[u32; 3]>) -> [u32; 3] {
+    match (nm, n) {
+        (_, None) => [NO_NORMAL; 3],
+        (_, Some(n)) if n[0] == NO_NORMAL => [NO_NORMAL; 3],
+        (None, Some(n)) => *n,
+        (Some(m), Some(n)) => crate::mesh::pack_corners(n.map(|w| m * unpack_unit(w))),
     }
 }
 
@@ -346,9 +387,16 @@ fn add_object(
     check_placement(&o.scale, &o.rotate, &o.translate).map_err(bad)?;
     let (m, t) = transform(o);
     let xf = |p: Vec3| m * p + t;
+    let nm = Some(m.inverse().transpose());
+    if o.smooth == Some(true) && o.shape.is_some_and(|s| s != super::file::Shape::Sphere) {
+        return Err(bad(
+            "'smooth' applies to spheres and meshes (a box, quad or stadium is flat)".into(),
+        ));
+    }
+    let smooth = o.smooth != Some(false);
     match (&o.mesh, o.shape) {
         (Some(file), None) => {
-            b.add_mesh_file(&dir.join(file), mat, grey, xf)?;
+            b.add_mesh_file(&dir.join(file), mat, grey, xf, smooth.then_some(nm))?;
         }
         (None, Some(shape)) => {
             let shape = match shape {
@@ -388,7 +436,13 @@ fn add_object(
                     }
                 }
             };
-            b.add_shape(shape, mat.unwrap_or(grey), xf);
+            let round = o.shape == Some(super::file::Shape::Sphere);
+            b.add_shape(
+                shape,
+                mat.unwrap_or(grey),
+                xf,
+                (smooth && round).then_some(nm),
+            );
         }
         _ => {
             return Err(bad(
@@ -766,7 +820,7 @@ impl RenderScene {
             let ground = b.material(Material::diffuse(Vec3::splat(0.5)));
             let c = Vec3::new(bounds.center().x, bounds.lo.y, bounds.center().z);
             b.start_mesh([Affine::IDENTITY]);
-            b.add_shape(shapes::quad(), ground, |p| c + p * 20.0 * r);
+            b.add_shape(shapes::quad(), ground, |p| c + p * 20.0 * r, None);
         }
         let camera = Camera::default_view(&bounds, width, height);
         let settings = Settings {
@@ -793,6 +847,10 @@ impl Builder {
         mut settings: Settings,
         lights: Vec<Light>,
     ) -> Result<RenderScene> {
+        let mut normals = self.normals;
+        if !normals.is_empty() {
+            normals.resize(self.triangles.len(), [NO_NORMAL; 3]);
+        }
         let mesh = Mesh {
             triangles: self.triangles,
             status: self.status,
@@ -813,6 +871,7 @@ impl Builder {
             settings: settings.clone(),
             mesh,
             uvs: self.uvs,
+            normals,
             material_of: self.material_of,
             materials: self.materials,
             textures: self.textures,
@@ -922,6 +981,28 @@ impl RenderScene {
         }
     }
 
+    /// The shading normal of triangle `t` at the point of barycentric weights (w, u, v),
+    /// world space, not normalised: its corners' normals interpolated and, for a placed
+    /// triangle, moved by its instance's inverse transpose; None where it shades flat.
+    /// WGSL `shading_normal` computes the same.
+    pub fn shading_normal(&self, t: &PlacedTriangle, w: f32, u: f32, v: f32) -> Option<Vec3> {
+        let n = self.normals.get(t.shade)?;
+        if n[0] == NO_NORMAL {
+            return None;
+        }
+        let [a, b, c] = n.map(unpack_unit);
+        let s = a * w + b * u + c * v;
+        match (&self.placements, t.instance) {
+            (Some(pl), Some(i)) => {
+                let r = pl.to_object()[i as usize]
+                    .rows
+                    .map(|r| Vec3::new(r[0], r[1], r[2]));
+                Some(r[0] * s.x + r[1] * s.y + r[2] * s.z)
+            }
+            _ => Some(s),
+        }
+    }
+
     /// The error bound of the point p = b0·v0 + b1·v1 + b2·v2 of triangle `t`: the
     /// interpolation's ([`point_error`](crate::render::point_error)) and, for a placed
     /// triangle, its placement's rounding ([`Placements::error`]).
@@ -985,15 +1066,24 @@ impl RenderScene {
         mesh.short_faces = self.mesh.short_faces;
         let (mut uvs, mut material_of) = (Vec::with_capacity(n as usize), Vec::new());
         material_of.reserve(n as usize);
-        for inst in &pl.set().instances {
+        let mut normals = Vec::new();
+        for (i, inst) in pl.set().instances.iter().enumerate() {
             let base = pl.mesh_base()[inst.mesh as usize] as usize;
             let range = base..base + pl.set().meshes[inst.mesh as usize].len();
             uvs.extend_from_slice(&self.uvs[range.clone()]);
+            if !self.normals.is_empty() {
+                // Normals move by the inverse transpose: the to-object map's rows as columns.
+                let r = pl.to_object()[i].rows;
+                let nm = Mat3::from_cols_array_2d(&[0, 1, 2].map(|k| [r[k][0], r[k][1], r[k][2]]));
+                let own = &self.normals[range.clone()];
+                normals.extend(own.iter().map(|n| map_normals(Some(nm), Some(n))));
+            }
             material_of.extend_from_slice(&self.material_of[range]);
         }
         Ok(RenderScene {
             mesh,
             uvs,
+            normals,
             material_of,
             placements: None,
             ..self

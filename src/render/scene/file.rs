@@ -167,6 +167,11 @@ pub struct ObjectDef {
     /// Sphere and stadium tessellation: segments around (a sphere's rings are half as many).
     #[serde(default = "segments")]
     pub segments: u32,
+    /// Shading normals: a mesh's own (OBJ `vn`, PLY `nx ny nz`, glTF `NORMAL`) and a
+    /// sphere's exact ones, interpolated across each triangle (default); false shades every
+    /// triangle flat.
+    #[serde(default)]
+    pub smooth: Option<bool>,
     /// `[[objects.copies]]`: the object placed once per entry, each entry's transform
     /// applied after the object's own (default: placed once, as it is).
     #[serde(default)]

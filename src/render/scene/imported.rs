@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::assemble::{decode_texture, error_message, Builder, Material};
+use super::assemble::{decode_texture, error_message, map_normals, Builder, Material, NormalMap};
 use super::file::MaterialKind;
 use crate::error::{Error, Result};
-use crate::geometry::{Aabb, Triangle};
+use crate::geometry::{Aabb, Triangle, NO_NORMAL};
 use crate::mesh::{
     load_gltf, load_obj_scene, load_ply, read_gltf, warn_exclusions, FileKind, GltfImage,
     GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, Instance, TriStatus,
@@ -27,24 +27,34 @@ impl Builder {
         material: Option<u32>,
         grey: u32,
         xf: impl Fn(Vec3) -> Vec3,
+        nm: Option<NormalMap>,
     ) -> Result<Aabb> {
         let first = self.triangles.len();
         match FileKind::of(path)? {
             FileKind::Obj => {
-                let obj = load_obj_scene(path)?;
-                self.add_obj(&obj, path, material, grey, xf)?;
+                let mut obj = load_obj_scene(path)?;
+                if nm.is_none() {
+                    obj.normals = Vec::new();
+                }
+                self.add_obj(&obj, path, material, grey, xf, nm.flatten())?;
             }
             FileKind::Ply => {
                 let mesh = load_ply(path)?;
                 let id = material.unwrap_or(grey);
                 for (t, &s) in mesh.triangles.iter().zip(&mesh.status) {
-                    self.push(xf_triangle(t, &xf), s, [Vec2::ZERO; 3], id);
+                    self.push(xf_triangle(t, &xf), s, [Vec2::ZERO; 3], [NO_NORMAL; 3], id);
                 }
                 warn_exclusions(path, &mesh);
                 self.short_faces += mesh.short_faces;
                 self.sources.extend(mesh.sources);
             }
-            FileKind::Gltf => self.add_gltf(path, load_gltf(path)?, material, grey, xf)?,
+            FileKind::Gltf => {
+                let mut g = load_gltf(path)?;
+                if nm.is_none() {
+                    g.normals = Vec::new();
+                }
+                self.add_gltf(path, g, material, grey, xf, nm.flatten())?
+            }
             FileKind::Scene => {
                 return Err(Error::input(
                     path,
@@ -66,6 +76,7 @@ impl Builder {
         material: Option<u32>,
         grey: u32,
         xf: impl Fn(Vec3) -> Vec3,
+        nm: NormalMap,
     ) -> Result<()> {
         let mut ids = Vec::with_capacity(g.materials.len());
         if material.is_none() {
@@ -80,7 +91,8 @@ impl Builder {
                     .and_then(|k| ids.get(k).copied())
                     .unwrap_or(grey)
             });
-            self.push(xf_triangle(t, &xf), g.mesh.status[i], g.uvs[i], id);
+            let n = map_normals(nm, g.normals.get(i));
+            self.push(xf_triangle(t, &xf), g.mesh.status[i], g.uvs[i], n, id);
         }
         warn_exclusions(path, &g.mesh);
         self.short_faces += g.mesh.short_faces;
@@ -99,13 +111,13 @@ impl Builder {
                 GltfLoaded::Flat(g) => {
                     self.start_mesh([crate::geometry::Affine::IDENTITY]);
                     let first = self.triangles.len();
-                    self.add_gltf(path, g, None, grey, |p| p)?;
+                    self.add_gltf(path, g, None, grey, |p| p, None)?;
                     return Ok(self.bounds_from(first));
                 }
             }
         }
         self.start_mesh([crate::geometry::Affine::IDENTITY]);
-        self.add_mesh_file(path, None, grey, |p| p)
+        self.add_mesh_file(path, None, grey, |p| p, Some(None))
     }
 
     /// Bounds of the included triangles from `first` on.
@@ -131,7 +143,8 @@ impl Builder {
                 let id = (m.material_ids[i])
                     .and_then(|k| ids.get(k).copied())
                     .unwrap_or(grey);
-                self.push(*t, m.mesh.status[i], m.uvs[i], id);
+                let n = map_normals(None, m.normals.get(i));
+                self.push(*t, m.mesh.status[i], m.uvs[i], n, id);
             }
             warn_exclusions(path, &m.mesh);
             self.short_faces += m.mesh.short_faces;
