@@ -626,6 +626,41 @@ fn refused(path: &Path, needle: &str) {
 }
 
 #[test]
+fn gltf_files_requiring_an_unsupported_extension_are_named_as_such() {
+    let m = sample();
+    let bin = writers::gltf_buffer(&m);
+    let dir = scratch();
+    for (ext, what) in [
+        ("KHR_draco_mesh_compression", "decompress its meshes"),
+        ("EXT_meshopt_compression", "decompress its meshes"),
+        ("KHR_texture_basisu", "convert its textures to PNG or JPEG"),
+        ("KHR_texture_transform", "bake the transforms"),
+    ] {
+        let mut doc = writers::gltf_json(&m, None);
+        doc["extensionsUsed"] = json!([ext]);
+        doc["extensionsRequired"] = json!([ext]);
+        let p = dir.path().join(format!("{ext}.glb"));
+        std::fs::write(&p, writers::glb(&doc, Some(&bin))).unwrap();
+        refused(
+            &p,
+            &format!(
+                "a glTF 2.0 file that requires an extension lancer does not support: {ext} ({what}"
+            ),
+        );
+        assert!(!load_mesh(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("not a valid"));
+    }
+    // Used but not required: read without it.
+    let mut doc = writers::gltf_json(&m, None);
+    doc["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    let p = dir.path().join("optional.glb");
+    std::fs::write(&p, writers::glb(&doc, Some(&bin))).unwrap();
+    assert!(load_mesh(&p).is_ok());
+}
+
+#[test]
 fn truncated_binary_files_are_errors() {
     let m = sample();
     let dir = scratch();

@@ -257,6 +257,79 @@ fn obj_and_gltf_normals_are_read_and_move_with_their_objects() {
     }
 }
 
+/// A PLY of a quad (one face of four corners) and a triangle, with normals, texture
+/// coordinates and colours, ASCII or binary little-endian.
+fn ply(binary: bool) -> Vec<u8> {
+    let verts: [[f32; 8]; 5] = [
+        [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+        [0.0, 1.0, 0.0, 0.0, 0.0, 2.0, 0.0, 1.0],
+        [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5],
+    ];
+    let faces: [&[u32]; 2] = [&[0, 1, 2, 3], &[1, 4, 2]];
+    let format = if binary {
+        "binary_little_endian"
+    } else {
+        "ascii"
+    };
+    let mut out = format!(
+        "ply\nformat {format} 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+         property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         property float s\nproperty float t\nproperty uchar red\n\
+         element face 2\nproperty list uchar uint vertex_indices\nend_header\n"
+    )
+    .into_bytes();
+    for v in &verts {
+        if binary {
+            out.extend(v.iter().flat_map(|x| x.to_le_bytes()));
+            out.push(200);
+        } else {
+            let words: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            out.extend(format!("{} 200\n", words.join(" ")).bytes());
+        }
+    }
+    for f in faces {
+        if binary {
+            out.push(f.len() as u8);
+            out.extend(f.iter().flat_map(|i| i.to_le_bytes()));
+        } else {
+            let words: Vec<String> = f.iter().map(|i| i.to_string()).collect();
+            out.extend(format!("{} {}\n", f.len(), words.join(" ")).bytes());
+        }
+    }
+    out
+}
+
+#[test]
+fn ply_normals_and_texture_coordinates_are_read_by_both_readers_alike() {
+    let dir = Scratch::new();
+    let scenes: Vec<RenderScene> = [false, true]
+        .map(|binary| {
+            let p = dir.write(&format!("q{binary}.ply"), ply(binary));
+            RenderScene::from_mesh(&p, 8, 8).unwrap()
+        })
+        .into();
+    // The quad's two fan triangles (0 1 2, 0 2 3), then the triangle: the last has a zero
+    // normal on a corner and shades flat.
+    let (a, b) = (&scenes[0], &scenes[1]);
+    assert_eq!(
+        a.normals[..3],
+        b.normals[..3],
+        "ASCII (ply-rs) and binary (bulk) readers"
+    );
+    assert_eq!(a.uvs[..3], b.uvs[..3]);
+    let n = normals_of(a, 1);
+    assert!(close(n[0], Vec3::Z) && close(n[1], Vec3::new(0.0, 1.0, 1.0)) && close(n[2], Vec3::Z));
+    assert_eq!(a.normals[2], [NO_NORMAL; 3]);
+    assert_eq!(
+        a.uvs[1],
+        [glam::Vec2::ZERO, glam::Vec2::ONE, glam::Vec2::new(0.0, 1.0)]
+    );
+    assert_eq!(a.uvs[2][1], glam::Vec2::splat(0.5));
+    assert!(EffectSet::of(a).shading_normals);
+}
+
 /// One triangle with the normals of the OBJ test, as glTF.
 fn gltf_with_normals(dir: &Scratch) -> PathBuf {
     let positions: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];

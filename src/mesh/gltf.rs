@@ -159,6 +159,13 @@ fn open(path: &Path) -> Result<Opened> {
     // Checked first: the crate panics on some references out of range.
     let json = super::gltf_check::json_of(&bytes).map_err(bad)?;
     super::gltf_check::check(json).map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
+    let unsupported = super::gltf_check::unsupported_required(json);
+    if !unsupported.is_empty() {
+        return Err(bad(format!(
+            "a glTF 2.0 file that requires an extension lancer does not support: {}",
+            unsupported.join(", ")
+        )));
+    }
     let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(&bytes)
         .map_err(|e| bad(format!("not a valid glTF 2.0 file: {e}")))?;
     drop(bytes);

@@ -41,6 +41,39 @@ pub fn json_of(bytes: &[u8]) -> Result<&[u8], String> {
         .ok_or_else(|| format!("the GLB's JSON chunk ({json_len} bytes) runs past the file's end"))
 }
 
+/// The extensions a glTF document requires that lancer does not read, each with what to do
+/// about it; empty when it can read the file.
+pub fn unsupported_required(json: &[u8]) -> Vec<String> {
+    let Ok(doc) = serde_json::from_slice::<Value>(json) else {
+        return Vec::new();
+    };
+    let required = doc.get("extensionsRequired").and_then(Value::as_array);
+    (required.into_iter().flatten())
+        .filter_map(Value::as_str)
+        .filter(|x| !SUPPORTED_EXTENSIONS.contains(x))
+        .map(|x| {
+            let what = match x {
+                "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+                    "decompress its meshes (e.g. gltf-transform copy IN OUT)"
+                }
+                "KHR_texture_basisu" | "EXT_texture_webp" | "EXT_texture_avif" => {
+                    "convert its textures to PNG or JPEG"
+                }
+                "KHR_texture_transform" => "bake the transforms into its texture coordinates",
+                _ => "export it without that extension",
+            };
+            format!("{x} ({what})")
+        })
+        .collect()
+}
+
+/// The glTF extensions lancer reads (the `gltf` crate's features it enables).
+pub const SUPPORTED_EXTENSIONS: [&str; 3] = [
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+];
+
 /// Checks every reference of the document `json` against its array (and the rest the module
 /// names). Returns the first problem with its JSON path.
 pub fn check(json: &[u8]) -> Result<(), String> {

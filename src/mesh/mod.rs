@@ -23,7 +23,7 @@ pub use gltf::{
 pub use instanced::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};
 pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};
 pub use obj::{load_obj, load_obj_scene, ObjScene};
-pub use ply::load_ply;
+pub use ply::{load_ply, load_ply_scene, PlyScene};
 
 use glam::Vec3;
 

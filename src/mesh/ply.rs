@@ -7,7 +7,7 @@
 use std::io::BufReader;
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use ply_rs_bw::parser::{ParseError, Parser, Reader};
 use ply_rs_bw::ply::{
     ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
@@ -17,18 +17,35 @@ use super::{check_triangle_count, classify, placeholder, Mesh, TriStatus};
 use crate::error::{Error, Result};
 use crate::geometry::Triangle;
 
-/// A vertex position, whatever scalar type the file stores it in.
-struct Vertex([f64; 3]);
+/// The vertex properties of a normal.
+pub(super) const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
+
+/// The pairs of vertex properties that name texture coordinates, the first one present used.
+pub(super) const UV_NAMES: [[&str; 2]; 4] = [
+    ["u", "v"],
+    ["s", "t"],
+    ["texture_u", "texture_v"],
+    ["texture_s", "texture_t"],
+];
+
+/// A vertex (position, normal, texture coordinates), whatever scalar types the file stores
+/// them in.
+struct Vertex([f64; 8]);
 
 impl PropertyAccess for Vertex {
     fn new() -> Self {
-        Vertex([0.0; 3])
+        Vertex([0.0; 8])
     }
     fn set_property(&mut self, name: &str, p: Property) -> PropertyAccessResult {
         let k = match name {
             "x" => 0,
             "y" => 1,
             "z" => 2,
+            "nx" => 3,
+            "ny" => 4,
+            "nz" => 5,
+            "u" | "s" | "texture_u" | "texture_s" => 6,
+            "v" | "t" | "texture_v" | "texture_t" => 7,
             _ => return PropertyAccessResult::Ignored,
         };
         match scalar(&p) {
@@ -36,9 +53,33 @@ impl PropertyAccess for Vertex {
                 self.0[k] = x;
                 PropertyAccessResult::Set
             }
-            None => PropertyAccessResult::UnsupportedType,
+            // Positions must be numbers; other properties of other types are read past.
+            None if k < 3 => PropertyAccessResult::UnsupportedType,
+            None => PropertyAccessResult::Ignored,
         }
     }
+}
+
+/// A PLY file with what a renderer takes besides the triangles.
+#[derive(Clone, Debug, Default)]
+pub struct PlyScene {
+    /// The triangles in file order, each classified.
+    pub mesh: Mesh,
+    /// Each triangle's corner normals (`nx ny nz`), packed ([`pack_corners`]
+    /// (super::pack_corners)); empty where the vertices have none.
+    pub normals: Vec<[u32; 3]>,
+    /// Each triangle's corner texture coordinates (`u v`, `s t`, `texture_u texture_v`);
+    /// empty where the vertices have none.
+    pub uvs: Vec<[Vec2; 3]>,
+}
+
+/// Packed corner normals with a corner that has none made a triangle without any.
+pub(super) fn whole_triangles(mut n: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
+    use crate::geometry::NO_NORMAL;
+    n.iter_mut()
+        .filter(|c| c.contains(&NO_NORMAL))
+        .for_each(|c| *c = [NO_NORMAL; 3]);
+    n
 }
 
 fn scalar(p: &Property) -> Option<f64> {
@@ -147,27 +188,41 @@ fn check_element(path: &Path, e: &ElementDef) -> Result<()> {
 
 /// A binary body in a layout [`ply_binary`](super::ply_binary) reads, read on all threads;
 /// None for any other (ply-rs reads it).
-fn load_binary_in_bulk(path: &Path, header: &Header) -> Result<Option<Mesh>> {
+fn load_binary_in_bulk(path: &Path, header: &Header, attributes: bool) -> Result<Option<PlyScene>> {
     let file = crate::input::read(path)?;
     let Some(start) = super::ply_binary::body_start(&file) else {
         return Ok(None);
     };
-    let Some(body) =
-        super::ply_binary::read(header, &file[start..], |t| check_triangle_count(path, t))
-    else {
+    let Some(body) = super::ply_binary::read(header, &file[start..], attributes, |t| {
+        check_triangle_count(path, t)
+    }) else {
         return Ok(None);
     };
     let body = body?;
-    Ok(Some(Mesh {
-        sources: vec![path.to_path_buf()],
-        triangles: body.triangles,
-        status: body.status,
-        short_faces: body.short_faces,
+    Ok(Some(PlyScene {
+        mesh: Mesh {
+            sources: vec![path.to_path_buf()],
+            triangles: body.triangles,
+            status: body.status,
+            short_faces: body.short_faces,
+        },
+        normals: body.normals,
+        uvs: body.uvs,
     }))
 }
 
 /// Loads every triangle of a PLY file in file order (polygons fan-triangulated).
 pub fn load_ply(path: &Path) -> Result<Mesh> {
+    read_ply(path, false).map(|s| s.mesh)
+}
+
+/// Loads a PLY file with its vertices' normals and texture coordinates.
+pub fn load_ply_scene(path: &Path) -> Result<PlyScene> {
+    read_ply(path, true)
+}
+
+/// [`load_ply_scene`], the normals and texture coordinates only where `attributes`.
+fn read_ply(path: &Path, attributes: bool) -> Result<PlyScene> {
     let (file, _) = crate::input::open(path)?;
     super::ply_layout::check(path, BufReader::new(file))?;
     let (file, _) = crate::input::open(path)?;
@@ -183,6 +238,9 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
             "face" => std::mem::replace(&mut first_face, false),
             _ => false,
         };
+        if used && e.name == "vertex" {
+            warn_unused_vertex_properties(path, e);
+        }
         if !used && e.count > 0 {
             log::warn!(
                 "{}: {} '{}' elements not used (lancer reads 'vertex' and 'face')",
@@ -193,10 +251,16 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
         }
     }
     if header.encoding != Encoding::Ascii {
-        if let Some(mesh) = load_binary_in_bulk(path, &header)? {
-            return Ok(mesh);
+        if let Some(scene) = load_binary_in_bulk(path, &header, attributes)? {
+            return Ok(scene);
         }
     }
+    let vertex_def = header.elements.values().find(|e| e.name == "vertex");
+    let has = |names: &[&str]| {
+        vertex_def.is_some_and(|e| names.iter().all(|n| e.properties.contains_key(*n)))
+    };
+    let with_normals = attributes && has(&NORMAL_NAMES);
+    let with_uvs = attributes && UV_NAMES.iter().any(|n| has(n));
     let mut vertices: Option<Vec<Vertex>> = None;
     let mut faces: Option<Vec<Face>> = None;
     for (_, e) in &header.elements {
@@ -245,11 +309,20 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
         let v = vertices.get(usize::try_from(i).ok()?)?;
         Some(Vec3::new(v.0[0] as f32, v.0[1] as f32, v.0[2] as f32))
     };
+    let (mut normals, mut uvs) = (Vec::new(), Vec::new());
+    let normal = |v: &Vertex| {
+        let n = Vec3::new(v.0[3] as f32, v.0[4] as f32, v.0[5] as f32);
+        crate::geometry::pack_unit(n).unwrap_or(crate::geometry::NO_NORMAL)
+    };
+    let uv = |v: &Vertex| Vec2::new(v.0[6] as f32, v.0[7] as f32);
     for f in &faces {
         if f.0.len() < 3 {
             mesh.short_faces += 1;
             continue;
         }
+        let named: Option<Vec<&Vertex>> = (f.0.iter())
+            .map(|&i| vertices.get(usize::try_from(i).ok()?))
+            .collect();
         let corners: Option<Vec<Vec3>> = f.0.iter().map(|&i| vertex(i)).collect();
         for k in 1..f.0.len() - 1 {
             let (t, s) = match &corners {
@@ -262,7 +335,44 @@ pub fn load_ply(path: &Path) -> Result<Mesh> {
             };
             mesh.triangles.push(t);
             mesh.status.push(s);
+            let ks = [0, k, k + 1];
+            if with_normals {
+                let n = named.as_ref().map(|c| ks.map(|j| normal(c[j])));
+                normals.push(n.unwrap_or([crate::geometry::NO_NORMAL; 3]));
+            }
+            if with_uvs {
+                uvs.push(
+                    named
+                        .as_ref()
+                        .map_or([Vec2::ZERO; 3], |c| ks.map(|j| uv(c[j]))),
+                );
+            }
         }
     }
-    Ok(mesh)
+    Ok(PlyScene {
+        mesh,
+        normals: whole_triangles(normals),
+        uvs,
+    })
+}
+
+/// Warns about the properties of the 'vertex' element lancer reads past (colours, ...).
+fn warn_unused_vertex_properties(path: &Path, e: &ElementDef) {
+    let known = |n: &str| {
+        ["x", "y", "z"].contains(&n)
+            || NORMAL_NAMES.contains(&n)
+            || UV_NAMES.iter().flatten().any(|u| *u == n)
+    };
+    let unused: Vec<&str> = (e.properties.keys())
+        .map(String::as_str)
+        .filter(|n| !known(n))
+        .collect();
+    if !unused.is_empty() {
+        log::warn!(
+            "{}: vertex properties not used: {} (lancer reads positions, normals and texture \
+             coordinates)",
+            path.display(),
+            unused.join(", ")
+        );
+    }
 }

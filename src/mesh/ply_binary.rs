@@ -6,12 +6,13 @@
 //! f32, indices widened, faces in file order); any other layout, and any body that does not
 //! match its header's counts, is left to ply-rs and its messages ([`read`] returns `None`).
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use ply_rs_bw::ply::{ElementDef, Encoding, Header, PropertyType, ScalarType};
 use rayon::prelude::*;
 
+use super::ply::{NORMAL_NAMES, UV_NAMES};
 use super::{classify, placeholder, TriStatus};
-use crate::geometry::Triangle;
+use crate::geometry::{pack_unit, Triangle, NO_NORMAL};
 
 /// A scalar type (ply-rs's, which is not `Copy`).
 #[derive(Clone, Copy)]
@@ -96,36 +97,51 @@ fn record_bytes(e: &ElementDef) -> Option<usize> {
         .sum()
 }
 
-/// Where x, y and z sit in a vertex record, and their types.
-fn xyz(e: &ElementDef) -> Option<[(usize, Scalar); 3]> {
+/// Where the scalar properties `names` sit in a record of `e` (all of them), and their
+/// types; None where one is missing or `e` holds a list.
+fn find<const N: usize>(e: &ElementDef, names: [&str; N]) -> Option<[(usize, Scalar); N]> {
     let mut at = 0;
-    let mut found: [Option<(usize, Scalar)>; 3] = [None; 3];
+    let mut found: [Option<(usize, Scalar)>; N] = [None; N];
     for (name, p) in &e.properties {
         let PropertyType::Scalar(t) = &p.data_type else {
             return None;
         };
         let t = Scalar::from(t);
-        if let Some(k) = ["x", "y", "z"].iter().position(|a| a == name) {
+        if let Some(k) = names.iter().position(|a| a == name) {
             found[k] = Some((at, t));
         }
         at += size(t);
     }
-    Some([found[0]?, found[1]?, found[2]?])
+    let mut out = [(0, Scalar::U8); N];
+    for k in 0..N {
+        out[k] = found[k]?;
+    }
+    Some(out)
 }
 
-/// The mesh's triangles and their status, and the faces naming fewer than three vertices.
+/// Where x, y and z sit in a vertex record, and their types.
+fn xyz(e: &ElementDef) -> Option<[(usize, Scalar); 3]> {
+    find(e, ["x", "y", "z"])
+}
+
+/// The mesh's triangles and their status, the faces naming fewer than three vertices, and
+/// (where asked for and the vertices have them) each triangle's corner normals, packed, and
+/// texture coordinates.
 pub(super) struct Body {
     pub triangles: Vec<Triangle>,
     pub status: Vec<TriStatus>,
     pub short_faces: usize,
+    pub normals: Vec<[u32; 3]>,
+    pub uvs: Vec<[Vec2; 3]>,
 }
 
-/// Reads the body after a binary header, or None to leave it to ply-rs. `check` is given the
-/// triangle count before anything that size is allocated (the memory check); its error is
-/// returned as is.
+/// Reads the body after a binary header, or None to leave it to ply-rs; with `attributes`,
+/// the vertices' normals and texture coordinates too. `check` is given the triangle count
+/// before anything that size is allocated (the memory check); its error is returned as is.
 pub(super) fn read<E>(
     header: &Header,
     body: &[u8],
+    attributes: bool,
     check: impl FnOnce(u128) -> Result<(), E>,
 ) -> Option<Result<Body, E>> {
     let big = match header.encoding {
@@ -166,7 +182,7 @@ pub(super) fn read<E>(
             name => {
                 let bytes = record_bytes(e)?.checked_mul(e.count)?;
                 if name == "vertex" && vertex.is_none() {
-                    vertex = Some((at, e.count, record_bytes(e)?, xyz(e)?));
+                    vertex = Some((at, e.count, record_bytes(e)?, xyz(e)?, e));
                 }
                 at = at.checked_add(bytes)?;
                 if at > body.len() {
@@ -179,7 +195,7 @@ pub(super) fn read<E>(
     let (c, i) = (size(count_type), size(item_type));
     // Positions, decoded on all threads.
     let vertices: Vec<Vec3> = match vertex {
-        Some((start, count, stride, [x, y, z])) if stride > 0 => body
+        Some((start, count, stride, [x, y, z], _)) if stride > 0 => body
             [start..start + count * stride]
             .par_chunks_exact(stride)
             .map(|r| {
@@ -187,13 +203,44 @@ pub(super) fn read<E>(
                 Vec3::new(get(x), get(y), get(z))
             })
             .collect(),
-        Some((_, count, _, _)) if count > 0 => return None,
+        Some((_, count, _, _, _)) if count > 0 => return None,
         _ => Vec::new(),
+    };
+    // The vertices' own normals (packed) and texture coordinates, where asked for.
+    let vertex_def = vertex.map(|v| v.4);
+    let normal_at = (vertex_def.filter(|_| attributes)).and_then(|e| find(e, NORMAL_NAMES));
+    let uv_at = (vertex_def.filter(|_| attributes))
+        .and_then(|e| UV_NAMES.iter().find_map(|&names| find(e, names)));
+    let per_vertex: Option<Vec<(u32, Vec2)>> = match (vertex, normal_at, uv_at) {
+        (_, None, None) => None,
+        (Some((start, count, stride, _, _)), _, _) if stride > 0 => Some(
+            body[start..start + count * stride]
+                .par_chunks_exact(stride)
+                .map(|r| {
+                    let get = |(o, t): (usize, Scalar)| value(&r[o..], t, big) as f32;
+                    let n = normal_at.map_or(NO_NORMAL, |[x, y, z]| {
+                        pack_unit(Vec3::new(get(x), get(y), get(z))).unwrap_or(NO_NORMAL)
+                    });
+                    (
+                        n,
+                        uv_at.map_or(Vec2::ZERO, |[u, v]| Vec2::new(get(u), get(v))),
+                    )
+                })
+                .collect(),
+        ),
+        _ => None,
     };
     let corners = |f: usize| {
         let s = starts[f];
         let n = index(&body[s..], count_type, big).unwrap_or(0) as usize;
         (s + c, n)
+    };
+    let faces = Faces {
+        body,
+        starts: &starts,
+        count_type,
+        item_type,
+        big,
     };
     let tris: u128 = (starts.par_iter().enumerate())
         .map(|(f, _)| corners(f).1.saturating_sub(2) as u128)
@@ -233,10 +280,14 @@ pub(super) fn read<E>(
                 }
             })
             .collect();
+        let (normals, uvs) =
+            fan_attributes(&per_vertex, &faces, normal_at.is_some(), uv_at.is_some());
         return Some(Ok(Body {
             triangles,
             status,
             short_faces,
+            normals,
+            uvs,
         }));
     }
     let (triangles, status): (Vec<Triangle>, Vec<TriStatus>) = (0..starts.len())
@@ -264,11 +315,85 @@ pub(super) fn read<E>(
             })
         })
         .unzip();
+    let (normals, uvs) = fan_attributes(&per_vertex, &faces, normal_at.is_some(), uv_at.is_some());
     Some(Ok(Body {
         triangles,
         status,
         short_faces,
+        normals,
+        uvs,
     }))
+}
+
+/// The faces of a body: where each face's index list starts, and how to read it.
+struct Faces<'a> {
+    body: &'a [u8],
+    starts: &'a [usize],
+    count_type: Scalar,
+    item_type: Scalar,
+    big: bool,
+}
+
+impl Faces<'_> {
+    /// Face f's vertex indices (None for one that names no vertex of `n`).
+    fn indices(&self, f: usize, n: usize) -> Option<Vec<usize>> {
+        let (c, i) = (size(self.count_type), size(self.item_type));
+        let s = self.starts[f];
+        let count = index(&self.body[s..], self.count_type, self.big).unwrap_or(0) as usize;
+        let list = &self.body[s + c..s + c + count * i];
+        (list.chunks_exact(i))
+            .map(|b| {
+                let k = usize::try_from(index(b, self.item_type, self.big)?).ok()?;
+                (k < n).then_some(k)
+            })
+            .collect()
+    }
+
+    /// Each triangle's corners' values of `per` (by vertex), in fan order; `none` for a
+    /// triangle of a face naming no vertex.
+    fn fan<T: Copy + Send + Sync>(&self, per: &[T], none: T) -> Vec<[T; 3]> {
+        (0..self.starts.len())
+            .into_par_iter()
+            .flat_map_iter(|f| {
+                let corners = self.indices(f, per.len());
+                let n = corners.as_ref().map_or_else(
+                    || {
+                        let s = self.starts[f];
+                        index(&self.body[s..], self.count_type, self.big).unwrap_or(0) as usize
+                    },
+                    Vec::len,
+                );
+                (1..n.saturating_sub(1)).map(move |k| match &corners {
+                    Some(c) => [per[c[0]], per[c[k]], per[c[k + 1]]],
+                    None => [none; 3],
+                })
+            })
+            .collect()
+    }
+}
+
+/// The triangles' packed corner normals and texture coordinates from the vertices' (each
+/// empty where the vertices have none).
+fn fan_attributes(
+    per_vertex: &Option<Vec<(u32, Vec2)>>,
+    faces: &Faces,
+    normals: bool,
+    uvs: bool,
+) -> (Vec<[u32; 3]>, Vec<[Vec2; 3]>) {
+    let Some(per) = per_vertex else {
+        return (Vec::new(), Vec::new());
+    };
+    let n: Vec<u32> = per.iter().map(|p| p.0).collect();
+    let t: Vec<Vec2> = per.iter().map(|p| p.1).collect();
+    let n = match normals {
+        true => super::ply::whole_triangles(faces.fan(&n, NO_NORMAL)),
+        false => Vec::new(),
+    };
+    let t = match uvs {
+        true => faces.fan(&t, Vec2::ZERO),
+        false => Vec::new(),
+    };
+    (n, t)
 }
 
 /// A face's corner positions.
@@ -334,7 +459,7 @@ mod tests {
             .read_header(&mut Reader::new(std::io::Cursor::new(bytes)))
             .unwrap();
         let start = body_start(bytes).unwrap();
-        read(&header, &bytes[start..], |_| Ok::<(), ()>(())).map(|r| r.unwrap())
+        read(&header, &bytes[start..], false, |_| Ok::<(), ()>(())).map(|r| r.unwrap())
     }
 
     #[test]

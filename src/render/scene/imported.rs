@@ -13,7 +13,7 @@ use super::file::MaterialKind;
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Triangle, NO_NORMAL};
 use crate::mesh::{
-    load_gltf, load_obj_scene, load_ply, read_gltf, warn_exclusions, FileKind, GltfImage,
+    load_gltf, load_obj_scene, load_ply_scene, read_gltf, warn_exclusions, FileKind, GltfImage,
     GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, Instance, TriStatus,
 };
 
@@ -39,11 +39,18 @@ impl Builder {
                 self.add_obj(&obj, path, material, grey, xf, nm.flatten())?;
             }
             FileKind::Ply => {
-                let mesh = load_ply(path)?;
+                let ply = load_ply_scene(path)?;
+                let mesh = &ply.mesh;
                 let id = material.unwrap_or(grey);
-                for (t, &s) in mesh.triangles.iter().zip(&mesh.status) {
-                    self.push(xf_triangle(t, &xf), s, [Vec2::ZERO; 3], [NO_NORMAL; 3], id);
+                for (i, (t, &s)) in mesh.triangles.iter().zip(&mesh.status).enumerate() {
+                    let uv = ply.uvs.get(i).copied().unwrap_or([Vec2::ZERO; 3]);
+                    let n = match nm {
+                        Some(nm) => map_normals(nm, ply.normals.get(i)),
+                        None => [NO_NORMAL; 3],
+                    };
+                    self.push(xf_triangle(t, &xf), s, uv, n, id);
                 }
+                let mesh = ply.mesh;
                 warn_exclusions(path, &mesh);
                 self.short_faces += mesh.short_faces;
                 self.sources.extend(mesh.sources);
