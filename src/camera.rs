@@ -14,9 +14,37 @@ pub const DEFAULT_FOV: f32 = 40.0;
 /// Where the default view's eye lies from the centre of what it looks at (any length).
 const DEFAULT_DIRECTION: Vec3 = Vec3::new(0.0, 0.1, 1.0);
 
+/// The camera of `cameras` (a file's, [`GltfCamera`](crate::mesh::GltfCamera)s) that
+/// `choice` names, by index or by name; the first where `choice` is None (None where the
+/// file has none). An error names the cameras there are.
+pub fn pick_camera<'a>(
+    cameras: &'a [crate::mesh::GltfCamera],
+    choice: Option<&str>,
+) -> Result<Option<&'a crate::mesh::GltfCamera>, String> {
+    let Some(choice) = choice else {
+        return Ok(cameras.first());
+    };
+    let found = match choice.parse::<usize>() {
+        Ok(i) => cameras.get(i),
+        Err(_) => cameras.iter().find(|c| c.name.as_deref() == Some(choice)),
+    };
+    found.map(Some).ok_or_else(|| {
+        let there: Vec<String> = (cameras.iter().enumerate())
+            .map(|(i, c)| format!("{i} {:?}", c.name.as_deref().unwrap_or("")))
+            .collect();
+        match there.is_empty() {
+            true => format!("--camera {choice}: the file places no perspective camera"),
+            false => format!(
+                "--camera {choice}: the file's cameras are {}",
+                there.join(", ")
+            ),
+        }
+    })
+}
+
 /// A user's changes to a view (`--look-from`, `--look-at`, `--fov`); each one left None
 /// keeps the view's own.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ViewChange {
     /// Eye position.
     pub look_from: Option<Vec3>,
@@ -24,6 +52,8 @@ pub struct ViewChange {
     pub look_at: Option<Vec3>,
     /// Vertical field of view, degrees.
     pub fov: Option<f32>,
+    /// Which of a glTF file's cameras, by index or name (None: its first, if any).
+    pub camera: Option<String>,
 }
 
 impl ViewChange {
@@ -112,6 +142,18 @@ impl Camera {
         };
         cam.eye = c + DEFAULT_DIRECTION.normalize() * (r / cam.narrowest_half_angle().sin());
         cam
+    }
+
+    /// A glTF file's camera, seen at `width`×`height` pixels.
+    pub fn from_gltf(c: &crate::mesh::GltfCamera, width: u32, height: u32) -> Camera {
+        Camera {
+            eye: c.eye,
+            look_at: c.look_at,
+            up: c.up,
+            vfov_deg: c.yfov_deg,
+            width,
+            height,
+        }
     }
 
     /// The smaller of the half-angles of the vertical and the horizontal field of view,
@@ -265,7 +307,7 @@ mod tests {
         let at = |p: Vec3| ViewChange {
             look_from: Some(p),
             look_at: Some(p),
-            fov: None,
+            ..ViewChange::default()
         };
         assert!(bad(at(Vec3::ONE)).contains("on the point looked at"));
         let mut up = at(Vec3::ZERO);

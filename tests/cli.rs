@@ -151,6 +151,107 @@ fn rays_and_render_take_the_view_from_the_command_line() {
     }
 }
 
+/// A glTF quad with three cameras: a perspective one at (0, 0, 5) looking down −Z, "Side"
+/// at (5, 0, 0) turned to look down −X, and an orthographic one (not used).
+fn gltf_with_cameras(d: &Scratch) -> PathBuf {
+    let m = common::writers::Indexed {
+        verts: vec![
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+        ],
+        faces: vec![vec![0, 1, 2], vec![0, 2, 3]],
+    };
+    let bin = common::writers::gltf_buffer(&m);
+    let mut doc = common::writers::gltf_json(&m, Some(common::writers::data_uri(&bin)));
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    doc["cameras"] = serde_json::json!([
+        { "type": "perspective", "perspective": { "yfov": 0.6, "znear": 0.1 } },
+        { "type": "perspective", "name": "Side", "perspective": { "yfov": 0.5, "znear": 0.1 } },
+        { "type": "orthographic", "orthographic": { "xmag": 1, "ymag": 1, "znear": 0.1, "zfar": 10 } }
+    ]);
+    doc["nodes"] = serde_json::json!([
+        { "mesh": 0 },
+        { "camera": 2, "translation": [0, 0, 9] },
+        { "camera": 0, "translation": [0, 0, 5] },
+        { "camera": 1, "translation": [5, 0, 0], "rotation": [0, h, 0, h] }
+    ]);
+    doc["scenes"] = serde_json::json!([{ "nodes": [0, 1, 2, 3] }]);
+    let p = d.path("cameras.gltf");
+    std::fs::write(&p, serde_json::to_vec(&doc).unwrap()).unwrap();
+    p
+}
+
+#[test]
+fn gltf_cameras_give_the_view_and_camera_picks_one() {
+    let dir = Scratch::new();
+    let g = gltf_with_cameras(&dir);
+    let rays = |extra: &[&str]| {
+        let r = dir.path("c.rays");
+        let size = ["rays", s(&g), "--width", "4", "--height", "4", "-o", s(&r)];
+        lancer_ok(&[&size[..], extra].concat());
+        lancer::trace::files::read_rays(&r).unwrap()
+    };
+    let mean =
+        |rs: &[lancer::geometry::Ray]| rs.iter().map(|r| r.dir).sum::<glam::Vec3>().normalize();
+    // The first perspective camera (the orthographic one is left out).
+    let loaded = lancer::mesh::load_gltf(&g).unwrap();
+    assert_eq!(loaded.cameras.len(), 2, "{:?}", loaded.cameras);
+    let first = rays(&[]);
+    let at = |r: &lancer::geometry::Ray, p: glam::Vec3| (r.origin - p).length() < 1e-5;
+    assert!(
+        first.iter().all(|r| at(r, glam::Vec3::new(0.0, 0.0, 5.0))),
+        "{:?}",
+        first[0]
+    );
+    assert!(mean(&first).dot(-glam::Vec3::Z) > 0.999);
+    for pick in ["Side", "1"] {
+        let side = rays(&["--camera", pick]);
+        assert!(
+            (side[0].origin - glam::Vec3::new(5.0, 0.0, 0.0)).length() < 1e-5,
+            "{pick}"
+        );
+        assert!(mean(&side).dot(-glam::Vec3::X) > 0.999, "{pick}");
+    }
+    // The file's camera renders as the CPU sees it from there: the quad fills the middle.
+    let scene = lancer::RenderScene::from_mesh(&g, 8, 8).unwrap();
+    assert_eq!(scene.camera.eye, glam::Vec3::new(0.0, 0.0, 5.0));
+    assert!((scene.camera.vfov_deg - 0.6f32.to_degrees()).abs() < 1e-4);
+    // An unknown camera names the ones there are; a scene file has its own.
+    let out = dir.path("x.png");
+    let o = lancer(&[
+        "render",
+        s(&g),
+        "-o",
+        s(&out),
+        "--camera",
+        "Top",
+        "--device",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(r#"the file's cameras are 0 "", 1 "Side""#),
+        "{err}"
+    );
+    let toml = dir.path("s.toml");
+    std::fs::write(&toml, "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\n[[objects]]\nshape = \"box\"\n").unwrap();
+    let o = lancer(&[
+        "render",
+        s(&toml),
+        "-o",
+        s(&out),
+        "--camera",
+        "0",
+        "--device",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!out.exists());
+}
+
 #[test]
 fn bad_input_is_one_line_and_exit_2() {
     let dir = Scratch::new();

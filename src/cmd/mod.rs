@@ -282,6 +282,10 @@ pub struct ViewArgs {
     /// Vertical field of view in degrees; a mesh's default view moves to keep it framed.
     #[arg(long, value_name = "DEGREES", value_parser = positive_finite)]
     fov: Option<f32>,
+    /// A glTF file's camera, by index (in node order) or name; by default its first, where
+    /// it places one, else the default view.
+    #[arg(long, value_name = "NAME|INDEX")]
+    camera: Option<String>,
 }
 
 impl ViewArgs {
@@ -290,6 +294,7 @@ impl ViewArgs {
             look_from: self.look_from,
             look_at: self.look_at,
             fov: self.fov,
+            camera: self.camera.clone(),
         }
     }
 }

@@ -2,7 +2,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::camera::Camera;
-use lancer::mesh::FileKind;
+use lancer::mesh::{FileKind, GltfLoaded};
 use lancer::render::{load_traceable, Geometry};
 use lancer::trace::files::encode_rays;
 use lancer::{RenderScene, Result};
@@ -32,29 +32,52 @@ impl RaysCmd {
         // A scene's own camera; a mesh's default view, fitted to the image size.
         let size = |own: (u32, u32)| (self.width.unwrap_or(own.0), self.height.unwrap_or(own.1));
         let mesh_size = size((512, 512));
-        let (mut cam, sources) = match FileKind::of(&self.mesh)? {
+        let view = self.view.change();
+        let (mut cam, sources, default_view) = match FileKind::of(&self.mesh)? {
             FileKind::Scene => {
+                if let Some(c) = &view.camera {
+                    return Err(lancer::Error::Usage(format!(
+                        "--camera {c} picks a camera of a glTF file; a scene file has one [camera]"
+                    )));
+                }
                 let mut scene = RenderScene::from_file(&self.mesh)?;
                 let c = &mut scene.camera;
                 (c.width, c.height) = size((c.width, c.height));
-                (scene.camera, scene.mesh.sources)
+                (scene.camera, scene.mesh.sources, false)
             }
-            _ => match load_traceable(&self.mesh)? {
+            kind => {
+                // A glTF file read once: its geometry and its cameras.
+                let (geometry, cameras) = match kind {
+                    FileKind::Gltf => match lancer::mesh::read_gltf(&self.mesh)? {
+                        GltfLoaded::Flat(g) => (Geometry::Mesh(g.mesh), g.cameras),
+                        GltfLoaded::Placed(p) => {
+                            let set = p.instance_set().map_err(|e| {
+                                lancer::Error::input(&self.mesh, None, e.to_string())
+                            })?;
+                            (Geometry::Placed(set), p.cameras)
+                        }
+                    },
+                    _ => (load_traceable(&self.mesh)?, Vec::new()),
+                };
+                let picked = lancer::camera::pick_camera(&cameras, view.camera.as_deref())
+                    .map_err(|e| lancer::Error::input(&self.mesh, None, e))?;
+                let (w, h) = mesh_size;
                 // A mesh placed many times: the instances' boxes, without flattening.
-                Geometry::Placed(set) => {
-                    let sources = set.meshes.iter().flat_map(|m| m.sources.clone());
-                    let (w, h) = mesh_size;
-                    (Camera::default_view(&set.bounds(), w, h), sources.collect())
+                let (bounds, sources) = match geometry {
+                    Geometry::Placed(set) => {
+                        let sources = set.meshes.iter().flat_map(|m| m.sources.clone());
+                        (set.bounds(), sources.collect())
+                    }
+                    Geometry::Mesh(mesh) => (mesh.bounds(), mesh.sources),
+                };
+                match picked {
+                    Some(c) => (Camera::from_gltf(c, w, h), sources, false),
+                    None => (Camera::default_view(&bounds, w, h), sources, true),
                 }
-                Geometry::Mesh(mesh) => {
-                    let (w, h) = mesh_size;
-                    (Camera::default_view(&mesh.bounds(), w, h), mesh.sources)
-                }
-            },
+            }
         };
         check_output(&self.out, &sources)?;
-        let mesh = FileKind::of(&self.mesh)? != FileKind::Scene;
-        (self.view.change().apply(&mut cam, mesh)).map_err(lancer::Error::Usage)?;
+        (view.apply(&mut cam, default_view)).map_err(lancer::Error::Usage)?;
         // The rays in memory and their bytes on the way out: 64 bytes a ray.
         lancer::limits::check_image(cam.width, cam.height, 64, "use a smaller --width/--height")?;
         let rays = cam.primary_rays();

@@ -68,6 +68,68 @@ pub struct GltfScene {
     pub material_ids: Vec<Option<usize>>,
     /// The file's materials, by glTF material index.
     pub materials: Vec<GltfMaterial>,
+    /// The perspective cameras its nodes place, in the order the nodes are walked.
+    pub cameras: Vec<GltfCamera>,
+}
+
+/// A perspective camera a glTF node places, in world space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfCamera {
+    /// The camera's name, else its node's (None where neither has one).
+    pub name: Option<String>,
+    /// Eye position.
+    pub eye: Vec3,
+    /// A point straight ahead (along the node's −Z).
+    pub look_at: Vec3,
+    /// The node's +Y.
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub yfov_deg: f32,
+}
+
+/// The perspective cameras of the nodes `walked` (each with its world map), in that order;
+/// orthographic ones are left out with a warning (lancer's camera is a pinhole), as are
+/// cameras whose map has no direction left.
+fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
+    let mut out = Vec::new();
+    for (node, world) in walked {
+        let Some(camera) = node.camera() else {
+            continue;
+        };
+        let name = (camera.name().or(node.name())).map(str::to_string);
+        let ::gltf::camera::Projection::Perspective(p) = camera.projection() else {
+            log::warn!(
+                "{}: orthographic camera {name:?} not used (lancer's camera is a pinhole)",
+                path.display()
+            );
+            continue;
+        };
+        let eye = world.transform_point3(Vec3::ZERO);
+        let ahead = world.transform_vector3(-Vec3::Z);
+        let up = world.transform_vector3(Vec3::Y);
+        let yfov_deg = p.yfov().to_degrees();
+        let usable = eye.is_finite()
+            && ahead.length() > 0.0
+            && ahead.is_finite()
+            && up.cross(ahead).length() > 0.0
+            && yfov_deg > 0.0
+            && yfov_deg < 180.0;
+        if !usable {
+            log::warn!(
+                "{}: camera {name:?} not used: its node's map or field of view is degenerate",
+                path.display()
+            );
+            continue;
+        }
+        out.push(GltfCamera {
+            name,
+            eye,
+            look_at: eye + ahead.normalize(),
+            up: up.normalize(),
+            yfov_deg,
+        });
+    }
+    out
 }
 
 /// Loads a glTF 2.0 file's default scene (or its first; or every root node when it has no
@@ -111,6 +173,7 @@ fn flatten_opened(path: &Path, opened: Opened) -> Result<GltfScene> {
 
     let mut out = GltfScene {
         materials,
+        cameras: cameras_of(path, &instances),
         ..GltfScene::default()
     };
     // Each mesh is read once, however many nodes instance it.
@@ -191,6 +254,8 @@ pub struct GltfPlaced {
     pub materials: Vec<GltfMaterial>,
     /// The meshes placed (index into `meshes`), in the order [`load_gltf`] walks the nodes.
     pub instances: Vec<Instance>,
+    /// The perspective cameras its nodes place ([`GltfScene::cameras`]).
+    pub cameras: Vec<GltfCamera>,
 }
 
 impl GltfPlaced {
@@ -277,6 +342,7 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
     if placements.len() <= drawn_meshes.len() {
         return flatten_opened(path, opened).map(GltfLoaded::Flat);
     }
+    let cameras = cameras_of(path, &placed);
     let Opened {
         document,
         buffers,
@@ -341,6 +407,7 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         meshes,
         materials,
         instances: placements,
+        cameras,
     };
     // The maps were checked above (a singular one placed at the identity); the count is
     // what InstanceSet::new would refuse.
@@ -528,7 +595,7 @@ fn material(
     })
 }
 
-/// The nodes of the scene with a mesh, each with its world transform, in the order the
+/// The nodes of the scene with a mesh or a camera, each with its world transform, in the order the
 /// tree is walked. glTF nodes form trees: a node with two parents or on a cycle is refused
 /// (it would be instanced without end).
 fn instances<'a>(path: &Path, doc: &'a Document) -> Result<Vec<(Node<'a>, Mat4)>> {
@@ -580,7 +647,7 @@ fn instances<'a>(path: &Path, doc: &'a Document) -> Result<Vec<(Node<'a>, Mat4)>
         for c in children.into_iter().rev() {
             stack.push((c, world));
         }
-        if node.mesh().is_some() {
+        if node.mesh().is_some() || node.camera().is_some() {
             out.push((node, world));
         }
     }

@@ -17,7 +17,7 @@ mod ply_layout;
 
 pub use format::{FileKind, KNOWN_EXTENSIONS};
 pub use gltf::{
-    load_gltf, load_gltf_instances, load_gltf_placed, read_gltf, GltfImage, GltfLoaded,
+    load_gltf, load_gltf_instances, load_gltf_placed, read_gltf, GltfCamera, GltfImage, GltfLoaded,
     GltfMaterial, GltfPlaced, GltfScene,
 };
 pub use instanced::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};

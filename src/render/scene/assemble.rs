@@ -209,6 +209,8 @@ pub(super) struct Builder {
     /// Each instance's motion from frame to frame, where a scene file gives any (else
     /// empty: nothing moves).
     motions: Vec<Motion>,
+    /// The perspective cameras of a glTF file added by [`Builder::add_placed_file`].
+    pub(super) cameras: Vec<crate::mesh::GltfCamera>,
 }
 
 impl Builder {
@@ -811,7 +813,21 @@ impl RenderScene {
 
     /// `lancer render MESH` (.obj, .ply, .gltf, .glb): the mesh with its materials from its
     /// default view, on a ground plane, lit by a sun and a sky-coloured background.
+    /// The view is the file's first perspective camera where it places one (glTF), else
+    /// the default view.
     pub fn from_mesh(path: &Path, width: u32, height: u32) -> Result<RenderScene> {
+        Ok(RenderScene::from_mesh_with_camera(path, width, height, None)?.0)
+    }
+
+    /// [`RenderScene::from_mesh`] seen from the file's camera `camera` names (by index or
+    /// name; None: its first, if any); and whether a camera of the file was used (else
+    /// the default view).
+    pub fn from_mesh_with_camera(
+        path: &Path,
+        width: u32,
+        height: u32,
+        camera: Option<&str>,
+    ) -> Result<(RenderScene, bool)> {
         let mut b = Builder::default();
         let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
         let bounds = b.add_placed_file(path, grey)?;
@@ -822,7 +838,13 @@ impl RenderScene {
             b.start_mesh([Affine::IDENTITY]);
             b.add_shape(shapes::quad(), ground, |p| c + p * 20.0 * r, None);
         }
-        let camera = Camera::default_view(&bounds, width, height);
+        let picked = crate::camera::pick_camera(&b.cameras, camera)
+            .map_err(|e| Error::input(path, None, e))?;
+        let from_file = picked.is_some();
+        let camera = match picked {
+            Some(c) => Camera::from_gltf(c, width, height),
+            None => Camera::default_view(&bounds, width, height),
+        };
         let settings = Settings {
             integrator: Integrator::Path,
             max_bounces: 2,
@@ -835,7 +857,7 @@ impl RenderScene {
             direction: Vec3::new(-0.4, -1.0, -0.5).normalize(),
             irradiance: Vec3::new(2.6, 2.4, 2.1),
         }];
-        b.finish(path, camera, settings, lights)
+        Ok((b.finish(path, camera, settings, lights)?, from_file))
     }
 }
 

@@ -116,6 +116,7 @@ impl Builder {
             match read_gltf(path)? {
                 GltfLoaded::Placed(g) => return self.add_gltf_placed(path, grey, g),
                 GltfLoaded::Flat(g) => {
+                    self.cameras = g.cameras.clone();
                     self.start_mesh([crate::geometry::Affine::IDENTITY]);
                     let first = self.triangles.len();
                     self.add_gltf(path, g, None, grey, |p| p, None)?;
@@ -137,6 +138,7 @@ impl Builder {
 
     /// Adds a glTF file's meshes placed by its nodes, with their materials.
     fn add_gltf_placed(&mut self, path: &Path, grey: u32, g: GltfPlaced) -> Result<Aabb> {
+        self.cameras = g.cameras.clone();
         let mut ids = Vec::with_capacity(g.materials.len());
         for m in &g.materials {
             let m = gltf_material(self, path, m)?;

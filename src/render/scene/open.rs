@@ -56,16 +56,24 @@ impl RenderScene {
             ));
         }
         let mesh = FileKind::of(path)? != FileKind::Scene;
-        let mut scene = if mesh {
+        let (mut scene, default_view) = if mesh {
             let (w, h) = size.of(MESH_SIZE);
-            RenderScene::from_mesh(path, w, h)?
+            let (scene, from_file) =
+                RenderScene::from_mesh_with_camera(path, w, h, view.camera.as_deref())?;
+            (scene, !from_file)
         } else {
+            if let Some(c) = &view.camera {
+                return Err(Error::Usage(format!(
+                    "--camera {c} picks a camera of a glTF file; a scene file has one [camera]"
+                )));
+            }
             let mut scene = RenderScene::from_file(path)?;
             let camera = &mut scene.camera;
             (camera.width, camera.height) = size.of((camera.width, camera.height));
-            scene
+            (scene, false)
         };
-        view.apply(&mut scene.camera, mesh).map_err(Error::Usage)?;
+        view.apply(&mut scene.camera, default_view)
+            .map_err(Error::Usage)?;
         Ok(scene)
     }
 }
