@@ -65,8 +65,8 @@ impl PropertyAccess for Vertex {
 pub struct PlyScene {
     /// The triangles in file order, each classified.
     pub mesh: Mesh,
-    /// Each triangle's corner normals (`nx ny nz`), packed ([`pack_corners`]
-    /// (super::pack_corners)); empty where the vertices have none.
+    /// Each triangle's corner normals (`nx ny nz`), packed
+    /// ([`pack_corners`](super::pack_corners)); empty where the vertices have none.
     pub normals: Vec<[u32; 3]>,
     /// Each triangle's corner texture coordinates (`u v`, `s t`, `texture_u texture_v`);
     /// empty where the vertices have none.

@@ -389,7 +389,8 @@ fn add_object(
     check_placement(&o.scale, &o.rotate, &o.translate).map_err(bad)?;
     let (m, t) = transform(o);
     let xf = |p: Vec3| m * p + t;
-    let nm = Some(m.inverse().transpose());
+    // Normals keep their packed words where the object is not turned or scaled.
+    let nm = (m != Mat3::IDENTITY).then(|| m.inverse().transpose());
     if o.smooth == Some(true) && o.shape.is_some_and(|s| s != super::file::Shape::Sphere) {
         return Err(bad(
             "'smooth' applies to spheres and meshes (a box, quad or stadium is flat)".into(),
