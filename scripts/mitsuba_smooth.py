@@ -151,30 +151,16 @@ def block_report(stats_a, stats_b):
     return out
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--width", type=int, default=160)
-    p.add_argument("--height", type=int, default=80)
-    p.add_argument("--spp", type=int, default=256)
-    p.add_argument("--lancer", type=Path, default=mc.DEFAULT_LANCER)
-    p.add_argument("--out", type=Path, default=mc.ROOT / "target" / "mitsuba-smooth")
-    p.add_argument("--report", type=Path)
-    a = p.parse_args()
-    mi = mc.load_mitsuba()
-    mc.ensure_lancer(a.lancer)
-    a.out.mkdir(parents=True, exist_ok=True)
-    (a.out / "sphere.obj").write_text(sphere_obj(SEGMENTS))
-    (a.out / "floor.obj").write_text(FLOOR_OBJ)
-    scene_path = a.out / "smooth.toml"
-    size = (a.width, a.height)
-    scene_path.write_text(lancer_scene(size, a.spp))
+def twin(a, mi, scene_path, mitsuba, title, intro, script):
+    """Renders the lancer scene at `scene_path` (CPU) and the Mitsuba scene `mitsuba`,
+    compares them in 8x8-pixel blocks, prints the tables and, with --report, writes a
+    results page titled `title` (`intro` says what the twin is, `script` what made it)."""
     exr = a.out / "lancer.exr"
     cmd = [mc.rel(a.lancer), "render", mc.rel(scene_path), "-o", mc.rel(exr), "--device", "cpu"]
     start = time.perf_counter()
     subprocess.run(cmd, cwd=mc.ROOT, check=True)
     lancer_s = time.perf_counter() - start
-    scene = mitsuba_scene(mi, a.out, size, a.spp)
-    mitsuba_bmp, mitsuba_s = mc.render_mitsuba(mi, scene, a.spp, 0)
+    mitsuba_bmp, mitsuba_s = mc.render_mitsuba(mi, mitsuba, a.spp, 0)
     lancer_bmp = mi.Bitmap(str(exr))
     stats = mc.compare(mi, lancer_bmp, mitsuba_bmp)
     images = mc.write_images(mi, a.out, lancer_bmp, mitsuba_bmp, stats)
@@ -215,21 +201,50 @@ def main():
             shown.append(f"![{img.stem}]({target.name})")
         now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         a.report.write_text("\n".join([
-            "# Mitsuba 3 twin: smooth spheres", "",
-            "lancer's shading normals against [Mitsuba 3](https://www.mitsuba-renderer.org/): "
-            f"a diffuse and a mirror sphere of {SEGMENTS} segments with vertex normals (OBJ "
-            "`vn`) on a flat floor under a directional light, path tracing with "
-            f"{MAX_BOUNCES} bounces (Mitsuba `max_depth` {mc.max_depth(MAX_BOUNCES)}, no "
-            "Russian roulette), made by `scripts/mitsuba_smooth.py`.", "",
+            f"# Mitsuba 3 twin: {title}", "",
+            intro + f", made by `scripts/{script}`.", "",
             f"- Machine: {mc.machine()}", f"- Date: {now}", f"- Commit: `{mc.git_commit()}`",
             f"- Mitsuba {mi.__version__}, variant `{mc.VARIANT}`; {w}×{h} pixels, {a.spp} spp",
             "", "Commands:", "", "```sh",
-            f"python3 scripts/mitsuba_smooth.py --report {mc.rel(a.report)}",
+            f"python3 scripts/{script} --report {mc.rel(a.report)}",
             "# runs:", " ".join(cmd), "```", "", *lines, "",
             "lancer, Mitsuba 3, and the difference (red: lancer brighter, blue: Mitsuba "
             f"brighter, {mc.DIFF_SCALE:g}× the RGB mean):", "", " ".join(shown), "",
         ]))
         print(f"wrote {mc.rel(a.report)}")
+
+
+def arguments(description, out):
+    """The twins' command line: image size, samples, lancer's binary, the folder the
+    scene's files go to, and the results page to write."""
+    p = argparse.ArgumentParser(description=description)
+    p.add_argument("--width", type=int, default=160)
+    p.add_argument("--height", type=int, default=80)
+    p.add_argument("--spp", type=int, default=256)
+    p.add_argument("--lancer", type=Path, default=mc.DEFAULT_LANCER)
+    p.add_argument("--out", type=Path, default=mc.ROOT / "target" / out)
+    p.add_argument("--report", type=Path)
+    return p.parse_args()
+
+
+def main():
+    a = arguments(__doc__.split("\n\n")[0], "mitsuba-smooth")
+    mi = mc.load_mitsuba()
+    mc.ensure_lancer(a.lancer)
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / "sphere.obj").write_text(sphere_obj(SEGMENTS))
+    (a.out / "floor.obj").write_text(FLOOR_OBJ)
+    scene_path = a.out / "smooth.toml"
+    size = (a.width, a.height)
+    scene_path.write_text(lancer_scene(size, a.spp))
+    intro = (
+        "lancer's shading normals against [Mitsuba 3](https://www.mitsuba-renderer.org/): "
+        f"a diffuse and a mirror sphere of {SEGMENTS} segments with vertex normals (OBJ "
+        "`vn`) on a flat floor under a directional light, path tracing with "
+        f"{MAX_BOUNCES} bounces (Mitsuba `max_depth` {mc.max_depth(MAX_BOUNCES)}, no "
+        "Russian roulette)")
+    twin(a, mi, scene_path, mitsuba_scene(mi, a.out, size, a.spp), "smooth spheres", intro,
+         "mitsuba_smooth.py")
 
 
 if __name__ == "__main__":

@@ -117,9 +117,20 @@ fn render_prices_both_kernels_and_its_numbers_agree() {
     };
     let report = with_progress(|p| bench::render::run(&config, p));
     assert_eq!((report.width, report.height, report.samples), (8, 6, 1));
-    assert_eq!(report.effects, "shadows textures");
-    let kernels: Vec<_> = report.runs.iter().map(|r| (r.device, r.kernel)).collect();
-    assert_eq!(kernels, [("cpu", "specialised"), ("cpu", "all effects")]);
+    assert_eq!(report.effects, "shadows textures environment");
+    let kernels: Vec<_> = (report.runs.iter())
+        .map(|r| (r.device, r.kernel.as_str()))
+        .collect();
+    assert_eq!(
+        kernels,
+        [
+            ("cpu", "specialised"),
+            ("cpu", "all effects"),
+            ("cpu", "without shadows"),
+            ("cpu", "without textures"),
+            ("cpu", "without environment"),
+        ]
+    );
     for r in &report.runs {
         assert!(
             r.ms_min <= r.ms_per_spp && r.ms_per_spp <= r.ms_max,

@@ -141,15 +141,18 @@ fn render_structs_match_rust() {
         size_of::<RenderParams>(),
         fields!(RenderParams;
         "eye" => eye, "width" => width, "fwd" => fwd, "height" => height, "right" => right,
-        "inv_w2" => inv_w2, "up" => up, "inv_h2" => inv_h2, "background" => background,
+        "inv_w2" => inv_w2, "up" => up, "inv_h2" => inv_h2, "env_radiance" => env_radiance,
         "seed" => seed, "sample" => sample, "offset" => offset, "count" => count,
         "max_bounces" => max_bounces, "integrator" => integrator, "n_lights" => n_lights,
         "n_emitters" => n_emitters, "emit_total" => emit_total, "ao_distance" => ao_distance,
         "fixed_offset" => fixed_offset, "crop_x0" => crop_x0, "crop_y0" => crop_y0,
         "crop_width" => crop_width, "aov_base" => aov_base, "placement_base" => placement_base,
-        "n_placements" => n_placements),
+        "n_placements" => n_placements, "env_x" => env_x, "env_width" => env_width,
+        "env_y" => env_y, "env_height" => env_height, "env_z" => env_z,
+        "env_texels" => env_texels, "env_cdf" => env_cdf, "has_env" => has_env, "pad1" => _pad1,
+        "pad2" => _pad2),
     );
-    assert_eq!(size_of::<RenderParams>(), 144);
+    assert_eq!(size_of::<RenderParams>(), 208);
 }
 
 #[test]

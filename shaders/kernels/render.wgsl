@@ -10,6 +10,7 @@ override INDIRECT: bool = true;
 override TEXTURES: bool = true;
 override AO: bool = true;
 override SHADING_NORMALS: bool = true;
+override ENVIRONMENT: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 // AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
 // accumulator; false compiles that code out.
@@ -171,7 +172,7 @@ struct Params {
     inv_w2: f32,
     up: vec3<f32>,
     inv_h2: f32,
-    background: vec3<f32>,
+    env_radiance: vec3<f32>,
     seed: u32,
     sample: u32,
     offset: u32,
@@ -189,6 +190,16 @@ struct Params {
     aov_base: u32,
     placement_base: u32,
     n_placements: u32,
+    env_x: vec3<f32>,
+    env_width: u32,
+    env_y: vec3<f32>,
+    env_height: u32,
+    env_z: vec3<f32>,
+    env_texels: u32,
+    env_cdf: u32,
+    has_env: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // The shading triangles, five words each, in the BVH's memory (BVH_TEXTURES,
@@ -385,6 +396,8 @@ const STEP_DONE: u32 = 4u;     // the sample is finished
 const STEP_LIGHTS: u32 = 5u;   // next: the lights from lights[light_i] on
 const STEP_EMITTER_SAMPLE: u32 = 6u;  // next: the emitter sample
 const STEP_END_DIRECT: u32 = 7u;      // next: the bounce after direct()
+const STEP_ENV: u32 = 8u;             // query: the shadow ray toward the environment's sample
+const STEP_ENV_SAMPLE: u32 = 9u;      // next: the environment's sample
 
 var<private> step: u32;
 var<private> query: Ray;
@@ -393,6 +406,9 @@ var<private> rad: vec3<f32>;
 var<private> beta: vec3<f32>;
 var<private> count_emission: bool;
 var<private> bounce: u32;
+// The density the last diffuse bounce drew the path ray's direction with (0: a camera ray
+// or a specular bounce).
+var<private> bounce_pdf: f32;
 // CpuRenderer::direct's state at a diffuse hit: the point, the normal, the albedo, the
 // shadow rays' origin, the light summed so far, and what the light of the
 // shadow ray in flight adds if nothing blocks it.
@@ -418,6 +434,7 @@ fn start_sample(x: u32, y: u32) {
     beta = vec3<f32>(1.0);
     count_emission = true;
     bounce = 0u;
+    bounce_pdf = 0.0;
     query = Ray(params.eye, 0.0, normalize3(params.fwd + params.right * sx + params.up * sy), PRIMARY_TMAX);
     step = STEP_PATH;
 }
@@ -437,7 +454,13 @@ fn path_hit(hit: Hit) {
         if bounce == 0u {
             write_aovs(-1.0, vec3<f32>(0.0), vec3<f32>(0.0));
         }
-        rad += beta * params.background;
+        if ENVIRONMENT && params.has_env != 0u {
+            var w = 1.0;
+            if bounce_pdf > 0.0 {
+                w = power_heuristic(bounce_pdf, env_pdf(ray.dir));
+            }
+            rad += beta * env_eval(ray.dir) * w;
+        }
         step = STEP_DONE;
         return;
     }
@@ -486,6 +509,7 @@ fn path_hit(hit: Hit) {
         }
         beta *= mat.albedo;
         count_emission = true;
+        bounce_pdf = 0.0;
         next_bounce(Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX));
         return;
     }
@@ -500,6 +524,7 @@ fn path_hit(hit: Hit) {
         let u = next_f32();
         beta *= mat.albedo;
         count_emission = true;
+        bounce_pdf = 0.0;
         if sin2_t >= 1.0 || u < fresnel {
             if !keeps_side(reflected, n, true) {
                 step = STEP_DONE;
@@ -610,6 +635,42 @@ fn emitter_ray() {
             light_sum += pending;
         }
     }
+    step = STEP_ENV_SAMPLE;
+}
+
+// cpu::power_heuristic
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let a2 = a * a;
+    let b2 = b * b;
+    return a2 / (a2 + b2);
+}
+
+// CpuRenderer::direct's environment sample, up to its shadow ray.
+fn env_ray() {
+    if ENVIRONMENT && params.has_env != 0u {
+        let u1 = next_f32();
+        let u2 = next_f32();
+        let e = env_sample(u1, u2);
+        if e.w > 0.0 {
+            let d = e.xyz;
+            let c = dot3(at_n, d);
+            if c > 0.0 && keeps_side(d, at_ng, true) {
+                let bounces = INDIRECT && params.integrator == INTEGRATOR_PATH
+                    && bounce != params.max_bounces;
+                var w = 1.0;
+                if bounces {
+                    w = power_heuristic(e.w, c * PI_INV);
+                }
+                pending = env_eval(d) * (c * w / e.w);
+                if SHADOWS {
+                    query = Ray(at_o, 0.0, d, PRIMARY_TMAX);
+                    step = STEP_ENV;
+                    return;
+                }
+                light_sum += pending;
+            }
+        }
+    }
     step = STEP_END_DIRECT;
 }
 
@@ -628,6 +689,7 @@ fn end_direct() {
         return;
     }
     count_emission = !(SOFT_SHADOWS && params.n_emitters > 0u);
+    bounce_pdf = dot3(at_n, dir) * PI_INV;
     // at_o is the CPU's second leave(p, p_err, n): the same origin.
     next_bounce(Ray(at_o, 0.0, dir, PRIMARY_TMAX));
 }
@@ -649,6 +711,13 @@ fn light_hit(hit: Hit) {
 }
 
 fn emitter_hit(hit: Hit) {
+    if hit.prim == MISS {
+        light_sum += pending;
+    }
+    step = STEP_ENV_SAMPLE;
+}
+
+fn env_hit(hit: Hit) {
     if hit.prim == MISS {
         light_sum += pending;
     }
@@ -691,6 +760,10 @@ fn sample_alone() {
         if step == STEP_EMITTER {
             emitter_hit(trace_query(true));
         }
+        env_ray();
+        if step == STEP_ENV {
+            env_hit(trace_query(true));
+        }
         end_direct();
     }
 }
@@ -723,11 +796,17 @@ fn sample_together() {
         if lanes_any(traced == STEP_EMITTER) && traced == STEP_EMITTER {
             emitter_hit(hit);
         }
+        if lanes_any(traced == STEP_ENV) && traced == STEP_ENV {
+            env_hit(hit);
+        }
         if lanes_any(step == STEP_LIGHTS) && step == STEP_LIGHTS {
             light_rays();
         }
         if lanes_any(step == STEP_EMITTER_SAMPLE) && step == STEP_EMITTER_SAMPLE {
             emitter_ray();
+        }
+        if lanes_any(step == STEP_ENV_SAMPLE) && step == STEP_ENV_SAMPLE {
+            env_ray();
         }
         if lanes_any(step == STEP_END_DIRECT) && step == STEP_END_DIRECT {
             end_direct();

@@ -1,6 +1,7 @@
 //! `lancer bench render`: milliseconds per sample per pixel on the GPU (per-ray, and with
 //! subgroup traversal where it runs) and the CPU, with the kernel specialised to the scene's
-//! effects and with every effect compiled in.
+//! effects, with every effect compiled in, and without each effect the scene calls for in
+//! turn (what that effect costs).
 
 use serde::Serialize;
 
@@ -70,8 +71,9 @@ pub struct Run {
     pub device: &'static str,
     /// GPU: the traversal mode, "per-ray" or "subgroup" (null on the CPU).
     pub mode: Option<&'static str>,
-    /// "specialised" (the scene's effects) or "all effects".
-    pub kernel: &'static str,
+    /// "specialised" (the scene's effects), "all effects", or "without EFFECT" (the
+    /// scene's effects but one: the difference to "specialised" is what it costs).
+    pub kernel: String,
     /// Median milliseconds per sample per pixel.
     pub ms_per_spp: f64,
     /// Fastest sample, in ms.
@@ -96,10 +98,13 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         ..RenderOptions::default()
     };
     let specialised = EffectSet::of(scene);
-    let kernels = [
-        ("specialised", specialised),
-        ("all effects", EffectSet::ALL),
+    let mut kernels = vec![
+        ("specialised".to_string(), specialised),
+        ("all effects".to_string(), EffectSet::ALL),
     ];
+    kernels.extend(
+        (specialised.each_without().into_iter()).map(|(n, fx)| (format!("without {n}"), fx)),
+    );
     // (device, mode): the GPU in both modes (subgroup where it runs), then the CPU.
     let mut configs = vec![("cpu", &cpu, None)];
     if !device.is_cpu() {
@@ -107,7 +112,8 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         configs.insert(1, ("gpu", &device, Some(TraversalMode::Subgroup)));
     }
     let per_kernel = config.spp as u64 + 1;
-    let ticker = Ticker::new(progress, configs.len() as u64 * 2 * per_kernel);
+    let n_kernels = kernels.len() as u64;
+    let ticker = Ticker::new(progress, configs.len() as u64 * n_kernels * per_kernel);
     let seed = scene.settings.seed;
     let rob = Robustness::default();
     let (w, h) = (scene.camera.width, scene.camera.height);
@@ -123,11 +129,12 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         if mode.is_some_and(|m| m != renderer.mode()) {
             // Its fallback is the per-ray row already measured (the warning says why).
             not_run = mode.map(TraversalMode::name);
-            ticker.inc(2 * per_kernel);
+            ticker.inc(n_kernels * per_kernel);
             continue;
         }
         triangles = renderer.bvh_stats().map_or(0, |s| s.triangles);
-        for (name, fx) in kernels {
+        for (name, fx) in &kernels {
+            let fx = *fx;
             let mode_name = mode.map(TraversalMode::name);
             ticker.say(format!("{dev_name} {}, {name}", mode_name.unwrap_or("")));
             // Sample 0 compiles the pipeline (GPU) and warms caches, outside the timing.
@@ -143,7 +150,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
             runs.push(Run {
                 device: dev_name,
                 mode: mode_name,
-                kernel: name,
+                kernel: name.clone(),
                 ms_per_spp,
                 ms_min,
                 ms_max,
@@ -227,6 +234,22 @@ impl BenchReport for Report {
                     "{dev}{}: specialisation saves {:.1}% ({a:.1} → {s:.1} ms per spp)\n",
                     mode.map(|m| format!(" {m}")).unwrap_or_default(),
                     100.0 * (a - s) / a
+                );
+            }
+            // What each effect costs: the specialised kernel against it without the effect.
+            let costs: Vec<String> = (self.runs.iter())
+                .filter(|r| r.device == dev && r.mode == mode)
+                .filter_map(|r| Some((r.kernel.strip_prefix("without ")?, r.ms_per_spp)))
+                .filter_map(|(effect, without)| {
+                    let s = of("specialised")?;
+                    Some(format!("{effect} {:+.1}%", 100.0 * (s - without) / without))
+                })
+                .collect();
+            if !costs.is_empty() {
+                out += &format!(
+                    "{dev}{}: each effect's cost (specialised ÷ without it − 1): {}\n",
+                    mode.map(|m| format!(" {m}")).unwrap_or_default(),
+                    costs.join(", ")
                 );
             }
         }

@@ -71,6 +71,14 @@ fn keeps_side(fx: EffectSet, d: Vec3, n: Vec3, toward: bool) -> bool {
     !fx.shading_normals || (dot(d, n) > 0.0) == toward
 }
 
+/// The weight multiple importance sampling gives a sample drawn with density `a` where
+/// another strategy would draw it with density `b` (Veach's power heuristic, β = 2).
+/// WGSL `power_heuristic`.
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    a2 / (a2 + b2)
+}
+
 /// The CPU renderer of one scene over one acceleration structure.
 pub struct CpuRenderer<'a> {
     scene: &'a RenderScene,
@@ -126,12 +134,15 @@ impl<'a> CpuRenderer<'a> {
 
     /// Light arriving at p (error bound `err`, geometric normal n facing the viewer,
     /// shading normal ns) from every light, times the cosine to ns; none from below n.
+    /// `bounces`: a diffuse bounce follows, so the environment's sample is weighted by
+    /// multiple importance sampling against it.
     fn direct(
         &self,
         fx: EffectSet,
         p: Vec3,
         err: Vec3,
         (n, ns): (Vec3, Vec3),
+        bounces: bool,
         rng: &mut Rng,
     ) -> Vec3 {
         let o = self.leave(p, err, n);
@@ -202,6 +213,23 @@ impl<'a> CpuRenderer<'a> {
                 }
             }
         }
+        if let Some(env) = (self.scene.environment.as_ref()).filter(|_| fx.environment) {
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            if let Some(e) = env.sample(u1, u2) {
+                let c = dot(ns, e.dir);
+                if c > 0.0 && keeps_side(fx, e.dir, n, true) {
+                    let w = if bounces {
+                        power_heuristic(e.pdf, c * FRAC_1_PI)
+                    } else {
+                        1.0
+                    };
+                    let l = env.eval(e.dir) * (c * w / e.pdf);
+                    if !(fx.shadows && self.occluded(o, e.dir, PRIMARY_TMAX)) {
+                        sum += l;
+                    }
+                }
+            }
+        }
         sum
     }
 
@@ -261,11 +289,21 @@ impl<'a> CpuRenderer<'a> {
         let mut radiance = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut count_emission = true;
+        // The density the last diffuse bounce drew the ray's direction with; 0 for a
+        // camera ray or a specular bounce (which the environment's samples cannot draw).
+        let mut bounce_pdf = 0.0f32;
         let nee = fx.soft_shadows && !self.scene.emitters.is_empty();
         for bounce in 0..=s.max_bounces {
             let hit = self.closest(&ray);
             if !hit.is_hit() {
-                radiance += beta * s.background;
+                if let Some(env) = (self.scene.environment.as_ref()).filter(|_| fx.environment) {
+                    let w = if bounce_pdf > 0.0 {
+                        power_heuristic(bounce_pdf, env.pdf(ray.dir))
+                    } else {
+                        1.0
+                    };
+                    radiance += beta * env.eval(ray.dir) * w;
+                }
                 break;
             }
             let tri = self.scene.triangle(hit.prim);
@@ -304,6 +342,7 @@ impl<'a> CpuRenderer<'a> {
                 beta *= mat.albedo;
                 ray = Ray::new(self.leave(p, p_err, n), reflected, 0.0, PRIMARY_TMAX);
                 count_emission = true;
+                bounce_pdf = 0.0;
                 continue;
             }
             if glass {
@@ -317,6 +356,7 @@ impl<'a> CpuRenderer<'a> {
                 let u = rng.next_f32();
                 beta *= mat.albedo;
                 count_emission = true;
+                bounce_pdf = 0.0;
                 if sin2_t >= 1.0 || u < fresnel {
                     if !keeps_side(fx, reflected, n, true) {
                         break;
@@ -334,8 +374,10 @@ impl<'a> CpuRenderer<'a> {
             }
             // Diffuse.
             let albedo = self.albedo(fx, tri.shade, &hit);
-            radiance += beta * albedo * FRAC_1_PI * self.direct(fx, p, p_err, (n, ns), &mut rng);
-            if !(fx.indirect && s.integrator == Integrator::Path) || last {
+            let bounces = fx.indirect && s.integrator == Integrator::Path && !last;
+            let light = self.direct(fx, p, p_err, (n, ns), bounces, &mut rng);
+            radiance += beta * albedo * FRAC_1_PI * light;
+            if !bounces {
                 break;
             }
             beta *= albedo;
@@ -345,6 +387,7 @@ impl<'a> CpuRenderer<'a> {
             }
             ray = Ray::new(self.leave(p, p_err, n), dir, 0.0, PRIMARY_TMAX);
             count_emission = !nee;
+            bounce_pdf = dot(ns, dir) * FRAC_1_PI;
         }
         radiance
     }

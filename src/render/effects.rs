@@ -23,6 +23,9 @@ pub struct EffectSet {
     pub ao: bool,
     /// Shading normals interpolated from the vertices' (smooth surfaces).
     pub shading_normals: bool,
+    /// Light from the environment: seen by rays that leave the scene, and sampled at
+    /// every diffuse hit (multiple importance sampling with the diffuse bounce).
+    pub environment: bool,
 }
 
 impl EffectSet {
@@ -36,6 +39,7 @@ impl EffectSet {
         textures: true,
         ao: true,
         shading_normals: true,
+        environment: true,
     };
 
     /// What `scene` needs, and nothing more.
@@ -48,8 +52,10 @@ impl EffectSet {
             .collect();
         let kind_used = |k: MaterialKind| used.iter().any(|m| m.kind == k);
         let ao = s.integrator == Integrator::Ao;
+        // Seen by rays that leave the scene under every integrator (AO's camera rays too).
+        let environment = scene.environment.is_some();
         EffectSet {
-            shadows: !ao && (!scene.lights.is_empty() || !scene.emitters.is_empty()),
+            shadows: !ao && (!scene.lights.is_empty() || !scene.emitters.is_empty() || environment),
             soft_shadows: !ao && !scene.emitters.is_empty(),
             mirror: !ao && kind_used(MaterialKind::Mirror),
             refraction: !ao && kind_used(MaterialKind::Glass),
@@ -62,11 +68,12 @@ impl EffectSet {
                     .get(i as usize)
                     .is_some_and(|n| n[0] != NO_NORMAL)
             }),
+            environment,
         }
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 8] {
+    pub fn flags(&self) -> [(&'static str, bool); 9] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -76,7 +83,35 @@ impl EffectSet {
             ("TEXTURES", self.textures),
             ("AO", self.ao),
             ("SHADING_NORMALS", self.shading_normals),
+            ("ENVIRONMENT", self.environment),
         ]
+    }
+}
+
+impl EffectSet {
+    /// For each effect in the set, its name (as [`Display`](std::fmt::Display) prints
+    /// it) and the set without it: what `bench render` times to price each effect.
+    pub fn each_without(&self) -> Vec<(String, EffectSet)> {
+        type Field = fn(&mut EffectSet) -> &mut bool;
+        let fields: [(&str, Field); 9] = [
+            ("shadows", |f| &mut f.shadows),
+            ("soft-shadows", |f| &mut f.soft_shadows),
+            ("mirror", |f| &mut f.mirror),
+            ("refraction", |f| &mut f.refraction),
+            ("indirect", |f| &mut f.indirect),
+            ("textures", |f| &mut f.textures),
+            ("ao", |f| &mut f.ao),
+            ("shading-normals", |f| &mut f.shading_normals),
+            ("environment", |f| &mut f.environment),
+        ];
+        let mut out = Vec::new();
+        for (name, field) in fields {
+            let mut without = *self;
+            if std::mem::replace(field(&mut without), false) {
+                out.push((name.to_string(), without));
+            }
+        }
+        out
     }
 }
 

@@ -138,8 +138,9 @@ pub struct RenderParams {
     pub up: [f32; 3],
     /// 2 / height.
     pub inv_h2: f32,
-    /// Radiance of rays that leave the scene, linear RGB.
-    pub background: [f32; 3],
+    /// The environment's uniform radiance, or its map's scale, linear RGB (the
+    /// ENVIRONMENT effect reads it).
+    pub env_radiance: [f32; 3],
     /// Random seed, hashed with the pixel and sample index.
     pub seed: u32,
     /// Index of the sample this pass adds.
@@ -174,6 +175,28 @@ pub struct RenderParams {
     pub placement_base: u32,
     /// Placements (0 without).
     pub n_placements: u32,
+    /// The first row of the environment's rotation from world to map space.
+    pub env_x: [f32; 3],
+    /// The environment map's width in texels (0: uniform).
+    pub env_width: u32,
+    /// The second row of that rotation.
+    pub env_y: [f32; 3],
+    /// The environment map's height in texels.
+    pub env_height: u32,
+    /// The third row of that rotation.
+    pub env_z: [f32; 3],
+    /// Where the map's texels start in the texel buffer (a `vec4` each).
+    pub env_texels: u32,
+    /// Where the map's CDFs start in the texel buffer ([`EnvMap::cdf`](super::EnvMap::cdf),
+    /// four floats a `vec4`).
+    pub env_cdf: u32,
+    /// 1: the scene has an environment (the ENVIRONMENT effect may be compiled in for a
+    /// scene without: then it draws no random numbers, as on the CPU).
+    pub has_env: u32,
+    /// Padding (zero).
+    pub _pad1: u32,
+    /// Padding (zero).
+    pub _pad2: u32,
 }
 
 /// The scene and a layout on the device, the render kernel compiled for them, and the
@@ -238,6 +261,22 @@ impl<'a> GpuRenderer<'a> {
         for t in &scene.textures {
             tex_at.push(texels.len() as u32);
             texels.extend(t.texels.iter().map(|c| c.extend(1.0).to_array()));
+        }
+        let env = scene.environment.as_ref();
+        let (env_texels, env_cdf) = (
+            texels.len() as u32,
+            texels.len() as u32 + {
+                env.and_then(|e| e.map.as_ref())
+                    .map_or(0, |m| m.texels.len() as u32)
+            },
+        );
+        if let Some(m) = env.and_then(|e| e.map.as_ref()) {
+            texels.extend(m.texels.iter().map(|c| c.extend(1.0).to_array()));
+            texels.extend(m.cdf.chunks(4).map(|c| {
+                let mut v = [0.0; 4];
+                v[..c.len()].copy_from_slice(c);
+                v
+            }));
         }
         if texels.is_empty() {
             texels.push([0.0; 4]);
@@ -391,7 +430,7 @@ impl<'a> GpuRenderer<'a> {
             inv_w2: f.inv_w2,
             up: f.up.into(),
             inv_h2: f.inv_h2,
-            background: s.background.into(),
+            env_radiance: env.map_or(Vec3::ZERO, |e| e.radiance).into(),
             seed: s.seed,
             max_bounces: s.max_bounces,
             integrator: s.integrator.code(),
@@ -408,6 +447,14 @@ impl<'a> GpuRenderer<'a> {
             // the upload's size check bounds.
             placement_base: placement_base as u32,
             n_placements: (scene.placements.as_ref()).map_or(0, |p| p.set().instances.len()) as u32,
+            env_x: env.map_or(Vec3::X, |e| e.to_local[0]).into(),
+            env_y: env.map_or(Vec3::Y, |e| e.to_local[1]).into(),
+            env_z: env.map_or(Vec3::Z, |e| e.to_local[2]).into(),
+            env_width: env.and_then(|e| e.map.as_ref()).map_or(0, |m| m.width),
+            env_height: env.and_then(|e| e.map.as_ref()).map_or(0, |m| m.height),
+            env_texels,
+            env_cdf,
+            has_env: env.is_some() as u32,
             ..RenderParams::default()
         };
         Ok(GpuRenderer {

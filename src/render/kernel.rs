@@ -6,12 +6,16 @@
 use crate::accel::GpuForm;
 use crate::gpu::shaders::{self, Shared};
 
+use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
 use super::sampling::POINT_ERROR;
+use super::trig::{ATAN_C, COS_C, INV_TAU, SIN_C};
 use super::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED, TRANSFORM_ERROR};
 use crate::geometry::{NO_NORMAL, SNORM16_SCALE};
 
 /// The render kernel (one sample of one pixel per invocation).
 pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
+/// The environment light's lookups and sampling, and the polynomial trigonometry they use.
+pub const ENVIRONMENT: &str = include_str!("../../shaders/lib/environment.wgsl");
 
 /// The render kernel where each lane traverses alone: it traces each ray where the CPU
 /// does (`lanes_any(b)`, unused there, is the lane's own `b`).
@@ -43,13 +47,33 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
         ("NO_NORMAL", U32(NO_NORMAL)),     // geometry::NO_NORMAL
         ("SNORM16_SCALE", F32(SNORM16_SCALE)), // geometry::SNORM16_SCALE
+        // render::trig and render::environment
+        ("PI", F32(std::f32::consts::PI)),
+        ("FRAC_PI_2", F32(std::f32::consts::FRAC_PI_2)),
+        ("INV_TAU", F32(INV_TAU)),
+        ("SIN_C1", F32(SIN_C[0])),
+        ("SIN_C2", F32(SIN_C[1])),
+        ("SIN_C3", F32(SIN_C[2])),
+        ("SIN_C4", F32(SIN_C[3])),
+        ("COS_C1", F32(COS_C[0])),
+        ("COS_C2", F32(COS_C[1])),
+        ("COS_C3", F32(COS_C[2])),
+        ("COS_C4", F32(COS_C[3])),
+        ("ATAN_C0", F32(ATAN_C[0])),
+        ("ATAN_C1", F32(ATAN_C[1])),
+        ("ATAN_C2", F32(ATAN_C[2])),
+        ("ATAN_C3", F32(ATAN_C[3])),
+        ("ATAN_C4", F32(ATAN_C[4])),
+        ("ATAN_C5", F32(ATAN_C[5])),
+        ("UNIFORM_SPHERE_PDF", F32(UNIFORM_SPHERE_PDF)),
+        ("MAP_PDF_SCALE", F32(MAP_PDF_SCALE)),
     ]
 }
 
 /// The renderer's constants, the lane mode and the render kernel.
 fn render_kernel(lanes: &str) -> String {
     let constants = shaders::constants_wgsl("render::kernel", &render_constants());
-    format!("{constants}\n{lanes}\n{RENDER}")
+    format!("{constants}\n{lanes}\n{RENDER}\n{ENVIRONMENT}")
 }
 
 /// The render kernel's full source for a GPU form.

@@ -6,6 +6,7 @@ mod aov;
 mod cpu;
 mod crop;
 mod effects;
+mod environment;
 mod exr;
 mod gpu;
 mod image;
@@ -16,11 +17,15 @@ mod renderer;
 pub(crate) mod sampling;
 mod scene;
 mod stats;
+mod trig;
 
 pub use aov::{AovSet, Aovs, FirstHit};
 pub use cpu::{sample_texture, CpuRenderer};
 pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
+pub use environment::{
+    read_map, EnvMap, EnvSample, Environment, MAP_PDF_SCALE, UNIFORM_SPHERE_PDF,
+};
 pub use exr::ExrImage;
 pub use gpu::{
     GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED,
@@ -30,7 +35,7 @@ pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, Ima
 pub use image_compare::{compare_images, load_image, ImageDiff};
 pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
-pub use sampling::{offset_origin, pcg, point_error, Rng, POINT_ERROR};
+pub use sampling::{cosine_direction, offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
 pub use scene::{load_geometry, load_instances, load_traceable, Geometry};
 pub use scene::{
@@ -38,3 +43,4 @@ pub use scene::{
     Placements, RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;
+pub use trig::{atan2_turns, sin_cos_turns};

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec2, Vec3};
 
+use super::environment::environment_of;
 use super::file::{
     line_of, Integrator, LightKind, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
 };
@@ -18,6 +19,7 @@ use crate::geometry::{unpack_unit, Aabb, Affine, Triangle, NO_NORMAL};
 use crate::mesh::{
     check_traceable, classify, warn_exclusions, Instance, InstanceSet, Mesh, ObjScene, TriStatus,
 };
+use crate::render::environment::Environment;
 
 /// A surface's material, as both renderers shade it.
 #[derive(Clone, Debug, PartialEq)]
@@ -92,8 +94,6 @@ pub struct Settings {
     pub spp: u32,
     /// Random seed, hashed with the pixel and sample index.
     pub seed: u32,
-    /// Radiance of rays that leave the scene, linear RGB.
-    pub background: Vec3,
     /// Ambient-occlusion ray length, scene units; when not set (≤ 0), assembly makes it a
     /// tenth of the scene's bounding-box diagonal.
     pub ao_distance: f32,
@@ -126,6 +126,8 @@ pub struct RenderScene {
     pub textures: Vec<Texture>,
     /// Point and directional lights.
     pub lights: Vec<Light>,
+    /// Light from infinitely far away, seen by rays that leave the scene; None: black.
+    pub environment: Option<Environment>,
     /// Emissive triangles by number (area lights), with the running sum of their areas.
     pub emitters: Vec<u32>,
     /// Running sum of the emitters' areas: `emitter_cdf[i]` = area of `emitters[..=i]`.
@@ -806,14 +808,14 @@ impl RenderScene {
             max_bounces: r.max_bounces,
             spp: r.spp,
             seed: r.seed,
-            background: check_rgb(path, rln, "background", r.background)?,
             ao_distance: r.ao_distance.unwrap_or(0.0),
         };
-        b.finish(path, camera, settings, lights)
+        let environment = environment_of(path, &src, &f, &dir, &mut b.sources)?;
+        b.finish(path, camera, settings, lights, environment)
     }
 
     /// `lancer render MESH` (.obj, .ply, .gltf, .glb): the mesh with its materials from its
-    /// default view, on a ground plane, lit by a sun and a sky-coloured background.
+    /// default view, on a ground plane, lit by a sun and a uniform sky.
     /// The view is the file's first perspective camera where it places one (glTF), else
     /// the default view.
     pub fn from_mesh(path: &Path, width: u32, height: u32) -> Result<RenderScene> {
@@ -851,14 +853,17 @@ impl RenderScene {
             max_bounces: 2,
             spp: 16,
             seed: 0,
-            background: Vec3::new(0.35, 0.45, 0.6),
             ao_distance: 0.0,
         };
+        let sky = Environment::uniform(Vec3::new(0.35, 0.45, 0.6));
         let lights = vec![Light::Directional {
             direction: Vec3::new(-0.4, -1.0, -0.5).normalize(),
             irradiance: Vec3::new(2.6, 2.4, 2.1),
         }];
-        Ok((b.finish(path, camera, settings, lights)?, from_file))
+        Ok((
+            b.finish(path, camera, settings, lights, Some(sky))?,
+            from_file,
+        ))
     }
 }
 
@@ -869,6 +874,7 @@ impl Builder {
         camera: Camera,
         mut settings: Settings,
         lights: Vec<Light>,
+        environment: Option<Environment>,
     ) -> Result<RenderScene> {
         let mut normals = self.normals;
         if !normals.is_empty() {
@@ -899,6 +905,7 @@ impl Builder {
             materials: self.materials,
             textures: self.textures,
             lights,
+            environment,
             emitters: Vec::new(),
             emitter_cdf: Vec::new(),
             placements,

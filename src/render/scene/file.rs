@@ -42,6 +42,26 @@ pub struct SceneFile {
     /// `[[lights]]`: point and directional lights, with their source spans.
     #[serde(default)]
     pub lights: Vec<Spanned<LightDef>>,
+    /// `[environment]`: light from infinitely far away (default: none, or `[render]
+    /// background`).
+    pub environment: Option<Spanned<EnvironmentDef>>,
+}
+
+/// `[environment]`: uniform `radiance`, or an equirectangular `map` times `scale`, turned
+/// by `rotate`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentDef {
+    /// The same radiance from every direction, linear RGB.
+    pub radiance: Option<[f32; 3]>,
+    /// An OpenEXR or Radiance HDR file, relative to the scene file (Mitsuba 3's `envmap`
+    /// placement).
+    pub map: Option<String>,
+    /// What the map's texels are multiplied by.
+    pub scale: Option<f32>,
+    /// Rotation of the map in degrees about X, then Y, then Z.
+    #[serde(default)]
+    pub rotate: [f32; 3],
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -71,6 +91,7 @@ pub struct RenderDef {
     pub spp: u32,
     #[serde(default)]
     pub seed: u32,
+    /// Shorthand for `[environment] radiance`.
     #[serde(default)]
     pub background: [f32; 3],
     /// AO ray length; default: a tenth of the scene's bounding-box diagonal.

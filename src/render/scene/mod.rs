@@ -3,6 +3,7 @@
 
 mod assemble;
 pub mod builtin;
+mod environment;
 mod file;
 mod imported;
 mod open;

@@ -1,0 +1,126 @@
+#!/usr/bin/env python3
+"""Mitsuba 3 twin of the environment light: a smooth diffuse sphere and a mirror sphere on
+a floor, lit only by an equirectangular map (scenes/sky.hdr: a blue sky, a white horizon
+and a small sun) turned by 30 degrees about Y, rendered by lancer's CPU renderer and by
+Mitsuba 3 (scalar_rgb, its `envmap` emitter with the same map and rotation). Checks the
+map's placement, its importance sampling and the multiple importance sampling with the
+diffuse bounce against an independent renderer, in region means.
+
+The script writes the scene's files (sphere.obj with normals, floor.obj, env.toml) into
+--out, renders both, and compares the images in 8x8-pixel blocks (linear RGB). With
+--report it writes a results page.
+
+    pip install mitsuba        # Mitsuba 3, with drjit
+    python3 scripts/mitsuba_env.py                       # 160x80, 256 spp
+    python3 scripts/mitsuba_env.py --report docs/src/results/2026-12-03-mitsuba-env.md
+
+Helpers come from mitsuba_cornell.py and mitsuba_smooth.py beside it.
+"""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import mitsuba_cornell as mc  # noqa: E402
+import mitsuba_smooth as ms  # noqa: E402
+
+MAP = mc.ROOT / "scenes" / "sky.hdr"
+TURN = 30.0
+MAX_BOUNCES = 3
+CAMERA = {"position": [0.0, 1.2, 5.0], "look_at": [0.0, 0.6, 0.0], "fov": 35.0}
+SPHERES = [  # (centre, radius, lancer material, Mitsuba BSDF)
+    ([-0.75, 0.6, 0.0], 0.6, "white", {"type": "diffuse",
+                                       "reflectance": {"type": "rgb", "value": [0.8, 0.8, 0.8]}}),
+    ([0.75, 0.6, 0.0], 0.6, "mirror", {"type": "conductor", "material": "none"}),
+]
+
+
+def lancer_scene(size, spp):
+    w, h = size
+    objects = "".join(
+        f'\n[[objects]]\nmesh = "sphere.obj"\nmaterial = "{m}"\nscale = {r}\n'
+        f"translate = {c}\n" for (c, r, m, _) in SPHERES)
+    return f"""[camera]
+position = {CAMERA["position"]}
+look_at = {CAMERA["look_at"]}
+fov = {CAMERA["fov"]}
+width = {w}
+height = {h}
+
+[render]
+integrator = "path"
+max_bounces = {MAX_BOUNCES}
+spp = {spp}
+
+[environment]
+map = "{MAP}"
+rotate = [0.0, {TURN}, 0.0]
+
+[materials.floor]
+type = "diffuse"
+albedo = [0.6, 0.6, 0.6]
+[materials.white]
+type = "diffuse"
+albedo = [0.8, 0.8, 0.8]
+[materials.mirror]
+type = "mirror"
+
+[[objects]]
+mesh = "floor.obj"
+material = "floor"
+{objects}"""
+
+
+def mitsuba_scene(mi, out, size, spp):
+    w, h = size
+    depth = mc.max_depth(MAX_BOUNCES)
+    two_sided = lambda bsdf: {"type": "twosided", "bsdf": bsdf}  # noqa: E731
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": depth, "rr_depth": depth},
+        "sensor": {
+            "type": "perspective", "fov_axis": "y", "fov": CAMERA["fov"],
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=CAMERA["position"], target=CAMERA["look_at"], up=[0, 1, 0]),
+            "near_clip": 1e-3, "far_clip": 1e7,
+            "sampler": {"type": "independent", "sample_count": spp},
+            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
+                     "pixel_format": "rgb", "component_format": "float32"},
+        },
+        "sky": {"type": "envmap", "filename": str(MAP),
+                "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], TURN)},
+        "floor": {"type": "obj", "filename": str(out / "floor.obj"), "face_normals": True,
+                  "bsdf": two_sided({"type": "diffuse",
+                                     "reflectance": {"type": "rgb", "value": 0.6}})},
+    }
+    for k, (c, r, _, bsdf) in enumerate(SPHERES):
+        d[f"sphere{k}"] = {
+            "type": "obj", "filename": str(out / "sphere.obj"), "face_normals": False,
+            "to_world": mi.ScalarTransform4f().translate(c).scale(r),
+            "bsdf": two_sided(bsdf) if bsdf["type"] == "diffuse" else bsdf,
+        }
+    return mi.load_dict(d)
+
+
+def main():
+    a = ms.arguments(__doc__.split("\n\n")[0], "mitsuba-env")
+    mi = mc.load_mitsuba()
+    mc.ensure_lancer(a.lancer)
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / "sphere.obj").write_text(ms.sphere_obj(32))
+    (a.out / "floor.obj").write_text(ms.FLOOR_OBJ)
+    scene_path = a.out / "env.toml"
+    size = (a.width, a.height)
+    scene_path.write_text(lancer_scene(size, a.spp))
+    intro = (
+        "lancer's environment light against [Mitsuba 3](https://www.mitsuba-renderer.org/): "
+        "a smooth diffuse sphere (32 segments, OBJ `vn`) and a mirror sphere on a floor, lit "
+        f"only by `scenes/sky.hdr` turned {TURN:g}° about Y (Mitsuba's `envmap` with the "
+        f"same `to_world`), path tracing with {MAX_BOUNCES} bounces (Mitsuba `max_depth` "
+        f"{mc.max_depth(MAX_BOUNCES)}, no Russian roulette)")
+    ms.twin(a, mi, scene_path, mitsuba_scene(mi, a.out, size, a.spp), "environment map",
+            intro, "mitsuba_env.py")
+
+
+if __name__ == "__main__":
+    main()
