@@ -133,7 +133,8 @@ fn render_structs_match_rust() {
         "Light",
         size_of::<GpuLight>(),
         fields!(GpuLight;
-        "v" => v, "kind" => kind, "power" => power, "pad" => _pad),
+        "v" => v, "kind" => kind, "power" => power, "offset" => offset,
+        "axis" => axis, "scale" => scale),
     );
     check(
         m,

@@ -11,6 +11,7 @@ override TEXTURES: bool = true;
 override AO: bool = true;
 override SHADING_NORMALS: bool = true;
 override ENVIRONMENT: bool = true;
+override SPOT_LIGHTS: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 // AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
 // accumulator; false compiles that code out.
@@ -154,12 +155,21 @@ struct Material {
 }
 
 // render::gpu::GpuLight: kind 0 point (v = position, power = intensity),
-// 1 directional (v = direction of travel, power = irradiance).
+// 1 directional (v = direction of travel, power = irradiance), 2 spot (a point light whose
+// intensity falls off about `axis` by `scale` and `offset`).
 struct Light {
     v: vec3<f32>,
     kind: u32,
     power: vec3<f32>,
-    pad: u32,
+    offset: f32,
+    axis: vec3<f32>,
+    scale: f32,
+}
+
+// Light::spot_falloff
+fn spot_falloff(c: f32, scale: f32, offset: f32) -> f32 {
+    let a = clamp(c * scale + offset, 0.0, 1.0);
+    return a * a;
 }
 
 // render::gpu::RenderParams
@@ -560,7 +570,25 @@ fn light_rays() {
     let o = at_o;
     for (; light_i < params.n_lights; light_i += 1u) {
         let l = lights[light_i];
-        if l.kind == LIGHT_POINT {
+        if l.kind == LIGHT_SPOT {
+            if !SPOT_LIGHTS {
+                continue;
+            }
+            let d = l.v - p;
+            let d2 = dot3(d, d);
+            let dist = sqrt(d2);
+            let c = dot3(n, d) / dist;
+            let falloff = spot_falloff(-dot3(l.axis, d) / dist, l.scale, l.offset);
+            if c > 0.0 && falloff > 0.0 && keeps_side(d, at_ng, true) {
+                pending = l.power * (c * falloff / d2);
+                if SHADOWS {
+                    query = Ray(o, 0.0, l.v - o, 1.0);
+                    step = STEP_LIGHT;
+                    return;
+                }
+                light_sum += pending;
+            }
+        } else if l.kind == LIGHT_POINT {
             let d = l.v - p;
             let d2 = dot3(d, d);
             let c = dot3(n, d) / sqrt(d2);

@@ -70,6 +70,42 @@ pub struct GltfScene {
     pub materials: Vec<GltfMaterial>,
     /// The perspective cameras its nodes place, in the order the nodes are walked.
     pub cameras: Vec<GltfCamera>,
+    /// The lights its nodes place (`KHR_lights_punctual`), in the order the nodes are
+    /// walked.
+    pub lights: Vec<GltfLight>,
+}
+
+/// What kind of light a [`GltfLight`] is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GltfLightKind {
+    /// From a point, in every direction.
+    Point,
+    /// From a point into a cone along `direction`: full within `inner` radians of it,
+    /// none beyond `outer`.
+    Spot {
+        /// The half-angle of full intensity, radians.
+        inner: f32,
+        /// The half-angle beyond which no light goes, radians.
+        outer: f32,
+    },
+    /// From infinitely far away, along `direction`.
+    Directional,
+}
+
+/// A punctual light a glTF node places (`KHR_lights_punctual`), in world space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfLight {
+    /// The light's name, else its node's.
+    pub name: Option<String>,
+    /// Point, spot or directional.
+    pub kind: GltfLightKind,
+    /// Where it is (point, spot).
+    pub position: Vec3,
+    /// The unit direction it shines along: its node's −Z (spot, directional).
+    pub direction: Vec3,
+    /// Linear RGB colour times intensity, as the file gives them: candela (point, spot)
+    /// or lux (directional).
+    pub photometric: Vec3,
 }
 
 /// A perspective camera a glTF node places, in world space.
@@ -132,6 +168,69 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
     out
 }
 
+/// The punctual lights of the nodes `walked` (each with its world map), in that order; a
+/// light's `range` is not honoured (lancer's lights fall off with 1/d² without end), and a
+/// light whose map has no direction left is left out, each with a warning.
+fn lights_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfLight> {
+    use ::gltf::khr_lights_punctual::Kind;
+    let mut out = Vec::new();
+    for (node, world) in walked {
+        let Some(light) = node.light() else {
+            continue;
+        };
+        let name = (light.name().or(node.name())).map(str::to_string);
+        let kind = match light.kind() {
+            Kind::Point => GltfLightKind::Point,
+            Kind::Directional => GltfLightKind::Directional,
+            Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => GltfLightKind::Spot {
+                inner: inner_cone_angle,
+                outer: outer_cone_angle,
+            },
+        };
+        let position = world.transform_point3(Vec3::ZERO);
+        let direction = world.transform_vector3(-Vec3::Z);
+        let photometric = Vec3::from(light.color()) * light.intensity();
+        let angles_ok = match kind {
+            GltfLightKind::Spot { inner, outer } => {
+                (0.0..outer).contains(&inner) && outer <= std::f32::consts::FRAC_PI_2
+            }
+            _ => true,
+        };
+        let usable = position.is_finite()
+            && direction.is_finite()
+            && direction.length() > 0.0
+            && photometric.is_finite()
+            && photometric.min_element() >= 0.0
+            && angles_ok;
+        if !usable {
+            log::warn!(
+                "{}: light {name:?} not used: its node's map, its intensity or its cone is \
+                 degenerate",
+                path.display()
+            );
+            continue;
+        }
+        if light.range().is_some() {
+            log::warn!(
+                "{}: light {name:?}: its range is not honoured (it lights beyond it, falling \
+                 off with the square of the distance)",
+                path.display()
+            );
+        }
+        out.push(GltfLight {
+            name,
+            kind,
+            position,
+            direction: direction.normalize(),
+            photometric,
+        });
+    }
+    out
+}
+
 /// Loads a glTF 2.0 file's default scene (or its first; or every root node when it has no
 /// scene) as world-space triangles, without materials' textures decoded.
 pub fn load_gltf(path: &Path) -> Result<GltfScene> {
@@ -174,6 +273,7 @@ fn flatten_opened(path: &Path, opened: Opened) -> Result<GltfScene> {
     let mut out = GltfScene {
         materials,
         cameras: cameras_of(path, &instances),
+        lights: lights_of(path, &instances),
         ..GltfScene::default()
     };
     // Each mesh is read once, however many nodes instance it.
@@ -256,6 +356,8 @@ pub struct GltfPlaced {
     pub instances: Vec<Instance>,
     /// The perspective cameras its nodes place ([`GltfScene::cameras`]).
     pub cameras: Vec<GltfCamera>,
+    /// The lights its nodes place ([`GltfScene::lights`]).
+    pub lights: Vec<GltfLight>,
 }
 
 impl GltfPlaced {
@@ -343,6 +445,7 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         return flatten_opened(path, opened).map(GltfLoaded::Flat);
     }
     let cameras = cameras_of(path, &placed);
+    let lights = lights_of(path, &placed);
     let Opened {
         document,
         buffers,
@@ -408,6 +511,7 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         materials,
         instances: placements,
         cameras,
+        lights,
     };
     // The maps were checked above (a singular one placed at the identity); the count is
     // what InstanceSet::new would refuse.
@@ -595,7 +699,7 @@ fn material(
     })
 }
 
-/// The nodes of the scene with a mesh or a camera, each with its world transform, in the order the
+/// The nodes of the scene with a mesh, a camera or a light, each with its world transform, in the order the
 /// tree is walked. glTF nodes form trees: a node with two parents or on a cycle is refused
 /// (it would be instanced without end).
 fn instances<'a>(path: &Path, doc: &'a Document) -> Result<Vec<(Node<'a>, Mat4)>> {
@@ -647,7 +751,7 @@ fn instances<'a>(path: &Path, doc: &'a Document) -> Result<Vec<(Node<'a>, Mat4)>
         for c in children.into_iter().rev() {
             stack.push((c, world));
         }
-        if node.mesh().is_some() || node.camera().is_some() {
+        if node.mesh().is_some() || node.camera().is_some() || node.light().is_some() {
             out.push((node, world));
         }
     }

@@ -161,6 +161,24 @@ impl<'a> CpuRenderer<'a> {
                         sum += intensity * (c / d2);
                     }
                 }
+                Light::Spot { .. } if !fx.spot_lights => {}
+                Light::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    scale,
+                    offset,
+                } => {
+                    let d = position - p;
+                    let d2 = dot(d, d);
+                    let dist = d2.sqrt();
+                    let c = dot(ns, d) / dist;
+                    let falloff = Light::spot_falloff(-dot(direction, d) / dist, scale, offset);
+                    let lit = c > 0.0 && falloff > 0.0 && keeps_side(fx, d, n, true);
+                    if lit && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
+                        sum += intensity * (c * falloff / d2);
+                    }
+                }
                 Light::Directional {
                     direction,
                     irradiance,

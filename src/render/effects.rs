@@ -1,7 +1,7 @@
 //! The effects a scene calls for. The set decides which code the render kernel keeps
 //! (WGSL `override` constants of one shader source) and which the CPU renderer runs.
 
-use super::scene::{Integrator, MaterialKind, RenderScene};
+use super::scene::{Integrator, Light, MaterialKind, RenderScene};
 use crate::geometry::NO_NORMAL;
 
 /// Which effects a render simulates; code for the others is compiled out of the kernel.
@@ -26,6 +26,8 @@ pub struct EffectSet {
     /// Light from the environment: seen by rays that leave the scene, and sampled at
     /// every diffuse hit (multiple importance sampling with the diffuse bounce).
     pub environment: bool,
+    /// Spot lights (a point light's falloff about an axis).
+    pub spot_lights: bool,
 }
 
 impl EffectSet {
@@ -40,6 +42,7 @@ impl EffectSet {
         ao: true,
         shading_normals: true,
         environment: true,
+        spot_lights: true,
     };
 
     /// What `scene` needs, and nothing more.
@@ -69,11 +72,12 @@ impl EffectSet {
                     .is_some_and(|n| n[0] != NO_NORMAL)
             }),
             environment,
+            spot_lights: !ao && (scene.lights.iter()).any(|l| matches!(l, Light::Spot { .. })),
         }
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 9] {
+    pub fn flags(&self) -> [(&'static str, bool); 10] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -84,6 +88,7 @@ impl EffectSet {
             ("AO", self.ao),
             ("SHADING_NORMALS", self.shading_normals),
             ("ENVIRONMENT", self.environment),
+            ("SPOT_LIGHTS", self.spot_lights),
         ]
     }
 }
@@ -93,7 +98,7 @@ impl EffectSet {
     /// it) and the set without it: what `bench render` times to price each effect.
     pub fn each_without(&self) -> Vec<(String, EffectSet)> {
         type Field = fn(&mut EffectSet) -> &mut bool;
-        let fields: [(&str, Field); 9] = [
+        let fields: [(&str, Field); 10] = [
             ("shadows", |f| &mut f.shadows),
             ("soft-shadows", |f| &mut f.soft_shadows),
             ("mirror", |f| &mut f.mirror),
@@ -103,6 +108,7 @@ impl EffectSet {
             ("ao", |f| &mut f.ao),
             ("shading-normals", |f| &mut f.shading_normals),
             ("environment", |f| &mut f.environment),
+            ("spot-lights", |f| &mut f.spot_lights),
         ];
         let mut out = Vec::new();
         for (name, field) in fields {

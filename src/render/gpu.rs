@@ -107,14 +107,18 @@ pub const MAT_TWO_SIDED: u32 = 2;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuLight {
-    /// Point: position. Directional: unit direction the light travels in.
+    /// Point and spot: position. Directional: unit direction the light travels in.
     pub v: [f32; 3],
-    /// [`LightKind::code`]: 0 point, 1 directional.
+    /// [`LightKind::code`]: 0 point, 1 directional, 2 spot.
     pub kind: u32,
-    /// Point: radiant intensity. Directional: irradiance. Linear RGB.
+    /// Point and spot: radiant intensity. Directional: irradiance. Linear RGB.
     pub power: [f32; 3],
-    /// Padding (zero).
-    pub _pad: u32,
+    /// Spot: the falloff's offset ([`Light::Spot`]).
+    pub offset: f32,
+    /// Spot: the unit direction of the cone's axis.
+    pub axis: [f32; 3],
+    /// Spot: the falloff's scale.
+    pub scale: f32,
 }
 
 /// WGSL `Params` (uniform).
@@ -308,7 +312,21 @@ impl<'a> GpuRenderer<'a> {
                     v: position.into(),
                     kind: LightKind::Point.code(),
                     power: intensity.into(),
-                    _pad: 0,
+                    ..bytemuck::Zeroable::zeroed()
+                },
+                Light::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    scale,
+                    offset,
+                } => GpuLight {
+                    v: position.into(),
+                    kind: LightKind::Spot.code(),
+                    power: intensity.into(),
+                    offset,
+                    axis: direction.into(),
+                    scale,
                 },
                 Light::Directional {
                     direction,
@@ -317,7 +335,7 @@ impl<'a> GpuRenderer<'a> {
                     v: direction.into(),
                     kind: LightKind::Directional.code(),
                     power: irradiance.into(),
-                    _pad: 0,
+                    ..bytemuck::Zeroable::zeroed()
                 },
             })
             .collect();

@@ -41,6 +41,7 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("INTEGRATOR_AO", U32(Integrator::Ao.code())),
         ("LIGHT_POINT", U32(LightKind::Point.code())),
         ("LIGHT_DIRECTIONAL", U32(LightKind::Directional.code())),
+        ("LIGHT_SPOT", U32(LightKind::Spot.code())),
         ("MAT_TEXTURED", U32(MAT_TEXTURED)),
         ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR

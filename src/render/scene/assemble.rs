@@ -81,6 +81,67 @@ pub enum Light {
         /// Irradiance on a surface facing the light, linear RGB.
         irradiance: Vec3,
     },
+    /// Radiant intensity from a point into a cone ([`Light::spot`]).
+    Spot {
+        /// Position, scene space.
+        position: Vec3,
+        /// Unit direction of the cone's axis.
+        direction: Vec3,
+        /// Radiant intensity on the axis, linear RGB.
+        intensity: Vec3,
+        /// The falloff: a direction at cosine c to the axis gets the intensity times
+        /// clamp(c·scale + offset, 0, 1)² (glTF's `KHR_lights_punctual` formula).
+        scale: f32,
+        /// See `scale`.
+        offset: f32,
+    },
+}
+
+/// The luminous efficacy glTF's photometric light units are divided by ([`Light::from_gltf`]).
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+impl Light {
+    /// A spot light at `position` shining along `direction` (unit), with `intensity` on
+    /// its axis, full within `inner` radians of it and none beyond `outer` (inner <
+    /// outer ≤ π/2, as glTF has them).
+    pub fn spot(position: Vec3, direction: Vec3, intensity: Vec3, inner: f32, outer: f32) -> Light {
+        let (ci, co) = (inner.cos(), outer.cos());
+        let scale = 1.0 / (ci - co).max(1e-3);
+        Light::Spot {
+            position,
+            direction,
+            intensity,
+            scale,
+            offset: -co * scale,
+        }
+    }
+
+    /// A glTF punctual light in lancer's radiometric units: candela and lux over 683 lm/W
+    /// (the luminous efficacy glTF exporters such as Blender's multiply by), so a 1 W
+    /// Blender point light is 1/(4π) W/sr and a sun of strength 1 is 1 W/m².
+    pub fn from_gltf(l: &crate::mesh::GltfLight) -> Light {
+        use crate::mesh::GltfLightKind;
+        let power = l.photometric / LUMENS_PER_WATT;
+        match l.kind {
+            GltfLightKind::Point => Light::Point {
+                position: l.position,
+                intensity: power,
+            },
+            GltfLightKind::Spot { inner, outer } => {
+                Light::spot(l.position, l.direction, power, inner, outer)
+            }
+            GltfLightKind::Directional => Light::Directional {
+                direction: l.direction,
+                irradiance: power,
+            },
+        }
+    }
+
+    /// The fraction of a spot light's intensity that goes at cosine `c` to its axis.
+    pub fn spot_falloff(c: f32, scale: f32, offset: f32) -> f32 {
+        let a = (c * scale + offset).clamp(0.0, 1.0);
+        a * a
+    }
 }
 
 /// How to render: the scene file's `[render]` table, defaults filled in.
@@ -213,6 +274,8 @@ pub(super) struct Builder {
     motions: Vec<Motion>,
     /// The perspective cameras of a glTF file added by [`Builder::add_placed_file`].
     pub(super) cameras: Vec<crate::mesh::GltfCamera>,
+    /// The punctual lights of a glTF file added by [`Builder::add_placed_file`].
+    pub(super) gltf_lights: Vec<crate::mesh::GltfLight>,
 }
 
 impl Builder {
@@ -743,7 +806,34 @@ impl RenderScene {
                         irradiance: power,
                     }
                 }
+                LightKind::Spot => {
+                    let (p, d) = match (l.position, l.direction) {
+                        (Some(p), Some(d)) => (Vec3::from(p), Vec3::from(d)),
+                        _ => return Err(bad("a spot light needs 'position' and 'direction'")),
+                    };
+                    if d.length().is_nan() || d.length() <= 0.0 {
+                        return Err(bad("'direction' must not be zero"));
+                    }
+                    let (inner, outer) =
+                        (l.inner_angle.unwrap_or(0.0), l.outer_angle.unwrap_or(45.0));
+                    if !(0.0 <= inner && inner < outer && outer <= 90.0) {
+                        return Err(bad(&format!(
+                            "spot angles must be 0 ≤ inner_angle < outer_angle ≤ 90 degrees, \
+                             got {inner} and {outer}"
+                        )));
+                    }
+                    Light::spot(
+                        p,
+                        d.normalize(),
+                        power,
+                        inner.to_radians(),
+                        outer.to_radians(),
+                    )
+                }
             });
+            if l.kind != LightKind::Spot && (l.inner_angle.is_some() || l.outer_angle.is_some()) {
+                return Err(bad("'inner_angle' and 'outer_angle' are for spot lights"));
+            }
         }
 
         let c = &f.camera;
@@ -856,10 +946,14 @@ impl RenderScene {
             ao_distance: 0.0,
         };
         let sky = Environment::uniform(Vec3::new(0.35, 0.45, 0.6));
-        let lights = vec![Light::Directional {
-            direction: Vec3::new(-0.4, -1.0, -0.5).normalize(),
-            irradiance: Vec3::new(2.6, 2.4, 2.1),
-        }];
+        // The file's own lights (glTF), else a sun.
+        let mut lights: Vec<Light> = b.gltf_lights.iter().map(Light::from_gltf).collect();
+        if lights.is_empty() {
+            lights.push(Light::Directional {
+                direction: Vec3::new(-0.4, -1.0, -0.5).normalize(),
+                irradiance: Vec3::new(2.6, 2.4, 2.1),
+            });
+        }
         Ok((
             b.finish(path, camera, settings, lights, Some(sky))?,
             from_file,

@@ -240,6 +240,9 @@ pub enum LightKind {
     Point,
     /// Irradiance `color·intensity` arriving along `direction` (a sun).
     Directional,
+    /// Radiant intensity `color·intensity` from `position` along `direction`, full inside
+    /// `inner_angle` and fading to none at `outer_angle` (glTF's spot falloff).
+    Spot,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -253,6 +256,10 @@ pub struct LightDef {
     pub color: [f32; 3],
     #[serde(default = "one")]
     pub intensity: f32,
+    /// Spot: the half-angle of full intensity, degrees (default 0).
+    pub inner_angle: Option<f32>,
+    /// Spot: the half-angle beyond which no light goes, degrees (default 45).
+    pub outer_angle: Option<f32>,
 }
 
 fn up() -> [f32; 3] {
@@ -329,6 +336,7 @@ impl LightKind {
         match self {
             LightKind::Point => 0,
             LightKind::Directional => 1,
+            LightKind::Spot => 2,
         }
     }
 }

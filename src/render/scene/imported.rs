@@ -57,6 +57,16 @@ impl Builder {
             }
             FileKind::Gltf => {
                 let mut g = load_gltf(path)?;
+                if !g.lights.is_empty() {
+                    // A scene's lights are its [[lights]]; the file's would need its
+                    // object's transform and its photometric units.
+                    log::warn!(
+                        "{}: its {} light(s) are not used in a scene (give them as [[lights]]); \
+                         `lancer render` of the file itself uses them",
+                        path.display(),
+                        g.lights.len()
+                    );
+                }
                 if nm.is_none() {
                     g.normals = Vec::new();
                 }
@@ -117,6 +127,7 @@ impl Builder {
                 GltfLoaded::Placed(g) => return self.add_gltf_placed(path, grey, g),
                 GltfLoaded::Flat(g) => {
                     self.cameras = g.cameras.clone();
+                    self.gltf_lights = g.lights.clone();
                     self.start_mesh([crate::geometry::Affine::IDENTITY]);
                     let first = self.triangles.len();
                     self.add_gltf(path, g, None, grey, |p| p, None)?;
@@ -139,6 +150,7 @@ impl Builder {
     /// Adds a glTF file's meshes placed by its nodes, with their materials.
     fn add_gltf_placed(&mut self, path: &Path, grey: u32, g: GltfPlaced) -> Result<Aabb> {
         self.cameras = g.cameras.clone();
+        self.gltf_lights = g.lights.clone();
         let mut ids = Vec::with_capacity(g.materials.len());
         for m in &g.materials {
             let m = gltf_material(self, path, m)?;
