@@ -318,3 +318,72 @@ fn bad_environment_tables_are_refused_by_line() {
         .to_string();
     assert!(e.contains("not both") && e.contains("both.toml:"), "{e}");
 }
+
+#[test]
+fn render_takes_an_environment_for_a_mesh_and_never_writes_over_the_map() {
+    let dir = Scratch::new();
+    let quad = dir.write(
+        "quad.obj",
+        "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 3 2\nf 1 4 3\n",
+    );
+    let sky = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/sky.hdr");
+    let lancer = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_lancer"))
+            .args(args)
+            .args([
+                "--width", "24", "--height", "16", "--spp", "2", "--device", "cpu",
+            ])
+            .output()
+            .unwrap()
+    };
+    let (q, s) = (quad.to_str().unwrap(), sky.to_str().unwrap());
+    let png = |name: &str| dir.0.path().join(name);
+    let mean = |p: &PathBuf| {
+        let img = image::open(p).unwrap().to_rgb8();
+        img.pixels()
+            .map(|p| p.0.iter().map(|&c| c as f64).sum::<f64>())
+            .sum::<f64>()
+            / img.pixels().len() as f64
+    };
+    for (name, extra) in [
+        (
+            "sky.png",
+            vec!["--environment", s, "--environment-rotate", "0,90,0"],
+        ),
+        ("black.png", vec!["--environment", "0,0,0"]),
+        ("default.png", vec![]),
+    ] {
+        let out = png(name);
+        let o = lancer(&[&["render", q, "-o", out.to_str().unwrap()], &extra[..]].concat());
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let (lit, black, default) = (
+        mean(&png("sky.png")),
+        mean(&png("black.png")),
+        mean(&png("default.png")),
+    );
+    println!("mean pixel: sky map {lit:.1}, black {black:.1}, default sky {default:.1}");
+    assert!(black < lit && (lit - default).abs() > 5.0);
+    // The map is an input: never an output.
+    let map = dir.exr("map.exr", 8, 4, |x, _| [x as f32 / 8.0, 0.5, 0.5]);
+    let before = std::fs::read(&map).unwrap();
+    let m = map.to_str().unwrap();
+    let o = lancer(&["render", q, "-o", m, "--environment", m]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("is an input"), "{err}");
+    assert_eq!(std::fs::read(&map).unwrap(), before);
+    let o = lancer(&[
+        "render",
+        q,
+        "-o",
+        png("x.png").to_str().unwrap(),
+        "--environment",
+        "1,-1,1",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}

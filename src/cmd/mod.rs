@@ -300,7 +300,7 @@ impl ViewArgs {
 }
 
 /// Three finite numbers x,y,z.
-fn point(s: &str) -> std::result::Result<glam::Vec3, String> {
+pub(super) fn point(s: &str) -> std::result::Result<glam::Vec3, String> {
     let v: Vec<f32> = (s.split(','))
         .map(|x| x.trim().parse::<f32>())
         .collect::<std::result::Result<_, _>>()
@@ -321,7 +321,7 @@ fn positive_finite(s: &str) -> std::result::Result<f32, String> {
 }
 
 /// A finite number at or above zero.
-fn non_negative_finite(s: &str) -> std::result::Result<f32, String> {
+pub(super) fn non_negative_finite(s: &str) -> std::result::Result<f32, String> {
     match s.parse::<f32>() {
         Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
         Ok(x) => Err(format!("{x} is not a finite number at or above 0")),

@@ -6,8 +6,8 @@ use std::time::Duration;
 use clap::Args;
 use indicatif::ProgressStyle;
 use lancer::render::{
-    image_kind, AovSet, Crop, EffectSet, ImageKind, ImageSize, Progress, RenderOptions,
-    RenderStats, Rendered, Renderer, Stop,
+    image_kind, AovSet, Crop, EffectSet, Environment, ImageKind, ImageSize, Progress,
+    RenderOptions, RenderStats, Rendered, Renderer, Stop,
 };
 use lancer::{Error, RenderScene, Result, TraversalMode};
 
@@ -36,6 +36,17 @@ pub struct RenderCmd {
     scale: Option<f32>,
     #[command(flatten)]
     view: ViewArgs,
+    /// Light the scene by this environment instead of its own (a mesh's uniform sky): an
+    /// equirectangular map (.exr or .hdr, placed as Mitsuba 3's envmap), or R,G,B for a
+    /// uniform radiance.
+    #[arg(long, value_name = "MAP|R,G,B")]
+    environment: Option<String>,
+    /// What the --environment map's texels are multiplied by.
+    #[arg(long, value_name = "S", default_value_t = 1.0, value_parser = super::non_negative_finite, requires = "environment")]
+    environment_scale: f32,
+    /// Turn the --environment map by these degrees about X, then Y, then Z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = super::point, allow_hyphen_values = true, requires = "environment")]
+    environment_rotate: Option<glam::Vec3>,
     /// Samples per pixel (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -156,6 +167,24 @@ impl RenderCmd {
             scale: self.scale,
         };
         let mut scene = RenderScene::open(&self.scene, &size, &self.view.change())?;
+        if let Some(spec) = &self.environment {
+            scene.environment = match super::point(spec) {
+                Ok(rgb) if rgb.min_element() >= 0.0 => {
+                    (rgb != glam::Vec3::ZERO).then(|| Environment::uniform(rgb))
+                }
+                Ok(rgb) => {
+                    return Err(Error::Usage(format!(
+                        "--environment {spec}: a radiance is ≥ 0, got {rgb}"
+                    )))
+                }
+                Err(_) => {
+                    let map = PathBuf::from(spec);
+                    scene.mesh.sources.push(map.clone());
+                    let rotate = self.environment_rotate.unwrap_or_default().to_array();
+                    Environment::from_map_file(&map, self.environment_scale, rotate)?
+                }
+            };
+        }
         lancer::output::check_output(&self.out, &scene.mesh.sources)?;
         if self.flatten {
             scene = scene.flattened()?;

@@ -206,6 +206,33 @@ impl Environment {
         }
     }
 
+    /// The map in the file `path` (OpenEXR or Radiance HDR) times `scale`, turned by
+    /// `rotate` degrees about X, then Y, then Z (as an object's `rotate`); None where the
+    /// map or the scale is black (with a warning for the map).
+    pub fn from_map_file(path: &Path, scale: f32, rotate: [f32; 3]) -> Result<Option<Environment>> {
+        if !(scale.is_finite() && scale >= 0.0 && rotate.iter().all(|x| x.is_finite())) {
+            return Err(Error::input(
+                path,
+                None,
+                format!(
+                    "an environment map's scale must be finite and ≥ 0 and its rotation \
+                     finite, got {scale} and {rotate:?}"
+                ),
+            ));
+        }
+        let Some(map) = read_map(path)? else {
+            log::warn!(
+                "{}: the environment map is black: no environment light",
+                path.display()
+            );
+            return Ok(None);
+        };
+        let [rx, ry, rz] = rotate.map(f32::to_radians);
+        let rotation =
+            Mat3::from_rotation_z(rz) * Mat3::from_rotation_y(ry) * Mat3::from_rotation_x(rx);
+        Ok((scale > 0.0).then(|| Environment::mapped(map, Vec3::splat(scale), rotation)))
+    }
+
     /// A world-space direction in map space.
     fn local(&self, d: Vec3) -> Vec3 {
         let r = &self.to_local;

@@ -3,11 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{Mat3, Vec3};
+use glam::Vec3;
 
 use super::file::{line_of, SceneFile};
 use crate::error::{Error, Result};
-use crate::render::environment::{read_map, Environment};
+use crate::render::environment::Environment;
 
 /// The environment `f` describes (read from the file `path`, whose text is `src`): None
 /// where it is black or absent. A map's file is read relative to `dir` and added to
@@ -65,17 +65,7 @@ pub(super) fn environment_of(
             }
             let map_path = dir.join(file);
             sources.push(map_path.clone());
-            let Some(map) = read_map(&map_path)? else {
-                log::warn!(
-                    "{}: the environment map is black: no environment light",
-                    map_path.display()
-                );
-                return Ok(None);
-            };
-            let [rx, ry, rz] = def.rotate.map(f32::to_radians);
-            let rotation =
-                Mat3::from_rotation_z(rz) * Mat3::from_rotation_y(ry) * Mat3::from_rotation_x(rx);
-            Ok((scale > 0.0).then(|| Environment::mapped(map, Vec3::splat(scale), rotation)))
+            Environment::from_map_file(&map_path, scale, def.rotate)
         }
         _ => Err(bad(
             "give 'radiance = [r, g, b]' (uniform) or 'map = \"FILE.exr\"' (.exr or .hdr)".into(),
