@@ -84,9 +84,13 @@ fn find(cdf: &[f32], base: usize, n: u32, u: f32) -> u32 {
 }
 
 impl EnvMap {
-    /// A map of `width × height` texels (row-major from the top row; both at least 2),
-    /// with its sampling distribution; None when it is black everywhere.
+    /// A map of `width × height` texels (row-major from the top row), with its sampling
+    /// distribution; None when it is black everywhere, smaller than 2 × 2, or `texels`
+    /// does not hold `width · height` texels.
     pub fn new(width: u32, height: u32, texels: Vec<Vec3>) -> Option<EnvMap> {
+        if width < 2 || height < 2 || texels.len() as u64 != width as u64 * height as u64 {
+            return None;
+        }
         let (w, rows) = (width as usize, height as usize - 1);
         let at = |x: usize, y: usize| luminance(texels[y * w + x % w]).max(0.0) as f64;
         let mut cdf = Vec::with_capacity(rows + 1 + rows * (w + 1));
@@ -421,6 +425,8 @@ mod tests {
     #[test]
     fn a_black_map_is_no_map_and_cdfs_end_at_one() {
         assert!(EnvMap::new(4, 3, vec![Vec3::ZERO; 12]).is_none());
+        assert!(EnvMap::new(4, 1, vec![Vec3::ONE; 4]).is_none());
+        assert!(EnvMap::new(4, 3, vec![Vec3::ONE; 11]).is_none());
         let m = patchy(6, 4);
         assert_eq!(m.cdf.len(), 4 + 3 * 7);
         assert_eq!(m.cdf[3], 1.0);
