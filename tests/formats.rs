@@ -626,6 +626,61 @@ fn refused(path: &Path, needle: &str) {
 }
 
 #[test]
+fn gltf_texture_transforms_move_the_base_colour_coordinates() {
+    let pos: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let uv: [[f32; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|x| x.to_le_bytes()));
+    let png = {
+        let mut v = Vec::new();
+        image::RgbImage::new(1, 1)
+            .write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
+            .unwrap();
+        v
+    };
+    let transform = json!({ "offset": [0.5, 0.25], "scale": [2.0, 3.0],
+                            "rotation": std::f32::consts::FRAC_PI_2 });
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "extensionsUsed": ["KHR_texture_transform"],
+        "extensionsRequired": ["KHR_texture_transform"],
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0, "TEXCOORD_0": 1 },
+                                      "material": 0 }] }],
+        "materials": [{ "pbrMetallicRoughness": { "metallicFactor": 0.0, "baseColorTexture":
+            { "index": 0, "extensions": { "KHR_texture_transform": transform } } } }],
+        "textures": [{ "source": 0 }],
+        "images": [{ "uri": writers::data_uri(&png) }],
+        "buffers": [{ "byteLength": bin.len(), "uri": writers::data_uri(&bin) }],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": 36 },
+            { "buffer": 0, "byteOffset": 36, "byteLength": 24 }
+        ],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+              "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0] },
+            { "bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2" }
+        ]
+    });
+    let dir = scratch();
+    let p = dir.path().join("transformed.gltf");
+    std::fs::write(&p, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let g = lancer::mesh::load_gltf(&p).unwrap();
+    // Scaled by (2, 3), turned a quarter (u' = v·3, v' = −u·2), offset by (0.5, 0.25); then
+    // v flipped to point up as in OBJ.
+    let want = [[0.5, 0.25], [0.5, 0.25 - 2.0], [0.5 + 3.0, 0.25]]
+        .map(|[u, v]: [f32; 2]| glam::Vec2::new(u, 1.0 - v));
+    for (got, want) in g.uvs[0].iter().zip(want) {
+        assert!(
+            (*got - want).length() < 1e-5,
+            "{:?} against {want:?}",
+            g.uvs[0]
+        );
+    }
+}
+
+#[test]
 fn gltf_files_requiring_an_unsupported_extension_are_named_as_such() {
     let m = sample();
     let bin = writers::gltf_buffer(&m);
@@ -634,7 +689,7 @@ fn gltf_files_requiring_an_unsupported_extension_are_named_as_such() {
         ("KHR_draco_mesh_compression", "decompress its meshes"),
         ("EXT_meshopt_compression", "decompress its meshes"),
         ("KHR_texture_basisu", "convert its textures to PNG or JPEG"),
-        ("KHR_texture_transform", "bake the transforms"),
+        ("EXT_texture_webp", "convert its textures to PNG or JPEG"),
     ] {
         let mut doc = writers::gltf_json(&m, None);
         doc["extensionsUsed"] = json!([ext]);

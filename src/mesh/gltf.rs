@@ -168,6 +168,36 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
     out
 }
 
+/// A `KHR_texture_transform`: glTF texture coordinates scaled, turned, then offset, as
+/// CesiumJS and three.js read the specification (u' = u·cos r + v·sin r, v' = v·cos r −
+/// u·sin r, after the scale).
+struct UvTransform {
+    /// Rows of the 2 × 3 matrix T·R·S of the specification.
+    rows: [[f32; 3]; 2],
+}
+
+impl UvTransform {
+    /// The transform `t` gives (None: the identity).
+    fn of(t: Option<&::gltf::texture::TextureTransform>) -> UvTransform {
+        let Some(t) = t else {
+            return UvTransform {
+                rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            };
+        };
+        let ([ox, oy], [sx, sy], r) = (t.offset(), t.scale(), t.rotation());
+        let (s, c) = r.sin_cos();
+        UvTransform {
+            rows: [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]],
+        }
+    }
+
+    /// Gltf coordinates (v down) moved.
+    fn apply(&self, [u, v]: [f32; 2]) -> [f32; 2] {
+        let [a, b] = &self.rows;
+        [a[0] * u + a[1] * v + a[2], b[0] * u + b[1] * v + b[2]]
+    }
+}
+
 /// The punctual lights of the nodes `walked` (each with its world map), in that order; a
 /// light's `range` is not honoured (lancer's lights fall off with 1/d² without end), and a
 /// light whose map has no direction left is left out, each with a warning.
@@ -889,8 +919,14 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
             .unwrap_or_default(),
         None => (0..positions.len() as u32).collect(),
     };
-    let set =
-        (p.material().pbr_metallic_roughness().base_color_texture()).map_or(0, |t| t.tex_coord());
+    // The base colour texture's coordinate set, moved by its KHR_texture_transform (which
+    // may name another set).
+    let info = p.material().pbr_metallic_roughness().base_color_texture();
+    let transform = info.as_ref().and_then(|t| t.texture_transform());
+    let set = (transform.as_ref().and_then(|x| x.tex_coord()))
+        .or(info.as_ref().map(|t| t.tex_coord()))
+        .unwrap_or(0);
+    let uv_map = UvTransform::of(transform.as_ref());
     let uvs: Vec<Vec2> = match p.get(&Semantic::TexCoords(set)) {
         Some(a) => {
             let n = check_accessor(
@@ -905,7 +941,12 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
             } else {
                 reader
                     .read_tex_coords(set)
-                    .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect())
+                    .map(|t| {
+                        (t.into_f32())
+                            .map(|uv| uv_map.apply(uv))
+                            .map(|[u, v]| Vec2::new(u, 1.0 - v))
+                            .collect()
+                    })
                     .unwrap_or_default()
             }
         }

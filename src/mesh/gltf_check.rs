@@ -59,7 +59,6 @@ pub fn unsupported_required(json: &[u8]) -> Vec<String> {
                 "KHR_texture_basisu" | "EXT_texture_webp" | "EXT_texture_avif" => {
                     "convert its textures to PNG or JPEG"
                 }
-                "KHR_texture_transform" => "bake the transforms into its texture coordinates",
                 _ => "export it without that extension",
             };
             format!("{x} ({what})")
@@ -68,10 +67,12 @@ pub fn unsupported_required(json: &[u8]) -> Vec<String> {
 }
 
 /// The glTF extensions lancer reads (the `gltf` crate's features it enables).
-pub const SUPPORTED_EXTENSIONS: [&str; 3] = [
+pub const SUPPORTED_EXTENSIONS: [&str; 5] = [
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
+    "KHR_lights_punctual",
+    "KHR_texture_transform",
 ];
 
 /// Checks every reference of the document `json` against its array (and the rest the module
