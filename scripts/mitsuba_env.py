@@ -36,69 +36,23 @@ SPHERES = [  # (centre, radius, lancer material, Mitsuba BSDF)
 
 
 def lancer_scene(size, spp):
-    w, h = size
-    objects = "".join(
-        f'\n[[objects]]\nmesh = "sphere.obj"\nmaterial = "{m}"\nscale = {r}\n'
-        f"translate = {c}\n" for (c, r, m, _) in SPHERES)
-    return f"""[camera]
-position = {CAMERA["position"]}
-look_at = {CAMERA["look_at"]}
-fov = {CAMERA["fov"]}
-width = {w}
-height = {h}
-
-[render]
-integrator = "path"
-max_bounces = {MAX_BOUNCES}
-spp = {spp}
-
-[environment]
-map = "{MAP}"
-rotate = [0.0, {TURN}, 0.0]
-
-[materials.floor]
-type = "diffuse"
-albedo = [0.6, 0.6, 0.6]
-[materials.white]
+    rest = f"""[materials.white]
 type = "diffuse"
 albedo = [0.8, 0.8, 0.8]
 [materials.mirror]
 type = "mirror"
 
-[[objects]]
-mesh = "floor.obj"
-material = "floor"
-{objects}"""
+[environment]
+map = "{MAP}"
+rotate = [0.0, {TURN}, 0.0]
+"""
+    return ms.lancer_spheres(size, spp, MAX_BOUNCES, CAMERA, SPHERES, rest)
 
 
 def mitsuba_scene(mi, out, size, spp):
-    w, h = size
-    depth = mc.max_depth(MAX_BOUNCES)
-    two_sided = lambda bsdf: {"type": "twosided", "bsdf": bsdf}  # noqa: E731
-    d = {
-        "type": "scene",
-        "integrator": {"type": "path", "max_depth": depth, "rr_depth": depth},
-        "sensor": {
-            "type": "perspective", "fov_axis": "y", "fov": CAMERA["fov"],
-            "to_world": mi.ScalarTransform4f().look_at(
-                origin=CAMERA["position"], target=CAMERA["look_at"], up=[0, 1, 0]),
-            "near_clip": 1e-3, "far_clip": 1e7,
-            "sampler": {"type": "independent", "sample_count": spp},
-            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
-                     "pixel_format": "rgb", "component_format": "float32"},
-        },
-        "sky": {"type": "envmap", "filename": str(MAP),
-                "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], TURN)},
-        "floor": {"type": "obj", "filename": str(out / "floor.obj"), "face_normals": True,
-                  "bsdf": two_sided({"type": "diffuse",
-                                     "reflectance": {"type": "rgb", "value": 0.6}})},
-    }
-    for k, (c, r, _, bsdf) in enumerate(SPHERES):
-        d[f"sphere{k}"] = {
-            "type": "obj", "filename": str(out / "sphere.obj"), "face_normals": False,
-            "to_world": mi.ScalarTransform4f().translate(c).scale(r),
-            "bsdf": two_sided(bsdf) if bsdf["type"] == "diffuse" else bsdf,
-        }
+    d = ms.mitsuba_spheres(mi, out, size, spp, MAX_BOUNCES, CAMERA, SPHERES)
+    d["sky"] = {"type": "envmap", "filename": str(MAP),
+                "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], TURN)}
     return mi.load_dict(d)
 
 

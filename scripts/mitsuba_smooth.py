@@ -72,72 +72,85 @@ def sphere_obj(segments):
 FLOOR_OBJ = "v -5 0 5\nv 5 0 5\nv 5 0 -5\nv -5 0 -5\nf 1 2 3\nf 1 3 4\n"
 
 
-def lancer_scene(size, spp):
+def lancer_spheres(size, spp, max_bounces, camera, spheres, rest):
+    """A lancer scene of `spheres` (centre, radius, material name, Mitsuba BSDF) on the
+    floor, seen from `camera`, path traced; `rest` adds its materials, lights and
+    environment (the floor's grey is here)."""
     w, h = size
     objects = "".join(
         f'\n[[objects]]\nmesh = "sphere.obj"\nmaterial = "{m}"\nscale = {r}\n'
-        f"translate = {c}\n" for (c, r, m, _) in SPHERES)
+        f"translate = {c}\n" for (c, r, m, _) in spheres)
     return f"""[camera]
-position = {CAMERA["position"]}
-look_at = {CAMERA["look_at"]}
-fov = {CAMERA["fov"]}
+position = {camera["position"]}
+look_at = {camera["look_at"]}
+fov = {camera["fov"]}
 width = {w}
 height = {h}
 
 [render]
 integrator = "path"
-max_bounces = {MAX_BOUNCES}
+max_bounces = {max_bounces}
 spp = {spp}
-background = [0.0, 0.0, 0.0]
 
 [materials.floor]
 type = "diffuse"
 albedo = [0.6, 0.6, 0.6]
-[materials.red]
+{rest}
+[[objects]]
+mesh = "floor.obj"
+material = "floor"
+{objects}"""
+
+
+def lancer_scene(size, spp):
+    rest = f"""[materials.red]
 type = "diffuse"
 albedo = [0.8, 0.2, 0.1]
 [materials.mirror]
 type = "mirror"
 
-[[objects]]
-mesh = "floor.obj"
-material = "floor"
-{objects}
 [[lights]]
 type = "directional"
 direction = {LIGHT_DIRECTION}
 intensity = {IRRADIANCE}
 """
+    return lancer_spheres(size, spp, MAX_BOUNCES, CAMERA, SPHERES, rest)
 
 
-def mitsuba_scene(mi, out, size, spp):
+def mitsuba_spheres(mi, out, size, spp, max_bounces, camera, spheres):
+    """The Mitsuba twin of lancer_spheres, without its lights: a dict to add them to."""
     w, h = size
-    depth = mc.max_depth(MAX_BOUNCES)
+    depth = mc.max_depth(max_bounces)
     two_sided = lambda bsdf: {"type": "twosided", "bsdf": bsdf}  # noqa: E731
     d = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": depth, "rr_depth": depth},
         "sensor": {
-            "type": "perspective", "fov_axis": "y", "fov": CAMERA["fov"],
+            "type": "perspective", "fov_axis": "y", "fov": camera["fov"],
             "to_world": mi.ScalarTransform4f().look_at(
-                origin=CAMERA["position"], target=CAMERA["look_at"], up=[0, 1, 0]),
+                origin=camera["position"], target=camera["look_at"], up=[0, 1, 0]),
             "near_clip": 1e-3, "far_clip": 1e7,
             "sampler": {"type": "independent", "sample_count": spp},
             "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
                      "pixel_format": "rgb", "component_format": "float32"},
         },
-        "light": {"type": "directional", "direction": LIGHT_DIRECTION,
-                  "irradiance": {"type": "rgb", "value": IRRADIANCE}},
         "floor": {"type": "obj", "filename": str(out / "floor.obj"), "face_normals": True,
                   "bsdf": two_sided({"type": "diffuse",
                                      "reflectance": {"type": "rgb", "value": 0.6}})},
     }
-    for k, (c, r, _, bsdf) in enumerate(SPHERES):
+    for k, (c, r, _, bsdf) in enumerate(spheres):
         d[f"sphere{k}"] = {
             "type": "obj", "filename": str(out / "sphere.obj"), "face_normals": False,
             "to_world": mi.ScalarTransform4f().translate(c).scale(r),
             "bsdf": two_sided(bsdf) if bsdf["type"] == "diffuse" else bsdf,
         }
+    return d
+
+
+def mitsuba_scene(mi, out, size, spp):
+    d = mitsuba_spheres(mi, out, size, spp, MAX_BOUNCES, CAMERA, SPHERES)
+    d["light"] = {"type": "directional", "direction": LIGHT_DIRECTION,
+                  "irradiance": {"type": "rgb", "value": IRRADIANCE}}
     return mi.load_dict(d)
 
 

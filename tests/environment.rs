@@ -10,35 +10,10 @@ mod common;
 use std::path::PathBuf;
 
 use common::gpu_device;
+use common::scratch::Scratch;
 use glam::Vec3;
 use lancer::render::{render, EffectSet, RenderOptions, RenderScene};
 use lancer::Device;
-
-struct Scratch(tempfile::TempDir);
-
-impl Scratch {
-    fn new() -> Self {
-        Scratch(tempfile::tempdir().unwrap())
-    }
-    fn write(&self, name: &str, text: impl AsRef<[u8]>) -> PathBuf {
-        let p = self.0.path().join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-    /// An OpenEXR map of `width × height` texels from `f(column, row)`.
-    fn exr(
-        &self,
-        name: &str,
-        width: u32,
-        height: u32,
-        f: impl Fn(u32, u32) -> [f32; 3],
-    ) -> PathBuf {
-        let p = self.0.path().join(name);
-        let img = image::Rgb32FImage::from_fn(width, height, |x, y| image::Rgb(f(x, y)));
-        img.save(&p).unwrap();
-        p
-    }
-}
 
 fn image(scene: &RenderScene, device: &Device) -> Vec<Vec3> {
     render(scene, device, &RenderOptions::default())

@@ -9,23 +9,11 @@ mod common;
 use std::path::PathBuf;
 
 use common::gpu_device;
+use common::scratch::Scratch;
 use glam::Vec3;
 use lancer::geometry::{unpack_unit, NO_NORMAL};
 use lancer::render::{render, EffectSet, RenderOptions, RenderScene};
 use lancer::Device;
-
-struct Scratch(tempfile::TempDir);
-
-impl Scratch {
-    fn new() -> Self {
-        Scratch(tempfile::tempdir().unwrap())
-    }
-    fn write(&self, name: &str, text: impl AsRef<[u8]>) -> PathBuf {
-        let p = self.0.path().join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-}
 
 fn image(scene: &RenderScene, device: &Device) -> Vec<Vec3> {
     render(scene, device, &RenderOptions::default())

@@ -8,22 +8,10 @@ mod common;
 use std::path::PathBuf;
 
 use common::gpu_device;
+use common::scratch::Scratch;
 use glam::Vec3;
 use lancer::render::{render, EffectSet, Light, RenderOptions, RenderScene};
 use lancer::Device;
-
-struct Scratch(tempfile::TempDir);
-
-impl Scratch {
-    fn new() -> Self {
-        Scratch(tempfile::tempdir().unwrap())
-    }
-    fn write(&self, name: &str, text: impl AsRef<[u8]>) -> PathBuf {
-        let p = self.0.path().join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-}
 
 const SPOT_HEIGHT: f32 = 2.0;
 const INTENSITY: f32 = 8.0;

@@ -5,6 +5,7 @@ pub mod accel_check;
 pub mod gpu_twin;
 pub mod hard;
 pub mod readers;
+pub mod scratch;
 pub mod writers;
 
 use std::path::PathBuf;
