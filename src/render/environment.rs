@@ -39,19 +39,20 @@ pub struct Environment {
 }
 
 /// An equirectangular map of radiance and the distribution its samples are drawn from.
+/// Only [`EnvMap::new`] (and [`read_map`]) make one, so its sizes always agree.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EnvMap {
     /// Texels a row (at least 2).
-    pub width: u32,
+    pub(crate) width: u32,
     /// Rows (at least 2): the first straight up, the last straight down.
-    pub height: u32,
+    pub(crate) height: u32,
     /// `width · height` texels, linear RGB, row-major from the top row.
-    pub texels: Vec<Vec3>,
+    pub(crate) texels: Vec<Vec3>,
     /// The sampling distribution over the cells between texels (`width` cells a row,
     /// `height − 1` rows; a cell's weight is the mean luminance of its four texels times
     /// sin θ at its middle): the rows' CDF (`height` entries, from 0 to 1), then each
     /// row's CDF over its cells (`width + 1` entries each).
-    pub cdf: Vec<f32>,
+    pub(crate) cdf: Vec<f32>,
 }
 
 /// A direction chosen by [`Environment::sample`], with its solid-angle density.
@@ -118,6 +119,27 @@ impl EnvMap {
             texels,
             cdf,
         })
+    }
+
+    /// Texels a row.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Rows of texels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The texels, linear RGB, row-major from the top row.
+    pub fn texels(&self) -> &[Vec3] {
+        &self.texels
+    }
+
+    /// The sampling distribution ([`EnvMap::new`]'s layout): the rows' CDF, then each
+    /// row's CDF over its cells.
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
     }
 
     /// Cells a row, rows of cells, as f32.
