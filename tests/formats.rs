@@ -348,9 +348,11 @@ fn gltf_materials_map_onto_lancers() {
     }
     let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 1e-6;
 
+    // glTF's metallic-roughness is lancer's principled, with glTF's default roughness 1.
     let paint = mat(0);
-    assert_eq!(paint.kind, MaterialKind::Diffuse);
+    assert_eq!(paint.kind, MaterialKind::Principled);
     assert!(close(paint.albedo, Vec3::new(0.2, 0.4, 0.6)), "{paint:?}");
+    assert_eq!((paint.metallic, paint.roughness), (0.0, 1.0));
     assert_eq!(paint.texture, None);
 
     let lamp = mat(1);
@@ -364,13 +366,15 @@ fn gltf_materials_map_onto_lancers() {
     assert!((glass.ior - 1.33).abs() < 1e-6, "{glass:?}");
     assert!(close(glass.albedo, Vec3::new(0.9, 1.0, 0.95)));
 
+    // The base colour factor multiplies the texture as it is read.
     let decal = mat(3);
-    assert_eq!(decal.kind, MaterialKind::Diffuse);
+    assert_eq!(decal.kind, MaterialKind::Principled);
+    assert!(close(decal.albedo, Vec3::new(0.5, 1.0, 1.0)), "{decal:?}");
     let tex = &scene.textures[decal.texture.expect("decal is textured")];
     assert_eq!((tex.width, tex.height), (2, 2));
     for (k, p) in pixels.iter().enumerate() {
         let want = Vec3::new(
-            srgb_to_linear(p[0]) * 0.5,
+            srgb_to_linear(p[0]),
             srgb_to_linear(p[1]),
             srgb_to_linear(p[2]),
         );
@@ -382,7 +386,8 @@ fn gltf_materials_map_onto_lancers() {
     }
 
     let chrome = mat(4);
-    assert_eq!(chrome.kind, MaterialKind::Mirror);
+    assert_eq!(chrome.kind, MaterialKind::Principled);
+    assert_eq!((chrome.metallic, chrome.roughness), (1.0, 0.0));
     assert!(close(chrome.albedo, Vec3::new(0.8, 0.7, 0.6)));
 
     let none = mat(5);

@@ -126,7 +126,10 @@ fn render_structs_match_rust() {
         fields!(GpuMaterial;
         "albedo" => albedo, "kind" => kind, "emission" => emission, "ior" => ior,
         "tex_offset" => tex_offset, "tex_width" => tex_width, "tex_height" => tex_height,
-        "flags" => flags),
+        "flags" => flags, "metallic" => metallic, "roughness" => roughness,
+        "mr_offset" => mr_offset, "emission_offset" => emission_offset, "mr_width" => mr_width,
+        "mr_height" => mr_height, "emission_width" => emission_width,
+        "emission_height" => emission_height),
     );
     check(
         m,

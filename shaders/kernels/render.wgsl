@@ -12,6 +12,7 @@ override AO: bool = true;
 override SHADING_NORMALS: bool = true;
 override ENVIRONMENT: bool = true;
 override SPOT_LIGHTS: bool = true;
+override MICROFACET: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 // AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
 // accumulator; false compiles that code out.
@@ -152,6 +153,14 @@ struct Material {
     tex_width: u32,
     tex_height: u32,
     flags: u32,
+    metallic: f32,
+    roughness: f32,
+    mr_offset: u32,
+    emission_offset: u32,
+    mr_width: u32,
+    mr_height: u32,
+    emission_width: u32,
+    emission_height: u32,
 }
 
 // render::gpu::GpuLight: kind 0 point (v = position, power = intensity),
@@ -267,13 +276,8 @@ fn cosine_direction(n: vec3<f32>) -> vec3<f32> {
         }
     }
     let z = sqrt(max(1.0 - x * x - y * y, 0.0));
-    // sampling::basis
-    let sign = select(-1.0, 1.0, n.z >= 0.0);
-    let aa = -1.0 / (sign + n.z);
-    let bb = n.x * n.y * aa;
-    let t = vec3<f32>(1.0 + sign * n.x * n.x * aa, sign * bb, -sign * n.x);
-    let b = vec3<f32>(bb, sign + n.y * n.y * aa, -n.y);
-    return t * x + b * y + n * z;
+    let f = basis(n);
+    return f.t * x + f.b * y + n * z;
 }
 
 // sampling::point_error: the error bound of v0·b0 + v1·b1 + v2·b2, per component.
@@ -324,14 +328,14 @@ fn offset_origin(p: vec3<f32>, err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // again on the CPU.
 var<private> sample_incomplete: bool;
 
-fn texel(m: Material, x: i32, y: i32) -> vec3<f32> {
-    return texels[m.tex_offset + u32(y * i32(m.tex_width) + x)].xyz;
+fn texel(offset: u32, w: i32, x: i32, y: i32) -> vec3<f32> {
+    return texels[offset + u32(y * w + x)].xyz;
 }
 
-// integrator::sample_texture
-fn sample_texture(m: Material, uv: vec2<f32>) -> vec3<f32> {
-    let w = i32(m.tex_width);
-    let h = i32(m.tex_height);
+// cpu::sample_texture: the texture of `w` × `h` texels from `offset` at uv.
+fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f32> {
+    let w = i32(width);
+    let h = i32(height);
     let u = uv.x - floor(uv.x);
     let v = uv.y - floor(uv.y);
     let x = u * f32(w) - 0.5;
@@ -344,10 +348,10 @@ fn sample_texture(m: Material, uv: vec2<f32>) -> vec3<f32> {
     let iy0 = ((i32(y0) % h) + h) % h;
     let ix1 = (ix0 + 1) % w;
     let iy1 = (iy0 + 1) % h;
-    let a = texel(m, ix0, iy0);
-    let b = texel(m, ix1, iy0);
-    let c = texel(m, ix0, iy1);
-    let d = texel(m, ix1, iy1);
+    let a = texel(offset, w, ix0, iy0);
+    let b = texel(offset, w, ix1, iy0);
+    let c = texel(offset, w, ix0, iy1);
+    let d = texel(offset, w, ix1, iy1);
     let top = a + (b - a) * fx;
     let bottom = c + (d - c) * fx;
     return top + (bottom - top) * fy;
@@ -374,9 +378,37 @@ fn keeps_side(d: vec3<f32>, n: vec3<f32>, toward: bool) -> bool {
 // CpuRenderer::albedo
 fn surface_albedo(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
     if TEXTURES && (mat.flags & MAT_TEXTURED) != 0u {
-        return sample_texture(mat, s.uv0 * w + s.uv1 * u + s.uv2 * v);
+        let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
+        return sample_texture(mat.tex_offset, mat.tex_width, mat.tex_height, uv) * mat.albedo;
     }
     return mat.albedo;
+}
+
+// CpuRenderer::bsdf
+fn surface_bsdf(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> Bsdf {
+    let albedo = surface_albedo(mat, s, w, u, v);
+    if !(MICROFACET && mat.kind == KIND_PRINCIPLED) {
+        return Bsdf(albedo, 0.0, 1.0, false);
+    }
+    var metallic = mat.metallic;
+    var roughness = mat.roughness;
+    if TEXTURES && (mat.flags & MAT_METALLIC_ROUGHNESS) != 0u {
+        let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
+        let mr = sample_texture(mat.mr_offset, mat.mr_width, mat.mr_height, uv);
+        roughness *= mr.y;
+        metallic *= mr.z;
+    }
+    return principled(albedo, metallic, roughness);
+}
+
+// CpuRenderer::emission
+fn surface_emission(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
+    if TEXTURES && (mat.flags & MAT_EMISSION_TEXTURE) != 0u {
+        let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
+        let t = sample_texture(mat.emission_offset, mat.emission_width, mat.emission_height, uv);
+        return mat.emission * t;
+    }
+    return mat.emission;
 }
 
 // The tile pixel whose AOVs this invocation writes (sample 0 only).
@@ -414,18 +446,18 @@ var<private> query: Ray;
 // CpuRenderer::sample's path state.
 var<private> rad: vec3<f32>;
 var<private> beta: vec3<f32>;
-var<private> count_emission: bool;
 var<private> bounce: u32;
-// The density the last diffuse bounce drew the path ray's direction with (0: a camera ray
-// or a specular bounce).
+// The density the last diffuse or principled bounce drew the path ray's direction with
+// (0: a camera ray or a specular bounce).
 var<private> bounce_pdf: f32;
-// CpuRenderer::direct's state at a diffuse hit: the point, the normal, the albedo, the
-// shadow rays' origin, the light summed so far, and what the light of the
-// shadow ray in flight adds if nothing blocks it.
+// CpuRenderer::direct's state at a diffuse or principled hit: the point, the normals, the
+// surface and the direction toward the viewer, the shadow rays' origin, the light summed
+// so far, and what the light of the shadow ray in flight adds if nothing blocks it.
 var<private> at_p: vec3<f32>;
 var<private> at_n: vec3<f32>;  // the shading normal
 var<private> at_ng: vec3<f32>; // the geometric normal
-var<private> at_albedo: vec3<f32>;
+var<private> at_bsdf: Bsdf;
+var<private> at_wo: vec3<f32>;
 var<private> at_o: vec3<f32>;
 var<private> light_sum: vec3<f32>;
 var<private> light_i: u32;
@@ -442,7 +474,6 @@ fn start_sample(x: u32, y: u32) {
     let sy = 1.0 - (f32(y) + jy) * params.inv_h2;
     rad = vec3<f32>(0.0);
     beta = vec3<f32>(1.0);
-    count_emission = true;
     bounce = 0u;
     bounce_pdf = 0.0;
     query = Ray(params.eye, 0.0, normalize3(params.fwd + params.right * sx + params.up * sy), PRIMARY_TMAX);
@@ -487,8 +518,15 @@ fn path_hit(hit: Hit) {
         write_aovs(hit.t, ns, surface_albedo(mat, s, w, hit.u, hit.v));
     }
     if mat.kind == KIND_EMISSIVE {
-        if count_emission && (front || (mat.flags & MAT_TWO_SIDED) != 0u) {
-            rad += beta * mat.emission;
+        if front || (mat.flags & MAT_TWO_SIDED) != 0u {
+            // Multiple importance sampling with the light sample of the last hit.
+            var w = 1.0;
+            if SOFT_SHADOWS && params.n_emitters > 0u && bounce_pdf > 0.0 {
+                let cl = abs(dot3(n, ray.dir)) / sqrt(dot3(ray.dir, ray.dir));
+                let d2 = hit.t * hit.t * dot3(ray.dir, ray.dir);
+                w = power_heuristic(bounce_pdf, d2 / (cl * params.emit_total));
+            }
+            rad += beta * mat.emission * w;
         }
         step = STEP_DONE;
         return;
@@ -518,7 +556,6 @@ fn path_hit(hit: Hit) {
             return;
         }
         beta *= mat.albedo;
-        count_emission = true;
         bounce_pdf = 0.0;
         next_bounce(Ray(offset_origin(p, p_err, n), 0.0, reflected, PRIMARY_TMAX));
         return;
@@ -533,7 +570,6 @@ fn path_hit(hit: Hit) {
         let fresnel = r0 + (1.0 - r0) * (m * m * m * m * m);
         let u = next_f32();
         beta *= mat.albedo;
-        count_emission = true;
         bounce_pdf = 0.0;
         if sin2_t >= 1.0 || u < fresnel {
             if !keeps_side(reflected, n, true) {
@@ -552,11 +588,24 @@ fn path_hit(hit: Hit) {
         }
         return;
     }
-    // Diffuse: CpuRenderer::direct, from its first light.
+    // Diffuse or principled: CpuRenderer::direct, from its first light.
+    let bsdf = surface_bsdf(mat, s, w, hit.u, hit.v);
+    let wo = -d;
+    var nb = ns;
+    if bsdf.principled {
+        if front || (mat.flags & MAT_TWO_SIDED) != 0u {
+            rad += beta * surface_emission(mat, s, w, hit.u, hit.v);
+        }
+        // A view below the shading normal sees the geometric one.
+        if dot3(ns, wo) <= 0.0 {
+            nb = n;
+        }
+    }
     at_p = p;
-    at_n = ns;
+    at_n = nb;
     at_ng = n;
-    at_albedo = surface_albedo(mat, s, w, hit.u, hit.v);
+    at_bsdf = bsdf;
+    at_wo = wo;
     at_o = offset_origin(p, p_err, n);
     light_sum = vec3<f32>(0.0);
     light_i = 0u;
@@ -576,11 +625,11 @@ fn light_rays() {
             }
             let d = l.v - p;
             let d2 = dot3(d, d);
-            let dist = sqrt(d2);
-            let c = dot3(n, d) / dist;
-            let falloff = spot_falloff(-dot3(l.axis, d) / dist, l.scale, l.offset);
+            let wi = d / sqrt(d2);
+            let c = dot3(n, wi);
+            let falloff = spot_falloff(-dot3(l.axis, wi), l.scale, l.offset);
             if c > 0.0 && falloff > 0.0 && keeps_side(d, at_ng, true) {
-                pending = l.power * (c * falloff / d2);
+                pending = l.power * bsdf_eval(at_bsdf, n, at_wo, wi).xyz * (falloff / d2);
                 if SHADOWS {
                     query = Ray(o, 0.0, l.v - o, 1.0);
                     step = STEP_LIGHT;
@@ -591,9 +640,10 @@ fn light_rays() {
         } else if l.kind == LIGHT_POINT {
             let d = l.v - p;
             let d2 = dot3(d, d);
-            let c = dot3(n, d) / sqrt(d2);
+            let wi = d / sqrt(d2);
+            let c = dot3(n, wi);
             if c > 0.0 && keeps_side(d, at_ng, true) {
-                pending = l.power * (c / d2);
+                pending = l.power * bsdf_eval(at_bsdf, n, at_wo, wi).xyz / d2;
                 if SHADOWS {
                     query = Ray(o, 0.0, l.v - o, 1.0);
                     step = STEP_LIGHT;
@@ -604,7 +654,7 @@ fn light_rays() {
         } else {
             let c = -dot3(n, l.v);
             if c > 0.0 && keeps_side(-l.v, at_ng, true) {
-                pending = l.power * c;
+                pending = l.power * bsdf_eval(at_bsdf, n, at_wo, -l.v).xyz;
                 if SHADOWS {
                     query = Ray(o, 0.0, -l.v, PRIMARY_TMAX);
                     step = STEP_LIGHT;
@@ -643,18 +693,23 @@ fn emitter_ray() {
         let nl = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
         let d = q - p;
         let d2 = dot3(d, d);
-        let dist = sqrt(d2);
-        let cs = dot3(n, d) / dist;
+        let wi = d / sqrt(d2);
+        let cs = dot3(n, wi);
         let lm = materials[s.material];
         // One-sided lights emit from their front (the winding's normal) only.
-        var cl = -dot3(nl, d) / dist;
+        var cl = -dot3(nl, wi);
         if (lm.flags & MAT_TWO_SIDED) != 0u {
-            cl = abs(dot3(nl, d)) / dist;
+            cl = abs(dot3(nl, wi));
         }
         if cs > 0.0 && cl > 0.0 && keeps_side(d, at_ng, true) {
             let toward = select(nl, -nl, dot3(nl, d) > 0.0);
             let qt = offset_origin(q, q_err, toward);
-            pending = lm.emission * (cs * cl / d2 * params.emit_total);
+            let e = bsdf_eval(at_bsdf, n, at_wo, wi);
+            var w = 1.0;
+            if path_continues() {
+                w = power_heuristic(d2 / (cl * params.emit_total), e.w);
+            }
+            pending = lm.emission * e.xyz * (cl / d2 * params.emit_total * w);
             if SHADOWS {
                 query = Ray(at_o, 0.0, qt - at_o, 1.0);
                 step = STEP_EMITTER;
@@ -683,13 +738,12 @@ fn env_ray() {
             let d = e.xyz;
             let c = dot3(at_n, d);
             if c > 0.0 && keeps_side(d, at_ng, true) {
-                let bounces = INDIRECT && params.integrator == INTEGRATOR_PATH
-                    && bounce != params.max_bounces;
+                let f = bsdf_eval(at_bsdf, at_n, at_wo, d);
                 var w = 1.0;
-                if bounces {
-                    w = power_heuristic(e.w, c * PI_INV);
+                if path_continues() {
+                    w = power_heuristic(e.w, f.w);
                 }
-                pending = env_eval(d) * (c * w / e.w);
+                pending = env_eval(d) * f.xyz * (w / e.w);
                 if SHADOWS {
                     query = Ray(at_o, 0.0, d, PRIMARY_TMAX);
                     step = STEP_ENV;
@@ -702,24 +756,27 @@ fn env_ray() {
     step = STEP_END_DIRECT;
 }
 
-// CpuRenderer::sample's diffuse bounce after direct().
+// CpuRenderer::sample's `bounces`: a bounce sampled from the BSDF follows this hit.
+fn path_continues() -> bool {
+    return INDIRECT && params.integrator == INTEGRATOR_PATH && bounce != params.max_bounces;
+}
+
+// CpuRenderer::sample's diffuse or principled bounce after direct().
 fn end_direct() {
-    rad += beta * at_albedo * PI_INV * light_sum;
-    let last = bounce == params.max_bounces;
-    if !(INDIRECT && params.integrator == INTEGRATOR_PATH) || last {
+    rad += beta * light_sum;
+    if !path_continues() {
         step = STEP_DONE;
         return;
     }
-    beta *= at_albedo;
-    let dir = cosine_direction(at_n);
-    if !keeps_side(dir, at_ng, true) {
+    let b = bsdf_sample(at_bsdf, at_n, at_wo);
+    if !(b.pdf > 0.0) || !keeps_side(b.dir, at_ng, true) {
         step = STEP_DONE;
         return;
     }
-    count_emission = !(SOFT_SHADOWS && params.n_emitters > 0u);
-    bounce_pdf = dot3(at_n, dir) * PI_INV;
+    beta *= b.weight;
+    bounce_pdf = b.pdf;
     // at_o is the CPU's second leave(p, p_err, n): the same origin.
-    next_bounce(Ray(at_o, 0.0, dir, PRIMARY_TMAX));
+    next_bounce(Ray(at_o, 0.0, b.dir, PRIMARY_TMAX));
 }
 
 // What the hit of the ray in `query` does, by the step that traced it.

@@ -39,8 +39,14 @@ pub struct GltfMaterial {
     pub base_color_texture: Option<(usize, GltfImage)>,
     /// Emissive factor × KHR_materials_emissive_strength, linear RGB.
     pub emissive: [f32; 3],
-    /// Whether an emissive texture was given (lancer uses the factor only).
-    pub emissive_texture: bool,
+    /// Emissive texture (sRGB), which multiplies the factor: (image index, its bytes).
+    pub emissive_texture: Option<(usize, GltfImage)>,
+    /// Metallic-roughness texture (linear; green: roughness, blue: metalness), which
+    /// multiplies the factors: (image index, its bytes).
+    pub metallic_roughness_texture: Option<(usize, GltfImage)>,
+    /// The textures of this material that read other coordinates than the one lancer
+    /// interpolates (the first of base colour, emissive, metallic-roughness), by name.
+    pub other_coordinates: Vec<&'static str>,
     /// KHR_materials_transmission factor (0 when absent).
     pub transmission: f32,
     /// KHR_materials_ior (1.5, glTF's default, when absent).
@@ -171,18 +177,21 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
 /// A `KHR_texture_transform`: glTF texture coordinates scaled, turned, then offset, as
 /// CesiumJS and three.js read the specification (u' = u·cos r + v·sin r, v' = v·cos r −
 /// u·sin r, after the scale).
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct UvTransform {
     /// Rows of the 2 × 3 matrix T·R·S of the specification.
     rows: [[f32; 3]; 2],
 }
 
 impl UvTransform {
+    const IDENTITY: UvTransform = UvTransform {
+        rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+    };
+
     /// The transform `t` gives (None: the identity).
     fn of(t: Option<&::gltf::texture::TextureTransform>) -> UvTransform {
         let Some(t) = t else {
-            return UvTransform {
-                rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
-            };
+            return UvTransform::IDENTITY;
         };
         let ([ox, oy], [sx, sy], r) = (t.offset(), t.scale(), t.rotation());
         let (s, c) = r.sin_cos();
@@ -691,42 +700,78 @@ fn material(
             "colours and factors must be finite, colours non-negative".into(),
         ));
     }
-    let base_color_texture = match pbr.base_color_texture() {
-        None => None,
-        Some(info) => {
-            let image = info.texture().source();
-            let bytes = match image.source() {
-                ::gltf::image::Source::View { view, .. } => GltfImage::Bytes(
-                    buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
-                        .to_vec(),
-                ),
-                ::gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                    GltfImage::Bytes(
-                        read_uri(path, dir, uri, 0, sources)
-                            .map_err(|e| bad(format!("image {}: {e}", image.index())))?,
-                    )
-                }
-                ::gltf::image::Source::Uri { uri, .. } => {
-                    let file = dir.join(percent_decode(uri));
+    let image_of = |info: Option<::gltf::texture::Info>,
+                    sources: &mut Vec<PathBuf>|
+     -> Result<Option<(usize, GltfImage)>> {
+        let Some(info) = info else { return Ok(None) };
+        let image = info.texture().source();
+        let bytes = match image.source() {
+            ::gltf::image::Source::View { view, .. } => GltfImage::Bytes(
+                buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
+                    .to_vec(),
+            ),
+            ::gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                GltfImage::Bytes(
+                    read_uri(path, dir, uri, 0, sources)
+                        .map_err(|e| bad(format!("image {}: {e}", image.index())))?,
+                )
+            }
+            ::gltf::image::Source::Uri { uri, .. } => {
+                let file = dir.join(percent_decode(uri));
+                if !sources.contains(&file) {
                     sources.push(file.clone());
-                    GltfImage::File(file)
                 }
-            };
-            Some((image.index(), bytes))
-        }
+                GltfImage::File(file)
+            }
+        };
+        Ok(Some((image.index(), bytes)))
     };
+    let base_color_texture = image_of(pbr.base_color_texture(), sources)?;
+    let emissive_texture = image_of(m.emissive_texture(), sources)?;
+    let metallic_roughness_texture = image_of(pbr.metallic_roughness_texture(), sources)?;
+    let named = [
+        ("base colour", pbr.base_color_texture()),
+        ("emissive", m.emissive_texture()),
+        ("metallic-roughness", pbr.metallic_roughness_texture()),
+    ];
+    let used = texture_coordinates(m);
+    let other_coordinates = (named.into_iter())
+        .filter_map(|(name, info)| info.map(|i| (name, coordinates_of(&i))))
+        .filter(|(_, c)| Some(*c) != used)
+        .map(|(name, _)| name)
+        .collect();
     Ok(GltfMaterial {
         name,
         base_color,
         base_color_texture,
         emissive,
-        emissive_texture: m.emissive_texture().is_some(),
+        emissive_texture,
+        metallic_roughness_texture,
+        other_coordinates,
         transmission,
         ior,
         metallic,
         roughness,
         double_sided: m.double_sided(),
     })
+}
+
+/// A texture's coordinate set, moved by its KHR_texture_transform (which may name another
+/// set).
+fn coordinates_of(info: &::gltf::texture::Info) -> (u32, UvTransform) {
+    let transform = info.texture_transform();
+    let set = (transform.as_ref().and_then(|x| x.tex_coord())).unwrap_or(info.tex_coord());
+    (set, UvTransform::of(transform.as_ref()))
+}
+
+/// The texture coordinates lancer interpolates for a material: those of its base colour
+/// texture, else its emissive, else its metallic-roughness texture (None: it has none).
+fn texture_coordinates(m: &::gltf::Material) -> Option<(u32, UvTransform)> {
+    let pbr = m.pbr_metallic_roughness();
+    (pbr.base_color_texture())
+        .or(m.emissive_texture())
+        .or(pbr.metallic_roughness_texture())
+        .map(|i| coordinates_of(&i))
 }
 
 /// The nodes of the scene with a mesh, a camera or a light, each with its world transform, in the order the
@@ -919,14 +964,7 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
             .unwrap_or_default(),
         None => (0..positions.len() as u32).collect(),
     };
-    // The base colour texture's coordinate set, moved by its KHR_texture_transform (which
-    // may name another set).
-    let info = p.material().pbr_metallic_roughness().base_color_texture();
-    let transform = info.as_ref().and_then(|t| t.texture_transform());
-    let set = (transform.as_ref().and_then(|x| x.tex_coord()))
-        .or(info.as_ref().map(|t| t.tex_coord()))
-        .unwrap_or(0);
-    let uv_map = UvTransform::of(transform.as_ref());
+    let (set, uv_map) = texture_coordinates(&p.material()).unwrap_or((0, UvTransform::IDENTITY));
     let uvs: Vec<Vec2> = match p.get(&Semantic::TexCoords(set)) {
         Some(a) => {
             let n = check_accessor(

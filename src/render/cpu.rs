@@ -2,12 +2,11 @@
 //! operation, over a CPU acceleration structure (a layout's twin). It is the reference the
 //! GPU images are tested against.
 
-use std::f32::consts::FRAC_1_PI;
-
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::aov::FirstHit;
+use super::bsdf::{Bsdf, Principled};
 use super::crop::Crop;
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, offset_origin, Rng};
@@ -132,16 +131,18 @@ impl<'a> CpuRenderer<'a> {
         }
     }
 
-    /// Light arriving at p (error bound `err`, geometric normal n facing the viewer,
-    /// shading normal ns) from every light, times the cosine to ns; none from below n.
-    /// `bounces`: a diffuse bounce follows, so the environment's sample is weighted by
-    /// multiple importance sampling against it.
+    /// Light reflected toward `wo` at p (error bound `err`, geometric normal n facing the
+    /// viewer, shading normal ns) by `bsdf` from every light; none from below n.
+    /// `bounces`: a bounce sampled from the BSDF follows, so the area lights' and the
+    /// environment's samples are weighted by multiple importance sampling against it.
+    #[allow(clippy::too_many_arguments)]
     fn direct(
         &self,
         fx: EffectSet,
         p: Vec3,
         err: Vec3,
         (n, ns): (Vec3, Vec3),
+        (bsdf, wo): (&Bsdf, Vec3),
         bounces: bool,
         rng: &mut Rng,
     ) -> Vec3 {
@@ -155,10 +156,11 @@ impl<'a> CpuRenderer<'a> {
                 } => {
                     let d = position - p;
                     let d2 = dot(d, d);
-                    let c = dot(ns, d) / d2.sqrt();
+                    let wi = d / d2.sqrt();
+                    let c = dot(ns, wi);
                     let lit = c > 0.0 && keeps_side(fx, d, n, true);
                     if lit && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
-                        sum += intensity * (c / d2);
+                        sum += intensity * bsdf.eval(ns, wo, wi).0 / d2;
                     }
                 }
                 Light::Spot { .. } if !fx.spot_lights => {}
@@ -171,12 +173,12 @@ impl<'a> CpuRenderer<'a> {
                 } => {
                     let d = position - p;
                     let d2 = dot(d, d);
-                    let dist = d2.sqrt();
-                    let c = dot(ns, d) / dist;
-                    let falloff = Light::spot_falloff(-dot(direction, d) / dist, scale, offset);
+                    let wi = d / d2.sqrt();
+                    let c = dot(ns, wi);
+                    let falloff = Light::spot_falloff(-dot(direction, wi), scale, offset);
                     let lit = c > 0.0 && falloff > 0.0 && keeps_side(fx, d, n, true);
                     if lit && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
-                        sum += intensity * (c * falloff / d2);
+                        sum += intensity * bsdf.eval(ns, wo, wi).0 * (falloff / d2);
                     }
                 }
                 Light::Directional {
@@ -186,7 +188,7 @@ impl<'a> CpuRenderer<'a> {
                     let c = -dot(ns, direction);
                     let lit = c > 0.0 && keeps_side(fx, -direction, n, true);
                     if lit && !(fx.shadows && self.occluded(o, -direction, PRIMARY_TMAX)) {
-                        sum += irradiance * c;
+                        sum += irradiance * bsdf.eval(ns, wo, -direction).0;
                     }
                 }
             }
@@ -214,20 +216,26 @@ impl<'a> CpuRenderer<'a> {
             let nl = normalize(cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
             let d = q - p;
             let d2 = dot(d, d);
-            let dist = d2.sqrt();
-            let cs = dot(ns, d) / dist;
+            let wi = d / d2.sqrt();
+            let cs = dot(ns, wi);
             let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
             // One-sided lights emit from their front (the winding's normal) only.
             let cl = if mat.two_sided {
-                dot(nl, d).abs() / dist
+                dot(nl, wi).abs()
             } else {
-                -dot(nl, d) / dist
+                -dot(nl, wi)
             };
             if cs > 0.0 && cl > 0.0 && keeps_side(fx, d, n, true) {
                 let toward = if dot(nl, d) > 0.0 { -nl } else { nl };
                 let qt = self.leave(q, q_err, toward);
                 if !(fx.shadows && self.occluded(o, qt - o, 1.0)) {
-                    sum += mat.emission * (cs * cl / d2 * self.emit_total);
+                    let (fcos, pdf) = bsdf.eval(ns, wo, wi);
+                    let w = if bounces {
+                        power_heuristic(d2 / (cl * self.emit_total), pdf)
+                    } else {
+                        1.0
+                    };
+                    sum += mat.emission * fcos * (cl / d2 * self.emit_total * w);
                 }
             }
         }
@@ -236,12 +244,13 @@ impl<'a> CpuRenderer<'a> {
             if let Some(e) = env.sample(u1, u2) {
                 let c = dot(ns, e.dir);
                 if c > 0.0 && keeps_side(fx, e.dir, n, true) {
+                    let (fcos, pdf) = bsdf.eval(ns, wo, e.dir);
                     let w = if bounces {
-                        power_heuristic(e.pdf, c * FRAC_1_PI)
+                        power_heuristic(e.pdf, pdf)
                     } else {
                         1.0
                     };
-                    let l = env.eval(e.dir) * (c * w / e.pdf);
+                    let l = env.eval(e.dir) * fcos * (w / e.pdf);
                     if !(fx.shadows && self.occluded(o, e.dir, PRIMARY_TMAX)) {
                         sum += l;
                     }
@@ -260,17 +269,47 @@ impl<'a> CpuRenderer<'a> {
         (self.frame.ray(x, y, jx, jy), rng)
     }
 
-    /// The reflectance at a hit: the material's texture there (when textures are
-    /// simulated), else its albedo.
+    /// Texture `t` at a hit, where textures are simulated.
+    fn texture_at(&self, fx: EffectSet, t: Option<usize>, shade: usize, hit: &Hit) -> Option<Vec3> {
+        let t = t.filter(|_| fx.textures)?;
+        let uv = self.scene.uvs[shade];
+        let uv = uv[0] * (1.0 - hit.u - hit.v) + uv[1] * hit.u + uv[2] * hit.v;
+        Some(sample_texture(&self.scene.textures[t], uv))
+    }
+
+    /// The reflectance at a hit: the material's albedo, times its texture there (when
+    /// textures are simulated).
     fn albedo(&self, fx: EffectSet, shade: usize, hit: &Hit) -> Vec3 {
         let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
-        match mat.texture {
-            Some(t) if fx.textures => {
-                let uv = self.scene.uvs[shade];
-                let uv = uv[0] * (1.0 - hit.u - hit.v) + uv[1] * hit.u + uv[2] * hit.v;
-                sample_texture(&self.scene.textures[t], uv)
-            }
-            _ => mat.albedo,
+        match self.texture_at(fx, mat.texture, shade, hit) {
+            Some(t) => t * mat.albedo,
+            None => mat.albedo,
+        }
+    }
+
+    /// How a diffuse or principled surface scatters at a hit (principled is diffuse where
+    /// microfacets are not simulated).
+    fn bsdf(&self, fx: EffectSet, shade: usize, hit: &Hit) -> Bsdf {
+        let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
+        let albedo = self.albedo(fx, shade, hit);
+        if !(fx.microfacet && mat.kind == MaterialKind::Principled) {
+            return Bsdf::Diffuse(albedo);
+        }
+        let (mut metallic, mut roughness) = (mat.metallic, mat.roughness);
+        if let Some(mr) = self.texture_at(fx, mat.metallic_roughness_texture, shade, hit) {
+            roughness *= mr.y;
+            metallic *= mr.z;
+        }
+        Bsdf::Principled(Principled::new(albedo, metallic, roughness))
+    }
+
+    /// A principled surface's emitted radiance at a hit: its emission times its emission
+    /// texture.
+    fn emission(&self, fx: EffectSet, shade: usize, hit: &Hit) -> Vec3 {
+        let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
+        match self.texture_at(fx, mat.emission_texture, shade, hit) {
+            Some(t) => mat.emission * t,
+            None => mat.emission,
         }
     }
 
@@ -306,9 +345,8 @@ impl<'a> CpuRenderer<'a> {
         let (mut ray, mut rng) = self.camera_ray(seed, x, y, sample);
         let mut radiance = Vec3::ZERO;
         let mut beta = Vec3::ONE;
-        let mut count_emission = true;
-        // The density the last diffuse bounce drew the ray's direction with; 0 for a
-        // camera ray or a specular bounce (which the environment's samples cannot draw).
+        // The density the last diffuse or principled bounce drew the ray's direction
+        // with; 0 for a camera ray or a specular bounce (which no light sample can draw).
         let mut bounce_pdf = 0.0f32;
         let nee = fx.soft_shadows && !self.scene.emitters.is_empty();
         for bounce in 0..=s.max_bounces {
@@ -332,8 +370,16 @@ impl<'a> CpuRenderer<'a> {
             let (front, n) = facing(&tri.v, ray.dir);
             let ns = shading_side(fx, self.shading_normal(fx, &tri, &hit), n);
             if mat.kind == MaterialKind::Emissive {
-                if count_emission && (front || mat.two_sided) {
-                    radiance += beta * mat.emission;
+                if front || mat.two_sided {
+                    // Multiple importance sampling with the light sample of the last hit.
+                    let w = if nee && bounce_pdf > 0.0 {
+                        let cl = dot(n, ray.dir).abs() / dot(ray.dir, ray.dir).sqrt();
+                        let d2 = hit.t * hit.t * dot(ray.dir, ray.dir);
+                        power_heuristic(bounce_pdf, d2 / (cl * self.emit_total))
+                    } else {
+                        1.0
+                    };
+                    radiance += beta * mat.emission * w;
                 }
                 break;
             }
@@ -359,7 +405,6 @@ impl<'a> CpuRenderer<'a> {
                 }
                 beta *= mat.albedo;
                 ray = Ray::new(self.leave(p, p_err, n), reflected, 0.0, PRIMARY_TMAX);
-                count_emission = true;
                 bounce_pdf = 0.0;
                 continue;
             }
@@ -373,7 +418,6 @@ impl<'a> CpuRenderer<'a> {
                 let fresnel = r0 + (1.0 - r0) * (m * m * m * m * m);
                 let u = rng.next_f32();
                 beta *= mat.albedo;
-                count_emission = true;
                 bounce_pdf = 0.0;
                 if sin2_t >= 1.0 || u < fresnel {
                     if !keeps_side(fx, reflected, n, true) {
@@ -390,22 +434,34 @@ impl<'a> CpuRenderer<'a> {
                 }
                 continue;
             }
-            // Diffuse.
-            let albedo = self.albedo(fx, tri.shade, &hit);
+            // Diffuse or principled.
+            let bsdf = self.bsdf(fx, tri.shade, &hit);
+            let wo = -d;
+            let mut ns = ns;
+            if let Bsdf::Principled(_) = bsdf {
+                if front || mat.two_sided {
+                    radiance += beta * self.emission(fx, tri.shade, &hit);
+                }
+                // A view below the shading normal sees the geometric one.
+                if dot(ns, wo) <= 0.0 {
+                    ns = n;
+                }
+            }
             let bounces = fx.indirect && s.integrator == Integrator::Path && !last;
-            let light = self.direct(fx, p, p_err, (n, ns), bounces, &mut rng);
-            radiance += beta * albedo * FRAC_1_PI * light;
+            let light = self.direct(fx, p, p_err, (n, ns), (&bsdf, wo), bounces, &mut rng);
+            radiance += beta * light;
             if !bounces {
                 break;
             }
-            beta *= albedo;
-            let dir = cosine_direction(ns, &mut rng);
-            if !keeps_side(fx, dir, n, true) {
+            let Some(b) = bsdf.sample(ns, wo, &mut rng) else {
+                break;
+            };
+            if !keeps_side(fx, b.dir, n, true) {
                 break;
             }
-            ray = Ray::new(self.leave(p, p_err, n), dir, 0.0, PRIMARY_TMAX);
-            count_emission = !nee;
-            bounce_pdf = dot(ns, dir) * FRAC_1_PI;
+            beta *= b.weight;
+            ray = Ray::new(self.leave(p, p_err, n), b.dir, 0.0, PRIMARY_TMAX);
+            bounce_pdf = b.pdf;
         }
         radiance
     }

@@ -28,6 +28,9 @@ pub struct EffectSet {
     pub environment: bool,
     /// Spot lights (a point light's falloff about an axis).
     pub spot_lights: bool,
+    /// glTF metallic-roughness surfaces (principled: GGX microfacets over a Lambert
+    /// base, and their emission); without it they are diffuse.
+    pub microfacet: bool,
 }
 
 impl EffectSet {
@@ -43,6 +46,7 @@ impl EffectSet {
         shading_normals: true,
         environment: true,
         spot_lights: true,
+        microfacet: true,
     };
 
     /// What `scene` needs, and nothing more.
@@ -63,7 +67,7 @@ impl EffectSet {
             mirror: !ao && kind_used(MaterialKind::Mirror),
             refraction: !ao && kind_used(MaterialKind::Glass),
             indirect: s.integrator == Integrator::Path && s.max_bounces >= 1,
-            textures: !ao && used.iter().any(|m| m.texture.is_some()),
+            textures: !ao && used.iter().any(|m| m.textured()),
             ao,
             shading_normals: (included.iter()).any(|&i| {
                 scene
@@ -73,11 +77,12 @@ impl EffectSet {
             }),
             environment,
             spot_lights: !ao && (scene.lights.iter()).any(|l| matches!(l, Light::Spot { .. })),
+            microfacet: !ao && kind_used(MaterialKind::Principled),
         }
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 10] {
+    pub fn flags(&self) -> [(&'static str, bool); 11] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -89,6 +94,7 @@ impl EffectSet {
             ("SHADING_NORMALS", self.shading_normals),
             ("ENVIRONMENT", self.environment),
             ("SPOT_LIGHTS", self.spot_lights),
+            ("MICROFACET", self.microfacet),
         ]
     }
 }
@@ -98,7 +104,7 @@ impl EffectSet {
     /// it) and the set without it: what `bench render` times to price each effect.
     pub fn each_without(&self) -> Vec<(String, EffectSet)> {
         type Field = fn(&mut EffectSet) -> &mut bool;
-        let fields: [(&str, Field); 10] = [
+        let fields: [(&str, Field); 11] = [
             ("shadows", |f| &mut f.shadows),
             ("soft-shadows", |f| &mut f.soft_shadows),
             ("mirror", |f| &mut f.mirror),
@@ -109,6 +115,7 @@ impl EffectSet {
             ("shading-normals", |f| &mut f.shading_normals),
             ("environment", |f| &mut f.environment),
             ("spot-lights", |f| &mut f.spot_lights),
+            ("microfacet", |f| &mut f.microfacet),
         ];
         let mut out = Vec::new();
         for (name, field) in fields {

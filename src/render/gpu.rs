@@ -92,15 +92,36 @@ pub struct GpuMaterial {
     pub tex_width: u32,
     /// Texture height in texels (0 without a texture).
     pub tex_height: u32,
-    /// Bits: [`MAT_TEXTURED`] (albedo from the texture), [`MAT_TWO_SIDED`] (emits from
-    /// both faces).
+    /// Bits: [`MAT_TEXTURED`] (albedo times the texture), [`MAT_TWO_SIDED`] (emits from
+    /// both faces), [`MAT_METALLIC_ROUGHNESS`], [`MAT_EMISSION_TEXTURE`].
     pub flags: u32,
+    /// Principled: metalness.
+    pub metallic: f32,
+    /// Principled: perceptual roughness.
+    pub roughness: f32,
+    /// Principled: where the metallic-roughness texture's texels start.
+    pub mr_offset: u32,
+    /// Principled: where the emission texture's texels start.
+    pub emission_offset: u32,
+    /// The metallic-roughness texture's width (0 without one).
+    pub mr_width: u32,
+    /// The metallic-roughness texture's height.
+    pub mr_height: u32,
+    /// The emission texture's width (0 without one).
+    pub emission_width: u32,
+    /// The emission texture's height.
+    pub emission_height: u32,
 }
 
-/// [`GpuMaterial::flags`] bit: the albedo comes from the material's texture.
+/// [`GpuMaterial::flags`] bit: the albedo is multiplied by the material's texture.
 pub const MAT_TEXTURED: u32 = 1;
 /// [`GpuMaterial::flags`] bit: an emitter that emits from both faces.
 pub const MAT_TWO_SIDED: u32 = 2;
+/// [`GpuMaterial::flags`] bit: metalness and roughness are multiplied by a texture's blue
+/// and green channels.
+pub const MAT_METALLIC_ROUGHNESS: u32 = 4;
+/// [`GpuMaterial::flags`] bit: the emission is multiplied by a texture.
+pub const MAT_EMISSION_TEXTURE: u32 = 8;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -285,11 +306,17 @@ impl<'a> GpuRenderer<'a> {
         if texels.is_empty() {
             texels.push([0.0; 4]);
         }
+        let slot = |t: Option<usize>| {
+            t.map_or((0, 0, 0), |t| {
+                (tex_at[t], scene.textures[t].width, scene.textures[t].height)
+            })
+        };
         let materials: Vec<GpuMaterial> = (scene.materials.iter())
             .map(|m| {
-                let (off, w, h) = m.texture.map_or((0, 0, 0), |t| {
-                    (tex_at[t], scene.textures[t].width, scene.textures[t].height)
-                });
+                let (off, w, h) = slot(m.texture);
+                let (mr_off, mr_w, mr_h) = slot(m.metallic_roughness_texture);
+                let (e_off, e_w, e_h) = slot(m.emission_texture);
+                let bit = |on: bool, b: u32| if on { b } else { 0 };
                 GpuMaterial {
                     albedo: m.albedo.into(),
                     kind: m.kind.code(),
@@ -298,8 +325,18 @@ impl<'a> GpuRenderer<'a> {
                     tex_offset: off,
                     tex_width: w,
                     tex_height: h,
-                    flags: if m.texture.is_some() { MAT_TEXTURED } else { 0 }
-                        | if m.two_sided { MAT_TWO_SIDED } else { 0 },
+                    flags: bit(m.texture.is_some(), MAT_TEXTURED)
+                        | bit(m.two_sided, MAT_TWO_SIDED)
+                        | bit(m.metallic_roughness_texture.is_some(), MAT_METALLIC_ROUGHNESS)
+                        | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE),
+                    metallic: m.metallic,
+                    roughness: m.roughness,
+                    mr_offset: mr_off,
+                    emission_offset: e_off,
+                    mr_width: mr_w,
+                    mr_height: mr_h,
+                    emission_width: e_w,
+                    emission_height: e_h,
                 }
             })
             .collect();

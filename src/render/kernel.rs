@@ -9,13 +9,17 @@ use crate::gpu::shaders::{self, Shared};
 use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
 use super::sampling::POINT_ERROR;
 use super::trig::{ATAN_C, COS_C, INV_TAU, SIN_C};
-use super::{Integrator, LightKind, MaterialKind, MAT_TEXTURED, MAT_TWO_SIDED, TRANSFORM_ERROR};
+use super::bsdf::{ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
+use super::{Integrator, LightKind, MaterialKind, TRANSFORM_ERROR};
+use super::{MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_TEXTURED, MAT_TWO_SIDED};
 use crate::geometry::{NO_NORMAL, SNORM16_SCALE};
 
 /// The render kernel (one sample of one pixel per invocation).
 pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
 /// The environment light's lookups and sampling, and the polynomial trigonometry they use.
 pub const ENVIRONMENT: &str = include_str!("../../shaders/lib/environment.wgsl");
+/// The surfaces' scattering: Lambert and glTF's metallic-roughness (render::bsdf).
+pub const BSDF: &str = include_str!("../../shaders/lib/bsdf.wgsl");
 
 /// The render kernel where each lane traverses alone: it traces each ray where the CPU
 /// does (`lanes_any(b)`, unused there, is the lane's own `b`).
@@ -36,6 +40,7 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("KIND_MIRROR", U32(MaterialKind::Mirror.code())),
         ("KIND_GLASS", U32(MaterialKind::Glass.code())),
         ("KIND_EMISSIVE", U32(MaterialKind::Emissive.code())),
+        ("KIND_PRINCIPLED", U32(MaterialKind::Principled.code())),
         ("INTEGRATOR_DIRECT", U32(Integrator::Direct.code())),
         ("INTEGRATOR_PATH", U32(Integrator::Path.code())),
         ("INTEGRATOR_AO", U32(Integrator::Ao.code())),
@@ -44,6 +49,8 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("LIGHT_SPOT", U32(LightKind::Spot.code())),
         ("MAT_TEXTURED", U32(MAT_TEXTURED)),
         ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
+        ("MAT_METALLIC_ROUGHNESS", U32(MAT_METALLIC_ROUGHNESS)),
+        ("MAT_EMISSION_TEXTURE", U32(MAT_EMISSION_TEXTURE)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
         ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
         ("NO_NORMAL", U32(NO_NORMAL)),     // geometry::NO_NORMAL
@@ -68,13 +75,19 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("ATAN_C5", F32(ATAN_C[5])),
         ("UNIFORM_SPHERE_PDF", F32(UNIFORM_SPHERE_PDF)),
         ("MAP_PDF_SCALE", F32(MAP_PDF_SCALE)),
+        // render::bsdf
+        ("DIELECTRIC_F0", F32(DIELECTRIC_F0)),
+        ("ALPHA_MIN", F32(ALPHA_MIN)),
+        ("LUMINANCE_R", F32(LUMINANCE[0])),
+        ("LUMINANCE_G", F32(LUMINANCE[1])),
+        ("LUMINANCE_B", F32(LUMINANCE[2])),
     ]
 }
 
 /// The renderer's constants, the lane mode and the render kernel.
 fn render_kernel(lanes: &str) -> String {
     let constants = shaders::constants_wgsl("render::kernel", &render_constants());
-    format!("{constants}\n{lanes}\n{RENDER}\n{ENVIRONMENT}")
+    format!("{constants}\n{lanes}\n{RENDER}\n{ENVIRONMENT}\n{BSDF}")
 }
 
 /// The render kernel's full source for a GPU form.

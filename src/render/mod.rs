@@ -3,6 +3,7 @@
 //! behind one [`Renderer`].
 
 mod aov;
+mod bsdf;
 mod cpu;
 mod crop;
 mod effects;
@@ -20,6 +21,7 @@ mod stats;
 mod trig;
 
 pub use aov::{AovSet, Aovs, FirstHit};
+pub use bsdf::{Bsdf, BsdfSample, Principled, ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 pub use cpu::{sample_texture, CpuRenderer};
 pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
@@ -28,8 +30,8 @@ pub use environment::{
 };
 pub use exr::ExrImage;
 pub use gpu::{
-    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_TEXTURED,
-    MAT_TWO_SIDED,
+    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams,
+    MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_TEXTURED, MAT_TWO_SIDED,
 };
 pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};

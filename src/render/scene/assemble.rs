@@ -32,11 +32,23 @@ pub struct Material {
     pub emission: Vec3,
     /// Index of refraction (glass; 1 otherwise).
     pub ior: f32,
-    /// Index into [`RenderScene::textures`] of a diffuse texture, which replaces `albedo`.
+    /// Index into [`RenderScene::textures`] of a diffuse or base colour texture, which
+    /// multiplies `albedo`.
     pub texture: Option<usize>,
     /// Emissive: emits from both faces (default: the front face only, the one the
     /// vertices' winding makes the normal of — the convention of Mitsuba and pbrt).
+    /// Principled: emits from both faces.
     pub two_sided: bool,
+    /// Principled: metalness in [0, 1].
+    pub metallic: f32,
+    /// Principled: perceptual roughness in [0, 1] (GGX α = roughness²).
+    pub roughness: f32,
+    /// Principled: index into [`RenderScene::textures`] of glTF's metallic-roughness
+    /// texture (linear; its green channel scales `roughness`, its blue `metallic`).
+    pub metallic_roughness_texture: Option<usize>,
+    /// Principled: index into [`RenderScene::textures`] of a texture that multiplies
+    /// `emission`.
+    pub emission_texture: Option<usize>,
 }
 
 impl Material {
@@ -49,7 +61,28 @@ impl Material {
             ior: 1.0,
             texture: None,
             two_sided: false,
+            metallic: 0.0,
+            roughness: 1.0,
+            metallic_roughness_texture: None,
+            emission_texture: None,
         }
+    }
+
+    /// An untextured glTF metallic-roughness material.
+    pub fn principled(base_color: Vec3, metallic: f32, roughness: f32) -> Material {
+        Material {
+            kind: MaterialKind::Principled,
+            metallic,
+            roughness,
+            ..Material::diffuse(base_color)
+        }
+    }
+
+    /// Whether the material reads any texture.
+    pub fn textured(&self) -> bool {
+        self.texture.is_some()
+            || self.metallic_roughness_texture.is_some()
+            || self.emission_texture.is_some()
     }
 }
 
@@ -209,18 +242,19 @@ fn srgb_to_linear(c: u8) -> f32 {
     }
 }
 
-fn load_texture(path: &Path) -> Result<Texture> {
+fn load_texture(path: &Path, srgb: bool) -> Result<Texture> {
     let bytes = crate::input::read(path)?;
-    decode_texture(&bytes)
+    decode_texture(&bytes, srgb)
         .map_err(|e| Error::input(path, None, format!("cannot read texture: {e}")))
 }
 
 /// An image file's bytes (PNG, JPEG, … by their content) decoded as a linear texture from
-/// sRGB. Its size is read from its header and checked first — at most
+/// sRGB (colours), or as they are (`srgb` false: data such as glTF's metallic-roughness,
+/// scaled to [0, 1]). Its size is read from its header and checked first — at most
 /// [`MAX_TEXTURE_SIDE`](crate::limits::MAX_TEXTURE_SIDE) a side, and the memory decoding
 /// takes (the decoded image, its RGB8 copy, the f32 texels) — so nothing is decoded that
 /// would not fit.
-pub(super) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, String> {
+pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Texture, String> {
     let reader = || {
         image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
@@ -236,7 +270,9 @@ pub(super) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, Strin
     crate::limits::check_image(width, height, 16 + 3 + 12, "scale the texture down")
         .map_err(|e| e.to_string())?;
     let img = reader()?.decode().map_err(|e| e.to_string())?.to_rgb8();
-    let lut: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
+    let lut: Vec<f32> = (0..=255u8)
+        .map(|c| if srgb { srgb_to_linear(c) } else { c as f32 / 255.0 })
+        .collect();
     Ok(Texture {
         width: img.width(),
         height: img.height(),
@@ -279,9 +315,16 @@ pub(super) struct Builder {
 }
 
 impl Builder {
-    fn texture(&mut self, path: &Path) -> Result<usize> {
-        let known = self.texture_ids.contains_key(path);
-        let i = self.texture_with(path.to_path_buf(), || load_texture(path))?;
+    /// The index of the texture in image file `path`, read from sRGB (`srgb`) or as data.
+    fn texture(&mut self, path: &Path, srgb: bool) -> Result<usize> {
+        // The same file read both ways is two textures.
+        let key = if srgb {
+            path.to_path_buf()
+        } else {
+            PathBuf::from(format!("{}#linear", path.display()))
+        };
+        let known = self.texture_ids.contains_key(&key);
+        let i = self.texture_with(key, || load_texture(path, srgb))?;
         if !known {
             self.sources.push(path.to_path_buf());
         }
@@ -429,8 +472,10 @@ fn mtl_material(b: &mut Builder, dir: &Path, m: &tobj::Material) -> Result<Mater
         mat.albedo = Vec3::ONE;
         mat.ior = m.optical_density.unwrap_or(1.5);
     } else if let Some(t) = &m.diffuse_texture {
+        // map_Kd replaces Kd (textures multiply the albedo: make it 1).
+        mat.albedo = Vec3::ONE;
         let file = dir.join(t);
-        mat.texture = Some(b.texture(&file).map_err(|e| {
+        mat.texture = Some(b.texture(&file, true).map_err(|e| {
             Error::input(
                 &file,
                 None,
@@ -635,10 +680,11 @@ fn scene_material(
     };
     let mut m = Material::diffuse(Vec3::ONE);
     m.kind = d.kind;
+    let principled = d.kind == MaterialKind::Principled;
     only(
         "texture",
-        d.texture.is_some() && d.kind != MaterialKind::Diffuse,
-        "diffuse",
+        d.texture.is_some() && !matches!(d.kind, MaterialKind::Diffuse | MaterialKind::Principled),
+        "diffuse and principled",
     )?;
     only(
         "ior",
@@ -647,25 +693,40 @@ fn scene_material(
     )?;
     only(
         "emission",
-        d.emission.is_some() && d.kind != MaterialKind::Emissive,
-        "emissive",
+        d.emission.is_some() && !matches!(d.kind, MaterialKind::Emissive | MaterialKind::Principled),
+        "emissive and principled",
     )?;
     only(
         "two_sided",
         d.two_sided && d.kind != MaterialKind::Emissive,
         "emissive",
     )?;
-    if let Some(a) = d.albedo {
-        m.albedo = check_rgb(path, line, "albedo", a)?;
+    for (field, set) in [
+        ("base_color", d.base_color.is_some()),
+        ("metallic", d.metallic.is_some()),
+        ("roughness", d.roughness.is_some()),
+        ("metallic_roughness_texture", d.metallic_roughness_texture.is_some()),
+        ("emission_texture", d.emission_texture.is_some()),
+    ] {
+        only(field, set && !principled, "principled")?;
+    }
+    if principled && d.albedo.is_some() {
+        return Err(bad("a principled material takes 'base_color', not 'albedo'".into()));
+    }
+    if let Some(a) = d.albedo.or(d.base_color) {
+        let what = if principled { "base_color" } else { "albedo" };
+        m.albedo = check_rgb(path, line, what, a)?;
         if m.albedo.max_element() > 1.0 {
             log::warn!(
-                "{}:{line}: albedo {a:?} reflects more light than arrives; clamped to 1",
+                "{}:{line}: {what} {a:?} reflects more light than arrives; clamped to 1",
                 path.display()
             );
             m.albedo = m.albedo.min(Vec3::ONE);
         }
     } else if d.kind == MaterialKind::Diffuse && d.texture.is_none() {
         m.albedo = Vec3::splat(0.7);
+    } else if principled && d.texture.is_none() {
+        m.albedo = Vec3::splat(0.8);
     }
     match d.kind {
         MaterialKind::Emissive => {
@@ -681,18 +742,40 @@ fn scene_material(
                 return Err(bad(format!("ior must be in [1, 4], got {}", m.ior)));
             }
         }
+        MaterialKind::Principled => {
+            let unit = |field: &str, x: Option<f32>, default: f32| match x {
+                Some(v) if !(0.0..=1.0).contains(&v) => {
+                    Err(bad(format!("{field} must be in [0, 1], got {v}")))
+                }
+                v => Ok(v.unwrap_or(default)),
+            };
+            // glTF's defaults: a rough metal; lancer's: a rough dielectric (a plastic).
+            m.metallic = unit("metallic", d.metallic, 0.0)?;
+            m.roughness = unit("roughness", d.roughness, 0.5)?;
+            if let Some(e) = d.emission {
+                m.emission = check_rgb(path, line, "emission", e)?;
+            } else if d.emission_texture.is_some() {
+                m.emission = Vec3::ONE;
+            }
+            m.two_sided = true;
+        }
         _ => {}
     }
-    if let Some(t) = &d.texture {
+    let mut image = |name: &str, file: &Option<String>, srgb: bool| -> Result<Option<usize>> {
+        let Some(t) = file else { return Ok(None) };
         let file = dir.join(t);
-        m.texture = Some(b.texture(&file).map_err(|e| {
+        b.texture(&file, srgb).map(Some).map_err(|e| {
             Error::input(
                 path,
                 Some(line),
-                format!("texture {}: {}", file.display(), error_message(&e)),
+                format!("{name} {}: {}", file.display(), error_message(&e)),
             )
-        })?);
-    }
+        })
+    };
+    m.texture = image("texture", &d.texture, true)?;
+    m.metallic_roughness_texture =
+        image("metallic_roughness_texture", &d.metallic_roughness_texture, false)?;
+    m.emission_texture = image("emission_texture", &d.emission_texture, true)?;
     Ok(m)
 }
 

@@ -124,6 +124,9 @@ pub enum MaterialKind {
     Glass,
     /// Emits `emission` and reflects nothing; its triangles are area lights.
     Emissive,
+    /// glTF 2.0's metallic-roughness: a GGX specular lobe over a Lambert base, mixed by
+    /// `metallic` (render::bsdf).
+    Principled,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -133,11 +136,25 @@ pub struct MaterialDef {
     pub kind: MaterialKind,
     /// Linear RGB reflectance (diffuse, mirror) or transmittance tint (glass).
     pub albedo: Option<[f32; 3]>,
-    /// Image file (PNG, JPEG…), relative to the scene file; diffuse only.
+    /// Principled: linear RGB base colour (multiplies `texture`).
+    pub base_color: Option<[f32; 3]>,
+    /// Principled: metalness in [0, 1] (multiplies the blue channel of
+    /// `metallic_roughness_texture`).
+    pub metallic: Option<f32>,
+    /// Principled: perceptual roughness in [0, 1], α = roughness² (multiplies the green
+    /// channel of `metallic_roughness_texture`).
+    pub roughness: Option<f32>,
+    /// Image file (PNG, JPEG…), relative to the scene file: a diffuse material's albedo,
+    /// a principled one's base colour (sRGB).
     pub texture: Option<String>,
+    /// Principled: glTF's metallic-roughness image (linear; green: roughness, blue:
+    /// metalness).
+    pub metallic_roughness_texture: Option<String>,
+    /// Principled: an image (sRGB) that multiplies `emission`.
+    pub emission_texture: Option<String>,
     /// Index of refraction (glass).
     pub ior: Option<f32>,
-    /// Emitted radiance (emissive).
+    /// Emitted radiance (emissive; principled: emitted where hit, not sampled as a light).
     pub emission: Option<[f32; 3]>,
     /// Emissive: emit from both faces (default: the front face only).
     #[serde(default)]
@@ -326,6 +343,7 @@ impl MaterialKind {
             MaterialKind::Mirror => 1,
             MaterialKind::Glass => 2,
             MaterialKind::Emissive => 3,
+            MaterialKind::Principled => 4,
         }
     }
 }

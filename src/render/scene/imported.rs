@@ -1,8 +1,9 @@
 //! Mesh files as scene objects, the reader chosen by extension (OBJ with its MTL materials,
-//! PLY, glTF 2.0 with its materials), and glTF's metallic-roughness materials mapped onto
-//! lancer's: emissive where the emissive factor is not black, glass where
-//! KHR_materials_transmission is present, mirror for a perfectly smooth metal, diffuse
-//! (base colour factor × base colour texture) otherwise.
+//! PLY, glTF 2.0 with its materials), and glTF's materials mapped onto lancer's: an area
+//! light (emissive) where the emissive factor is not black and no emissive texture or base
+//! colour texture varies it, glass where KHR_materials_transmission is present, principled
+//! (glTF's own metallic-roughness, with its base colour, metallic-roughness and emissive
+//! textures) otherwise.
 
 use std::path::{Path, PathBuf};
 
@@ -201,21 +202,18 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
         );
     }
     let base = base.min(Vec3::ONE);
-    let mut mat = Material::diffuse(base);
     let emissive = Vec3::from(m.emissive);
-    if emissive.max_element() > 0.0 {
-        if m.emissive_texture {
-            log::warn!(
-                "{}: material {:?}: emissive texture not used (lancer emits the emissive \
-                 factor)",
-                path.display(),
-                m.name
-            );
-        }
+    let glowing = emissive.max_element() > 0.0;
+    if glowing && m.emissive_texture.is_none() && m.base_color_texture.is_none() {
+        // A uniform glow: an area light, sampled at every diffuse hit.
+        let mut mat = Material::diffuse(base);
         mat.kind = MaterialKind::Emissive;
         mat.emission = emissive;
         mat.two_sided = m.double_sided;
-    } else if m.transmission > 0.0 {
+        return Ok(mat);
+    }
+    if m.transmission > 0.0 {
+        let mut mat = Material::diffuse(base);
         mat.kind = MaterialKind::Glass;
         mat.ior = m.ior.clamp(1.0, 4.0);
         if mat.ior != m.ior {
@@ -227,34 +225,52 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
                 mat.ior
             );
         }
-    } else if m.metallic >= 1.0 && m.roughness <= 0.0 {
-        mat.kind = MaterialKind::Mirror;
-    } else if let Some((index, image)) = &m.base_color_texture {
-        // lancer's textures replace the albedo: the factor is multiplied into the texels.
-        let key = PathBuf::from(format!("{}#image{index}*{base}", path.display()));
+        return Ok(mat);
+    }
+    if !m.other_coordinates.is_empty() {
+        log::warn!(
+            "{}: material {:?}: the {} texture(s) read other texture coordinates than the \
+             first; lancer reads them at the first's",
+            path.display(),
+            m.name,
+            m.other_coordinates.join(", ")
+        );
+    }
+    let mut mat = Material::principled(base, m.metallic, m.roughness);
+    // Emission where hit (not sampled as a light): the factor times the texture.
+    mat.emission = if glowing { emissive } else { Vec3::ZERO };
+    mat.two_sided = true;
+    let mut image = |what: &str, t: &Option<(usize, GltfImage)>, srgb: bool| -> Result<_> {
+        let Some((index, image)) = t else {
+            return Ok(None);
+        };
+        let key = PathBuf::from(format!("{}#image{index}/{srgb}", path.display()));
         let texture = b.texture_with(key, || {
             let decoded = match image {
-                GltfImage::Bytes(bytes) => decode_texture(bytes),
+                GltfImage::Bytes(bytes) => decode_texture(bytes, srgb),
                 GltfImage::File(f) => crate::input::read(f)
                     .map_err(|e| e.to_string())
-                    .and_then(|bytes| decode_texture(&bytes)),
+                    .and_then(|bytes| decode_texture(&bytes, srgb)),
             };
-            let mut t = decoded.map_err(|e| {
+            decoded.map_err(|e| {
                 Error::input(
                     path,
                     None,
                     format!(
-                        "material {:?}: base colour texture (image {index}) cannot be read: {e}",
+                        "material {:?}: {what} texture (image {index}) cannot be read: {e}",
                         m.name
                     ),
                 )
-            })?;
-            for x in &mut t.texels {
-                *x *= base;
-            }
-            Ok(t)
+            })
         });
-        mat.texture = Some(texture.map_err(|e| Error::input(path, None, error_message(&e)))?);
+        Ok(Some(
+            texture.map_err(|e| Error::input(path, None, error_message(&e)))?,
+        ))
+    };
+    mat.texture = image("base colour", &m.base_color_texture, true)?;
+    mat.metallic_roughness_texture = image("metallic-roughness", &m.metallic_roughness_texture, false)?;
+    if glowing {
+        mat.emission_texture = image("emissive", &m.emissive_texture, true)?;
     }
     Ok(mat)
 }
