@@ -710,12 +710,10 @@ fn material(
                 buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
                     .to_vec(),
             ),
-            ::gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                GltfImage::Bytes(
-                    read_uri(path, dir, uri, 0, sources)
-                        .map_err(|e| bad(format!("image {}: {e}", image.index())))?,
-                )
-            }
+            ::gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => GltfImage::Bytes(
+                read_uri(path, dir, uri, 0, sources)
+                    .map_err(|e| bad(format!("image {}: {e}", image.index())))?,
+            ),
             ::gltf::image::Source::Uri { uri, .. } => {
                 let file = dir.join(percent_decode(uri));
                 if !sources.contains(&file) {

@@ -118,8 +118,8 @@ impl Principled {
         let a2 = self.alpha * self.alpha;
         let k = noh * noh * a2 + sin2;
         let d = a2 / (PI * k * k);
-        let vis =
-            0.5 / (ci * (co * co * (1.0 - a2) + a2).sqrt() + co * (ci * ci * (1.0 - a2) + a2).sqrt());
+        let vis = 0.5
+            / (ci * (co * co * (1.0 - a2) + a2).sqrt() + co * (ci * ci * (1.0 - a2) + a2).sqrt());
         let m5 = schlick_weight(voh);
         let f0 = self.f0();
         let fresnel = f0 + (Vec3::ONE - f0) * m5;
@@ -138,7 +138,11 @@ impl Principled {
         let (t, b) = basis(n);
         let a = self.alpha;
         // The view in the frame where the lobe is a hemisphere.
-        let vh = normalize(Vec3::new(a * dot(wo, t), a * dot(wo, b), dot(wo, n).max(0.0)));
+        let vh = normalize(Vec3::new(
+            a * dot(wo, t),
+            a * dot(wo, b),
+            dot(wo, n).max(0.0),
+        ));
         let lensq = vh.x * vh.x + vh.y * vh.y;
         let t1 = if lensq > 0.0 {
             let l = lensq.sqrt();

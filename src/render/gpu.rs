@@ -327,7 +327,10 @@ impl<'a> GpuRenderer<'a> {
                     tex_height: h,
                     flags: bit(m.texture.is_some(), MAT_TEXTURED)
                         | bit(m.two_sided, MAT_TWO_SIDED)
-                        | bit(m.metallic_roughness_texture.is_some(), MAT_METALLIC_ROUGHNESS)
+                        | bit(
+                            m.metallic_roughness_texture.is_some(),
+                            MAT_METALLIC_ROUGHNESS,
+                        )
                         | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE),
                     metallic: m.metallic,
                     roughness: m.roughness,

@@ -6,10 +6,10 @@
 use crate::accel::GpuForm;
 use crate::gpu::shaders::{self, Shared};
 
+use super::bsdf::{ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
 use super::sampling::POINT_ERROR;
 use super::trig::{ATAN_C, COS_C, INV_TAU, SIN_C};
-use super::bsdf::{ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 use super::{Integrator, LightKind, MaterialKind, TRANSFORM_ERROR};
 use super::{MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_TEXTURED, MAT_TWO_SIDED};
 use crate::geometry::{NO_NORMAL, SNORM16_SCALE};

@@ -36,4 +36,19 @@ impl Scratch {
         img.save(&p).unwrap();
         p
     }
+
+    /// An 8-bit RGB PNG image `name` of `width × height` pixels from `f(column, row)`; its
+    /// path.
+    pub fn png(
+        &self,
+        name: &str,
+        width: u32,
+        height: u32,
+        f: impl Fn(u32, u32) -> [u8; 3],
+    ) -> PathBuf {
+        let p = self.path(name);
+        let img = image::RgbImage::from_fn(width, height, |x, y| image::Rgb(f(x, y)));
+        img.save(&p).unwrap();
+        p
+    }
 }

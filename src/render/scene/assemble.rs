@@ -271,7 +271,13 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
         .map_err(|e| e.to_string())?;
     let img = reader()?.decode().map_err(|e| e.to_string())?.to_rgb8();
     let lut: Vec<f32> = (0..=255u8)
-        .map(|c| if srgb { srgb_to_linear(c) } else { c as f32 / 255.0 })
+        .map(|c| {
+            if srgb {
+                srgb_to_linear(c)
+            } else {
+                c as f32 / 255.0
+            }
+        })
         .collect();
     Ok(Texture {
         width: img.width(),
@@ -693,7 +699,8 @@ fn scene_material(
     )?;
     only(
         "emission",
-        d.emission.is_some() && !matches!(d.kind, MaterialKind::Emissive | MaterialKind::Principled),
+        d.emission.is_some()
+            && !matches!(d.kind, MaterialKind::Emissive | MaterialKind::Principled),
         "emissive and principled",
     )?;
     only(
@@ -705,13 +712,18 @@ fn scene_material(
         ("base_color", d.base_color.is_some()),
         ("metallic", d.metallic.is_some()),
         ("roughness", d.roughness.is_some()),
-        ("metallic_roughness_texture", d.metallic_roughness_texture.is_some()),
+        (
+            "metallic_roughness_texture",
+            d.metallic_roughness_texture.is_some(),
+        ),
         ("emission_texture", d.emission_texture.is_some()),
     ] {
         only(field, set && !principled, "principled")?;
     }
     if principled && d.albedo.is_some() {
-        return Err(bad("a principled material takes 'base_color', not 'albedo'".into()));
+        return Err(bad(
+            "a principled material takes 'base_color', not 'albedo'".into(),
+        ));
     }
     if let Some(a) = d.albedo.or(d.base_color) {
         let what = if principled { "base_color" } else { "albedo" };
@@ -773,8 +785,11 @@ fn scene_material(
         })
     };
     m.texture = image("texture", &d.texture, true)?;
-    m.metallic_roughness_texture =
-        image("metallic_roughness_texture", &d.metallic_roughness_texture, false)?;
+    m.metallic_roughness_texture = image(
+        "metallic_roughness_texture",
+        &d.metallic_roughness_texture,
+        false,
+    )?;
     m.emission_texture = image("emission_texture", &d.emission_texture, true)?;
     Ok(m)
 }

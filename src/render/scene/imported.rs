@@ -263,12 +263,13 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
                 )
             })
         });
-        Ok(Some(
-            texture.map_err(|e| Error::input(path, None, error_message(&e)))?,
-        ))
+        Ok(Some(texture.map_err(|e| {
+            Error::input(path, None, error_message(&e))
+        })?))
     };
     mat.texture = image("base colour", &m.base_color_texture, true)?;
-    mat.metallic_roughness_texture = image("metallic-roughness", &m.metallic_roughness_texture, false)?;
+    mat.metallic_roughness_texture =
+        image("metallic-roughness", &m.metallic_roughness_texture, false)?;
     if glowing {
         mat.emission_texture = image("emissive", &m.emissive_texture, true)?;
     }
