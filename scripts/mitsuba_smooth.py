@@ -219,7 +219,8 @@ def twin(a, mi, scene_path, mitsuba, title, intro, script):
             f"- Machine: {mc.machine()}", f"- Date: {now}", f"- Commit: `{mc.git_commit()}`",
             f"- Mitsuba {mi.__version__}, variant `{mc.VARIANT}`; {w}×{h} pixels, {a.spp} spp",
             "", "Commands:", "", "```sh",
-            f"python3 scripts/{script} --report {mc.rel(a.report)}",
+            # The command as it was given (its options included).
+            " ".join(["python3", f"scripts/{script}", *sys.argv[1:]]),
             "# runs:", " ".join(cmd), "```", "", *lines, "",
             "lancer, Mitsuba 3, and the difference (red: lancer brighter, blue: Mitsuba "
             f"brighter, {mc.DIFF_SCALE:g}× the RGB mean):", "", " ".join(shown), "",
