@@ -309,7 +309,7 @@ fn gltf_materials_map_onto_lancers() {
         "scenes": [{ "nodes": [0] }],
         "nodes": [{ "mesh": 0 }],
         "meshes": [{ "primitives": [prim(Some(0)), prim(Some(1)), prim(Some(2)), prim(Some(3)),
-                                    prim(Some(4)), prim(None)] }],
+                                    prim(Some(4)), prim(None), prim(Some(5))] }],
         "materials": [
             { "name": "paint", "pbrMetallicRoughness": { "baseColorFactor": [0.2, 0.4, 0.6, 1.0],
               "metallicFactor": 0.0 } },
@@ -321,7 +321,10 @@ fn gltf_materials_map_onto_lancers() {
             { "name": "decal", "pbrMetallicRoughness": { "baseColorFactor": [0.5, 1.0, 1.0, 1.0],
               "baseColorTexture": { "index": 0 }, "metallicFactor": 0.0 } },
             { "name": "chrome", "pbrMetallicRoughness": { "baseColorFactor": [0.8, 0.7, 0.6, 1.0],
-              "metallicFactor": 1.0, "roughnessFactor": 0.0 } }
+              "metallicFactor": 1.0, "roughnessFactor": 0.0 } },
+            { "name": "helmet", "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 },
+              "metallicRoughnessTexture": { "index": 0 }, "roughnessFactor": 0.5 },
+              "emissiveFactor": [1.0, 1.0, 1.0], "emissiveTexture": { "index": 0 } }
         ],
         "textures": [{ "source": 0 }],
         "images": [{ "uri": png_uri }],
@@ -343,7 +346,7 @@ fn gltf_materials_map_onto_lancers() {
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
     let scene = RenderScene::from_mesh(&path, 8, 8).unwrap();
     let mat = |prim: usize| &scene.materials[scene.material_of[2 * prim] as usize];
-    for p in 0..6 {
+    for p in 0..7 {
         assert_eq!(scene.material_of[2 * p], scene.material_of[2 * p + 1]);
     }
     let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 1e-6;
@@ -394,6 +397,22 @@ fn gltf_materials_map_onto_lancers() {
     assert_eq!(none.kind, MaterialKind::Diffuse);
     assert_ne!(scene.material_of[10], scene.material_of[0]);
 
+    // Emission that a texture varies: a principled surface that glows where hit (not an
+    // area light); its metallic-roughness texture is data, read without the sRGB curve.
+    let helmet = mat(6);
+    assert_eq!(helmet.kind, MaterialKind::Principled);
+    assert_eq!((helmet.metallic, helmet.roughness), (1.0, 0.5));
+    assert_eq!(helmet.emission, Vec3::ONE);
+    assert!(!scene.emitters.contains(&12));
+    let (base, mr) = (helmet.texture.unwrap(), helmet.metallic_roughness_texture.unwrap());
+    assert_eq!(helmet.emission_texture, Some(base), "the same image, read once");
+    assert_ne!(base, mr);
+    for (k, p) in pixels.iter().enumerate() {
+        let want = Vec3::from(p.map(|c| c as f32 / 255.0));
+        assert!(close(scene.textures[mr].texels[k], want), "texel {k}");
+        assert!(close(scene.textures[base].texels[k], tex.texels[k]), "texel {k}");
+    }
+
     // glTF's v runs down the image, lancer's up (as in OBJ).
     let flip = |k: usize| Vec2::new(uv[k][0], 1.0 - uv[k][1]);
     assert_eq!(scene.uvs[6], [flip(0), flip(1), flip(2)]);
@@ -408,7 +427,7 @@ fn gltf_materials_map_onto_lancers() {
     )
     .unwrap();
     let s2 = RenderScene::from_file(&toml).unwrap();
-    assert_eq!(s2.mesh.len(), 12);
+    assert_eq!(s2.mesh.len(), 14);
     assert_eq!(s2.mesh.triangles[0].v[1], Vec3::new(1.0, 0.0, -1.0));
     let k = |s: &RenderScene, i: usize| s.materials[s.material_of[i] as usize].kind;
     assert_eq!(k(&s2, 2), MaterialKind::Emissive);
