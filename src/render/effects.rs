@@ -9,7 +9,7 @@ use crate::geometry::NO_NORMAL;
 pub struct EffectSet {
     /// Shadow rays toward lights (any light).
     pub shadows: bool,
-    /// Area lights sampled at every diffuse hit (emissive triangles).
+    /// Area lights sampled at every diffuse or principled hit (emissive triangles).
     pub soft_shadows: bool,
     /// Mirror reflection.
     pub mirror: bool,
@@ -24,7 +24,7 @@ pub struct EffectSet {
     /// Shading normals interpolated from the vertices' (smooth surfaces).
     pub shading_normals: bool,
     /// Light from the environment: seen by rays that leave the scene, and sampled at
-    /// every diffuse hit (multiple importance sampling with the diffuse bounce).
+    /// every diffuse or principled hit (multiple importance sampling with the bounce).
     pub environment: bool,
     /// Spot lights (a point light's falloff about an axis).
     pub spot_lights: bool,
