@@ -324,7 +324,8 @@ fn gltf_materials_map_onto_lancers() {
               "metallicFactor": 1.0, "roughnessFactor": 0.0 } },
             { "name": "helmet", "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 },
               "metallicRoughnessTexture": { "index": 0 }, "roughnessFactor": 0.5 },
-              "emissiveFactor": [1.0, 1.0, 1.0], "emissiveTexture": { "index": 0 } }
+              "emissiveFactor": [1.0, 1.0, 1.0], "emissiveTexture": { "index": 0 },
+              "normalTexture": { "index": 0, "scale": 0.5 } }
         ],
         "textures": [{ "source": 0 }],
         "images": [{ "uri": png_uri }],
@@ -404,13 +405,32 @@ fn gltf_materials_map_onto_lancers() {
     assert_eq!((helmet.metallic, helmet.roughness), (1.0, 0.5));
     assert_eq!(helmet.emission, Vec3::ONE);
     assert!(!scene.emitters.contains(&12));
-    let (base, mr) = (helmet.texture.unwrap(), helmet.metallic_roughness_texture.unwrap());
-    assert_eq!(helmet.emission_texture, Some(base), "the same image, read once");
+    let (base, mr) = (
+        helmet.texture.unwrap(),
+        helmet.metallic_roughness_texture.unwrap(),
+    );
+    assert_eq!(
+        helmet.emission_texture,
+        Some(base),
+        "the same image, read once"
+    );
     assert_ne!(base, mr);
+    // The normal map is data too (the same texture as the metallic-roughness read), with
+    // its scale, and gives the material's triangles tangents: u grows along +x.
+    assert_eq!(
+        (helmet.normal_texture, helmet.normal_scale),
+        (Some(mr), 0.5)
+    );
+    let (t, _) = lancer::geometry::unpack_tangent(scene.tangents[12]).unwrap();
+    assert!(t.normalize().abs_diff_eq(Vec3::X, 1e-3), "{t}");
+    assert_eq!(scene.tangents[0], lancer::geometry::NO_TANGENT);
     for (k, p) in pixels.iter().enumerate() {
         let want = Vec3::from(p.map(|c| c as f32 / 255.0));
         assert!(close(scene.textures[mr].texels[k], want), "texel {k}");
-        assert!(close(scene.textures[base].texels[k], tex.texels[k]), "texel {k}");
+        assert!(
+            close(scene.textures[base].texels[k], tex.texels[k]),
+            "texel {k}"
+        );
     }
 
     // glTF's v runs down the image, lancer's up (as in OBJ).

@@ -117,7 +117,7 @@ fn render_structs_match_rust() {
         size_of::<GpuShade>(),
         fields!(GpuShade;
         "v0" => v0, "material" => material, "v1" => v1, "n0" => n0, "v2" => v2,
-        "n1" => n1, "uv0" => uv0, "uv1" => uv1, "uv2" => uv2, "n2" => n2, "pad3" => _pad3),
+        "n1" => n1, "uv0" => uv0, "uv1" => uv1, "uv2" => uv2, "n2" => n2, "tangent" => tangent),
     );
     check(
         m,
@@ -129,7 +129,9 @@ fn render_structs_match_rust() {
         "flags" => flags, "metallic" => metallic, "roughness" => roughness,
         "mr_offset" => mr_offset, "emission_offset" => emission_offset, "mr_width" => mr_width,
         "mr_height" => mr_height, "emission_width" => emission_width,
-        "emission_height" => emission_height),
+        "emission_height" => emission_height, "normal_offset" => normal_offset,
+        "normal_width" => normal_width, "normal_height" => normal_height,
+        "normal_scale" => normal_scale),
     );
     check(
         m,

@@ -12,6 +12,7 @@ override AO: bool = true;
 override SHADING_NORMALS: bool = true;
 override ENVIRONMENT: bool = true;
 override SPOT_LIGHTS: bool = true;
+override NORMAL_MAPS: bool = true;
 override MICROFACET: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 // AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
@@ -32,7 +33,7 @@ struct Shade {
     uv1: vec2<f32>,
     uv2: vec2<f32>,
     n2: u32,
-    pad3: u32,
+    tangent: u32,
 }
 
 fn shade_word(i: u32) -> vec4<u32> {
@@ -161,6 +162,10 @@ struct Material {
     mr_height: u32,
     emission_width: u32,
     emission_height: u32,
+    normal_offset: u32,
+    normal_width: u32,
+    normal_height: u32,
+    normal_scale: f32,
 }
 
 // render::gpu::GpuLight: kind 0 point (v = position, power = intensity),
@@ -357,12 +362,60 @@ fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f
     return top + (bottom - top) * fy;
 }
 
+// geometry::unpack_tangent: a packed tangent's direction, not normalised.
+fn unpack_tangent(w: u32) -> vec3<f32> {
+    let x = f32(bitcast<i32>(w << 17u) >> 17u) * SNORM15_SCALE;
+    let y = f32(bitcast<i32>(w << 2u) >> 17u) * SNORM15_SCALE;
+    let z = 1.0 - abs(x) - abs(y);
+    if z < 0.0 {
+        return vec3<f32>((1.0 - abs(y)) * select(-1.0, 1.0, x >= 0.0),
+                         (1.0 - abs(x)) * select(-1.0, 1.0, y >= 0.0), z);
+    }
+    return vec3<f32>(x, y, z);
+}
+
+// CpuRenderer::shading_normal: the shading normal (zero: none) tilted by the material's
+// normal map, in the frame of the normal and the last placed_shade's tangent
+// (RenderScene::tangent: moved by the placement; its handedness is the winding's).
+fn surface_normal(s: Shade, mat: Material, w: f32, u: f32, v: f32) -> vec3<f32> {
+    let sn = shading_normal(s, w, u, v);
+    if !NORMAL_MAPS || (mat.flags & MAT_NORMAL_MAP) == 0u || (s.tangent & TANGENT_PRESENT) == 0u {
+        return sn;
+    }
+    var t = unpack_tangent(s.tangent);
+    var flipped = (s.tangent & TANGENT_FLIPPED) != 0u;
+    if INSTANCES {
+        let w0 = bitcast<vec4<f32>>(placement_word(placed, 0u));
+        let w1 = bitcast<vec4<f32>>(placement_word(placed, 1u));
+        let w2 = bitcast<vec4<f32>>(placement_word(placed, 2u));
+        t = affine_vector(w0, w1, w2, t);
+    }
+    let wn = cross3(s.v1 - s.v0, s.v2 - s.v0);
+    var n: vec3<f32>;
+    if dot3(sn, sn) > 0.0 {
+        n = normalize3(sn);
+        flipped = flipped != (dot3(sn, wn) < 0.0);
+    } else {
+        n = normalize3(wn);
+    }
+    t = t - n * dot3(n, t);
+    if !(dot3(t, t) > 0.0) {
+        return sn;
+    }
+    t = normalize3(t);
+    let b = cross3(n, t) * select(1.0, -1.0, flipped);
+    let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
+    let c = sample_texture(mat.normal_offset, mat.normal_width, mat.normal_height, uv) * 2.0
+        - vec3<f32>(1.0);
+    return t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
+}
+
 // cpu::shading_side: the shading normal turned to n's side, or n.
-fn shading_side(s: Shade, w: f32, u: f32, v: f32, n: vec3<f32>) -> vec3<f32> {
+fn shading_side(s: Shade, mat: Material, w: f32, u: f32, v: f32, n: vec3<f32>) -> vec3<f32> {
     if !SHADING_NORMALS {
         return n;
     }
-    let sn = shading_normal(s, w, u, v);
+    let sn = surface_normal(s, mat, w, u, v);
     if !(dot3(sn, sn) > 0.0) {
         return n;
     }
@@ -513,7 +566,7 @@ fn path_hit(hit: Hit) {
     let ng = normalize3(cross3(s.v1 - s.v0, s.v2 - s.v0));
     let front = dot3(ng, ray.dir) < 0.0;
     let n = select(-ng, ng, front);
-    let ns = shading_side(s, w, hit.u, hit.v, n);
+    let ns = shading_side(s, mat, w, hit.u, hit.v, n);
     if bounce == 0u {
         write_aovs(hit.t, ns, surface_albedo(mat, s, w, hit.u, hit.v));
     }

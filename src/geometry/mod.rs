@@ -19,7 +19,10 @@ pub use aabb::{Aabb, FAR_WIDEN, PARALLEL_INV};
 pub use affine::Affine;
 pub(crate) use clip::{chopped_bounds, clip_bounds, clipped_area, covered};
 pub use hit::{Hit, MISS};
-pub use octahedral::{pack_unit, unpack_unit, NO_NORMAL, SNORM16_SCALE};
+pub use octahedral::{
+    pack_tangent, pack_unit, unpack_tangent, unpack_unit, NO_NORMAL, NO_TANGENT, SNORM15_SCALE,
+    SNORM16_SCALE, TANGENT_FLIPPED, TANGENT_PRESENT,
+};
 pub use ray::{safe_recip, Ray, RECIP_FLOOR};
 pub use robustness::{
     prune_bound, Precision, RayOffset, Robustness, SlabTest, FIXED_OFFSET, TIE_SLACK,

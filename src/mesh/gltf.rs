@@ -44,6 +44,9 @@ pub struct GltfMaterial {
     /// Metallic-roughness texture (linear; green: roughness, blue: metalness), which
     /// multiplies the factors: (image index, its bytes).
     pub metallic_roughness_texture: Option<(usize, GltfImage)>,
+    /// Normal map (linear, tangent space) and its scale of red and green: (image index,
+    /// its bytes, scale).
+    pub normal_texture: Option<(usize, GltfImage, f32)>,
     /// The textures of this material that read other coordinates than the one lancer
     /// interpolates (the first of base colour, emissive, metallic-roughness), by name.
     pub other_coordinates: Vec<&'static str>,
@@ -700,11 +703,13 @@ fn material(
             "colours and factors must be finite, colours non-negative".into(),
         ));
     }
-    let image_of = |info: Option<::gltf::texture::Info>,
+    let image_of = |texture: Option<::gltf::Texture>,
                     sources: &mut Vec<PathBuf>|
      -> Result<Option<(usize, GltfImage)>> {
-        let Some(info) = info else { return Ok(None) };
-        let image = info.texture().source();
+        let Some(texture) = texture else {
+            return Ok(None);
+        };
+        let image = texture.source();
         let bytes = match image.source() {
             ::gltf::image::Source::View { view, .. } => GltfImage::Bytes(
                 buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
@@ -724,20 +729,32 @@ fn material(
         };
         Ok(Some((image.index(), bytes)))
     };
-    let base_color_texture = image_of(pbr.base_color_texture(), sources)?;
-    let emissive_texture = image_of(m.emissive_texture(), sources)?;
-    let metallic_roughness_texture = image_of(pbr.metallic_roughness_texture(), sources)?;
+    let base_color_texture = image_of(pbr.base_color_texture().map(|i| i.texture()), sources)?;
+    let emissive_texture = image_of(m.emissive_texture().map(|i| i.texture()), sources)?;
+    let metallic_roughness_texture = image_of(
+        pbr.metallic_roughness_texture().map(|i| i.texture()),
+        sources,
+    )?;
+    let normal = m.normal_texture();
+    let normal_texture = image_of(normal.as_ref().map(|n| n.texture()), sources)?
+        .map(|(i, image)| (i, image, normal.as_ref().map_or(1.0, |n| n.scale())));
     let named = [
         ("base colour", pbr.base_color_texture()),
         ("emissive", m.emissive_texture()),
         ("metallic-roughness", pbr.metallic_roughness_texture()),
     ];
     let used = texture_coordinates(m);
-    let other_coordinates = (named.into_iter())
+    let mut other_coordinates: Vec<&'static str> = (named.into_iter())
         .filter_map(|(name, info)| info.map(|i| (name, coordinates_of(&i))))
         .filter(|(_, c)| Some(*c) != used)
         .map(|(name, _)| name)
         .collect();
+    // A normal map's coordinates (it takes no KHR_texture_transform here).
+    if let Some(n) = &normal {
+        if used.is_some_and(|(set, _)| set != n.tex_coord()) {
+            other_coordinates.push("normal");
+        }
+    }
     Ok(GltfMaterial {
         name,
         base_color,
@@ -745,6 +762,7 @@ fn material(
         emissive,
         emissive_texture,
         metallic_roughness_texture,
+        normal_texture,
         other_coordinates,
         transmission,
         ior,

@@ -313,12 +313,39 @@ impl<'a> CpuRenderer<'a> {
         }
     }
 
-    /// The scene's shading normal at a hit where shading normals are simulated.
+    /// The scene's shading normal at a hit where shading normals are simulated, tilted by
+    /// its material's normal map where normal maps are. WGSL `surface_normal`.
     fn shading_normal(&self, fx: EffectSet, tri: &PlacedTriangle, hit: &Hit) -> Option<Vec3> {
         let w = 1.0 - hit.u - hit.v;
-        (fx.shading_normals)
+        let s = (fx.shading_normals)
             .then(|| self.scene.shading_normal(tri, w, hit.u, hit.v))
-            .flatten()
+            .flatten();
+        if !fx.normal_maps {
+            return s;
+        }
+        let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
+        let (Some(map), Some((t, flipped))) = (mat.normal_texture, self.scene.tangent(tri)) else {
+            return s;
+        };
+        // The frame: the normal (interpolated, else the winding's), the tangent made
+        // perpendicular to it, and their cross product turned by the handedness, which is
+        // the winding's: turned again where the interpolated normal faces the other way
+        // (a mirrored copy's, or a file's wound inward).
+        let wn = cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]);
+        let (n, flipped) = match s {
+            Some(s) if dot(s, s) > 0.0 => (normalize(s), flipped != (dot(s, wn) < 0.0)),
+            _ => (normalize(wn), flipped),
+        };
+        let t = t - n * dot(n, t);
+        if !(dot(t, t) > 0.0) {
+            return s;
+        }
+        let t = normalize(t);
+        let b = cross(n, t) * if flipped { -1.0 } else { 1.0 };
+        let uv = self.scene.uvs[tri.shade];
+        let uv = uv[0] * w + uv[1] * hit.u + uv[2] * hit.v;
+        let c = sample_texture(&self.scene.textures[map], uv) * 2.0 - Vec3::ONE;
+        Some(t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z)
     }
 
     /// The AOVs of pixel (x, y): the first hit of its camera ray in sample 0.

@@ -2,7 +2,7 @@
 //! (WGSL `override` constants of one shader source) and which the CPU renderer runs.
 
 use super::scene::{Integrator, Light, MaterialKind, RenderScene};
-use crate::geometry::NO_NORMAL;
+use crate::geometry::{NO_NORMAL, NO_TANGENT};
 
 /// Which effects a render simulates; code for the others is compiled out of the kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -28,6 +28,8 @@ pub struct EffectSet {
     pub environment: bool,
     /// Spot lights (a point light's falloff about an axis).
     pub spot_lights: bool,
+    /// Tangent-space normal maps (which bring shading normals with them).
+    pub normal_maps: bool,
     /// glTF metallic-roughness surfaces (principled: GGX microfacets over a Lambert
     /// base, and their emission); without it they are diffuse.
     pub microfacet: bool,
@@ -46,6 +48,7 @@ impl EffectSet {
         shading_normals: true,
         environment: true,
         spot_lights: true,
+        normal_maps: true,
         microfacet: true,
     };
 
@@ -61,6 +64,12 @@ impl EffectSet {
         let ao = s.integrator == Integrator::Ao;
         // Seen by rays that leave the scene under every integrator (AO's camera rays too).
         let environment = scene.environment.is_some();
+        let normal_maps = (included.iter()).any(|&i| {
+            scene
+                .tangents
+                .get(i as usize)
+                .is_some_and(|&t| t != NO_TANGENT)
+        });
         EffectSet {
             shadows: !ao && (!scene.lights.is_empty() || !scene.emitters.is_empty() || environment),
             soft_shadows: !ao && !scene.emitters.is_empty(),
@@ -69,12 +78,14 @@ impl EffectSet {
             indirect: s.integrator == Integrator::Path && s.max_bounces >= 1,
             textures: !ao && used.iter().any(|m| m.textured()),
             ao,
-            shading_normals: (included.iter()).any(|&i| {
-                scene
-                    .normals
-                    .get(i as usize)
-                    .is_some_and(|n| n[0] != NO_NORMAL)
-            }),
+            shading_normals: normal_maps
+                || (included.iter()).any(|&i| {
+                    scene
+                        .normals
+                        .get(i as usize)
+                        .is_some_and(|n| n[0] != NO_NORMAL)
+                }),
+            normal_maps,
             environment,
             spot_lights: !ao && (scene.lights.iter()).any(|l| matches!(l, Light::Spot { .. })),
             microfacet: !ao && kind_used(MaterialKind::Principled),
@@ -82,7 +93,7 @@ impl EffectSet {
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 11] {
+    pub fn flags(&self) -> [(&'static str, bool); 12] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -94,6 +105,7 @@ impl EffectSet {
             ("SHADING_NORMALS", self.shading_normals),
             ("ENVIRONMENT", self.environment),
             ("SPOT_LIGHTS", self.spot_lights),
+            ("NORMAL_MAPS", self.normal_maps),
             ("MICROFACET", self.microfacet),
         ]
     }
@@ -104,7 +116,7 @@ impl EffectSet {
     /// it) and the set without it: what `bench render` times to price each effect.
     pub fn each_without(&self) -> Vec<(String, EffectSet)> {
         type Field = fn(&mut EffectSet) -> &mut bool;
-        let fields: [(&str, Field); 11] = [
+        let fields: [(&str, Field); 12] = [
             ("shadows", |f| &mut f.shadows),
             ("soft-shadows", |f| &mut f.soft_shadows),
             ("mirror", |f| &mut f.mirror),
@@ -115,6 +127,7 @@ impl EffectSet {
             ("shading-normals", |f| &mut f.shading_normals),
             ("environment", |f| &mut f.environment),
             ("spot-lights", |f| &mut f.spot_lights),
+            ("normal-maps", |f| &mut f.normal_maps),
             ("microfacet", |f| &mut f.microfacet),
         ];
         let mut out = Vec::new();

@@ -12,7 +12,7 @@ use super::scene::{Light, LightKind, RenderScene};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::error::Result;
-use crate::geometry::{Affine, Robustness, NO_NORMAL};
+use crate::geometry::{Affine, Robustness, NO_NORMAL, NO_TANGENT};
 use crate::gpu::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, texel_entry,
     uniform_binding, wait, Chunks, Kernel, Readback,
@@ -51,8 +51,8 @@ pub struct GpuShade {
     pub uv2: [f32; 2],
     /// Vertex 2's shading normal, packed.
     pub n2: u32,
-    /// Padding (zero).
-    pub _pad3: u32,
+    /// The triangle's tangent, packed ([`RenderScene::tangents`]; [`NO_TANGENT`]: none).
+    pub tangent: u32,
 }
 
 /// An instance of a scene with placements ([`RenderScene::placements`]), as the render
@@ -111,6 +111,14 @@ pub struct GpuMaterial {
     pub emission_width: u32,
     /// The emission texture's height.
     pub emission_height: u32,
+    /// Where the normal map's texels start.
+    pub normal_offset: u32,
+    /// The normal map's width (0 without one).
+    pub normal_width: u32,
+    /// The normal map's height.
+    pub normal_height: u32,
+    /// The normal map's scale of red and green.
+    pub normal_scale: f32,
 }
 
 /// [`GpuMaterial::flags`] bit: the albedo is multiplied by the material's texture.
@@ -122,6 +130,8 @@ pub const MAT_TWO_SIDED: u32 = 2;
 pub const MAT_METALLIC_ROUGHNESS: u32 = 4;
 /// [`GpuMaterial::flags`] bit: the emission is multiplied by a texture.
 pub const MAT_EMISSION_TEXTURE: u32 = 8;
+/// [`GpuMaterial::flags`] bit: a normal map tilts the shading normal.
+pub const MAT_NORMAL_MAP: u32 = 16;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -274,7 +284,7 @@ impl<'a> GpuRenderer<'a> {
                     uv1: uv[1].into(),
                     uv2: uv[2].into(),
                     n2: n[2],
-                    _pad3: 0,
+                    tangent: scene.tangents.get(i).copied().unwrap_or(NO_TANGENT),
                 }
             })
             .collect();
@@ -316,6 +326,7 @@ impl<'a> GpuRenderer<'a> {
                 let (off, w, h) = slot(m.texture);
                 let (mr_off, mr_w, mr_h) = slot(m.metallic_roughness_texture);
                 let (e_off, e_w, e_h) = slot(m.emission_texture);
+                let (n_off, n_w, n_h) = slot(m.normal_texture);
                 let bit = |on: bool, b: u32| if on { b } else { 0 };
                 GpuMaterial {
                     albedo: m.albedo.into(),
@@ -331,7 +342,8 @@ impl<'a> GpuRenderer<'a> {
                             m.metallic_roughness_texture.is_some(),
                             MAT_METALLIC_ROUGHNESS,
                         )
-                        | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE),
+                        | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE)
+                        | bit(m.normal_texture.is_some(), MAT_NORMAL_MAP),
                     metallic: m.metallic,
                     roughness: m.roughness,
                     mr_offset: mr_off,
@@ -340,6 +352,10 @@ impl<'a> GpuRenderer<'a> {
                     mr_height: mr_h,
                     emission_width: e_w,
                     emission_height: e_h,
+                    normal_offset: n_off,
+                    normal_width: n_w,
+                    normal_height: n_h,
+                    normal_scale: m.normal_scale,
                 }
             })
             .collect();

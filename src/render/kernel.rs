@@ -11,8 +11,9 @@ use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
 use super::sampling::POINT_ERROR;
 use super::trig::{ATAN_C, COS_C, INV_TAU, SIN_C};
 use super::{Integrator, LightKind, MaterialKind, TRANSFORM_ERROR};
-use super::{MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_TEXTURED, MAT_TWO_SIDED};
-use crate::geometry::{NO_NORMAL, SNORM16_SCALE};
+use super::{MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP};
+use super::{MAT_TEXTURED, MAT_TWO_SIDED};
+use crate::geometry::{NO_NORMAL, SNORM15_SCALE, SNORM16_SCALE, TANGENT_FLIPPED, TANGENT_PRESENT};
 
 /// The render kernel (one sample of one pixel per invocation).
 pub const RENDER: &str = include_str!("../../shaders/kernels/render.wgsl");
@@ -51,10 +52,14 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("MAT_TWO_SIDED", U32(MAT_TWO_SIDED)),
         ("MAT_METALLIC_ROUGHNESS", U32(MAT_METALLIC_ROUGHNESS)),
         ("MAT_EMISSION_TEXTURE", U32(MAT_EMISSION_TEXTURE)),
+        ("MAT_NORMAL_MAP", U32(MAT_NORMAL_MAP)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
         ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
         ("NO_NORMAL", U32(NO_NORMAL)),     // geometry::NO_NORMAL
         ("SNORM16_SCALE", F32(SNORM16_SCALE)), // geometry::SNORM16_SCALE
+        ("SNORM15_SCALE", F32(SNORM15_SCALE)), // geometry::SNORM15_SCALE
+        ("TANGENT_PRESENT", U32(TANGENT_PRESENT)),
+        ("TANGENT_FLIPPED", U32(TANGENT_FLIPPED)),
         // render::trig and render::environment
         ("PI", F32(std::f32::consts::PI)),
         ("FRAC_PI_2", F32(std::f32::consts::FRAC_PI_2)),

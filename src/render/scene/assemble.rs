@@ -15,7 +15,8 @@ use super::placements::{Motion, PlacedTriangle, Placements};
 use super::shapes;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{unpack_unit, Aabb, Affine, Triangle, NO_NORMAL};
+use crate::geometry::{pack_tangent, unpack_tangent, unpack_unit, Aabb, Affine, Triangle};
+use crate::geometry::{NO_NORMAL, NO_TANGENT};
 use crate::mesh::{
     check_traceable, classify, warn_exclusions, Instance, InstanceSet, Mesh, ObjScene, TriStatus,
 };
@@ -49,6 +50,11 @@ pub struct Material {
     /// Principled: index into [`RenderScene::textures`] of a texture that multiplies
     /// `emission`.
     pub emission_texture: Option<usize>,
+    /// Diffuse and principled: index into [`RenderScene::textures`] of a tangent-space
+    /// normal map (linear; glTF's convention: red along +u, green along +v, blue out).
+    pub normal_texture: Option<usize>,
+    /// The normal map's scale of its red and green (glTF's `normalTexture.scale`).
+    pub normal_scale: f32,
 }
 
 impl Material {
@@ -65,6 +71,8 @@ impl Material {
             roughness: 1.0,
             metallic_roughness_texture: None,
             emission_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
         }
     }
 
@@ -212,6 +220,11 @@ pub struct RenderScene {
     /// space where it is placed), packed ([`pack_unit`](crate::geometry::pack_unit));
     /// [`NO_NORMAL`] on a triangle that shades flat. Empty where no triangle has normals.
     pub normals: Vec<[u32; 3]>,
+    /// The tangent of each triangle of [`Self::mesh`] whose material has a normal map (in
+    /// its object's space where it is placed), packed with its handedness
+    /// ([`pack_tangent`](crate::geometry::pack_tangent)); [`NO_TANGENT`] elsewhere. Empty
+    /// where no material has a normal map.
+    pub tangents: Vec<u32>,
     /// Material index of each triangle of [`Self::mesh`].
     pub material_of: Vec<u32>,
     /// Distinct materials, indexed by `material_of`.
@@ -720,6 +733,19 @@ fn scene_material(
     ] {
         only(field, set && !principled, "principled")?;
     }
+    for (field, set) in [
+        ("normal_texture", d.normal_texture.is_some()),
+        ("normal_scale", d.normal_scale.is_some()),
+    ] {
+        let shaded = matches!(d.kind, MaterialKind::Diffuse | MaterialKind::Principled);
+        only(field, set && !shaded, "diffuse and principled")?;
+    }
+    if let Some(s) = d.normal_scale {
+        if !s.is_finite() {
+            return Err(bad(format!("normal_scale must be finite, got {s}")));
+        }
+        m.normal_scale = s;
+    }
     if principled && d.albedo.is_some() {
         return Err(bad(
             "a principled material takes 'base_color', not 'albedo'".into(),
@@ -791,6 +817,7 @@ fn scene_material(
         false,
     )?;
     m.emission_texture = image("emission_texture", &d.emission_texture, true)?;
+    m.normal_texture = image("normal_texture", &d.normal_texture, false)?;
     Ok(m)
 }
 
@@ -1087,12 +1114,14 @@ impl Builder {
             ),
             false => None,
         };
+        let tangents = tangents_of(&mesh, &self.uvs, &self.material_of, &self.materials);
         let mut scene = RenderScene {
             camera,
             settings: settings.clone(),
             mesh,
             uvs: self.uvs,
             normals,
+            tangents,
             material_of: self.material_of,
             materials: self.materials,
             textures: self.textures,
@@ -1225,6 +1254,20 @@ impl RenderScene {
         }
     }
 
+    /// The tangent of triangle `t` in world space (moved by its instance's map), not
+    /// normalised, and whether its bitangent is −(n × t) for n the normal its vertices
+    /// wind around; None where it has none.
+    pub fn tangent(&self, t: &PlacedTriangle) -> Option<(Vec3, bool)> {
+        let (v, flipped) = unpack_tangent(*self.tangents.get(t.shade)?)?;
+        match (&self.placements, t.instance) {
+            // Its handedness is the winding's, which a mirroring map turns with it.
+            (Some(pl), Some(i)) => {
+                Some((pl.set().instances[i as usize].to_world.vector(v), flipped))
+            }
+            _ => Some((v, flipped)),
+        }
+    }
+
     /// The error bound of the point p = b0·v0 + b1·v1 + b2·v2 of triangle `t`: the
     /// interpolation's ([`point_error`](crate::render::point_error)) and, for a placed
     /// triangle, its placement's rounding ([`Placements::error`]).
@@ -1302,15 +1345,51 @@ impl RenderScene {
             }
             material_of.extend_from_slice(&self.material_of[range]);
         }
+        // A triangle's tangent is linear in its vertices: computed again in world space.
+        let tangents = tangents_of(&mesh, &uvs, &material_of, &self.materials);
         Ok(RenderScene {
             mesh,
             uvs,
             normals,
+            tangents,
             material_of,
             placements: None,
             ..self
         })
     }
+}
+
+/// Each triangle's tangent where its material has a normal map (else [`NO_TANGENT`]): the
+/// direction in which u grows across it, from its texture coordinates (the per-triangle
+/// tangent that MikkTSpace averages over a vertex's triangles), flipped where v grows
+/// along −(n × t) for the winding's normal n; empty where no material has a normal map.
+fn tangents_of(
+    mesh: &Mesh,
+    uvs: &[[Vec2; 3]],
+    material_of: &[u32],
+    materials: &[Material],
+) -> Vec<u32> {
+    if !materials.iter().any(|m| m.normal_texture.is_some()) {
+        return Vec::new();
+    }
+    (mesh.triangles.iter().enumerate())
+        .map(|(i, t)| {
+            let mapped = materials[material_of[i] as usize].normal_texture.is_some();
+            let Some(uv) = uvs.get(i).filter(|_| mapped) else {
+                return NO_TANGENT;
+            };
+            let (e1, e2) = (t.v[1] - t.v[0], t.v[2] - t.v[0]);
+            let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
+            let det = d1.x * d2.y - d2.x * d1.y;
+            let tangent = (e1 * d2.y - e2 * d1.y) / det;
+            let bitangent = (e2 * d1.x - e1 * d2.x) / det;
+            let flipped = crate::geometry::dot(
+                crate::geometry::cross(crate::geometry::cross(e1, e2), tangent),
+                bitangent,
+            ) < 0.0;
+            pack_tangent(tangent, flipped).unwrap_or(NO_TANGENT)
+        })
+        .collect()
 }
 
 /// The message of an error without the file prefix it carries, to re-attach elsewhere.

@@ -152,6 +152,11 @@ pub struct MaterialDef {
     pub metallic_roughness_texture: Option<String>,
     /// Principled: an image (sRGB) that multiplies `emission`.
     pub emission_texture: Option<String>,
+    /// Diffuse and principled: a tangent-space normal map (linear; glTF's and OpenGL's
+    /// convention: red along +u, green along +v).
+    pub normal_texture: Option<String>,
+    /// The normal map's scale of red and green (default 1).
+    pub normal_scale: Option<f32>,
     /// Index of refraction (glass).
     pub ior: Option<f32>,
     /// Emitted radiance (emissive; principled: emitted where hit, not sampled as a light).

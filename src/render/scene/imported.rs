@@ -240,7 +240,7 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     // Emission where hit (not sampled as a light): the factor times the texture.
     mat.emission = if glowing { emissive } else { Vec3::ZERO };
     mat.two_sided = true;
-    let mut image = |what: &str, t: &Option<(usize, GltfImage)>, srgb: bool| -> Result<_> {
+    let mut image = |what: &str, t: Option<(usize, &GltfImage)>, srgb: bool| -> Result<_> {
         let Some((index, image)) = t else {
             return Ok(None);
         };
@@ -267,11 +267,21 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
             Error::input(path, None, error_message(&e))
         })?))
     };
-    mat.texture = image("base colour", &m.base_color_texture, true)?;
-    mat.metallic_roughness_texture =
-        image("metallic-roughness", &m.metallic_roughness_texture, false)?;
+    fn of(t: &Option<(usize, GltfImage)>) -> Option<(usize, &GltfImage)> {
+        t.as_ref().map(|(i, g)| (*i, g))
+    }
+    mat.texture = image("base colour", of(&m.base_color_texture), true)?;
+    mat.metallic_roughness_texture = image(
+        "metallic-roughness",
+        of(&m.metallic_roughness_texture),
+        false,
+    )?;
     if glowing {
-        mat.emission_texture = image("emissive", &m.emissive_texture, true)?;
+        mat.emission_texture = image("emissive", of(&m.emissive_texture), true)?;
+    }
+    if let Some((index, bytes, scale)) = &m.normal_texture {
+        mat.normal_texture = image("normal", Some((*index, bytes)), false)?;
+        mat.normal_scale = *scale;
     }
     Ok(mat)
 }
