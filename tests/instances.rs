@@ -529,6 +529,7 @@ fn a_hundred_million_instanced_triangles_render_on_both_devices() {
         mesh: (*field).clone(),
         uvs: vec![[glam::Vec2::ZERO; 3]; n],
         normals: Vec::new(),
+        tangents: Vec::new(),
         material_of: vec![0; n],
         materials: vec![lancer::render::Material::diffuse(Vec3::splat(0.7))],
         textures: Vec::new(),

@@ -337,7 +337,8 @@ impl<'a> CpuRenderer<'a> {
             _ => (normalize(wn), flipped),
         };
         let t = t - n * dot(n, t);
-        if !(dot(t, t) > 0.0) {
+        let t2 = dot(t, t);
+        if t2.is_nan() || t2 <= 0.0 {
             return s;
         }
         let t = normalize(t);
