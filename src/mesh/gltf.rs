@@ -686,6 +686,13 @@ fn material(
         .map(str::to_string)
         .unwrap_or_else(|| format!("#{}", m.index().unwrap_or(0)));
     let bad = |msg: String| Error::input(path, None, format!("material {name:?}: {msg}"));
+    if m.alpha_mode() != ::gltf::material::AlphaMode::Opaque {
+        log::warn!(
+            "{}: material {name:?}: alpha mode {:?} is not simulated yet; rendered opaque",
+            path.display(),
+            m.alpha_mode()
+        );
+    }
     let pbr = m.pbr_metallic_roughness();
     let strength = m.emissive_strength().unwrap_or(1.0);
     let emissive = m.emissive_factor().map(|x| x * strength);
