@@ -294,3 +294,35 @@ fn normal_map_keys_are_checked() {
         assert!(e.contains(want) && e.contains("bad.toml:"), "{to}: {e}");
     }
 }
+
+#[test]
+fn a_map_that_leans_below_the_surface_falls_back_to_the_untilted_normal() {
+    let dir = Scratch::new();
+    // (1, 0, −0.5): under the surface seen from its front; (0.6, 0, 0.8): above it.
+    dir.png("under.png", 4, 4, |_, _| [255, 128, 64]);
+    dir.png("above.png", 4, 4, |_, _| [204, 128, 230]);
+    quad_obj(&dir, "plain.obj", |x, z| ((x + 1.0) / 2.0, (1.0 - z) / 2.0));
+    let options = RenderOptions {
+        aovs: true,
+        ..RenderOptions::default()
+    };
+    for (device, name) in [(&Device::cpu(), "cpu"), (gpu_device(), "gpu")] {
+        let under = lit_quad(&dir, "plain.obj", "under.png", Vec3::Y);
+        let r = render(&under, device, &options).unwrap();
+        let normals = r.aovs.unwrap().normal;
+        assert!(
+            normals.iter().all(|n| (*n - Vec3::Y).length() < 1e-6),
+            "{name}: {:?}",
+            normals[0]
+        );
+        // A tilt above the surface is kept (the test can fail).
+        let above = lit_quad(&dir, "plain.obj", "above.png", Vec3::Y);
+        let n = render(&above, device, &options)
+            .unwrap()
+            .aovs
+            .unwrap()
+            .normal[0];
+        println!("{name}: under → {}, above → {n}", normals[0]);
+        assert!(n.x > 0.5 && n.y > 0.5, "{name}: {n}");
+    }
+}

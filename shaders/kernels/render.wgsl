@@ -374,13 +374,16 @@ fn unpack_tangent(w: u32) -> vec3<f32> {
     return vec3<f32>(x, y, z);
 }
 
-// CpuRenderer::shading_normal: the shading normal (zero: none) tilted by the material's
-// normal map, in the frame of the normal and the last placed_shade's tangent
-// (RenderScene::tangent: moved by the placement; its handedness is the winding's).
-fn surface_normal(s: Shade, mat: Material, w: f32, u: f32, v: f32) -> vec3<f32> {
-    let sn = shading_normal(s, w, u, v);
+// CpuRenderer::mapped_normal: the normal map's normal (not normalised) in .xyz of `m` and
+// the unit normal of the frame it tilts in `front`, for the shading normal sn (zero: none)
+// and the last placed_shade's tangent (RenderScene::tangent: moved by the placement; its
+// handedness is the winding's); false where there is none.
+var<private> mapped_front: vec3<f32>;
+var<private> mapped_m: vec3<f32>;
+
+fn mapped_normal(s: Shade, mat: Material, w: f32, u: f32, v: f32, sn: vec3<f32>) -> bool {
     if !NORMAL_MAPS || (mat.flags & MAT_NORMAL_MAP) == 0u || (s.tangent & TANGENT_PRESENT) == 0u {
-        return sn;
+        return false;
     }
     var t = unpack_tangent(s.tangent);
     var flipped = (s.tangent & TANGENT_FLIPPED) != 0u;
@@ -400,27 +403,47 @@ fn surface_normal(s: Shade, mat: Material, w: f32, u: f32, v: f32) -> vec3<f32> 
     }
     t = t - n * dot3(n, t);
     if !(dot3(t, t) > 0.0) {
-        return sn;
+        return false;
     }
     t = normalize3(t);
     let b = cross3(n, t) * select(1.0, -1.0, flipped);
     let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
     let c = sample_texture(mat.normal_offset, mat.normal_width, mat.normal_height, uv) * 2.0
         - vec3<f32>(1.0);
-    return t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
+    mapped_m = t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
+    mapped_front = n;
+    return true;
 }
 
-// cpu::shading_side: the shading normal turned to n's side, or n.
-fn shading_side(s: Shade, mat: Material, w: f32, u: f32, v: f32, n: vec3<f32>) -> vec3<f32> {
-    if !SHADING_NORMALS {
-        return n;
-    }
-    let sn = surface_normal(s, mat, w, u, v);
+// cpu::turned: a shading normal (zero: none) turned to n's side, or n.
+fn turned(sn: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     if !(dot3(sn, sn) > 0.0) {
         return n;
     }
     let ns = normalize3(sn);
     return select(ns, -ns, dot3(ns, n) < 0.0);
+}
+
+// CpuRenderer::shading_side: the shading normal, tilted by the normal map, turned to n's
+// side as the untilted normal is, or the untilted one where the tilt leans below the
+// surface; n where there is none.
+fn shading_side(s: Shade, mat: Material, w: f32, u: f32, v: f32, n: vec3<f32>) -> vec3<f32> {
+    if !SHADING_NORMALS {
+        return n;
+    }
+    let sn = shading_normal(s, w, u, v);
+    if mapped_normal(s, mat, w, u, v, sn) {
+        let front = mapped_front;
+        var m = mapped_m;
+        if dot3(front, n) < 0.0 {
+            m = -m;
+        }
+        if dot3(m, m) > 0.0 && dot3(m, n) > 0.0 {
+            return normalize3(m);
+        }
+        return turned(front, n);
+    }
+    return turned(sn, n);
 }
 
 // cpu::keeps_side: d leaves on the side `toward` says of the geometric normal n.
@@ -776,9 +799,12 @@ fn emitter_ray() {
 
 // cpu::power_heuristic
 fn power_heuristic(a: f32, b: f32) -> f32 {
-    let a2 = a * a;
-    let b2 = b * b;
-    return a2 / (a2 + b2);
+    if a >= b {
+        let r = b / a;
+        return 1.0 / (1.0 + r * r);
+    }
+    let r = a / b;
+    return r * r / (1.0 + r * r);
 }
 
 // CpuRenderer::direct's environment sample, up to its shadow ray.

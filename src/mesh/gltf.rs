@@ -756,9 +756,9 @@ fn material(
         .filter(|(_, c)| Some(*c) != used)
         .map(|(name, _)| name)
         .collect();
-    // A normal map's coordinates (it takes no KHR_texture_transform here).
+    // A normal map's coordinates (lancer reads no KHR_texture_transform of its own).
     if let Some(n) = &normal {
-        if used.is_some_and(|(set, _)| set != n.tex_coord()) {
+        if used.unwrap_or((0, UvTransform::IDENTITY)) != (n.tex_coord(), UvTransform::IDENTITY) {
             other_coordinates.push("normal");
         }
     }

@@ -45,12 +45,12 @@ fn facing(v: &[Vec3; 3], dir: Vec3) -> (bool, Vec3) {
     (front, if front { ng } else { -ng })
 }
 
-/// The normal shading uses at a hit: the scene's shading normal `s` (not normalised; None:
-/// flat) turned to the side of `n` (the geometric normal facing where the ray comes from),
-/// or `n` itself where the effect is off or `s` has no direction. WGSL `shading_side`.
-fn shading_side(fx: EffectSet, s: Option<Vec3>, n: Vec3) -> Vec3 {
+/// A shading normal `s` (not normalised; None: flat) turned to the side of `n` (the
+/// geometric normal facing where the ray comes from), or `n` itself where `s` has no
+/// direction. WGSL `turned`.
+fn turned(s: Option<Vec3>, n: Vec3) -> Vec3 {
     match s {
-        Some(s) if fx.shading_normals && dot(s, s) > 0.0 => {
+        Some(s) if dot(s, s) > 0.0 => {
             let s = normalize(s);
             if dot(s, n) < 0.0 {
                 -s
@@ -74,8 +74,14 @@ fn keeps_side(fx: EffectSet, d: Vec3, n: Vec3, toward: bool) -> bool {
 /// another strategy would draw it with density `b` (Veach's power heuristic, β = 2).
 /// WGSL `power_heuristic`.
 pub fn power_heuristic(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    a2 / (a2 + b2)
+    // As a ratio, so that no square overflows (a light's density grows as d²).
+    if a >= b {
+        let r = b / a;
+        1.0 / (1.0 + r * r)
+    } else {
+        let r = a / b;
+        r * r / (1.0 + r * r)
+    }
 }
 
 /// The CPU renderer of one scene over one acceleration structure.
@@ -313,20 +319,47 @@ impl<'a> CpuRenderer<'a> {
         }
     }
 
-    /// The scene's shading normal at a hit where shading normals are simulated, tilted by
-    /// its material's normal map where normal maps are. WGSL `surface_normal`.
-    fn shading_normal(&self, fx: EffectSet, tri: &PlacedTriangle, hit: &Hit) -> Option<Vec3> {
+    /// The normal shading uses at a hit whose geometric normal, facing where the ray comes
+    /// from, is `n`: the scene's shading normal (where shading normals are simulated) tilted
+    /// by the material's normal map (where normal maps are), turned to n's side as the
+    /// untilted normal is (glTF's rule for back faces), or the untilted normal where the
+    /// tilt would lean below the surface; `n` itself where the effect is off or the
+    /// triangle shades flat. WGSL `shading_side`.
+    fn shading_side(&self, fx: EffectSet, tri: &PlacedTriangle, hit: &Hit, n: Vec3) -> Vec3 {
+        if !fx.shading_normals {
+            return n;
+        }
         let w = 1.0 - hit.u - hit.v;
-        let s = (fx.shading_normals)
-            .then(|| self.scene.shading_normal(tri, w, hit.u, hit.v))
-            .flatten();
+        let s = self.scene.shading_normal(tri, w, hit.u, hit.v);
+        match self.mapped_normal(fx, tri, hit, s) {
+            Some((m, front)) => {
+                let m = if dot(front, n) < 0.0 { -m } else { m };
+                if dot(m, m) > 0.0 && dot(m, n) > 0.0 {
+                    normalize(m)
+                } else {
+                    turned(Some(front), n)
+                }
+            }
+            None => turned(s, n),
+        }
+    }
+
+    /// The normal map's normal at a hit (not normalised) and the unit normal `front` of the
+    /// frame it tilts (the interpolated `s`, else the winding's); None where normal maps
+    /// are not simulated or the triangle has no map or no tangent. WGSL `mapped_normal`.
+    fn mapped_normal(
+        &self,
+        fx: EffectSet,
+        tri: &PlacedTriangle,
+        hit: &Hit,
+        s: Option<Vec3>,
+    ) -> Option<(Vec3, Vec3)> {
         if !fx.normal_maps {
-            return s;
+            return None;
         }
         let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
-        let (Some(map), Some((t, flipped))) = (mat.normal_texture, self.scene.tangent(tri)) else {
-            return s;
-        };
+        let map = mat.normal_texture?;
+        let (t, flipped) = self.scene.tangent(tri)?;
         // The frame: the normal (interpolated, else the winding's), the tangent made
         // perpendicular to it, and their cross product turned by the handedness, which is
         // the winding's: turned again where the interpolated normal faces the other way
@@ -339,14 +372,16 @@ impl<'a> CpuRenderer<'a> {
         let t = t - n * dot(n, t);
         let t2 = dot(t, t);
         if t2.is_nan() || t2 <= 0.0 {
-            return s;
+            return None;
         }
         let t = normalize(t);
         let b = cross(n, t) * if flipped { -1.0 } else { 1.0 };
         let uv = self.scene.uvs[tri.shade];
+        let w = 1.0 - hit.u - hit.v;
         let uv = uv[0] * w + uv[1] * hit.u + uv[2] * hit.v;
         let c = sample_texture(&self.scene.textures[map], uv) * 2.0 - Vec3::ONE;
-        Some(t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z)
+        let m = t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
+        Some((m, n))
     }
 
     /// The AOVs of pixel (x, y): the first hit of its camera ray in sample 0.
@@ -358,10 +393,9 @@ impl<'a> CpuRenderer<'a> {
         }
         let tri = self.scene.triangle(hit.prim);
         let n = facing(&tri.v, ray.dir).1;
-        let s = self.shading_normal(fx, &tri, &hit);
         FirstHit {
             depth: hit.t,
-            normal: shading_side(fx, s, n),
+            normal: self.shading_side(fx, &tri, &hit, n),
             albedo: self.albedo(fx, tri.shade, &hit),
         }
     }
@@ -396,7 +430,7 @@ impl<'a> CpuRenderer<'a> {
             let p = tri.v[0] * w + tri.v[1] * hit.u + tri.v[2] * hit.v;
             let p_err = self.scene.point_error(&tri, p, [w, hit.u, hit.v]);
             let (front, n) = facing(&tri.v, ray.dir);
-            let ns = shading_side(fx, self.shading_normal(fx, &tri, &hit), n);
+            let ns = self.shading_side(fx, &tri, &hit, n);
             if mat.kind == MaterialKind::Emissive {
                 if front || mat.two_sided {
                     // Multiple importance sampling with the light sample of the last hit.

@@ -1,9 +1,9 @@
 //! Mesh files as scene objects, the reader chosen by extension (OBJ with its MTL materials,
 //! PLY, glTF 2.0 with its materials), and glTF's materials mapped onto lancer's: an area
 //! light (emissive) where the emissive factor is not black and no emissive texture or base
-//! colour texture varies it, glass where KHR_materials_transmission is present, principled
-//! (glTF's own metallic-roughness, with its base colour, metallic-roughness and emissive
-//! textures) otherwise.
+//! colour texture varies it, a mirror for a perfectly smooth metal, glass where
+//! KHR_materials_transmission is present, principled (glTF's own metallic-roughness, with
+//! its base colour, metallic-roughness, emissive and normal textures) otherwise.
 
 use std::path::{Path, PathBuf};
 
@@ -210,6 +210,15 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
         mat.kind = MaterialKind::Emissive;
         mat.emission = emissive;
         mat.two_sided = m.double_sided;
+        return Ok(mat);
+    }
+    let smooth_metal = m.metallic >= 1.0 && m.roughness <= 0.0;
+    if smooth_metal && m.metallic_roughness_texture.is_none() && !glowing {
+        // A perfectly smooth metal: a mirror tinted by the base colour, followed by every
+        // integrator (GGX's narrowest lobe would be found by light samples alone where
+        // the path stops: the direct integrator, the last bounce).
+        let mut mat = Material::diffuse(base);
+        mat.kind = MaterialKind::Mirror;
         return Ok(mat);
     }
     if m.transmission > 0.0 {
