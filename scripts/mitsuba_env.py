@@ -36,44 +36,56 @@ SPHERES = [  # (centre, radius, lancer material, Mitsuba BSDF)
 
 
 def lancer_scene(size, spp):
-    rest = f"""[materials.white]
+    rest = """[materials.white]
 type = "diffuse"
 albedo = [0.8, 0.8, 0.8]
 [materials.mirror]
 type = "mirror"
+"""
+    return ms.lancer_spheres(size, spp, MAX_BOUNCES, CAMERA, SPHERES, rest + sky_toml())
 
+
+def sky_toml():
+    """The lancer scene's [environment]: the map turned as Mitsuba's envmap is."""
+    return f"""
 [environment]
 map = "{MAP}"
 rotate = [0.0, {TURN}, 0.0]
 """
-    return ms.lancer_spheres(size, spp, MAX_BOUNCES, CAMERA, SPHERES, rest)
 
 
-def mitsuba_scene(mi, out, size, spp):
-    d = ms.mitsuba_spheres(mi, out, size, spp, MAX_BOUNCES, CAMERA, SPHERES)
+def mitsuba_scene(mi, out, size, spp, camera, spheres):
+    d = ms.mitsuba_spheres(mi, out, size, spp, MAX_BOUNCES, camera, spheres)
     d["sky"] = {"type": "envmap", "filename": str(MAP),
                 "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], TURN)}
     return mi.load_dict(d)
 
 
-def main():
-    a = ms.arguments(__doc__.split("\n\n")[0], "mitsuba-env")
+def run(doc, out, toml_name, lancer_text, camera, spheres, title, intro, script):
+    """Writes the spheres' scene files into --out, renders lancer's scene `lancer_text`
+    (a function of size and spp) and its Mitsuba twin under the sky map, and compares."""
+    a = ms.arguments(doc.split("\n\n")[0], out)
     mi = mc.load_mitsuba()
     mc.ensure_lancer(a.lancer)
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "sphere.obj").write_text(ms.sphere_obj(32))
     (a.out / "floor.obj").write_text(ms.FLOOR_OBJ)
-    scene_path = a.out / "env.toml"
+    scene_path = a.out / toml_name
     size = (a.width, a.height)
-    scene_path.write_text(lancer_scene(size, a.spp))
+    scene_path.write_text(lancer_text(size, a.spp))
+    ms.twin(a, mi, scene_path, mitsuba_scene(mi, a.out, size, a.spp, camera, spheres), title,
+            intro, script)
+
+
+def main():
     intro = (
         "lancer's environment light against [Mitsuba 3](https://www.mitsuba-renderer.org/): "
         "a smooth diffuse sphere (32 segments, OBJ `vn`) and a mirror sphere on a floor, lit "
         f"only by `scenes/sky.hdr` turned {TURN:g}° about Y (Mitsuba's `envmap` with the "
         f"same `to_world`), path tracing with {MAX_BOUNCES} bounces (Mitsuba `max_depth` "
         f"{mc.max_depth(MAX_BOUNCES)}, no Russian roulette)")
-    ms.twin(a, mi, scene_path, mitsuba_scene(mi, a.out, size, a.spp), "environment map",
-            intro, "mitsuba_env.py")
+    run(__doc__, "mitsuba-env", "env.toml", lancer_scene, CAMERA, SPHERES, "environment map",
+        intro, "mitsuba_env.py")
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ the BRDFs differ by 4-10 % at the same angles.
     python3 scripts/mitsuba_principled.py                       # 160x80, 256 spp
     python3 scripts/mitsuba_principled.py --report docs/src/results/2026-12-03-mitsuba-principled.md
 
-Helpers come from mitsuba_cornell.py and mitsuba_smooth.py beside it.
+Helpers come from mitsuba_cornell.py, mitsuba_smooth.py and mitsuba_env.py beside it.
 """
 
 import sys
@@ -24,11 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mitsuba_cornell as mc  # noqa: E402
+import mitsuba_env as me  # noqa: E402
 import mitsuba_smooth as ms  # noqa: E402
 
-MAP = mc.ROOT / "scenes" / "sky.hdr"
-TURN = 30.0
-MAX_BOUNCES = 3
+MAX_BOUNCES = me.MAX_BOUNCES
 GOLD = [1.0, 0.78, 0.34]
 ROUGHNESS = [0.2, 0.5, 0.8]
 CAMERA = {"position": [0.0, 1.2, 5.0], "look_at": [0.0, 0.5, 0.0], "fov": 35.0}
@@ -44,45 +43,24 @@ def lancer_scene(size, spp):
     rest = "".join(
         f'[materials.gold{k}]\ntype = "principled"\nbase_color = {GOLD}\nmetallic = 1.0\n'
         f"roughness = {r}\n" for k, r in enumerate(ROUGHNESS))
-    rest += f"""
-[environment]
-map = "{MAP}"
-rotate = [0.0, {TURN}, 0.0]
-"""
-    return ms.lancer_spheres(size, spp, MAX_BOUNCES, CAMERA, SPHERES, rest)
-
-
-def mitsuba_scene(mi, out, size, spp):
-    d = ms.mitsuba_spheres(mi, out, size, spp, MAX_BOUNCES, CAMERA, SPHERES)
-    d["sky"] = {"type": "envmap", "filename": str(MAP),
-                "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], TURN)}
-    return mi.load_dict(d)
+    return ms.lancer_spheres(size, spp, MAX_BOUNCES, CAMERA, SPHERES, rest + me.sky_toml())
 
 
 def main():
-    a = ms.arguments(__doc__.split("\n\n")[0], "mitsuba-principled")
-    mi = mc.load_mitsuba()
-    mc.ensure_lancer(a.lancer)
-    a.out.mkdir(parents=True, exist_ok=True)
-    (a.out / "sphere.obj").write_text(ms.sphere_obj(32))
-    (a.out / "floor.obj").write_text(ms.FLOOR_OBJ)
-    scene_path = a.out / "principled.toml"
-    size = (a.width, a.height)
-    scene_path.write_text(lancer_scene(size, a.spp))
     intro = (
         "lancer's glTF metallic-roughness (`type = \"principled\"`) against "
         "[Mitsuba 3](https://www.mitsuba-renderer.org/)'s `principled` BSDF: three gold "
         "metal spheres (32 segments, OBJ `vn`; roughness "
         + ", ".join(f"{r:g}" for r in ROUGHNESS)
         + " from left to right) on a grey diffuse floor, lit only by `scenes/sky.hdr` "
-        f"turned {TURN:g}° about Y, path tracing with {MAX_BOUNCES} bounces (Mitsuba "
+        f"turned {me.TURN:g}° about Y, path tracing with {MAX_BOUNCES} bounces (Mitsuba "
         f"`max_depth` {mc.max_depth(MAX_BOUNCES)}, no Russian roulette). Mitsuba's metal "
         "lobe is glTF's (GGX, Schlick's Fresnel of the base colour) with the separable "
         "Smith masking where lancer has the height-correlated one; dielectric surfaces are "
         "not twinned, since Mitsuba's `principled` gives them Disney's diffuse lobe rather "
         "than glTF's Lambert base")
-    ms.twin(a, mi, scene_path, mitsuba_scene(mi, a.out, size, a.spp),
-            "glTF metallic-roughness", intro, "mitsuba_principled.py")
+    me.run(__doc__, "mitsuba-principled", "principled.toml", lancer_scene, CAMERA, SPHERES,
+           "glTF metallic-roughness", intro, "mitsuba_principled.py")
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ mod common;
 
 use std::path::PathBuf;
 
+use common::alike::assert_alike;
 use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
@@ -212,26 +213,8 @@ fn the_gpu_renders_a_map_scene_as_the_cpu_does() {
         .image
         .pixels;
     let gpu = render(&scene, gpu_device(), &options).unwrap().image.pixels;
-    // The same operations on the same random numbers; lavapipe may fuse a multiply-add
-    // (the map's lookups are polynomials), which moves a value by an ulp, but no path
-    // may go another way.
-    let same = cpu.iter().zip(&gpu).filter(|(a, b)| a == b).count();
-    let off = |a: &Vec3, b: &Vec3| ((*a - *b).abs() / a.max(Vec3::splat(0.01))).max_element();
-    let far = (cpu.iter().zip(&gpu))
-        .filter(|(a, b)| off(a, b) > 1e-4)
-        .count();
-    let worst = (cpu.iter().zip(&gpu))
-        .map(|(a, b)| off(a, b))
-        .fold(0.0, f32::max);
-    println!(
-        "{same} of {} pixels bit-identical, {far} off by more than 1e-4, worst {worst:e}",
-        cpu.len()
-    );
-    assert!(
-        far * 100 <= cpu.len(),
-        "{far} of {} pixels differ",
-        cpu.len()
-    );
+    // The map's lookups are polynomials, where lavapipe may fuse a multiply-add.
+    assert_alike("sky.toml, CPU vs GPU", &cpu, &gpu);
 }
 
 #[test]

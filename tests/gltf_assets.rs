@@ -8,6 +8,7 @@ mod common;
 
 use std::path::PathBuf;
 
+use common::alike::assert_alike;
 use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
@@ -100,16 +101,7 @@ fn the_gpu_renders_the_panel_as_the_cpu_does() {
         .image
         .pixels;
     let gpu = render(&scene, gpu_device(), &options).unwrap().image.pixels;
-    let off = |a: &Vec3, b: &Vec3| ((*a - *b).abs() / a.max(Vec3::splat(0.01))).max_element();
-    let far = (cpu.iter().zip(&gpu))
-        .filter(|(a, b)| off(a, b) > 1e-4)
-        .count();
-    let same = cpu.iter().zip(&gpu).filter(|(a, b)| a == b).count();
-    println!(
-        "{same} of {} pixels bit-identical, {far} off by more than 1e-4",
-        cpu.len()
-    );
-    assert!(far * 100 <= cpu.len(), "{far} pixels differ");
+    assert_alike("panel.glb, CPU vs GPU", &cpu, &gpu);
 }
 
 #[test]

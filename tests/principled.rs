@@ -10,6 +10,7 @@ mod common;
 
 use std::f64::consts::PI;
 
+use common::alike::assert_alike;
 use common::gpu_device;
 use common::scratch::Scratch;
 use glam::{DVec3, Vec3};
@@ -366,25 +367,7 @@ fn the_gpu_renders_a_textured_principled_scene_as_the_cpu_does() {
     let options = RenderOptions::default();
     let cpu = image(&scene, &Device::cpu(), &options).image.pixels;
     let gpu = image(&scene, gpu_device(), &options).image.pixels;
-    // The same operations on the same random numbers: a fused multiply-add may move a
-    // value by an ulp, but no path may go another way.
-    let same = cpu.iter().zip(&gpu).filter(|(a, b)| a == b).count();
-    let off = |a: &Vec3, b: &Vec3| ((*a - *b).abs() / a.max(Vec3::splat(0.01))).max_element();
-    let far = (cpu.iter().zip(&gpu))
-        .filter(|(a, b)| off(a, b) > 1e-4)
-        .count();
-    let worst = (cpu.iter().zip(&gpu))
-        .map(|(a, b)| off(a, b))
-        .fold(0.0, f32::max);
-    println!(
-        "{same} of {} pixels bit-identical, {far} off by more than 1e-4, worst {worst:e}",
-        cpu.len()
-    );
-    assert!(
-        far * 100 <= cpu.len(),
-        "{far} of {} pixels differ",
-        cpu.len()
-    );
+    assert_alike("textured principled scene, CPU vs GPU", &cpu, &gpu);
     // Something to compare: lit, varied pixels.
     let lit = cpu.iter().filter(|c| c.max_element() > 0.05).count();
     assert!(lit * 2 > cpu.len(), "only {lit} pixels lit");

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod accel_check;
+pub mod alike;
 pub mod gpu_twin;
 pub mod hard;
 pub mod readers;
