@@ -23,37 +23,9 @@ fn image(scene: &RenderScene, device: &Device) -> Vec<Vec3> {
         .pixels
 }
 
-/// A lone sphere of `material` (flat facets: a convex polyhedron, so no bounce meets it
-/// twice) filling the middle of a 32×32 image, under `environment`.
+/// The furnace at 16 spp.
 fn furnace(dir: &Scratch, material: &str, environment: &str) -> RenderScene {
-    let text = format!(
-        r#"
-[camera]
-position = [0.0, 0.0, 4.0]
-look_at = [0.0, 0.0, 0.0]
-fov = 34.0
-width = 32
-height = 32
-
-[render]
-integrator = "path"
-max_bounces = 4
-spp = 16
-
-[environment]
-{environment}
-
-[materials.m]
-{material}
-
-[[objects]]
-shape = "sphere"
-segments = 24
-smooth = false
-material = "m"
-"#
-    );
-    RenderScene::from_file(&dir.write("furnace.toml", text)).unwrap()
+    common::furnace::furnace(dir, material, environment, 16)
 }
 
 /// The mean of the pixels and the largest distance of one from 1.

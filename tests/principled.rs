@@ -153,37 +153,9 @@ fn image(
     render(scene, device, options).unwrap()
 }
 
-/// A lone flat-faceted sphere of `material` (convex: no path meets it twice) filling the
-/// middle of a 32×32 image under a white sky.
+/// The furnace (a lone flat-faceted sphere of `material`) under a white sky, at 64 spp.
 fn furnace(dir: &Scratch, material: &str) -> RenderScene {
-    let text = format!(
-        r#"
-[camera]
-position = [0.0, 0.0, 4.0]
-look_at = [0.0, 0.0, 0.0]
-fov = 34.0
-width = 32
-height = 32
-
-[render]
-integrator = "path"
-max_bounces = 4
-spp = 64
-
-[environment]
-radiance = [1.0, 1.0, 1.0]
-
-[materials.m]
-{material}
-
-[[objects]]
-shape = "sphere"
-segments = 24
-smooth = false
-material = "m"
-"#
-    );
-    RenderScene::from_file(&dir.write("furnace.toml", text)).unwrap()
+    common::furnace::furnace(dir, material, "radiance = [1.0, 1.0, 1.0]", 64)
 }
 
 /// Pixels whose neighbours all hit the sphere (sample 0's depth finite): no sky in them.

@@ -3,6 +3,7 @@
 
 pub mod accel_check;
 pub mod alike;
+pub mod furnace;
 pub mod gpu_twin;
 pub mod hard;
 pub mod readers;
