@@ -141,12 +141,10 @@ impl<'a> CpuRenderer<'a> {
     /// viewer, shading normal ns) by `bsdf` from every light; none from below n.
     /// `bounces`: a bounce sampled from the BSDF follows, so the area lights' and the
     /// environment's samples are weighted by multiple importance sampling against it.
-    #[allow(clippy::too_many_arguments)]
     fn direct(
         &self,
         fx: EffectSet,
-        p: Vec3,
-        err: Vec3,
+        (p, err): (Vec3, Vec3),
         (n, ns): (Vec3, Vec3),
         (bsdf, wo): (&Bsdf, Vec3),
         bounces: bool,
@@ -510,7 +508,7 @@ impl<'a> CpuRenderer<'a> {
                 }
             }
             let bounces = fx.indirect && s.integrator == Integrator::Path && !last;
-            let light = self.direct(fx, p, p_err, (n, ns), (&bsdf, wo), bounces, &mut rng);
+            let light = self.direct(fx, (p, p_err), (n, ns), (&bsdf, wo), bounces, &mut rng);
             radiance += beta * light;
             if !bounces {
                 break;
