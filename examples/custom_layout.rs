@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions};
-use lancer::accel::GpuArrays;
+use lancer::accel::{GpuArrays, Mask};
 use lancer::geometry::Aabb;
 use lancer::{Accel, Device, DeviceChoice, GpuForm, Hit, Mesh, Query, Ray, RayStats};
 use lancer::{Robustness, Tracer, TracerOptions, Vec3};
@@ -47,9 +47,18 @@ impl Accel for MyLayout {
         self.inner.bounds()
     }
 
-    fn intersect(&self, ray: &Ray, query: Query, rob: &Robustness, stats: &mut RayStats) -> Hit {
+    // One ray. `mask` (None but in renders of alpha-masked materials) must be asked of
+    // every hit the tie rule would take, as the WGSL's `test_tri` asks `alpha_keeps`.
+    fn intersect_masked(
+        &self,
+        ray: &Ray,
+        query: Query,
+        rob: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> Hit {
         self.cpu_rays.fetch_add(1, Ordering::Relaxed);
-        self.inner.intersect(ray, query, rob, stats)
+        self.inner.intersect_masked(ray, query, rob, mask, stats)
     }
 
     // Batches: the default runs `intersect` on every thread; bvh8's twin answers whole

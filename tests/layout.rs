@@ -131,7 +131,8 @@ fn render_structs_match_rust() {
         "mr_height" => mr_height, "emission_width" => emission_width,
         "emission_height" => emission_height, "normal_offset" => normal_offset,
         "normal_width" => normal_width, "normal_height" => normal_height,
-        "normal_scale" => normal_scale),
+        "normal_scale" => normal_scale, "alpha" => alpha, "alpha_cutoff" => alpha_cutoff,
+        "pad1" => _pad1, "pad2" => _pad2),
     );
     check(
         m,

@@ -14,7 +14,7 @@ use common::{gpu, gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::build;
 use lancer::accel::bvh::layouts::{flatten, LayoutKind};
-use lancer::accel::{GpuArrays, GpuForm};
+use lancer::accel::{GpuArrays, GpuForm, Mask};
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Ray, Triangle, TriangleTest};
 use lancer::gpu::{shaders, BvhMemory};
@@ -383,8 +383,15 @@ impl Accel for PerRayOnly {
     fn bounds(&self) -> Aabb {
         self.0.bounds()
     }
-    fn intersect(&self, ray: &Ray, q: Query, rob: &Robustness, stats: &mut RayStats) -> Hit {
-        self.0.intersect(ray, q, rob, stats)
+    fn intersect_masked(
+        &self,
+        ray: &Ray,
+        q: Query,
+        rob: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> Hit {
+        self.0.intersect_masked(ray, q, rob, mask, stats)
     }
 }
 

@@ -166,6 +166,10 @@ struct Material {
     normal_width: u32,
     normal_height: u32,
     normal_scale: f32,
+    alpha: f32,
+    alpha_cutoff: f32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // render::gpu::GpuLight: kind 0 point (v = position, power = intensity),
@@ -333,12 +337,14 @@ fn offset_origin(p: vec3<f32>, err: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // again on the CPU.
 var<private> sample_incomplete: bool;
 
-fn texel(offset: u32, w: i32, x: i32, y: i32) -> vec3<f32> {
-    return texels[offset + u32(y * w + x)].xyz;
+// texture::texture_taps: the four texels of a bilinear lookup at uv with wrap-around (indices
+// into texels: top left, top right, bottom left, bottom right) and the weights between them.
+struct Taps {
+    i: vec4<u32>,
+    f: vec2<f32>,
 }
 
-// cpu::sample_texture: the texture of `w` × `h` texels from `offset` at uv.
-fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f32> {
+fn texture_taps(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> Taps {
     let w = i32(width);
     let h = i32(height);
     let u = uv.x - floor(uv.x);
@@ -353,13 +359,56 @@ fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f
     let iy0 = ((i32(y0) % h) + h) % h;
     let ix1 = (ix0 + 1) % w;
     let iy1 = (iy0 + 1) % h;
-    let a = texel(offset, w, ix0, iy0);
-    let b = texel(offset, w, ix1, iy0);
-    let c = texel(offset, w, ix0, iy1);
-    let d = texel(offset, w, ix1, iy1);
-    let top = a + (b - a) * fx;
-    let bottom = c + (d - c) * fx;
-    return top + (bottom - top) * fy;
+    let at = vec4<i32>(iy0 * w + ix0, iy0 * w + ix1, iy1 * w + ix0, iy1 * w + ix1);
+    return Taps(vec4<u32>(offset) + vec4<u32>(at), vec2<f32>(fx, fy));
+}
+
+// texture::sample_texture: the texture of `w` × `h` texels from `offset` at uv.
+fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f32> {
+    let t = texture_taps(offset, width, height, uv);
+    let a = texels[t.i.x].xyz;
+    let b = texels[t.i.y].xyz;
+    let c = texels[t.i.z].xyz;
+    let d = texels[t.i.w].xyz;
+    let top = a + (b - a) * t.f.x;
+    let bottom = c + (d - c) * t.f.x;
+    return top + (bottom - top) * t.f.y;
+}
+
+// texture::sample_alpha: the texture's alpha (its texels' w: 1 where the image has none).
+fn sample_alpha(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> f32 {
+    let t = texture_taps(offset, width, height, uv);
+    let a = texels[t.i.x].w;
+    let b = texels[t.i.y].w;
+    let c = texels[t.i.z].w;
+    let d = texels[t.i.w].w;
+    let top = a + (b - a) * t.f.x;
+    let bottom = c + (d - c) * t.f.x;
+    return top + (bottom - top) * t.f.y;
+}
+
+// render::AlphaMask::keeps, asked by traversal.wgsl's alpha_passes (ALPHA_MASK): whether
+// triangle `prim`'s material keeps a hit at (u, v). Reads only the shade's material and
+// texture coordinates, and leaves `placed` as it was.
+fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool {
+    var i = prim;
+    if INSTANCES {
+        let ids = placement_word(placement_of(prim), 6u);
+        i = ids.y + prim - ids.x;
+    }
+    let mat = materials[shade_word(5u * i).w];
+    if (mat.flags & MAT_ALPHA_MASK) == 0u {
+        return true;
+    }
+    var alpha = mat.alpha;
+    if (mat.flags & MAT_TEXTURED) != 0u {
+        let d = shade_word(5u * i + 3u);
+        let e = shade_word(5u * i + 4u);
+        let uv = bitcast<vec2<f32>>(d.xy) * (1.0 - u - v) + bitcast<vec2<f32>>(d.zw) * u
+            + bitcast<vec2<f32>>(e.xy) * v;
+        alpha *= sample_alpha(mat.tex_offset, mat.tex_width, mat.tex_height, uv);
+    }
+    return alpha >= mat.alpha_cutoff;
 }
 
 // geometry::unpack_tangent: a packed tangent's direction, not normalised.

@@ -26,6 +26,26 @@ var<private> bottom_node_base: u32;  // in words
 var<private> bottom_tri_base: u32;   // in words
 // The prune bound of the last hit a leaf step took (hit_prune): the top level carries it on.
 var<private> taken_prune: f32;
+// The first triangle of the instance being walked (original indices over all instances).
+var<private> bottom_prim_base: u32;
+
+// Alpha masks (accel::HitMask): a hit the tie rule would take counts only where the kernel's
+// alpha_keeps(prim, u, v) keeps it (a render kernel whose scene has masked materials), for
+// closest-hit and any-hit alike. Kernels without materials keep every hit. Compiled out
+// (ALPHA_MASK false) where no material is masked.
+override ALPHA_MASK: bool = false;
+
+// Whether the alpha mask keeps triangle `prim`'s hit h (`prim` as the leaf stores it).
+fn alpha_passes(prim: u32, h: TriHit) -> bool {
+    if !ALPHA_MASK {
+        return true;
+    }
+    var p = prim;
+    if INSTANCES {
+        p += bottom_prim_base;
+    }
+    return alpha_keeps(p, h.u, h.v);
+}
 
 // Word i of the node array as a whole (the top level's reads).
 fn array_node_word(i: u32) -> vec4<u32> {
@@ -79,7 +99,7 @@ fn test_tri(tri: Tri, r: Ray, w: Watertight, best: ptr<function, Hit>,
             prune: ptr<function, f32>) -> bool {
     let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, (*best).t);
     if h.ok && beats(h.t, tri.prim, (*best).t, (*best).prim)
-        && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
+        && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) && alpha_passes(tri.prim, h) {
         *best = Hit(h.t, tri.prim, h.u, h.v);
         *prune = hit_prune(h);
         if INSTANCES {

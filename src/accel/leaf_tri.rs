@@ -5,7 +5,7 @@ use glam::{Mat4, Vec4};
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
-use crate::accel::RayStats;
+use crate::accel::{Mask, RayStats};
 use crate::geometry::{
     intersect_triangle_bounded, Hit, Ray, Robustness, TriHit, TriHits4, Triangle, TriangleRay4,
     TriangleTest, WatertightRay,
@@ -117,6 +117,8 @@ pub(crate) struct LeafRay<'a> {
     pub reject_near: bool,
     /// The settings, for the next ray's `reject_near`.
     robustness: Robustness,
+    /// The alpha mask a hit must pass ([`crate::accel::HitMask`]), if any.
+    mask: Mask<'a>,
 }
 
 /// Triangles tested at once by the four-lane verdicts ([`TriangleRay4`]).
@@ -139,9 +141,9 @@ fn lanes(tris: &[LeafTri]) -> [[Vec4; 3]; 3] {
 }
 
 impl<'a> LeafRay<'a> {
-    /// The set-up for `ray` under `robustness`.
+    /// The set-up for `ray` under `robustness`, hits tested by `mask`.
     #[inline(always)]
-    pub fn new(ray: &'a Ray, robustness: &Robustness) -> Self {
+    pub fn new(ray: &'a Ray, robustness: &Robustness, mask: Mask<'a>) -> Self {
         let wr = WatertightRay::new(ray.dir);
         LeafRay {
             ray,
@@ -149,6 +151,7 @@ impl<'a> LeafRay<'a> {
             ray4: TriangleRay4::new(ray.origin, ray.dir, &wr, ray.tmin),
             reject_near: robustness.rejects_near_hits_of(ray),
             robustness: *robustness,
+            mask,
         }
     }
 
@@ -297,6 +300,7 @@ impl<'a> LeafRay<'a> {
     ) -> bool {
         if !Hit::beats(h.t, lt.prim, best.t, best.prim)
             || (self.reject_near && h.maybe_behind_origin())
+            || self.mask.is_some_and(|m| !m.keeps(lt.prim, h.u, h.v))
         {
             return false;
         }

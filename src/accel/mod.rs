@@ -28,7 +28,7 @@ use crate::mesh::Mesh;
 
 pub use gpu_form::{GpuArrays, GpuForm};
 pub use leaf_tri::LeafTri;
-pub use query::{Query, RayStats};
+pub use query::{HitMask, Mask, Query, RayStats};
 pub use traversal_mode::TraversalMode;
 
 /// Rays a CPU thread takes at a time in a batch ([`Accel::trace_hits`]): enough to make
@@ -89,6 +89,19 @@ pub trait Accel: Send + Sync {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        stats: &mut RayStats,
+    ) -> Hit {
+        self.intersect_masked(ray, query, robustness, None, stats)
+    }
+
+    /// [`Accel::intersect`] where a hit counts only if `mask` keeps it ([`HitMask`]):
+    /// masked-out hits are skipped in the traversal, by closest-hit and any-hit alike.
+    fn intersect_masked(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit;
 

@@ -10,6 +10,20 @@ pub enum Query {
     Any,
 }
 
+/// A test a triangle's hit must also pass to count, asked where the tie rule would take the
+/// hit: an alpha mask cuts holes in surfaces (render::scene materials). A hit it drops is
+/// skipped by closest-hit and any-hit queries alike, as if the triangle were not there at
+/// that point. WGSL twin: the kernel's `alpha_keeps`, called by `test_tri`
+/// (shaders/lib/traversal.wgsl) when `ALPHA_MASK` is on.
+pub trait HitMask: Sync {
+    /// Whether triangle `prim` (original index; over all instances in a two-level scene)
+    /// is solid at the barycentric coordinates (u, v) of a hit.
+    fn keeps(&self, prim: u32, u: f32, v: f32) -> bool;
+}
+
+/// The mask a traversal tests hits with: None (the usual case) tests nothing.
+pub type Mask<'a> = Option<&'a dyn HitMask>;
+
 /// Work done for one ray: nodes (or cells) visited and triangles tested.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]

@@ -60,6 +60,9 @@ pub struct GltfMaterial {
     pub roughness: f32,
     /// Seen from both sides.
     pub double_sided: bool,
+    /// Alpha mode `MASK`: the cutoff below which the surface is cut away (alpha is the base
+    /// colour factor's times its texture's); None for `OPAQUE` and `BLEND`.
+    pub alpha_cutoff: Option<f32>,
 }
 
 /// A glTF scene flattened: world-space triangles with texture coordinates and materials.
@@ -686,12 +689,19 @@ fn material(
         .map(str::to_string)
         .unwrap_or_else(|| format!("#{}", m.index().unwrap_or(0)));
     let bad = |msg: String| Error::input(path, None, format!("material {name:?}: {msg}"));
-    if m.alpha_mode() != ::gltf::material::AlphaMode::Opaque {
-        log::warn!(
-            "{}: material {name:?}: alpha mode {:?} is not simulated yet; rendered opaque",
-            path.display(),
-            m.alpha_mode()
-        );
+    let alpha_cutoff = match m.alpha_mode() {
+        ::gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
+        ::gltf::material::AlphaMode::Blend => {
+            log::warn!(
+                "{}: material {name:?}: alpha mode Blend is not simulated yet; rendered opaque",
+                path.display(),
+            );
+            None
+        }
+        ::gltf::material::AlphaMode::Opaque => None,
+    };
+    if alpha_cutoff.is_some_and(|c| !c.is_finite() || c < 0.0) {
+        return Err(bad("alphaCutoff must be finite and non-negative".into()));
     }
     let pbr = m.pbr_metallic_roughness();
     let strength = m.emissive_strength().unwrap_or(1.0);
@@ -776,6 +786,7 @@ fn material(
         metallic,
         roughness,
         double_sided: m.double_sided(),
+        alpha_cutoff,
     })
 }
 

@@ -2,40 +2,21 @@
 //! operation, over a CPU acceleration structure (a layout's twin). It is the reference the
 //! GPU images are tested against.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
+use super::alpha::AlphaMask;
 use super::aov::FirstHit;
 use super::bsdf::{Bsdf, Principled};
 use super::crop::Crop;
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, offset_origin, Rng};
-use super::scene::{Integrator, Light, MaterialKind, PlacedTriangle, RenderScene, Texture};
-use crate::accel::{Accel, Query, RayStats};
+use super::scene::{Integrator, Light, MaterialKind, PlacedTriangle, RenderScene};
+use super::texture::sample_texture;
+use crate::accel::{Accel, HitMask, Mask, Query, RayStats};
 use crate::camera::{CameraFrame, PRIMARY_TMAX};
 use crate::geometry::{cross, dot, normalize};
 use crate::geometry::{Hit, Ray, RayOffset, Robustness};
-
-/// Bilinear lookup with wrap-around, in linear RGB.
-pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
-    let (w, h) = (t.width as i32, t.height as i32);
-    let u = uv.x - uv.x.floor();
-    let v = uv.y - uv.y.floor();
-    let x = u * w as f32 - 0.5;
-    let y = (1.0 - v) * h as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let wrap = |i: i32, n: i32| ((i % n) + n) % n;
-    let (ix0, iy0) = (wrap(x0 as i32, w), wrap(y0 as i32, h));
-    let (ix1, iy1) = ((ix0 + 1) % w, (iy0 + 1) % h);
-    let at = |x: i32, y: i32| t.texels[(y * w + x) as usize];
-    let lerp = |a: Vec3, b: Vec3, f: f32| a + (b - a) * f;
-    lerp(
-        lerp(at(ix0, iy0), at(ix1, iy0), fx),
-        lerp(at(ix0, iy1), at(ix1, iy1), fx),
-        fy,
-    )
-}
 
 /// Whether a ray along `dir` meets the triangle's front (its winding's side), and the
 /// triangle's unit normal turned toward where the ray comes from.
@@ -94,6 +75,8 @@ pub struct CpuRenderer<'a> {
     emit_total: f32,
     /// The epsilon of [`RayOffset::Fixed`]: FIXED_OFFSET of the scene's diagonal.
     fixed_offset: f32,
+    /// The materials' alpha masks, asked in the traversal where the effect is on.
+    alpha: AlphaMask<'a>,
 }
 
 impl<'a> CpuRenderer<'a> {
@@ -111,19 +94,27 @@ impl<'a> CpuRenderer<'a> {
             } else {
                 0.0
             },
+            alpha: AlphaMask::new(scene),
         }
     }
 
-    fn closest(&self, r: &Ray) -> Hit {
-        let mut stats = RayStats::default();
-        (self.accel).intersect(r, Query::Closest, &self.robustness, &mut stats)
+    /// The alpha masks where the effect is on.
+    fn mask(&self, fx: EffectSet) -> Mask<'_> {
+        fx.alpha_mask.then_some(&self.alpha as &dyn HitMask)
     }
 
-    fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+    fn closest(&self, fx: EffectSet, r: &Ray) -> Hit {
+        let mut stats = RayStats::default();
+        let mask = self.mask(fx);
+        (self.accel).intersect_masked(r, Query::Closest, &self.robustness, mask, &mut stats)
+    }
+
+    fn occluded(&self, fx: EffectSet, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let r = Ray::new(origin, dir, 0.0, tmax);
         let mut stats = RayStats::default();
+        let mask = self.mask(fx);
         (self.accel)
-            .intersect(&r, Query::Any, &self.robustness, &mut stats)
+            .intersect_masked(&r, Query::Any, &self.robustness, mask, &mut stats)
             .is_hit()
     }
 
@@ -163,7 +154,7 @@ impl<'a> CpuRenderer<'a> {
                     let wi = d / d2.sqrt();
                     let c = dot(ns, wi);
                     let lit = c > 0.0 && keeps_side(fx, d, n, true);
-                    if lit && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
+                    if lit && !(fx.shadows && self.occluded(fx, o, position - o, 1.0)) {
                         sum += intensity * bsdf.eval(ns, wo, wi).0 / d2;
                     }
                 }
@@ -181,7 +172,7 @@ impl<'a> CpuRenderer<'a> {
                     let c = dot(ns, wi);
                     let falloff = Light::spot_falloff(-dot(direction, wi), scale, offset);
                     let lit = c > 0.0 && falloff > 0.0 && keeps_side(fx, d, n, true);
-                    if lit && !(fx.shadows && self.occluded(o, position - o, 1.0)) {
+                    if lit && !(fx.shadows && self.occluded(fx, o, position - o, 1.0)) {
                         sum += intensity * bsdf.eval(ns, wo, wi).0 * (falloff / d2);
                     }
                 }
@@ -191,7 +182,7 @@ impl<'a> CpuRenderer<'a> {
                 } => {
                     let c = -dot(ns, direction);
                     let lit = c > 0.0 && keeps_side(fx, -direction, n, true);
-                    if lit && !(fx.shadows && self.occluded(o, -direction, PRIMARY_TMAX)) {
+                    if lit && !(fx.shadows && self.occluded(fx, o, -direction, PRIMARY_TMAX)) {
                         sum += irradiance * bsdf.eval(ns, wo, -direction).0;
                     }
                 }
@@ -232,7 +223,7 @@ impl<'a> CpuRenderer<'a> {
             if cs > 0.0 && cl > 0.0 && keeps_side(fx, d, n, true) {
                 let toward = if dot(nl, d) > 0.0 { -nl } else { nl };
                 let qt = self.leave(q, q_err, toward);
-                if !(fx.shadows && self.occluded(o, qt - o, 1.0)) {
+                if !(fx.shadows && self.occluded(fx, o, qt - o, 1.0)) {
                     let (fcos, pdf) = bsdf.eval(ns, wo, wi);
                     let w = if bounces {
                         power_heuristic(d2 / (cl * self.emit_total), pdf)
@@ -255,7 +246,7 @@ impl<'a> CpuRenderer<'a> {
                         1.0
                     };
                     let l = env.eval(e.dir) * fcos * (w / e.pdf);
-                    if !(fx.shadows && self.occluded(o, e.dir, PRIMARY_TMAX)) {
+                    if !(fx.shadows && self.occluded(fx, o, e.dir, PRIMARY_TMAX)) {
                         sum += l;
                     }
                 }
@@ -276,8 +267,7 @@ impl<'a> CpuRenderer<'a> {
     /// Texture `t` at a hit, where textures are simulated.
     fn texture_at(&self, fx: EffectSet, t: Option<usize>, shade: usize, hit: &Hit) -> Option<Vec3> {
         let t = t.filter(|_| fx.textures)?;
-        let uv = self.scene.uvs[shade];
-        let uv = uv[0] * (1.0 - hit.u - hit.v) + uv[1] * hit.u + uv[2] * hit.v;
+        let uv = self.scene.uv_at(shade, hit.u, hit.v);
         Some(sample_texture(&self.scene.textures[t], uv))
     }
 
@@ -374,9 +364,7 @@ impl<'a> CpuRenderer<'a> {
         }
         let t = normalize(t);
         let b = cross(n, t) * if flipped { -1.0 } else { 1.0 };
-        let uv = self.scene.uvs[tri.shade];
-        let w = 1.0 - hit.u - hit.v;
-        let uv = uv[0] * w + uv[1] * hit.u + uv[2] * hit.v;
+        let uv = self.scene.uv_at(tri.shade, hit.u, hit.v);
         let c = sample_texture(&self.scene.textures[map], uv) * 2.0 - Vec3::ONE;
         let m = t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
         Some((m, n))
@@ -385,7 +373,7 @@ impl<'a> CpuRenderer<'a> {
     /// The AOVs of pixel (x, y): the first hit of its camera ray in sample 0.
     pub fn first_hit(&self, fx: EffectSet, seed: u32, x: u32, y: u32) -> FirstHit {
         let (ray, _) = self.camera_ray(seed, x, y, 0);
-        let hit = self.closest(&ray);
+        let hit = self.closest(fx, &ray);
         if !hit.is_hit() {
             return FirstHit::MISS;
         }
@@ -410,7 +398,7 @@ impl<'a> CpuRenderer<'a> {
         let mut bounce_pdf = 0.0f32;
         let nee = fx.soft_shadows && !self.scene.emitters.is_empty();
         for bounce in 0..=s.max_bounces {
-            let hit = self.closest(&ray);
+            let hit = self.closest(fx, &ray);
             if !hit.is_hit() {
                 if let Some(env) = (self.scene.environment.as_ref()).filter(|_| fx.environment) {
                     let w = if bounce_pdf > 0.0 {
@@ -446,7 +434,7 @@ impl<'a> CpuRenderer<'a> {
             if fx.ao && s.integrator == Integrator::Ao {
                 let d = cosine_direction(ns, &mut rng);
                 let open = keeps_side(fx, d, n, true);
-                if open && !self.occluded(self.leave(p, p_err, n), d, s.ao_distance) {
+                if open && !self.occluded(fx, self.leave(p, p_err, n), d, s.ao_distance) {
                     radiance += beta;
                 }
                 break;

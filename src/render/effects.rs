@@ -33,6 +33,9 @@ pub struct EffectSet {
     /// glTF metallic-roughness surfaces (principled: GGX microfacets over a Lambert
     /// base, and their emission); without it they are diffuse.
     pub microfacet: bool,
+    /// Alpha masks: hits where a masked material's alpha is below its cutoff are skipped
+    /// in the traversal (every ray: camera, bounce, shadow and AO rays alike).
+    pub alpha_mask: bool,
 }
 
 impl EffectSet {
@@ -50,6 +53,7 @@ impl EffectSet {
         spot_lights: true,
         normal_maps: true,
         microfacet: true,
+        alpha_mask: true,
     };
 
     /// What `scene` needs, and nothing more.
@@ -89,11 +93,13 @@ impl EffectSet {
             environment,
             spot_lights: !ao && (scene.lights.iter()).any(|l| matches!(l, Light::Spot { .. })),
             microfacet: !ao && kind_used(MaterialKind::Principled),
+            // Geometry, not shading: AO rays pass through the holes too.
+            alpha_mask: used.iter().any(|m| m.alpha_cutoff.is_some()),
         }
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 12] {
+    pub fn flags(&self) -> [(&'static str, bool); 13] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -107,6 +113,7 @@ impl EffectSet {
             ("SPOT_LIGHTS", self.spot_lights),
             ("NORMAL_MAPS", self.normal_maps),
             ("MICROFACET", self.microfacet),
+            ("ALPHA_MASK", self.alpha_mask),
         ]
     }
 }
@@ -116,7 +123,7 @@ impl EffectSet {
     /// it) and the set without it: what `bench render` times to price each effect.
     pub fn each_without(&self) -> Vec<(String, EffectSet)> {
         type Field = fn(&mut EffectSet) -> &mut bool;
-        let fields: [(&str, Field); 12] = [
+        let fields: [(&str, Field); 13] = [
             ("shadows", |f| &mut f.shadows),
             ("soft-shadows", |f| &mut f.soft_shadows),
             ("mirror", |f| &mut f.mirror),
@@ -129,6 +136,7 @@ impl EffectSet {
             ("spot-lights", |f| &mut f.spot_lights),
             ("normal-maps", |f| &mut f.normal_maps),
             ("microfacet", |f| &mut f.microfacet),
+            ("alpha-mask", |f| &mut f.alpha_mask),
         ];
         let mut out = Vec::new();
         for (name, field) in fields {

@@ -93,7 +93,8 @@ pub struct GpuMaterial {
     /// Texture height in texels (0 without a texture).
     pub tex_height: u32,
     /// Bits: [`MAT_TEXTURED`] (albedo times the texture), [`MAT_TWO_SIDED`] (emits from
-    /// both faces), [`MAT_METALLIC_ROUGHNESS`], [`MAT_EMISSION_TEXTURE`].
+    /// both faces), [`MAT_METALLIC_ROUGHNESS`], [`MAT_EMISSION_TEXTURE`],
+    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`].
     pub flags: u32,
     /// Principled: metalness.
     pub metallic: f32,
@@ -119,6 +120,14 @@ pub struct GpuMaterial {
     pub normal_height: u32,
     /// The normal map's scale of red and green.
     pub normal_scale: f32,
+    /// An alpha mask's alpha (times the texture's alpha).
+    pub alpha: f32,
+    /// An alpha mask's cutoff ([`MAT_ALPHA_MASK`]).
+    pub alpha_cutoff: f32,
+    /// Padding (zero).
+    pub _pad1: u32,
+    /// Padding (zero).
+    pub _pad2: u32,
 }
 
 /// [`GpuMaterial::flags`] bit: the albedo is multiplied by the material's texture.
@@ -132,6 +141,9 @@ pub const MAT_METALLIC_ROUGHNESS: u32 = 4;
 pub const MAT_EMISSION_TEXTURE: u32 = 8;
 /// [`GpuMaterial::flags`] bit: a normal map tilts the shading normal.
 pub const MAT_NORMAL_MAP: u32 = 16;
+/// [`GpuMaterial::flags`] bit: an alpha mask cuts the surface where its alpha is below
+/// `alpha_cutoff`.
+pub const MAT_ALPHA_MASK: u32 = 32;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -295,7 +307,10 @@ impl<'a> GpuRenderer<'a> {
         let mut tex_at = Vec::new();
         for t in &scene.textures {
             tex_at.push(texels.len() as u32);
-            texels.extend(t.texels.iter().map(|c| c.extend(1.0).to_array()));
+            // Alpha in w (1 where the image has none): what an alpha mask reads.
+            let alpha = |i: usize| t.alpha.get(i).copied().unwrap_or(1.0);
+            texels
+                .extend((t.texels.iter().enumerate()).map(|(i, c)| c.extend(alpha(i)).to_array()));
         }
         let env = scene.environment.as_ref();
         let (env_texels, env_cdf) = (
@@ -343,7 +358,8 @@ impl<'a> GpuRenderer<'a> {
                             MAT_METALLIC_ROUGHNESS,
                         )
                         | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE)
-                        | bit(m.normal_texture.is_some(), MAT_NORMAL_MAP),
+                        | bit(m.normal_texture.is_some(), MAT_NORMAL_MAP)
+                        | bit(m.alpha_cutoff.is_some(), MAT_ALPHA_MASK),
                     metallic: m.metallic,
                     roughness: m.roughness,
                     mr_offset: mr_off,
@@ -356,6 +372,10 @@ impl<'a> GpuRenderer<'a> {
                     normal_width: n_w,
                     normal_height: n_h,
                     normal_scale: m.normal_scale,
+                    alpha: m.alpha,
+                    alpha_cutoff: m.alpha_cutoff.unwrap_or(0.0),
+                    _pad1: 0,
+                    _pad2: 0,
                 }
             })
             .collect();

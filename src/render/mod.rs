@@ -2,6 +2,7 @@
 //! reference renderer and the GPU renderer (one WGSL source specialised per effect set),
 //! behind one [`Renderer`].
 
+mod alpha;
 mod aov;
 mod bsdf;
 mod cpu;
@@ -18,11 +19,13 @@ mod renderer;
 pub(crate) mod sampling;
 mod scene;
 mod stats;
+mod texture;
 mod trig;
 
+pub use alpha::AlphaMask;
 pub use aov::{AovSet, Aovs, FirstHit};
 pub use bsdf::{Bsdf, BsdfSample, Principled, ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
-pub use cpu::{sample_texture, CpuRenderer};
+pub use cpu::CpuRenderer;
 pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
 pub use environment::{
@@ -30,8 +33,8 @@ pub use environment::{
 };
 pub use exr::ExrImage;
 pub use gpu::{
-    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_EMISSION_TEXTURE,
-    MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_TEXTURED, MAT_TWO_SIDED,
+    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_ALPHA_MASK,
+    MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_TEXTURED, MAT_TWO_SIDED,
 };
 pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};
@@ -45,4 +48,5 @@ pub use scene::{
     Placements, RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;
+pub use texture::{sample_alpha, sample_texture};
 pub use trig::{atan2_turns, sin_cos_turns};

@@ -25,7 +25,7 @@
 use super::{Bih, MAX_BIH_DEPTH};
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
 use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
 
 impl Accel for Bih {
@@ -34,15 +34,16 @@ impl Accel for Bih {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
     }
 }
 
@@ -54,6 +55,7 @@ impl Bih {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -68,7 +70,7 @@ impl Bih {
             stats.nodes += 1;
             return best;
         };
-        let leaf = LeafRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         // Nodes entered beyond this are cut: the best hit's prune bound, in scaled units
         // (the leaf step keeps it unscaled in `hit_prune`).
         let mut hit_prune = ray.tmax.min(f32::MAX);

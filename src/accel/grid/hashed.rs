@@ -10,7 +10,7 @@ use super::frame::{resolution, Frame};
 use super::prims::Prims;
 use super::ray_walk::RayWalk;
 use super::{GridOptions, GridStats};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::error::Result;
 use crate::geometry::{Aabb, Hit, Ray, Robustness, TriangleTest};
 use crate::mesh::Mesh;
@@ -183,6 +183,7 @@ impl HashedGrid {
         ray: &Ray,
         query: Query,
         reject_near: bool,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let (Some(frame), true) = (&self.frame, ray.is_valid()) else {
@@ -192,7 +193,7 @@ impl HashedGrid {
         let Some((t0, t1)) = dray.clip(frame, ray.tmin, ray.tmax) else {
             return Hit::miss(ray.tmax);
         };
-        let mut st = RayWalk::<MT>::new(ray, query, reject_near, stats);
+        let mut st = RayWalk::<MT>::new(ray, query, reject_near, mask, stats);
         dray.walk(frame, t0, t1, |cell, _, exit| {
             st.stats.nodes += 1;
             let refs = self.lookup(frame.linear(cell));
@@ -207,17 +208,18 @@ impl Accel for HashedGrid {
         self.prims.bounds
     }
 
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let near = robustness.rejects_near_hits_of(ray);
         match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, near, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, stats),
+            TriangleTest::Watertight => self.walk::<false>(ray, query, near, mask, stats),
+            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, mask, stats),
         }
     }
 }

@@ -5,7 +5,7 @@
 //! [`Robustness::rejects_near_hits`](crate::Robustness::rejects_near_hits).
 
 use super::prims::Prims;
-use crate::accel::{Query, RayStats};
+use crate::accel::{Mask, Query, RayStats};
 use crate::geometry::{intersect_triangle_bounded, Hit, Ray, TriHit, TriangleTest, WatertightRay};
 
 /// Mailbox entries: the last triangles tested, skipped when a later cell references them.
@@ -18,6 +18,8 @@ pub(crate) struct RayWalk<'a, const MT: bool> {
     query: Query,
     /// Hits within their own error bound of the origin are rejected (as the BVH does).
     reject_near: bool,
+    /// The alpha mask a hit must pass ([`crate::accel::HitMask`]), if any.
+    mask: Mask<'a>,
     /// The best hit so far (a miss at tmax at first).
     pub best: Hit,
     /// The walk may end after a cell whose exit is beyond this: the best t plus its error
@@ -32,12 +34,19 @@ pub(crate) struct RayWalk<'a, const MT: bool> {
 impl<'a, const MT: bool> RayWalk<'a, MT> {
     /// The start of a walk for a valid ray.
     #[inline(always)]
-    pub fn new(ray: &'a Ray, query: Query, reject_near: bool, stats: &'a mut RayStats) -> Self {
+    pub fn new(
+        ray: &'a Ray,
+        query: Query,
+        reject_near: bool,
+        mask: Mask<'a>,
+        stats: &'a mut RayStats,
+    ) -> Self {
         RayWalk {
             ray,
             wr: WatertightRay::new(ray.dir),
             query,
             reject_near,
+            mask,
             best: Hit::miss(ray.tmax),
             bound: f64::INFINITY,
             mailbox: [u32::MAX; MAILBOX],
@@ -71,6 +80,7 @@ impl<'a, const MT: bool> RayWalk<'a, MT> {
             let prim = prims.prims[r as usize];
             if !Hit::beats(t, prim, self.best.t, self.best.prim)
                 || (self.reject_near && h.maybe_behind_origin())
+                || self.mask.is_some_and(|m| !m.keeps(prim, u, v))
             {
                 continue;
             }

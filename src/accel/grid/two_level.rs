@@ -16,7 +16,7 @@ use super::frame::{resolution, Frame};
 use super::prims::Prims;
 use super::ray_walk::RayWalk;
 use super::{GridOptions, GridStats};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Hit, Ray, Robustness, TriangleTest};
 use crate::mesh::Mesh;
@@ -246,6 +246,7 @@ impl TwoLevelGrid {
         ray: &Ray,
         query: Query,
         reject_near: bool,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let (Some(top), true) = (&self.top, ray.is_valid()) else {
@@ -255,7 +256,7 @@ impl TwoLevelGrid {
         let Some((t0, t1)) = dray.clip(top, ray.tmin, ray.tmax) else {
             return Hit::miss(ray.tmax);
         };
-        let mut st = RayWalk::<MT>::new(ray, query, reject_near, stats);
+        let mut st = RayWalk::<MT>::new(ray, query, reject_near, mask, stats);
         dray.walk(top, t0, t1, |cell, enter, exit| {
             st.stats.nodes += 1;
             let tc = self.cells[top.linear(cell) as usize];
@@ -287,17 +288,18 @@ impl Accel for TwoLevelGrid {
         self.prims.bounds
     }
 
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let near = robustness.rejects_near_hits_of(ray);
         match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, near, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, stats),
+            TriangleTest::Watertight => self.walk::<false>(ray, query, near, mask, stats),
+            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, mask, stats),
         }
     }
 }

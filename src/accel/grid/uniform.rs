@@ -8,7 +8,7 @@ use super::frame::{resolution, Frame};
 use super::prims::Prims;
 use super::ray_walk::RayWalk;
 use super::{GridOptions, GridStats};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::error::Result;
 use crate::geometry::{Aabb, Hit, Ray, Robustness, TriangleTest};
 use crate::mesh::Mesh;
@@ -128,6 +128,7 @@ impl UniformGrid {
         ray: &Ray,
         query: Query,
         reject_near: bool,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let (Some(frame), true) = (&self.frame, ray.is_valid()) else {
@@ -137,7 +138,7 @@ impl UniformGrid {
         let Some((t0, t1)) = dray.clip(frame, ray.tmin, ray.tmax) else {
             return Hit::miss(ray.tmax);
         };
-        let mut st = RayWalk::<MT>::new(ray, query, reject_near, stats);
+        let mut st = RayWalk::<MT>::new(ray, query, reject_near, mask, stats);
         dray.walk(frame, t0, t1, |cell, _, exit| {
             st.stats.nodes += 1;
             let c = frame.linear(cell) as usize;
@@ -153,17 +154,18 @@ impl Accel for UniformGrid {
         self.prims.bounds
     }
 
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let near = robustness.rejects_near_hits_of(ray);
         match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, near, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, stats),
+            TriangleTest::Watertight => self.walk::<false>(ray, query, near, mask, stats),
+            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, mask, stats),
         }
     }
 }

@@ -9,7 +9,7 @@ use super::top_level::TopEntry;
 use super::{InstanceSet, TwoLevel};
 use crate::accel::bvh::layouts::{self, DfsNode, LayoutKind, DFS_LEAF_TAG};
 use crate::accel::bvh::{self, BuildOptions, MAX_DEPTH};
-use crate::accel::{Accel, GpuArrays, GpuForm, Query, RayStats};
+use crate::accel::{Accel, GpuArrays, GpuForm, Mask, Query, RayStats};
 use crate::geometry::{Aabb, Affine, Hit, Ray, Robustness};
 
 /// Bytes of one 16-byte word of the GPU arrays.
@@ -349,14 +349,16 @@ impl Accel for GpuTwoLevel {
         self.twin.bounds()
     }
 
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
-        self.twin.intersect(ray, query, robustness, stats)
+        self.twin
+            .intersect_masked(ray, query, robustness, mask, stats)
     }
 }
 

@@ -7,7 +7,7 @@ use super::top_level::TopLevel;
 use super::{Affine, Instance, InstanceSet};
 use crate::accel::bvh::layouts::DfsNodeRay;
 use crate::accel::bvh::{BuildOptions, MAX_DEPTH};
-use crate::accel::{Accel, AccelKind, Query, RayStats};
+use crate::accel::{Accel, AccelKind, HitMask, Mask, Query, RayStats};
 use crate::geometry::{
     intersect_triangle_bounded, prune_bound, triangle_hit_f64, Aabb, Hit, Precision, Ray,
     Robustness, Triangle, WatertightRay,
@@ -164,6 +164,18 @@ fn prune_after(tri: &Triangle, ray: &Ray, robustness: &Robustness, t: f32) -> f3
     h.map_or(prune_bound(t), |h| h.prune())
 }
 
+/// A mask over all instances asked of one instance's triangles, numbered from `base`.
+struct Shifted<'a> {
+    mask: &'a dyn HitMask,
+    base: u32,
+}
+
+impl HitMask for Shifted<'_> {
+    fn keeps(&self, prim: u32, u: f32, v: f32) -> bool {
+        self.mask.keeps(self.base + prim, u, v)
+    }
+}
+
 impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
     fn bounds(&self) -> Aabb {
         self.top.bounds()
@@ -172,11 +184,12 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
     /// The top level walked as dfs-sign walks its nodes; at an instance, the ray in object
     /// space goes to its bottom level with tmax cut to the top level's prune bound once a
     /// hit is known (a bottom hit beyond the best one is then dropped by the tie rule).
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -210,8 +223,18 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
                     if best.is_hit() {
                         local.tmax = prune;
                     }
-                    let h =
-                        self.bottoms[e.mesh as usize].intersect(&local, query, robustness, stats);
+                    // The mask is asked of the instance's triangles (WGSL: bottom_prim_base).
+                    let shifted = mask.map(|mask| Shifted {
+                        mask,
+                        base: e.first_prim,
+                    });
+                    let h = self.bottoms[e.mesh as usize].intersect_masked(
+                        &local,
+                        query,
+                        robustness,
+                        shifted.as_ref().map(|s| s as &dyn HitMask),
+                        stats,
+                    );
                     if !h.is_hit() {
                         continue;
                     }

@@ -66,6 +66,7 @@ fn trace_ray(r: Ray, any_hit: bool) -> Hit {
                 let m2 = bitcast<vec4<f32>>(array_node_word(e + 2u));
                 let ids = array_node_word(e + 3u);  // first_prim, mesh, node_base, tri_base
                 bottom_node_base = ids.z;
+                bottom_prim_base = ids.x;
                 bottom_tri_base = ids.w;
                 var local = Ray(affine_point(m0, m1, m2, r.origin), r.tmin,
                                 affine_vector(m0, m1, m2, r.dir), r.tmax);

@@ -38,7 +38,7 @@
 
 use super::{KdTree, MAX_KD_DEPTH};
 use crate::accel::plane_ray::{finite, pow2_scales, widen_hi, widen_lo};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{
     intersect_triangle_bounded, safe_recip, Aabb, Hit, Ray, Robustness, TriangleTest,
     WatertightRay, MISS, PARALLEL_INV,
@@ -53,17 +53,18 @@ impl Accel for KdTree {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
         match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, stats),
+            TriangleTest::Watertight => self.walk::<false>(ray, query, robustness, mask, stats),
+            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, robustness, mask, stats),
         }
     }
 }
@@ -111,6 +112,7 @@ impl KdTree {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -214,6 +216,9 @@ impl KdTree {
                     // As the BVH: a hit that may lie behind the origin (the surface a
                     // secondary ray leaves) is no hit under the error-bound offset.
                     if reject_near && h.maybe_behind_origin() {
+                        continue;
+                    }
+                    if mask.is_some_and(|m| !m.keeps(lt.prim, h.u, h.v)) {
                         continue;
                     }
                     best = Hit {

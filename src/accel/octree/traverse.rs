@@ -40,7 +40,7 @@ use glam::DVec3;
 use super::build::child_lo;
 use super::{Cube, Octree, MAX_OCTREE_DEPTH};
 use crate::accel::grid::ray_walk::RayWalk;
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{Aabb, Hit, Ray, Robustness, TriangleTest};
 
 /// Entries the stack can hold: each inner node on the path down leaves at most three
@@ -107,6 +107,7 @@ impl Octree {
         ray: &Ray,
         query: Query,
         reject_near: bool,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let (Some(cube), true) = (&self.cube, ray.is_valid()) else {
@@ -116,7 +117,7 @@ impl Octree {
         let Some((t0, t1)) = r.clip(cube, ray.tmin, ray.tmax) else {
             return Hit::miss(ray.tmax);
         };
-        let mut st = RayWalk::<MT>::new(ray, query, reject_near, stats);
+        let mut st = RayWalk::<MT>::new(ray, query, reject_near, mask, stats);
         // The node being visited: the root, then the nearest child of each inner node, else
         // the top of the stack.
         let mut e = Entry {
@@ -227,17 +228,18 @@ impl Accel for Octree {
         self.prims.bounds
     }
 
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let near = robustness.rejects_near_hits_of(ray);
         match robustness.triangle_test {
-            TriangleTest::Watertight => self.walk::<false>(ray, query, near, stats),
-            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, stats),
+            TriangleTest::Watertight => self.walk::<false>(ray, query, near, mask, stats),
+            TriangleTest::MollerTrumbore => self.walk::<true>(ray, query, near, mask, stats),
         }
     }
 }

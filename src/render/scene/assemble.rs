@@ -55,6 +55,12 @@ pub struct Material {
     pub normal_texture: Option<usize>,
     /// The normal map's scale of its red and green (glTF's `normalTexture.scale`).
     pub normal_scale: f32,
+    /// Opacity (glTF's base colour alpha), multiplied by `texture`'s alpha channel where
+    /// it has one; read only for an alpha mask.
+    pub alpha: f32,
+    /// An alpha mask (glTF's alpha mode `MASK`): where the alpha is below this cutoff the
+    /// surface is not there — rays pass through it, shadow rays included. None: opaque.
+    pub alpha_cutoff: Option<f32>,
 }
 
 impl Material {
@@ -73,6 +79,8 @@ impl Material {
             emission_texture: None,
             normal_texture: None,
             normal_scale: 1.0,
+            alpha: 1.0,
+            alpha_cutoff: None,
         }
     }
 
@@ -103,6 +111,9 @@ pub struct Texture {
     pub height: u32,
     /// `width · height` texels, row-major from the top row.
     pub texels: Vec<Vec3>,
+    /// Their alpha (linear, in [0, 1]), or empty where the image has no alpha channel
+    /// (opaque everywhere).
+    pub alpha: Vec<f32>,
 }
 
 /// A point or directional light (area lights are the emissive triangles).
@@ -265,8 +276,9 @@ fn load_texture(path: &Path, srgb: bool) -> Result<Texture> {
 /// sRGB (colours), or as they are (`srgb` false: data such as glTF's metallic-roughness,
 /// scaled to [0, 1]). Its size is read from its header and checked first — at most
 /// [`MAX_TEXTURE_SIDE`](crate::limits::MAX_TEXTURE_SIDE) a side, and the memory decoding
-/// takes (the decoded image, its RGB8 copy, the f32 texels) — so nothing is decoded that
-/// would not fit.
+/// takes (the decoded image, its RGB8 and RGBA8 copies, the f32 texels and alpha) — so
+/// nothing is decoded that would not fit. The alpha channel, where there is one, is kept
+/// as it is (alpha masks).
 pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Texture, String> {
     let reader = || {
         image::ImageReader::new(std::io::Cursor::new(bytes))
@@ -280,9 +292,17 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
             "a {width}×{height} texture is larger than {side} a side: scale it down"
         ));
     }
-    crate::limits::check_image(width, height, 16 + 3 + 12, "scale the texture down")
+    crate::limits::check_image(width, height, 16 + 4 + 3 + 12 + 4, "scale the texture down")
         .map_err(|e| e.to_string())?;
-    let img = reader()?.decode().map_err(|e| e.to_string())?.to_rgb8();
+    let decoded = reader()?.decode().map_err(|e| e.to_string())?;
+    // Alpha is data (glTF: linear, never sRGB-encoded), kept only where the image has it.
+    let alpha = if decoded.color().has_alpha() {
+        let a = decoded.to_rgba8();
+        a.pixels().map(|p| p[3] as f32 / 255.0).collect()
+    } else {
+        Vec::new()
+    };
+    let img = decoded.to_rgb8();
     let lut: Vec<f32> = (0..=255u8)
         .map(|c| {
             if srgb {
@@ -299,6 +319,7 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
             .pixels()
             .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
             .collect(),
+        alpha,
     })
 }
 
@@ -740,6 +761,26 @@ fn scene_material(
         let shaded = matches!(d.kind, MaterialKind::Diffuse | MaterialKind::Principled);
         only(field, set && !shaded, "diffuse and principled")?;
     }
+    only(
+        "alpha_cutoff",
+        d.alpha_cutoff.is_some() && d.kind == MaterialKind::Emissive,
+        "non-emissive",
+    )?;
+    if d.alpha.is_some() && d.alpha_cutoff.is_none() {
+        return Err(bad(
+            "'alpha' is read by an alpha mask only: give 'alpha_cutoff' too".into(),
+        ));
+    }
+    for (field, value) in [("alpha_cutoff", d.alpha_cutoff), ("alpha", d.alpha)] {
+        match value {
+            Some(x) if !(0.0..=1.0).contains(&x) => {
+                return Err(bad(format!("{field} must be in [0, 1], got {x}")));
+            }
+            _ => {}
+        }
+    }
+    m.alpha = d.alpha.unwrap_or(1.0);
+    m.alpha_cutoff = d.alpha_cutoff;
     if let Some(s) = d.normal_scale {
         if !s.is_finite() {
             return Err(bad(format!("normal_scale must be finite, got {s}")));
@@ -1221,6 +1262,24 @@ impl RenderScene {
             .collect();
         self.emitters = numbers;
         Ok(())
+    }
+
+    /// The index of the shading data of triangle number `prim` (as the traversal numbers
+    /// them).
+    pub fn shade_of(&self, prim: u32) -> usize {
+        match &self.placements {
+            Some(pl) => pl.shade_of(prim),
+            None => prim as usize,
+        }
+    }
+
+    /// The texture coordinates of shading triangle `shade` at barycentric (u, v) (zero
+    /// where it has none). WGSL: `s.uv0 * w + s.uv1 * u + s.uv2 * v`.
+    pub fn uv_at(&self, shade: usize, u: f32, v: f32) -> Vec2 {
+        let Some(uv) = self.uvs.get(shade) else {
+            return Vec2::ZERO;
+        };
+        uv[0] * (1.0 - u - v) + uv[1] * u + uv[2] * v
     }
 
     /// Triangle number `prim` (as the traversal numbers them) as shading sees it: in world

@@ -157,6 +157,11 @@ pub struct MaterialDef {
     pub normal_texture: Option<String>,
     /// The normal map's scale of red and green (default 1).
     pub normal_scale: Option<f32>,
+    /// All but emissive: an alpha mask — where the alpha (`alpha` times `texture`'s alpha
+    /// channel) is below this cutoff in [0, 1], the surface is not there (glTF's `MASK`).
+    pub alpha_cutoff: Option<f32>,
+    /// The alpha an alpha mask reads, in [0, 1] (default 1; multiplies `texture`'s alpha).
+    pub alpha: Option<f32>,
     /// Index of refraction (glass).
     pub ior: Option<f32>,
     /// Emitted radiance (emissive; principled: emitted where hit, not sampled as a light).

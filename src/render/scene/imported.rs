@@ -192,7 +192,7 @@ fn xf_triangle(t: &Triangle, xf: &impl Fn(Vec3) -> Vec3) -> Triangle {
 
 /// lancer's material for a glTF material (see the module comment for the mapping).
 fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Material> {
-    let [r, g, bl, _] = m.base_color;
+    let [r, g, bl, alpha] = m.base_color;
     let base = Vec3::new(r, g, bl);
     if base.max_element() > 1.0 {
         log::warn!(
@@ -210,8 +210,23 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
         mat.kind = MaterialKind::Emissive;
         mat.emission = emissive;
         mat.two_sided = m.double_sided;
+        if m.alpha_cutoff.is_some() {
+            log::warn!(
+                "{}: material {:?}: an alpha mask on a glowing material without textures is \
+                 not simulated (it is sampled as an area light); rendered opaque",
+                path.display(),
+                m.name
+            );
+        }
         return Ok(mat);
     }
+    // An alpha mask cuts every other kind: by the base colour's alpha, and where the base
+    // colour texture is read (principled) by its alpha too.
+    let masked = |mut mat: Material| {
+        mat.alpha = alpha.clamp(0.0, 1.0);
+        mat.alpha_cutoff = m.alpha_cutoff;
+        mat
+    };
     let smooth_metal = m.metallic >= 1.0 && m.roughness <= 0.0;
     if smooth_metal && m.metallic_roughness_texture.is_none() && !glowing {
         // A perfectly smooth metal: a mirror tinted by the base colour, followed by every
@@ -219,7 +234,7 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
         // the path stops: the direct integrator, the last bounce).
         let mut mat = Material::diffuse(base);
         mat.kind = MaterialKind::Mirror;
-        return Ok(mat);
+        return Ok(masked(mat));
     }
     if m.transmission > 0.0 {
         let mut mat = Material::diffuse(base);
@@ -234,7 +249,7 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
                 mat.ior
             );
         }
-        return Ok(mat);
+        return Ok(masked(mat));
     }
     if !m.other_coordinates.is_empty() {
         log::warn!(
@@ -245,7 +260,7 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
             m.other_coordinates.join(", ")
         );
     }
-    let mut mat = Material::principled(base, m.metallic, m.roughness);
+    let mut mat = masked(Material::principled(base, m.metallic, m.roughness));
     // Emission where hit (not sampled as a light): the factor times the texture.
     mat.emission = if glowing { emissive } else { Vec3::ZERO };
     mat.two_sided = true;

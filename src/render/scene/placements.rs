@@ -206,12 +206,24 @@ impl Placements {
             .saturating_sub(1)
     }
 
+    /// The index of the shading data of triangle `prim` (in instance `i`, its
+    /// [`Self::locate`]).
+    fn shade_in(&self, prim: u32, i: usize) -> usize {
+        let inst = &self.set.instances[i];
+        (self.mesh_base[inst.mesh as usize] + prim - self.first_prims[i]) as usize
+    }
+
+    /// The index of triangle `prim`'s shading data (its object-space triangle's).
+    pub fn shade_of(&self, prim: u32) -> usize {
+        self.shade_in(prim, self.locate(prim))
+    }
+
     /// Triangle `prim` of the scene, whose object-space vertices are `mesh` (the scene's
     /// shading triangles).
     pub fn triangle(&self, prim: u32, mesh: &crate::mesh::Mesh) -> PlacedTriangle {
         let i = self.locate(prim);
         let inst = &self.set.instances[i];
-        let shade = (self.mesh_base[inst.mesh as usize] + prim - self.first_prims[i]) as usize;
+        let shade = self.shade_in(prim, i);
         let v = mesh.triangles[shade].v;
         PlacedTriangle {
             v: v.map(|p| inst.to_world.point(p)),

@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 use super::{is_leaf, Bvh2WideNode, ChildRef, COUNT_SHIFT};
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS, PARALLEL_INV};
 
 impl Accel for Bvh2WideNode {
@@ -20,15 +20,16 @@ impl Accel for Bvh2WideNode {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
     }
 }
 
@@ -40,6 +41,7 @@ impl Bvh2WideNode {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -50,7 +52,7 @@ impl Bvh2WideNode {
             return best;
         }
         let widen = robustness.far_widen();
-        let leaf = LeafRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         let (origin_a, inv_a) = (Vec3A::from(ray.origin), Vec3A::from(inv));

@@ -37,7 +37,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 // best and prune, measured 0.93x shadow rays/s on Mesa 25 lavapipe (7 rounds).
                 let h = intersect_tri(tri.v0, tri.v1, tri.v2, r, w, r.tmin, best.t);
                 if h.ok && beats(h.t, tri.prim, best.t, best.prim)
-                    && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w) {
+                    && !rejects_near_hit(h, tri.v0, tri.v1, tri.v2, r, w)
+                    && alpha_passes(tri.prim, h) {
                     best = Hit(h.t, tri.prim, h.u, h.v);
                     prune = hit_prune(h);
                     if INSTANCES {

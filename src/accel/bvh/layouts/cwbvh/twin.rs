@@ -17,7 +17,7 @@ use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
 use crate::accel::bvh::layouts::has_avx2;
 use crate::accel::bvh::layouts::interleave::{walk_interleaved, Stepper, WALKS};
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay, LeafTri};
-use crate::accel::{trace_chunks, Accel, Query, RayStats};
+use crate::accel::{trace_chunks, Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
 
 /// Hit-mask bits of internal children.
@@ -33,11 +33,12 @@ impl Accel for Cwbvh {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
@@ -46,9 +47,9 @@ impl Accel for Cwbvh {
         #[cfg(target_arch = "x86_64")]
         if has_avx2() {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.intersect_avx2(ray, query, robustness, stats) };
+            return unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
         }
-        self.intersect_with::<false>(ray, query, robustness, stats)
+        self.intersect_with::<false>(ray, query, robustness, mask, stats)
     }
 
     fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
@@ -233,12 +234,13 @@ impl Cwbvh {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
         with_leaf_test!(
             robustness,
-            self.walk::<_, AVX2>(ray, query, robustness, stats)
+            self.walk::<_, AVX2>(ray, query, robustness, mask, stats)
         )
     }
 
@@ -251,9 +253,10 @@ impl Cwbvh {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
-        self.intersect_with::<true>(ray, query, robustness, stats)
+        self.intersect_with::<true>(ray, query, robustness, mask, stats)
     }
 
     /// [`Cwbvh::walk_chunk`] with the node test in SSE or AVX2 lanes (as
@@ -292,9 +295,10 @@ impl Cwbvh {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
-        let mut w = Walk::<TEST, AVX2>::idle(self, query, robustness);
+        let mut w = Walk::<TEST, AVX2>::idle(self, query, robustness, mask);
         if w.start(ray) {
             while !w.step(stats) {}
         }
@@ -310,7 +314,7 @@ impl Cwbvh {
         query: Query,
         robustness: &Robustness,
     ) {
-        let walks = [(); WALKS].map(|_| Walk::<TEST, AVX2>::idle(self, query, robustness));
+        let walks = [(); WALKS].map(|_| Walk::<TEST, AVX2>::idle(self, query, robustness, None));
         walk_interleaved(rays, out, walks);
     }
 }
@@ -340,9 +344,9 @@ struct Walk<'a, const TEST: u8, const AVX2: bool> {
 }
 
 impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
-    /// A walk with no ray yet, answering `query` under `robustness`.
+    /// A walk with no ray yet, answering `query` under `robustness`, hits tested by `mask`.
     #[inline(always)]
-    fn idle(cw: &'a Cwbvh, query: Query, robustness: &Robustness) -> Self {
+    fn idle(cw: &'a Cwbvh, query: Query, robustness: &Robustness, mask: Mask<'a>) -> Self {
         const NONE: Ray = Ray {
             origin: Vec3::ZERO,
             dir: Vec3::X,
@@ -351,7 +355,7 @@ impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
         };
         Walk {
             cw,
-            leaf: LeafRay::new(&NONE, robustness),
+            leaf: LeafRay::new(&NONE, robustness, mask),
             rb: RayBox::new(&NONE, robustness.far_widen()),
             any: query == Query::Any,
             best: Hit::miss(0.0),
@@ -522,13 +526,13 @@ mod tests {
                 let mut hits = 0;
                 for (i, r) in rays.iter().enumerate() {
                     let mut s = RayStats::default();
-                    let h = cw.intersect_with::<false>(r, query, rob, &mut s);
+                    let h = cw.intersect_with::<false>(r, query, rob, None, &mut s);
                     assert_eq!(b(&h), b(&chunk[i]), "ray {i}, two at a time: {r:?}");
                     #[cfg(target_arch = "x86_64")]
                     if avx2 {
                         let mut s2 = RayStats::default();
                         // SAFETY: as above.
-                        let h2 = unsafe { cw.intersect_avx2(r, query, rob, &mut s2) };
+                        let h2 = unsafe { cw.intersect_avx2(r, query, rob, None, &mut s2) };
                         assert_eq!(b(&h), b(&h2), "ray {i}, AVX2: {r:?}");
                         assert_eq!(s, s2, "ray {i}, AVX2 work: {r:?}");
                         assert_eq!(b(&h), b(&chunk_avx2[i]), "ray {i}, AVX2 two at a time");

@@ -6,7 +6,7 @@ use super::{DfsDistance, DfsNode};
 use crate::accel::bvh::layouts::dfs_sign::DfsNodeRay;
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness};
 
 impl Accel for DfsDistance {
@@ -15,15 +15,16 @@ impl Accel for DfsDistance {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
     }
 }
 
@@ -35,6 +36,7 @@ impl DfsDistance {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -43,7 +45,7 @@ impl DfsDistance {
         }
         let nodes = self.nodes();
         let boxes = DfsNodeRay::new(ray, robustness);
-        let leaf = LeafRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         // Node i's box for the ray, one node load (WGSL dfs_distance_load + slab_interval).
         let interval = |n: &DfsNode, prune: f32| boxes.interval(n, prune);
         let mut prune = prune_bound(best.t);

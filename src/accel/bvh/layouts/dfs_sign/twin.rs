@@ -5,7 +5,7 @@
 use super::{DfsNodeRay, DfsSign};
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS};
 
 impl Accel for DfsSign {
@@ -18,15 +18,16 @@ impl Accel for DfsSign {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
     }
 }
 
@@ -38,6 +39,7 @@ impl DfsSign {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -45,7 +47,7 @@ impl DfsSign {
             return best;
         }
         let boxes = DfsNodeRay::new(ray, robustness);
-        let leaf = LeafRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);

@@ -6,7 +6,7 @@
 use super::{octant, Threaded};
 use crate::accel::bvh::layouts::dfs_sign::DfsNodeRay;
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS};
 
 impl Accel for Threaded {
@@ -19,15 +19,16 @@ impl Accel for Threaded {
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, stats))
+        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
     }
 }
 
@@ -39,6 +40,7 @@ impl Threaded {
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
@@ -46,7 +48,7 @@ impl Threaded {
             return best;
         }
         let boxes = DfsNodeRay::new(ray, robustness);
-        let leaf = LeafRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);

@@ -12,7 +12,7 @@ use glam::{Vec3, Vec4};
 
 use super::{stack_size, WideBvh, WideNode, INNER, MAX_STACK_SIZE};
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
-use crate::accel::{Accel, Query, RayStats};
+use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
 
 /// A pushed child: its node and slot (`node << SLOT_BITS | slot`), and the entry distance its box
@@ -36,11 +36,12 @@ where
     }
 
     #[inline]
-    fn intersect(
+    fn intersect_masked(
         &self,
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // The walk compiled for AVX2 where the CPU has it: bvh8's eight slots tested in one
@@ -50,9 +51,9 @@ where
         #[cfg(target_arch = "x86_64")]
         if crate::accel::bvh::layouts::has_avx2() {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.intersect_avx2(ray, query, robustness, stats) };
+            return unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
         }
-        self.intersect_with::<false>(ray, query, robustness, stats)
+        self.intersect_with::<false>(ray, query, robustness, mask, stats)
     }
 }
 
@@ -69,9 +70,10 @@ where
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
-        self.intersect_with::<true>(ray, query, robustness, stats)
+        self.intersect_with::<true>(ray, query, robustness, mask, stats)
     }
 
     /// [`Accel::intersect`] with the slab test in SSE or (`AVX2`, for `intersect_avx2`
@@ -82,12 +84,13 @@ where
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
         with_leaf_test!(
             robustness,
-            self.walk::<_, AVX2>(ray, query, robustness, stats)
+            self.walk::<_, AVX2>(ray, query, robustness, mask, stats)
         )
     }
 }
@@ -145,6 +148,7 @@ where
         ray: &Ray,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         if !ray.is_valid() {
@@ -157,8 +161,8 @@ where
         let inv = ray.inv_dir();
         let parallel = inv.abs().cmpge(Vec3::splat(PARALLEL_INV)).any();
         match parallel {
-            true => self.walk_in::<TEST, true, AVX2>(ray, inv, query, robustness, stats),
-            false => self.walk_in::<TEST, false, AVX2>(ray, inv, query, robustness, stats),
+            true => self.walk_in::<TEST, true, AVX2>(ray, inv, query, robustness, mask, stats),
+            false => self.walk_in::<TEST, false, AVX2>(ray, inv, query, robustness, mask, stats),
         }
     }
 
@@ -171,11 +175,12 @@ where
         inv: Vec3,
         query: Query,
         robustness: &Robustness,
+        mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
         let mut best = Hit::miss(ray.tmax);
         let widen = robustness.far_widen();
-        let leaf = LeafRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         let slab4 = SlabRay4::new(ray.origin, inv, ray.tmin, widen);
         let intervals = |node: &WideNode<W>, tmax: f32| -> (u32, [f32; W]) {
             if PARALLEL {
