@@ -11,7 +11,7 @@ use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
 use lancer::render::{render, EffectSet, RenderOptions, RenderScene};
-use lancer::{Device, Error};
+use lancer::{AccelKind, Device, Error, LayoutKind};
 
 /// A quad in the plane z = `z`, `half` wide each way, facing +Z, texture coordinates
 /// u = (x/half + 1)/2, v = (y/half + 1)/2.
@@ -157,6 +157,27 @@ fn a_half_cut_card_shows_the_wall_through_its_cut_half() {
             n >= want.len() && n <= want.len() + 1,
             "cutoff {cutoff}: {n}"
         );
+    }
+}
+
+/// Every GPU form's traversal asks the mask (its leaf step is test_tri's, or the kd-tree's
+/// and cwbvh's own): each renders the half-cut card as the CPU does.
+#[test]
+fn every_gpu_form_cuts_the_card_as_the_cpu_does() {
+    let dir = Scratch::new();
+    let s = scene(&dir, Some("texture = \"half.png\"\nalpha_cutoff = 0.5"), "");
+    let kinds = (LayoutKind::ALL.iter().map(|&k| AccelKind::Bvh(k)))
+        .chain([AccelKind::KdTree, AccelKind::Bih]);
+    for kind in kinds {
+        let options = RenderOptions {
+            accel: Some(kind),
+            ..RenderOptions::default()
+        };
+        let cpu = render(&s, &Device::cpu(), &options).unwrap().image.pixels;
+        let gpu = render(&s, gpu_device(), &options).unwrap().image.pixels;
+        let red = cpu.iter().filter(|c| c.x > 0.0 && c.y == 0.0).count();
+        assert!(red > 100, "{kind}: {red} red pixels");
+        assert_alike(&format!("{kind}, CPU vs GPU"), &cpu, &gpu);
     }
 }
 

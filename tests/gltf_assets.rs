@@ -2,7 +2,8 @@
 //! scripts/make_panel.py): every texture of its metallic-roughness material reaches the
 //! renderer; its emission glows only where its emissive texture is lit (the helmet rendered
 //! as a white blob when the emissive factor lit the whole surface); the GPU renders it as
-//! the CPU does; an alpha mode lancer does not simulate is named in a warning.
+//! the CPU does; alpha mode MASK cuts it away (all of it under a low base colour alpha),
+//! BLEND, not simulated, is named in a warning.
 
 mod common;
 
@@ -12,8 +13,9 @@ use common::alike::assert_alike;
 use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
-use lancer::render::{render, EffectSet, MaterialKind, RenderOptions, RenderScene};
-use lancer::Device;
+use lancer::accel::{Mask, Query, RayStats};
+use lancer::render::{render, AlphaMask, EffectSet, MaterialKind, RenderOptions, RenderScene};
+use lancer::{AccelKind, Device, LayoutKind, Robustness};
 
 fn panel() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/panel.glb")
@@ -104,21 +106,96 @@ fn the_gpu_renders_the_panel_as_the_cpu_does() {
     assert_alike("panel.glb, CPU vs GPU", &cpu, &gpu);
 }
 
-#[test]
-fn an_alpha_mode_lancer_does_not_simulate_is_named() {
-    let dir = Scratch::new();
-    // The panel's JSON with its material's alpha masked, as a .gltf beside its buffer.
+/// The panel's JSON with its first material changed by `edit`, as a .gltf beside its
+/// buffer in `dir`; its path.
+fn edited_panel(dir: &Scratch, name: &str, edit: impl Fn(&mut serde_json::Value)) -> PathBuf {
     let glb = std::fs::read(panel()).unwrap();
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
     let mut doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
     let bin = &glb[20 + json_len + 8..];
     std::fs::write(dir.path("panel.bin"), bin).unwrap();
     doc["buffers"][0]["uri"] = "panel.bin".into();
-    doc["materials"][0]["alphaMode"] = "MASK".into();
-    let gltf = dir.write("masked.gltf", serde_json::to_vec(&doc).unwrap());
+    edit(&mut doc["materials"][0]);
+    dir.write(name, serde_json::to_vec(&doc).unwrap())
+}
+
+#[test]
+fn alpha_mode_mask_cuts_and_blend_is_named() {
+    let dir = Scratch::new();
+    let options = RenderOptions {
+        spp: Some(1),
+        ..RenderOptions::default()
+    };
+    let pixels = |path: &PathBuf| {
+        let scene = RenderScene::from_mesh(path, 24, 16).unwrap();
+        let fx = EffectSet::of(&scene);
+        let px = render(&scene, &Device::cpu(), &options)
+            .unwrap()
+            .image
+            .pixels;
+        (scene, fx, px)
+    };
+    let (_, fx, opaque) = pixels(&panel());
+    assert!(!fx.alpha_mask);
+    // MASK with the base colour's alpha 0.3 under the default cutoff 0.5: the whole panel
+    // is cut away (its textures are opaque RGB), leaving the background.
+    let cut = edited_panel(&dir, "cut.gltf", |m| {
+        m["alphaMode"] = "MASK".into();
+        m["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([1.0, 1.0, 1.0, 0.3]);
+    });
+    let (scene, fx, _) = pixels(&cut);
+    let m = &scene.materials[scene.material_of[0] as usize];
+    assert_eq!((m.alpha, m.alpha_cutoff), (0.3, Some(0.5)));
+    assert!(fx.alpha_mask, "{fx}");
+    // Camera rays through the scene's BVH (the panel and lancer's ground): with the mask,
+    // none stops on the panel; without it, many do.
+    let accel = lancer::accel::build(
+        AccelKind::Bvh(LayoutKind::DfsSign),
+        &scene.mesh,
+        &Default::default(),
+    )
+    .unwrap();
+    let mask = AlphaMask::new(&scene);
+    let frame = scene.camera.frame();
+    let on_panel = |mask: Mask<'_>| {
+        let mut n = 0;
+        for y in 0..scene.camera.height {
+            for x in 0..scene.camera.width {
+                let r = frame.ray(x, y, 0.5, 0.5);
+                let mut stats = RayStats::default();
+                let h = accel.intersect_masked(
+                    &r,
+                    Query::Closest,
+                    &Robustness::default(),
+                    mask,
+                    &mut stats,
+                );
+                n += (h.is_hit() && scene.material_of[h.prim as usize] == scene.material_of[0])
+                    as usize;
+            }
+        }
+        n
+    };
+    let (with, without) = (on_panel(Some(&mask)), on_panel(None));
+    println!("camera rays on the panel: {without} unmasked, {with} masked");
+    assert!(
+        without > 40 && with == 0,
+        "{without} unmasked, {with} masked"
+    );
+    // Under its own alphaCutoff 0.2 nothing is cut: the opaque image, bit for bit.
+    let kept = edited_panel(&dir, "kept.gltf", |m| {
+        m["alphaMode"] = "MASK".into();
+        m["alphaCutoff"] = 0.2.into();
+        m["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([1.0, 1.0, 1.0, 0.3]);
+    });
+    let (_, fx, px) = pixels(&kept);
+    assert!(fx.alpha_mask);
+    assert!(px == opaque, "a panel above its cutoff changed");
+    // BLEND is not simulated: rendered opaque, named in a warning.
+    let blend = edited_panel(&dir, "blend.gltf", |m| m["alphaMode"] = "BLEND".into());
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_lancer"))
-        .args(["render", gltf.to_str().unwrap(), "-o"])
-        .arg(dir.path("masked.png"))
+        .args(["render", blend.to_str().unwrap(), "-o"])
+        .arg(dir.path("blend.png"))
         .args([
             "--device", "cpu", "--width", "8", "--height", "8", "--spp", "1",
         ])
@@ -128,7 +205,7 @@ fn an_alpha_mode_lancer_does_not_simulate_is_named() {
     println!("{err}");
     assert!(out.status.success(), "{err}");
     assert!(
-        err.contains("alpha mode Mask is not simulated yet"),
+        err.contains("alpha mode Blend is not simulated yet"),
         "{err}"
     );
 }

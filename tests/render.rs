@@ -314,7 +314,7 @@ fn each_effect_changes_the_scene_that_calls_for_it() {
     let all = scenes();
     let find = |n: &str| all.iter().find(|x| x.0 == n).unwrap();
     type Off = fn(&mut EffectSet);
-    let cases: [(&str, &str, Off); 8] = [
+    let cases: [(&str, &str, Off); 9] = [
         ("mirror", "glass-mirror", |f| f.mirror = false),
         ("refraction", "glass-mirror", |f| f.refraction = false),
         ("soft shadows", "glass-mirror", |f| f.soft_shadows = false),
@@ -323,6 +323,7 @@ fn each_effect_changes_the_scene_that_calls_for_it() {
         ("indirect", "cornell", |f| f.indirect = false),
         ("ao", "ao", |f| f.ao = false),
         ("environment", "sky", |f| f.environment = false),
+        ("alpha mask", "cutout", |f| f.alpha_mask = false),
     ];
     for (effect, scene, off) in cases {
         let (_, s) = find(scene);

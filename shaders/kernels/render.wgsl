@@ -363,28 +363,26 @@ fn texture_taps(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> Taps {
     return Taps(vec4<u32>(offset) + vec4<u32>(at), vec2<f32>(fx, fy));
 }
 
-// texture::sample_texture: the texture of `w` × `h` texels from `offset` at uv.
-fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f32> {
+// The four texels around uv blended bilinearly: colour in .xyz, alpha in .w.
+fn bilinear(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec4<f32> {
     let t = texture_taps(offset, width, height, uv);
-    let a = texels[t.i.x].xyz;
-    let b = texels[t.i.y].xyz;
-    let c = texels[t.i.z].xyz;
-    let d = texels[t.i.w].xyz;
+    let a = texels[t.i.x];
+    let b = texels[t.i.y];
+    let c = texels[t.i.z];
+    let d = texels[t.i.w];
     let top = a + (b - a) * t.f.x;
     let bottom = c + (d - c) * t.f.x;
     return top + (bottom - top) * t.f.y;
 }
 
+// texture::sample_texture: the texture of `w` × `h` texels from `offset` at uv.
+fn sample_texture(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec3<f32> {
+    return bilinear(offset, width, height, uv).xyz;
+}
+
 // texture::sample_alpha: the texture's alpha (its texels' w: 1 where the image has none).
 fn sample_alpha(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> f32 {
-    let t = texture_taps(offset, width, height, uv);
-    let a = texels[t.i.x].w;
-    let b = texels[t.i.y].w;
-    let c = texels[t.i.z].w;
-    let d = texels[t.i.w].w;
-    let top = a + (b - a) * t.f.x;
-    let bottom = c + (d - c) * t.f.x;
-    return top + (bottom - top) * t.f.y;
+    return bilinear(offset, width, height, uv).w;
 }
 
 // render::AlphaMask::keeps, asked by traversal.wgsl's alpha_passes (ALPHA_MASK): whether

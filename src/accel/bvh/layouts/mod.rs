@@ -17,11 +17,13 @@
 //!    boxes with `slab_hit` and triangles with `intersect_tri` (`shaders/lib/common.wgsl`,
 //!    which honour the [`Robustness`](crate::geometry::Robustness) overrides), counting work
 //!    in `n_nodes`/`n_tris` when `COUNT_STATS`, and keeping the tie rule: `beats` to accept a
-//!    hit, `prune_bound(best.t)` (never `best.t` itself) to cut boxes. It sets
+//!    hit (and `alpha_passes`, the render's alpha masks — `test_leaf` and `test_tri` ask
+//!    both), `prune_bound(best.t)` (never `best.t` itself) to cut boxes. It sets
 //!    `traversal_done` when it ends by itself (a driver may cut a long loop short).
 //!    WGSL names of its own start with the layout's name, so two layouts never collide.
 //! 3. `twin.rs`: `impl Accel` that runs the WGSL algorithm step for step in f32 — same
-//!    child order, same stack discipline, same tests in the same operation order — so the
+//!    child order, same stack discipline, same tests in the same operation order, the
+//!    mask of `intersect_masked` handed to the leaf step (`LeafRay::new`) — so the
 //!    GPU and the twin agree bit for bit (the equivalence tests in `tests/gpu_vs_cpu.rs`
 //!    run over every entry of [`LayoutKind::ALL`]).
 //! 4. `impl GpuForm`: name, arrays, WGSL source, overrides, validation (its structural
