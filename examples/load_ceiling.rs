@@ -143,7 +143,11 @@ fn probe(
         &vec![0u8; rays.len() * 16],
         wgpu::BufferUsages::STORAGE,
     );
-    let source = format!("{}\n{PROBE}", shaders::library_source());
+    let source = format!(
+        "{}\n{}\n{PROBE}",
+        shaders::library_source(),
+        shaders::KEEP_EVERY_HIT
+    );
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),
         source: wgpu::ShaderSource::Wgsl(source.into()),

@@ -28,7 +28,7 @@ fn quad_obj(dir: &Scratch, name: &str, half: f32, z: f32) {
 }
 
 /// A 2 × 1 RGBA PNG, white, alpha 0 on the left texel and 255 on the right: bilinear with
-/// wrap-around, its alpha is ≥ 0.5 exactly for u in [0.5, 1].
+/// wrap-around, its alpha is ≥ 0.5 for u in [0.5, 1] and at u = 0 (the wrap's midpoint).
 fn half_mask(dir: &Scratch) {
     let img = image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba([255, 255, 255, 255 * x as u8]));
     img.save(dir.path("half.png")).unwrap();
@@ -212,6 +212,18 @@ fn alpha_masks_are_an_effect_only_where_a_material_is_masked() {
     // Untextured: the alpha alone decides (0.4 < 0.5: the card is not there).
     let px = pixels(&masked, &Device::cpu(), None);
     assert!(px.iter().all(|c| !(c.x > 0.0 && c.y == 0.0)));
+    // At the cutoff the surface is there (glTF: opaque where alpha ≥ cutoff); one ulp
+    // above, it is cut — on both devices.
+    let above = f32::from_bits(0.5f32.to_bits() + 1);
+    for (cutoff, shown) in [(0.5f32, true), (above, false)] {
+        let keys = format!("alpha = 0.5\nalpha_cutoff = {cutoff:?}");
+        let s = scene(&dir, Some(&keys), "");
+        for device in [&Device::cpu(), gpu_device()] {
+            let px = pixels(&s, device, None);
+            let red = px.iter().filter(|c| c.x > 0.0 && c.y == 0.0).count();
+            assert_eq!(red > 300, shown, "cutoff {cutoff:?}: {red} red pixels");
+        }
+    }
 }
 
 #[test]

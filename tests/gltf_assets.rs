@@ -209,3 +209,33 @@ fn alpha_mode_mask_cuts_and_blend_is_named() {
         "{err}"
     );
 }
+
+#[test]
+fn an_occlusion_texture_feeds_the_occlusion_aov() {
+    let dir = Scratch::new();
+    // The panel's metallic-roughness image as its occlusion texture too (glTF's packed
+    // occlusion-roughness-metallic), at strength 0.5.
+    let ao = edited_panel(&dir, "ao.gltf", |m| {
+        let mr = m["pbrMetallicRoughness"]["metallicRoughnessTexture"]["index"].clone();
+        m["occlusionTexture"] = serde_json::json!({ "index": mr, "strength": 0.5 });
+    });
+    let scene = RenderScene::from_mesh(&ao, 24, 16).unwrap();
+    let m = &scene.materials[scene.material_of[0] as usize];
+    assert!(m.occlusion_texture.is_some());
+    assert_eq!(m.occlusion_strength, 0.5);
+    let options = RenderOptions {
+        spp: Some(1),
+        aovs: true,
+        ..RenderOptions::default()
+    };
+    let aovs = render(&scene, &Device::cpu(), &options)
+        .unwrap()
+        .aovs
+        .unwrap();
+    let on_panel: Vec<f32> = (aovs.occlusion.iter())
+        .filter(|&&o| o != 1.0 && o != 0.0)
+        .copied()
+        .collect();
+    println!("{} panel pixels with occlusion below 1", on_panel.len());
+    assert!(on_panel.len() > 20 && on_panel.iter().all(|&o| (0.5..1.0).contains(&o)));
+}

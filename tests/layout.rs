@@ -132,6 +132,8 @@ fn render_structs_match_rust() {
         "emission_height" => emission_height, "normal_offset" => normal_offset,
         "normal_width" => normal_width, "normal_height" => normal_height,
         "normal_scale" => normal_scale, "alpha" => alpha, "alpha_cutoff" => alpha_cutoff,
+        "occlusion_offset" => occlusion_offset, "occlusion_width" => occlusion_width,
+        "occlusion_height" => occlusion_height, "occlusion_strength" => occlusion_strength,
         "pad1" => _pad1, "pad2" => _pad2),
     );
     check(

@@ -1,6 +1,7 @@
-//! Image outputs for denoisers and grading: AOVs (first-hit depth, normal, albedo of sample
-//! 0's camera rays) equal on the CPU and the GPU, depth equal to the primary ray's closest
-//! hit t, AOVs of tiles merging into the full render's; 16-bit PNGs.
+//! Image outputs for denoisers and grading: AOVs (first-hit depth, normal, albedo, occlusion
+//! of sample 0's camera rays) equal on the CPU and the GPU, depth equal to the primary ray's
+//! closest hit t, occlusion the material's occlusion texture, AOVs of tiles merging into the
+//! full render's; 16-bit PNGs.
 
 mod common;
 
@@ -36,6 +37,7 @@ const ALL: AovSet = AovSet {
     depth: true,
     normal: true,
     albedo: true,
+    occlusion: true,
 };
 
 fn bits(a: &Aovs) -> Vec<(String, Vec<u32>)> {
@@ -77,6 +79,59 @@ fn aovs_are_the_same_on_the_cpu_and_the_gpu() {
             }
         }
     }
+}
+
+#[test]
+fn the_occlusion_aov_is_the_materials_occlusion_texture() {
+    let dir = common::scratch::Scratch::new();
+    // Red falls from 255 on the left to 0 on the right; green and blue must not matter.
+    dir.png("ao.png", 16, 4, |x, _| [(255 - 17 * x) as u8, 40, 200]);
+    let text = r#"
+[camera]
+position = [0.0, 3.0, 0.01]
+look_at = [0.0, 0.0, 0.0]
+fov = 40.0
+width = 24
+height = 16
+
+[materials.ao]
+type = "principled"
+occlusion_texture = "ao.png"
+occlusion_strength = 0.5
+
+[materials.plain]
+type = "diffuse"
+
+[[objects]]
+shape = "quad"
+material = "ao"
+
+[[objects]]
+shape = "box"
+material = "plain"
+scale = 0.5
+translate = [0.0, 0.25, 0.0]
+"#;
+    let s = RenderScene::from_file(&dir.write("ao.toml", text)).unwrap();
+    let cpu = with_aovs(&s, &Device::cpu(), None).aovs.unwrap();
+    let gpu = with_aovs(&s, gpu_device(), None).aovs.unwrap();
+    assert_eq!(bits(&cpu), bits(&gpu), "CPU and GPU AOVs differ");
+    // On the quad: 1 + 0.5 (red − 1), so in [0.5, 1], varying across it; on the box (no
+    // texture) exactly 1; a miss 0.
+    let (mut lo, mut hi, mut ones, mut misses) = (f32::MAX, f32::MIN, 0, 0);
+    for (d, &o) in cpu.depth.iter().zip(&cpu.occlusion) {
+        if !d.is_finite() {
+            assert_eq!(o, 0.0);
+            misses += 1;
+        } else if o == 1.0 {
+            ones += 1;
+        } else {
+            (lo, hi) = (lo.min(o), hi.max(o));
+        }
+    }
+    println!("occlusion on the quad in [{lo}, {hi}], {ones} pixels of 1, {misses} misses");
+    assert!(lo >= 0.5 && hi <= 1.0 && hi - lo > 0.3, "[{lo}, {hi}]");
+    assert!(ones > 4 && misses > 4, "{ones} ones, {misses} misses");
 }
 
 #[test]
@@ -146,7 +201,7 @@ fn tiles_carry_their_aovs_into_the_merge() {
         })
         .collect();
     let merged = merge_tiles(&tiles).unwrap();
-    assert_eq!(merged.channels.len(), 10);
+    assert_eq!(merged.channels.len(), 11);
     for ((n, a), (m, b)) in merged.channels.iter().zip(&want.channels) {
         assert_eq!(n, m);
         let (a, b): (Vec<u32>, Vec<u32>) = (

@@ -168,6 +168,10 @@ struct Material {
     normal_scale: f32,
     alpha: f32,
     alpha_cutoff: f32,
+    occlusion_offset: u32,
+    occlusion_width: u32,
+    occlusion_height: u32,
+    occlusion_strength: f32,
     pad1: u32,
     pad2: u32,
 }
@@ -537,12 +541,24 @@ fn surface_emission(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32
 // The tile pixel whose AOVs this invocation writes (sample 0 only).
 var<private> aov_slot: u32;
 
+// CpuRenderer::occlusion
+fn surface_occlusion(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> f32 {
+    if TEXTURES && (mat.flags & MAT_OCCLUSION) != 0u {
+        let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
+        let t = sample_texture(mat.occlusion_offset, mat.occlusion_width, mat.occlusion_height,
+                               uv);
+        return 1.0 + mat.occlusion_strength * (t.x - 1.0);
+    }
+    return 1.0;
+}
+
 // CpuRenderer::first_hit, written after the accumulator as two vec4s: (depth, normal) and
-// (albedo, 0); a miss writes depth −1 (the host reads it as +∞: WGSL has no runtime ∞).
-fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>) {
+// (albedo, occlusion); a miss writes depth −1 (the host reads it as +∞: WGSL has no
+// runtime ∞).
+fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>, occlusion: f32) {
     if AOVS && params.sample == 0u {
         accum[params.aov_base + 2u * aov_slot] = vec4<f32>(depth, n);
-        accum[params.aov_base + 2u * aov_slot + 1u] = vec4<f32>(albedo, 0.0);
+        accum[params.aov_base + 2u * aov_slot + 1u] = vec4<f32>(albedo, occlusion);
     }
 }
 
@@ -616,7 +632,7 @@ fn path_hit(hit: Hit) {
     let ray = query;
     if hit.prim == MISS {
         if bounce == 0u {
-            write_aovs(-1.0, vec3<f32>(0.0), vec3<f32>(0.0));
+            write_aovs(-1.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
         }
         if ENVIRONMENT && params.has_env != 0u {
             var w = 1.0;
@@ -637,8 +653,9 @@ fn path_hit(hit: Hit) {
     let front = dot3(ng, ray.dir) < 0.0;
     let n = select(-ng, ng, front);
     let ns = shading_side(s, mat, w, hit.u, hit.v, n);
-    if bounce == 0u {
-        write_aovs(hit.t, ns, surface_albedo(mat, s, w, hit.u, hit.v));
+    if AOVS && bounce == 0u {
+        write_aovs(hit.t, ns, surface_albedo(mat, s, w, hit.u, hit.v),
+                   surface_occlusion(mat, s, w, hit.u, hit.v));
     }
     if mat.kind == KIND_EMISSIVE {
         if front || (mat.flags & MAT_TWO_SIDED) != 0u {

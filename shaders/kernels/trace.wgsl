@@ -6,11 +6,6 @@
 override ANY_HIT: bool = false;          // Query::Any: stop at the first hit
 override WORKGROUP_SIZE: u32 = 64u;
 
-// Rays are traced without materials: no alpha mask (traversal.wgsl's ALPHA_MASK stays off).
-fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool {
-    return true;
-}
-
 // gpu::trace::TraceParams: this dispatch covers rays [offset, offset + count).
 struct Params {
     offset: u32,

@@ -72,8 +72,9 @@ pub struct RenderCmd {
     png_bits: u8,
     /// EXR only: extra channels from the first hit of each pixel's first camera ray, for
     /// denoisers: depth (depth.Z, distance; inf for a miss), normal (normal.X/Y/Z, facing
-    /// the camera), albedo (albedo.R/G/B). Comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = ["depth", "normal", "albedo"])]
+    /// the camera), albedo (albedo.R/G/B), occlusion (occlusion.Y: the material's occlusion
+    /// texture, glTF's occlusionTexture; 1 without one). Comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = ["depth", "normal", "albedo", "occlusion"])]
     aov: Vec<String>,
     /// Print build time, BVH statistics, effects, device, compile time and speed.
     #[arg(long)]
@@ -147,6 +148,7 @@ impl RenderCmd {
             depth: self.aov.iter().any(|a| a == "depth"),
             normal: self.aov.iter().any(|a| a == "normal"),
             albedo: self.aov.iter().any(|a| a == "albedo"),
+            occlusion: self.aov.iter().any(|a| a == "occlusion"),
         };
         if aovs.any() && kind != ImageKind::Exr {
             return Err(Error::Usage(format!(

@@ -84,21 +84,36 @@ pub fn constants_wgsl(generator: &str, constants: &[(&'static str, Shared)]) -> 
 }
 
 /// What every layout's traversal builds on: the prelude, the shared tests (`COMMON`) and the
-/// BVH memory, leaf triangles and counters (`TRAVERSAL`).
+/// BVH memory, leaf triangles and counters (`TRAVERSAL`). A kernel on top of it defines
+/// `fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool`, which the leaf step asks where the
+/// `ALPHA_MASK` override is on (the render kernel's reads its materials' alpha masks); one
+/// that traces without materials appends [`KEEP_EVERY_HIT`].
 pub fn library_source() -> String {
     format!("{}\n{COMMON}\n{TRAVERSAL}", prelude())
 }
 
+/// `alpha_keeps` for a kernel that traces without materials ([`library_source`]): every
+/// hit is kept (its `ALPHA_MASK` stays off).
+pub const KEEP_EVERY_HIT: &str = "fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool {
+    return true;
+}
+";
+
+/// The trace kernel and its [`KEEP_EVERY_HIT`].
+fn trace_kernel() -> String {
+    format!("{TRACE}\n{KEEP_EVERY_HIT}")
+}
+
 /// The trace kernel's full source for a layout.
 pub fn trace_source(layout: &dyn GpuForm) -> String {
-    kernel_source(layout, TRACE)
+    kernel_source(layout, &trace_kernel())
 }
 
 /// The trace kernel's source for a layout's subgroup traversal
 /// ([`GpuForm::subgroup_wgsl`]), or None when the layout has none. The module needs the
 /// device's `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
 pub fn trace_subgroup_source(layout: &dyn GpuForm) -> Option<String> {
-    subgroup_kernel_source(layout, TRACE)
+    subgroup_kernel_source(layout, &trace_kernel())
 }
 
 /// The kernels trace through `trace_ray`: a one-level form's own traversal, unless the form

@@ -47,6 +47,9 @@ pub struct GltfMaterial {
     /// Normal map (linear, tangent space) and its scale of red and green: (image index,
     /// its bytes, scale).
     pub normal_texture: Option<(usize, GltfImage, f32)>,
+    /// Occlusion texture (linear, red channel) and its strength: (image index, its bytes,
+    /// strength).
+    pub occlusion_texture: Option<(usize, GltfImage, f32)>,
     /// The textures of this material that read other coordinates than the one lancer
     /// interpolates (the first of base colour, emissive, metallic-roughness), by name.
     pub other_coordinates: Vec<&'static str>,
@@ -61,7 +64,8 @@ pub struct GltfMaterial {
     /// Seen from both sides.
     pub double_sided: bool,
     /// Alpha mode `MASK`: the cutoff below which the surface is cut away (alpha is the base
-    /// colour factor's times its texture's); None for `OPAQUE` and `BLEND`.
+    /// colour factor's times its texture's where the texture is read); None for `OPAQUE`
+    /// and `BLEND`.
     pub alpha_cutoff: Option<f32>,
 }
 
@@ -755,6 +759,9 @@ fn material(
     let normal = m.normal_texture();
     let normal_texture = image_of(normal.as_ref().map(|n| n.texture()), sources)?
         .map(|(i, image)| (i, image, normal.as_ref().map_or(1.0, |n| n.scale())));
+    let occlusion = m.occlusion_texture();
+    let occlusion_texture = image_of(occlusion.as_ref().map(|o| o.texture()), sources)?
+        .map(|(i, image)| (i, image, occlusion.as_ref().map_or(1.0, |o| o.strength())));
     let named = [
         ("base colour", pbr.base_color_texture()),
         ("emissive", m.emissive_texture()),
@@ -772,6 +779,11 @@ fn material(
             other_coordinates.push("normal");
         }
     }
+    if let Some(o) = &occlusion {
+        if used.unwrap_or((0, UvTransform::IDENTITY)) != (o.tex_coord(), UvTransform::IDENTITY) {
+            other_coordinates.push("occlusion");
+        }
+    }
     Ok(GltfMaterial {
         name,
         base_color,
@@ -780,6 +792,7 @@ fn material(
         emissive_texture,
         metallic_roughness_texture,
         normal_texture,
+        occlusion_texture,
         other_coordinates,
         transmission,
         ior,

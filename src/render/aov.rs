@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-/// Which AOVs to write (the renderer computes all three when any is asked for).
+/// Which AOVs to write (the renderer computes all four when any is asked for).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AovSet {
     /// Distance along the camera ray to the first hit (`depth.Z`; +∞ for a miss).
@@ -13,12 +13,15 @@ pub struct AovSet {
     /// The first hit's reflectance, textured where the material is (`albedo.R/G/B`; 0 for a
     /// miss).
     pub albedo: bool,
+    /// The first hit's ambient occlusion from its material's occlusion texture (glTF's
+    /// `occlusionTexture`; `occlusion.Y`; 1 without one, 0 for a miss).
+    pub occlusion: bool,
 }
 
 impl AovSet {
     /// True when any AOV is asked for.
     pub fn any(&self) -> bool {
-        self.depth || self.normal || self.albedo
+        self.depth || self.normal || self.albedo || self.occlusion
     }
 }
 
@@ -31,6 +34,8 @@ pub struct Aovs {
     pub normal: Vec<Vec3>,
     /// First-hit albedo (zero for a miss).
     pub albedo: Vec<Vec3>,
+    /// First-hit occlusion texture (1 without one, zero for a miss).
+    pub occlusion: Vec<f32>,
 }
 
 /// One pixel's AOVs.
@@ -42,6 +47,8 @@ pub struct FirstHit {
     pub normal: Vec3,
     /// Albedo (zero for a miss).
     pub albedo: Vec3,
+    /// The material's occlusion texture there (1 without one, zero for a miss).
+    pub occlusion: f32,
 }
 
 impl FirstHit {
@@ -50,6 +57,7 @@ impl FirstHit {
         depth: f32::INFINITY,
         normal: Vec3::ZERO,
         albedo: Vec3::ZERO,
+        occlusion: 0.0,
     };
 }
 
@@ -60,10 +68,12 @@ impl Aovs {
             depth: hits.iter().map(|h| h.depth).collect(),
             normal: hits.iter().map(|h| h.normal).collect(),
             albedo: hits.iter().map(|h| h.albedo).collect(),
+            occlusion: hits.iter().map(|h| h.occlusion).collect(),
         }
     }
 
-    /// The EXR channels of the AOVs in `set`: `depth.Z`, `normal.X/Y/Z`, `albedo.R/G/B`.
+    /// The EXR channels of the AOVs in `set`: `depth.Z`, `normal.X/Y/Z`, `albedo.R/G/B`,
+    /// `occlusion.Y`.
     pub fn channels(&self, set: AovSet) -> Vec<(String, Vec<f32>)> {
         let mut out = Vec::new();
         if set.depth {
@@ -78,6 +88,9 @@ impl Aovs {
         };
         three(set.normal, "normal", &self.normal, ["X", "Y", "Z"]);
         three(set.albedo, "albedo", &self.albedo, ["R", "G", "B"]);
+        if set.occlusion {
+            out.push(("occlusion.Y".to_string(), self.occlusion.clone()));
+        }
         out
     }
 }

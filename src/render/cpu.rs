@@ -383,6 +383,17 @@ impl<'a> CpuRenderer<'a> {
             depth: hit.t,
             normal: self.shading_side(fx, &tri, &hit, n),
             albedo: self.albedo(fx, tri.shade, &hit),
+            occlusion: self.occlusion(fx, tri.shade, &hit),
+        }
+    }
+
+    /// The material's occlusion texture at a hit, 1 + strength · (red − 1) (1 without one,
+    /// or where textures are not simulated). WGSL `surface_occlusion`.
+    fn occlusion(&self, fx: EffectSet, shade: usize, hit: &Hit) -> f32 {
+        let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
+        match self.texture_at(fx, mat.occlusion_texture, shade, hit) {
+            Some(t) => 1.0 + mat.occlusion_strength * (t.x - 1.0),
+            None => 1.0,
         }
     }
 

@@ -94,7 +94,7 @@ pub struct GpuMaterial {
     pub tex_height: u32,
     /// Bits: [`MAT_TEXTURED`] (albedo times the texture), [`MAT_TWO_SIDED`] (emits from
     /// both faces), [`MAT_METALLIC_ROUGHNESS`], [`MAT_EMISSION_TEXTURE`],
-    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`].
+    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`], [`MAT_OCCLUSION`].
     pub flags: u32,
     /// Principled: metalness.
     pub metallic: f32,
@@ -124,6 +124,14 @@ pub struct GpuMaterial {
     pub alpha: f32,
     /// An alpha mask's cutoff ([`MAT_ALPHA_MASK`]).
     pub alpha_cutoff: f32,
+    /// Where the occlusion texture's texels start ([`MAT_OCCLUSION`]).
+    pub occlusion_offset: u32,
+    /// The occlusion texture's width (0 without one).
+    pub occlusion_width: u32,
+    /// The occlusion texture's height.
+    pub occlusion_height: u32,
+    /// The occlusion texture's strength.
+    pub occlusion_strength: f32,
     /// Padding (zero).
     pub _pad1: u32,
     /// Padding (zero).
@@ -144,6 +152,8 @@ pub const MAT_NORMAL_MAP: u32 = 16;
 /// [`GpuMaterial::flags`] bit: an alpha mask cuts the surface where its alpha is below
 /// `alpha_cutoff`.
 pub const MAT_ALPHA_MASK: u32 = 32;
+/// [`GpuMaterial::flags`] bit: an occlusion texture (read for the occlusion AOV).
+pub const MAT_OCCLUSION: u32 = 64;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -308,7 +318,8 @@ impl<'a> GpuRenderer<'a> {
         for t in &scene.textures {
             tex_at.push(texels.len() as u32);
             // Alpha in w (1 where the image has none): what an alpha mask reads.
-            let alpha = |i: usize| t.alpha.get(i).copied().unwrap_or(1.0);
+            let whole = t.alpha.len() == t.texels.len();
+            let alpha = |i: usize| if whole { t.alpha[i] } else { 1.0 };
             texels
                 .extend((t.texels.iter().enumerate()).map(|(i, c)| c.extend(alpha(i)).to_array()));
         }
@@ -342,6 +353,7 @@ impl<'a> GpuRenderer<'a> {
                 let (mr_off, mr_w, mr_h) = slot(m.metallic_roughness_texture);
                 let (e_off, e_w, e_h) = slot(m.emission_texture);
                 let (n_off, n_w, n_h) = slot(m.normal_texture);
+                let (o_off, o_w, o_h) = slot(m.occlusion_texture);
                 let bit = |on: bool, b: u32| if on { b } else { 0 };
                 GpuMaterial {
                     albedo: m.albedo.into(),
@@ -359,7 +371,8 @@ impl<'a> GpuRenderer<'a> {
                         )
                         | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE)
                         | bit(m.normal_texture.is_some(), MAT_NORMAL_MAP)
-                        | bit(m.alpha_cutoff.is_some(), MAT_ALPHA_MASK),
+                        | bit(m.alpha_cutoff.is_some(), MAT_ALPHA_MASK)
+                        | bit(m.occlusion_texture.is_some(), MAT_OCCLUSION),
                     metallic: m.metallic,
                     roughness: m.roughness,
                     mr_offset: mr_off,
@@ -374,6 +387,10 @@ impl<'a> GpuRenderer<'a> {
                     normal_scale: m.normal_scale,
                     alpha: m.alpha,
                     alpha_cutoff: m.alpha_cutoff.unwrap_or(0.0),
+                    occlusion_offset: o_off,
+                    occlusion_width: o_w,
+                    occlusion_height: o_h,
+                    occlusion_strength: m.occlusion_strength,
                     _pad1: 0,
                     _pad2: 0,
                 }
@@ -677,6 +694,7 @@ impl<'a> GpuRenderer<'a> {
                     depth: p[0],
                     normal: Vec3::new(p[1], p[2], p[3]),
                     albedo: Vec3::new(p[4], p[5], p[6]),
+                    occlusion: p[7],
                 },
             })
             .collect())

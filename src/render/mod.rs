@@ -34,7 +34,8 @@ pub use environment::{
 pub use exr::ExrImage;
 pub use gpu::{
     GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_ALPHA_MASK,
-    MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_TEXTURED, MAT_TWO_SIDED,
+    MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_OCCLUSION, MAT_TEXTURED,
+    MAT_TWO_SIDED,
 };
 pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};

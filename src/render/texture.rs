@@ -39,7 +39,8 @@ pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
 /// Bilinear lookup of a texture's alpha with wrap-around (1 where it has none). WGSL:
 /// `sample_alpha`.
 pub fn sample_alpha(t: &Texture, uv: Vec2) -> f32 {
-    if t.alpha.is_empty() {
+    // (An alpha channel of another size than the colours is none: the GPU's upload agrees.)
+    if t.alpha.len() != t.texels.len() {
         return 1.0;
     }
     let ([a, b, c, d], fx, fy) = texture_taps(t.width, t.height, uv);

@@ -55,6 +55,11 @@ pub struct Material {
     pub normal_texture: Option<usize>,
     /// The normal map's scale of its red and green (glTF's `normalTexture.scale`).
     pub normal_scale: f32,
+    /// Principled: index into [`RenderScene::textures`] of an ambient-occlusion texture
+    /// (linear, red channel; glTF's `occlusionTexture`), read for the occlusion AOV only.
+    pub occlusion_texture: Option<usize>,
+    /// The occlusion texture's strength: occlusion = 1 + strength · (red − 1).
+    pub occlusion_strength: f32,
     /// Opacity (glTF's base colour alpha), multiplied by `texture`'s alpha channel where
     /// it has one; read only for an alpha mask.
     pub alpha: f32,
@@ -81,6 +86,8 @@ impl Material {
             normal_scale: 1.0,
             alpha: 1.0,
             alpha_cutoff: None,
+            occlusion_texture: None,
+            occlusion_strength: 1.0,
         }
     }
 
@@ -99,6 +106,7 @@ impl Material {
         self.texture.is_some()
             || self.metallic_roughness_texture.is_some()
             || self.emission_texture.is_some()
+            || self.occlusion_texture.is_some()
     }
 }
 
@@ -112,7 +120,7 @@ pub struct Texture {
     /// `width · height` texels, row-major from the top row.
     pub texels: Vec<Vec3>,
     /// Their alpha (linear, in [0, 1]), or empty where the image has no alpha channel
-    /// (opaque everywhere).
+    /// (opaque everywhere; so is an alpha of another length than `texels`).
     pub alpha: Vec<f32>,
 }
 
@@ -751,6 +759,8 @@ fn scene_material(
             d.metallic_roughness_texture.is_some(),
         ),
         ("emission_texture", d.emission_texture.is_some()),
+        ("occlusion_texture", d.occlusion_texture.is_some()),
+        ("occlusion_strength", d.occlusion_strength.is_some()),
     ] {
         only(field, set && !principled, "principled")?;
     }
@@ -831,6 +841,7 @@ fn scene_material(
             // glTF's defaults: a rough metal; lancer's: a rough dielectric (a plastic).
             m.metallic = unit("metallic", d.metallic, 0.0)?;
             m.roughness = unit("roughness", d.roughness, 0.5)?;
+            m.occlusion_strength = unit("occlusion_strength", d.occlusion_strength, 1.0)?;
             if let Some(e) = d.emission {
                 m.emission = check_rgb(path, line, "emission", e)?;
             } else if d.emission_texture.is_some() {
@@ -859,6 +870,7 @@ fn scene_material(
     )?;
     m.emission_texture = image("emission_texture", &d.emission_texture, true)?;
     m.normal_texture = image("normal_texture", &d.normal_texture, false)?;
+    m.occlusion_texture = image("occlusion_texture", &d.occlusion_texture, false)?;
     Ok(m)
 }
 

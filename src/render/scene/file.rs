@@ -152,6 +152,11 @@ pub struct MaterialDef {
     pub metallic_roughness_texture: Option<String>,
     /// Principled: an image (sRGB) that multiplies `emission`.
     pub emission_texture: Option<String>,
+    /// Principled: an ambient-occlusion image (linear, red channel; glTF's
+    /// `occlusionTexture`), read for the `occlusion` AOV only.
+    pub occlusion_texture: Option<String>,
+    /// Principled: the occlusion texture's strength in [0, 1] (default 1).
+    pub occlusion_strength: Option<f32>,
     /// Diffuse and principled: a tangent-space normal map (linear; glTF's and OpenGL's
     /// convention: red along +u, green along +v).
     pub normal_texture: Option<String>,

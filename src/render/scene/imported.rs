@@ -204,24 +204,18 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     let base = base.min(Vec3::ONE);
     let emissive = Vec3::from(m.emissive);
     let glowing = emissive.max_element() > 0.0;
-    if glowing && m.emissive_texture.is_none() && m.base_color_texture.is_none() {
+    // (A masked one is principled below: its glow where hit, its mask cutting it.)
+    let masked_glow = m.alpha_cutoff.is_some();
+    if glowing && m.emissive_texture.is_none() && m.base_color_texture.is_none() && !masked_glow {
         // A uniform glow: an area light, sampled at every diffuse hit.
         let mut mat = Material::diffuse(base);
         mat.kind = MaterialKind::Emissive;
         mat.emission = emissive;
         mat.two_sided = m.double_sided;
-        if m.alpha_cutoff.is_some() {
-            log::warn!(
-                "{}: material {:?}: an alpha mask on a glowing material without textures is \
-                 not simulated (it is sampled as an area light); rendered opaque",
-                path.display(),
-                m.name
-            );
-        }
         return Ok(mat);
     }
-    // An alpha mask cuts every other kind: by the base colour's alpha, and where the base
-    // colour texture is read (principled) by its alpha too.
+    // An alpha mask cuts every kind: by the base colour's alpha, and where the base colour
+    // texture is read (principled) by its alpha too; mirror and glass read no texture.
     let masked = |mut mat: Material| {
         mat.alpha = alpha.clamp(0.0, 1.0);
         mat.alpha_cutoff = m.alpha_cutoff;
@@ -306,6 +300,10 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     if let Some((index, bytes, scale)) = &m.normal_texture {
         mat.normal_texture = image("normal", Some((*index, bytes)), false)?;
         mat.normal_scale = *scale;
+    }
+    if let Some((index, bytes, strength)) = &m.occlusion_texture {
+        mat.occlusion_texture = image("occlusion", Some((*index, bytes)), false)?;
+        mat.occlusion_strength = strength.clamp(0.0, 1.0);
     }
     Ok(mat)
 }
