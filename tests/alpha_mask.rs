@@ -2,7 +2,8 @@
 //! skipped inside the traversal, by closest-hit and any-hit queries alike, on the CPU and
 //! the GPU. A card cut away everywhere renders exactly as no card (its shadow gone too); a
 //! card cut on one half shows the wall through that half, placed copies render as the
-//! flattened scene, and the effect is compiled in only where a material is masked.
+//! flattened scene, and the effect is compiled in only where a material is masked. A
+//! blended card (stochastic transparency) stops rays in proportion to its alpha.
 
 mod common;
 
@@ -10,8 +11,9 @@ use common::alike::assert_alike;
 use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
-use lancer::render::{render, EffectSet, RenderOptions, RenderScene};
-use lancer::{AccelKind, Device, Error, LayoutKind};
+use lancer::accel::{Query, RayStats};
+use lancer::render::{render, AlphaMask, EffectSet, RenderOptions, RenderScene};
+use lancer::{AccelKind, Device, Error, LayoutKind, Ray, Robustness};
 
 /// A quad in the plane z = `z`, `half` wide each way, facing +Z, texture coordinates
 /// u = (x/half + 1)/2, v = (y/half + 1)/2.
@@ -176,8 +178,8 @@ fn every_gpu_form_cuts_the_card_as_the_cpu_does() {
         let cpu = render(&s, &Device::cpu(), &options).unwrap().image.pixels;
         let gpu = render(&s, gpu_device(), &options).unwrap().image.pixels;
         let red = cpu.iter().filter(|c| c.x > 0.0 && c.y == 0.0).count();
-        assert!(red > 100, "{kind}: {red} red pixels");
-        assert_alike(&format!("{kind}, CPU vs GPU"), &cpu, &gpu);
+        assert!(red > 100, "{kind:?}: {red} red pixels");
+        assert_alike(&format!("{kind:?}, CPU vs GPU"), &cpu, &gpu);
     }
 }
 
@@ -200,6 +202,55 @@ fn placed_copies_of_a_masked_card_render_as_the_flattened_scene() {
     assert!(red > 100, "{red} red pixels");
     assert_eq!(bits(&a), bits(&b), "placed vs flattened (CPU)");
     assert_alike("masked copies, CPU vs GPU", &a, &g);
+}
+
+#[test]
+fn a_blended_card_stops_rays_in_proportion_to_its_alpha() {
+    let dir = Scratch::new();
+    let s = scene(&dir, Some("alpha = 0.3\nalpha_blend = true"), "");
+    assert!(EffectSet::of(&s).alpha_mask);
+    // Rays toward the card's middle from the camera, jittered over a pixel-sized square:
+    // each stops on the card with probability 0.3 (a hash of its hit).
+    let accel = lancer::accel::build(
+        AccelKind::Bvh(LayoutKind::DfsSign),
+        &s.mesh,
+        &Default::default(),
+    )
+    .unwrap();
+    let mask = AlphaMask::new(&s);
+    let card = s.material_of[2];
+    let eye = Vec3::new(0.0, 0.0, 4.0);
+    let n = 20_000;
+    let mut stopped = 0;
+    for i in 0..n {
+        let (x, y) = (
+            (i % 141) as f32 / 141.0 - 0.5,
+            (i / 141) as f32 / 142.0 - 0.5,
+        );
+        let dir = (Vec3::new(x, y, 0.0) - eye).normalize();
+        let r = Ray::new(eye, dir, 0.0, 1e30);
+        let h = accel.intersect_masked(
+            &r,
+            Query::Closest,
+            &Robustness::default(),
+            Some(&mask),
+            &mut RayStats::default(),
+        );
+        stopped += (s.material_of[h.prim as usize] == card) as usize;
+    }
+    let p = stopped as f64 / n as f64;
+    let sigma = (0.3 * 0.7 / n as f64).sqrt();
+    println!("blend at alpha 0.3: {p:.4} of {n} rays stop on the card (σ {sigma:.4})");
+    assert!((p - 0.3).abs() < 5.0 * sigma, "{p}");
+    // The same bits on both devices: the GPU renders the blend as the CPU does.
+    let cpu = pixels(&s, &Device::cpu(), None);
+    let gpu = pixels(&s, gpu_device(), None);
+    assert_alike("blended card, CPU vs GPU", &cpu, &gpu);
+    // The test can fail: a mask at the same alpha cuts every ray.
+    let masked = scene(&dir, Some("alpha = 0.3\nalpha_cutoff = 0.5"), "");
+    let px = pixels(&masked, &Device::cpu(), None);
+    assert!(px.iter().all(|c| !(c.x > 0.0 && c.y == 0.0)));
+    assert!(cpu.iter().any(|c| c.x > 0.0 && c.y == 0.0));
 }
 
 #[test]
@@ -231,7 +282,14 @@ fn alpha_keys_are_checked() {
     let dir = Scratch::new();
     quad_obj(&dir, "wall.obj", 3.0, -1.0);
     for (keys, says) in [
-        ("alpha = 0.5", "'alpha' is read by an alpha mask only"),
+        (
+            "alpha = 0.5",
+            "'alpha' is read by an alpha mask or blend only",
+        ),
+        (
+            "alpha_blend = true\nalpha_cutoff = 0.5",
+            "'alpha_blend' and 'alpha_cutoff' exclude each other",
+        ),
         ("alpha_cutoff = 1.5", "alpha_cutoff must be in [0, 1]"),
         (
             "alpha = -0.5\nalpha_cutoff = 0.5",

@@ -390,7 +390,8 @@ fn sample_alpha(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> f32 {
 }
 
 // render::AlphaMask::keeps, asked by traversal.wgsl's alpha_passes (ALPHA_MASK): whether
-// triangle `prim`'s material keeps a hit at (u, v). Reads only the shade's material and
+// triangle `prim`'s material keeps a hit at (u, v) (a mask: alpha ≥ cutoff; a blend:
+// alpha above the hit's blend_threshold). Reads only the shade's material and
 // texture coordinates, and leaves `placed` as it was.
 fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool {
     var i = prim;
@@ -410,7 +411,16 @@ fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool {
             + bitcast<vec2<f32>>(e.xy) * v;
         alpha *= sample_alpha(mat.tex_offset, mat.tex_width, mat.tex_height, uv);
     }
+    if (mat.flags & MAT_ALPHA_BLEND) != 0u {
+        return alpha > blend_threshold(prim, u, v);
+    }
     return alpha >= mat.alpha_cutoff;
+}
+
+// render::blend_threshold: stochastic transparency's cutoff for a hit, uniform in [0, 1).
+fn blend_threshold(prim: u32, u: f32, v: f32) -> f32 {
+    let h = pcg(prim ^ pcg(bitcast<u32>(u) ^ pcg(bitcast<u32>(v))));
+    return f32(h >> 8u) * (1.0 / 16777216.0);
 }
 
 // geometry::unpack_tangent: a packed tangent's direction, not normalised.

@@ -67,6 +67,9 @@ pub struct GltfMaterial {
     /// colour factor's times its texture's where the texture is read); None for `OPAQUE`
     /// and `BLEND`.
     pub alpha_cutoff: Option<f32>,
+    /// Alpha mode `BLEND`: rendered by stochastic transparency (the surface there with
+    /// probability alpha at each hit).
+    pub alpha_blend: bool,
 }
 
 /// A glTF scene flattened: world-space triangles with texture coordinates and materials.
@@ -695,15 +698,9 @@ fn material(
     let bad = |msg: String| Error::input(path, None, format!("material {name:?}: {msg}"));
     let alpha_cutoff = match m.alpha_mode() {
         ::gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
-        ::gltf::material::AlphaMode::Blend => {
-            log::warn!(
-                "{}: material {name:?}: alpha mode Blend is not simulated yet; rendered opaque",
-                path.display(),
-            );
-            None
-        }
-        ::gltf::material::AlphaMode::Opaque => None,
+        _ => None,
     };
+    let alpha_blend = m.alpha_mode() == ::gltf::material::AlphaMode::Blend;
     if alpha_cutoff.is_some_and(|c| !c.is_finite() || c < 0.0) {
         return Err(bad("alphaCutoff must be finite and non-negative".into()));
     }
@@ -800,6 +797,7 @@ fn material(
         roughness,
         double_sided: m.double_sided(),
         alpha_cutoff,
+        alpha_blend,
     })
 }
 

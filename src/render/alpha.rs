@@ -2,8 +2,11 @@
 //! times its texture's alpha channel — is below its cutoff, the surface is not there. The
 //! test runs inside the traversal ([`HitMask`]), so every query skips those hits: camera,
 //! bounce, shadow and AO rays alike, on the CPU and the GPU (WGSL `alpha_keeps`, the same
-//! arithmetic).
+//! arithmetic). Stochastic transparency (glTF's `BLEND`) is the same test against a cutoff
+//! drawn per hit: a hash of the triangle and the hit's barycentric coordinates, uniform in
+//! [0, 1), the same bits on both devices.
 
+use super::sampling::pcg;
 use super::scene::RenderScene;
 use super::texture::sample_alpha;
 use crate::accel::HitMask;
@@ -25,13 +28,23 @@ impl HitMask for AlphaMask<'_> {
         let scene = self.scene;
         let shade = scene.shade_of(prim);
         let mat = &scene.materials[scene.material_of[shade] as usize];
-        let Some(cutoff) = mat.alpha_cutoff else {
+        if mat.alpha_cutoff.is_none() && !mat.alpha_blend {
             return true;
-        };
+        }
         let mut alpha = mat.alpha;
         if let Some(t) = mat.texture {
             alpha *= sample_alpha(&scene.textures[t], scene.uv_at(shade, u, v));
         }
-        alpha >= cutoff
+        match mat.alpha_cutoff {
+            Some(cutoff) => alpha >= cutoff,
+            None => alpha > blend_threshold(prim, u, v),
+        }
     }
+}
+
+/// The cutoff stochastic transparency draws for a hit on triangle `prim` at (u, v):
+/// uniform in [0, 1) in steps of 2⁻²⁴. WGSL `blend_threshold`.
+pub fn blend_threshold(prim: u32, u: f32, v: f32) -> f32 {
+    let h = pcg(prim ^ pcg(u.to_bits() ^ pcg(v.to_bits())));
+    (h >> 8) as f32 * (1.0 / 16_777_216.0)
 }

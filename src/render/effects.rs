@@ -33,8 +33,9 @@ pub struct EffectSet {
     /// glTF metallic-roughness surfaces (principled: GGX microfacets over a Lambert
     /// base, and their emission); without it they are diffuse.
     pub microfacet: bool,
-    /// Alpha masks: hits where a masked material's alpha is below its cutoff are skipped
-    /// in the traversal (every ray: camera, bounce, shadow and AO rays alike).
+    /// Alpha masks: hits where a masked material's alpha is below its cutoff (or, blended,
+    /// below a cutoff drawn per hit) are skipped in the traversal (every ray: camera,
+    /// bounce, shadow and AO rays alike).
     pub alpha_mask: bool,
 }
 
@@ -94,7 +95,9 @@ impl EffectSet {
             spot_lights: !ao && (scene.lights.iter()).any(|l| matches!(l, Light::Spot { .. })),
             microfacet: !ao && kind_used(MaterialKind::Principled),
             // Geometry, not shading: AO rays pass through the holes too.
-            alpha_mask: used.iter().any(|m| m.alpha_cutoff.is_some()),
+            alpha_mask: used
+                .iter()
+                .any(|m| m.alpha_cutoff.is_some() || m.alpha_blend),
         }
     }
 

@@ -94,7 +94,7 @@ pub struct GpuMaterial {
     pub tex_height: u32,
     /// Bits: [`MAT_TEXTURED`] (albedo times the texture), [`MAT_TWO_SIDED`] (emits from
     /// both faces), [`MAT_METALLIC_ROUGHNESS`], [`MAT_EMISSION_TEXTURE`],
-    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`], [`MAT_OCCLUSION`].
+    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`], [`MAT_OCCLUSION`], [`MAT_ALPHA_BLEND`].
     pub flags: u32,
     /// Principled: metalness.
     pub metallic: f32,
@@ -154,6 +154,9 @@ pub const MAT_NORMAL_MAP: u32 = 16;
 pub const MAT_ALPHA_MASK: u32 = 32;
 /// [`GpuMaterial::flags`] bit: an occlusion texture (read for the occlusion AOV).
 pub const MAT_OCCLUSION: u32 = 64;
+/// [`GpuMaterial::flags`] bit: stochastic transparency, the alpha tested against a cutoff
+/// drawn per hit (with [`MAT_ALPHA_MASK`]).
+pub const MAT_ALPHA_BLEND: u32 = 128;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -371,7 +374,8 @@ impl<'a> GpuRenderer<'a> {
                         )
                         | bit(m.emission_texture.is_some(), MAT_EMISSION_TEXTURE)
                         | bit(m.normal_texture.is_some(), MAT_NORMAL_MAP)
-                        | bit(m.alpha_cutoff.is_some(), MAT_ALPHA_MASK)
+                        | bit(m.alpha_cutoff.is_some() || m.alpha_blend, MAT_ALPHA_MASK)
+                        | bit(m.alpha_blend && m.alpha_cutoff.is_none(), MAT_ALPHA_BLEND)
                         | bit(m.occlusion_texture.is_some(), MAT_OCCLUSION),
                     metallic: m.metallic,
                     roughness: m.roughness,

@@ -10,8 +10,8 @@ use super::bsdf::{ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
 use super::sampling::POINT_ERROR;
 use super::trig::{ATAN_C, COS_C, INV_TAU, SIN_C};
-use super::MAT_OCCLUSION;
 use super::{Integrator, LightKind, MaterialKind, TRANSFORM_ERROR};
+use super::{MAT_ALPHA_BLEND, MAT_OCCLUSION};
 use super::{MAT_ALPHA_MASK, MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP};
 use super::{MAT_TEXTURED, MAT_TWO_SIDED};
 use crate::geometry::{NO_NORMAL, SNORM15_SCALE, SNORM16_SCALE, TANGENT_FLIPPED, TANGENT_PRESENT};
@@ -56,6 +56,7 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("MAT_NORMAL_MAP", U32(MAT_NORMAL_MAP)),
         ("MAT_ALPHA_MASK", U32(MAT_ALPHA_MASK)),
         ("MAT_OCCLUSION", U32(MAT_OCCLUSION)),
+        ("MAT_ALPHA_BLEND", U32(MAT_ALPHA_BLEND)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
         ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
         ("NO_NORMAL", U32(NO_NORMAL)),     // geometry::NO_NORMAL

@@ -22,7 +22,7 @@ mod stats;
 mod texture;
 mod trig;
 
-pub use alpha::AlphaMask;
+pub use alpha::{blend_threshold, AlphaMask};
 pub use aov::{AovSet, Aovs, FirstHit};
 pub use bsdf::{Bsdf, BsdfSample, Principled, ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 pub use cpu::CpuRenderer;
@@ -33,9 +33,9 @@ pub use environment::{
 };
 pub use exr::ExrImage;
 pub use gpu::{
-    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_ALPHA_MASK,
-    MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_OCCLUSION, MAT_TEXTURED,
-    MAT_TWO_SIDED,
+    GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_ALPHA_BLEND,
+    MAT_ALPHA_MASK, MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_OCCLUSION,
+    MAT_TEXTURED, MAT_TWO_SIDED,
 };
 pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};

@@ -66,6 +66,10 @@ pub struct Material {
     /// An alpha mask (glTF's alpha mode `MASK`): where the alpha is below this cutoff the
     /// surface is not there — rays pass through it, shadow rays included. None: opaque.
     pub alpha_cutoff: Option<f32>,
+    /// Stochastic transparency (glTF's alpha mode `BLEND`): the surface is there at a hit
+    /// with probability alpha, decided by a hash of the hit (so rays, jittered from sample
+    /// to sample, average to the blend).
+    pub alpha_blend: bool,
 }
 
 impl Material {
@@ -86,6 +90,7 @@ impl Material {
             normal_scale: 1.0,
             alpha: 1.0,
             alpha_cutoff: None,
+            alpha_blend: false,
             occlusion_texture: None,
             occlusion_strength: 1.0,
         }
@@ -776,9 +781,21 @@ fn scene_material(
         d.alpha_cutoff.is_some() && d.kind == MaterialKind::Emissive,
         "non-emissive",
     )?;
-    if d.alpha.is_some() && d.alpha_cutoff.is_none() {
+    only(
+        "alpha_blend",
+        d.alpha_blend && d.kind == MaterialKind::Emissive,
+        "non-emissive",
+    )?;
+    if d.alpha_blend && d.alpha_cutoff.is_some() {
         return Err(bad(
-            "'alpha' is read by an alpha mask only: give 'alpha_cutoff' too".into(),
+            "'alpha_blend' and 'alpha_cutoff' exclude each other: a blend or a mask".into(),
+        ));
+    }
+    if d.alpha.is_some() && d.alpha_cutoff.is_none() && !d.alpha_blend {
+        return Err(bad(
+            "'alpha' is read by an alpha mask or blend only: give 'alpha_cutoff' or \
+             'alpha_blend = true' too"
+                .into(),
         ));
     }
     for (field, value) in [("alpha_cutoff", d.alpha_cutoff), ("alpha", d.alpha)] {
@@ -791,6 +808,7 @@ fn scene_material(
     }
     m.alpha = d.alpha.unwrap_or(1.0);
     m.alpha_cutoff = d.alpha_cutoff;
+    m.alpha_blend = d.alpha_blend;
     if let Some(s) = d.normal_scale {
         if !s.is_finite() {
             return Err(bad(format!("normal_scale must be finite, got {s}")));

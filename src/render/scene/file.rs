@@ -165,8 +165,13 @@ pub struct MaterialDef {
     /// All but emissive: an alpha mask — where the alpha (`alpha` times `texture`'s alpha
     /// channel) is below this cutoff in [0, 1], the surface is not there (glTF's `MASK`).
     pub alpha_cutoff: Option<f32>,
-    /// The alpha an alpha mask reads, in [0, 1] (default 1; multiplies `texture`'s alpha).
+    /// The alpha an alpha mask or blend reads, in [0, 1] (default 1; multiplies
+    /// `texture`'s alpha).
     pub alpha: Option<f32>,
+    /// All but emissive: stochastic transparency (glTF's `BLEND`) — the surface is there
+    /// with probability alpha at each hit. Not with `alpha_cutoff`.
+    #[serde(default)]
+    pub alpha_blend: bool,
     /// Index of refraction (glass).
     pub ior: Option<f32>,
     /// Emitted radiance (emissive; principled: emitted where hit, not sampled as a light).

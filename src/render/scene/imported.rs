@@ -205,7 +205,7 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     let emissive = Vec3::from(m.emissive);
     let glowing = emissive.max_element() > 0.0;
     // (A masked one is principled below: its glow where hit, its mask cutting it.)
-    let masked_glow = m.alpha_cutoff.is_some();
+    let masked_glow = m.alpha_cutoff.is_some() || m.alpha_blend;
     if glowing && m.emissive_texture.is_none() && m.base_color_texture.is_none() && !masked_glow {
         // A uniform glow: an area light, sampled at every diffuse hit.
         let mut mat = Material::diffuse(base);
@@ -214,11 +214,13 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
         mat.two_sided = m.double_sided;
         return Ok(mat);
     }
-    // An alpha mask cuts every kind: by the base colour's alpha, and where the base colour
-    // texture is read (principled) by its alpha too; mirror and glass read no texture.
+    // An alpha mask (or blend) cuts every kind: by the base colour's alpha, and where the
+    // base colour texture is read (principled) by its alpha too; mirror and glass read no
+    // texture.
     let masked = |mut mat: Material| {
         mat.alpha = alpha.clamp(0.0, 1.0);
         mat.alpha_cutoff = m.alpha_cutoff;
+        mat.alpha_blend = m.alpha_blend;
         mat
     };
     let smooth_metal = m.metallic >= 1.0 && m.roughness <= 0.0;
