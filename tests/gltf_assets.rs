@@ -235,7 +235,10 @@ fn alpha_modes_mask_and_blend_cut_the_panel() {
     }
     let (p, want) = (on as f64 / all as f64, 1.0 - 0.7 * 0.7);
     println!("BLEND at alpha 0.3: {on} of {all} camera rays on the panel stop there ({p:.3})");
-    assert!((p - want).abs() < 5.0 * (want * (1.0 - want) / all as f64).sqrt(), "{p}");
+    assert!(
+        (p - want).abs() < 5.0 * (want * (1.0 - want) / all as f64).sqrt(),
+        "{p}"
+    );
 }
 
 #[test]
