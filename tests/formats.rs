@@ -416,14 +416,22 @@ fn gltf_materials_map_onto_lancers() {
     );
     assert_ne!(base, mr);
     // The normal map is data too (the same texture as the metallic-roughness read), with
-    // its scale, and gives the material's triangles tangents: u grows along +x.
+    // its scale, and gives the material's triangles tangents: u grows along +x across
+    // the first triangle, along (1.5, −0.5, 0) across the second (its skewed coordinates);
+    // the corners they share (vertices 0 and 2, 45° in each) average the two.
     assert_eq!(
         (helmet.normal_texture, helmet.normal_scale),
         (Some(mr), 0.5)
     );
-    let (t, _) = lancer::geometry::unpack_tangent(scene.tangents[12]).unwrap();
-    assert!(t.normalize().abs_diff_eq(Vec3::X, 1e-3), "{t}");
-    assert_eq!(scene.tangents[0], lancer::geometry::NO_TANGENT);
+    let unit = |w: u32| lancer::geometry::unpack_tangent(w).unwrap().0.normalize();
+    let shared = (Vec3::X + Vec3::new(1.5, -0.5, 0.0).normalize()).normalize();
+    let [t0, t1, t2] = scene.tangents[12].map(unit);
+    assert!(t1.abs_diff_eq(Vec3::X, 1e-3), "{t1}");
+    assert!(
+        t0.abs_diff_eq(shared, 1e-3) && t2.abs_diff_eq(shared, 1e-3),
+        "{t0} {t2}"
+    );
+    assert_eq!(scene.tangents[0], [lancer::geometry::NO_TANGENT; 3]);
     for (k, p) in pixels.iter().enumerate() {
         let want = Vec3::from(p.map(|c| c as f32 / 255.0));
         assert!(close(scene.textures[mr].texels[k], want), "texel {k}");

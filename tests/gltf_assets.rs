@@ -155,7 +155,7 @@ fn alpha_modes_mask_and_blend_cut_the_panel() {
         &Default::default(),
     )
     .unwrap();
-    let mask = AlphaMask::new(&scene);
+    let mask = AlphaMask::new(&scene, EffectSet::of(&scene));
     let frame = scene.camera.frame();
     let on_panel = |mask: Mask<'_>| {
         let mut n = 0;
@@ -203,7 +203,7 @@ fn alpha_modes_mask_and_blend_cut_the_panel() {
         m["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([1.0, 1.0, 1.0, 0.3]);
     });
     let (scene, _, _) = pixels(&faint);
-    let mask = AlphaMask::new(&scene);
+    let mask = AlphaMask::new(&scene, EffectSet::of(&scene));
     let accel = lancer::accel::build(
         AccelKind::Bvh(LayoutKind::DfsSign),
         &scene.mesh,
@@ -269,4 +269,66 @@ fn an_occlusion_texture_feeds_the_occlusion_aov() {
         .collect();
     println!("{} panel pixels with occlusion below 1", on_panel.len());
     assert!(on_panel.len() > 20 && on_panel.iter().all(|&o| (0.5..1.0).contains(&o)));
+}
+
+#[test]
+fn texture_transforms_move_each_texture_on_both_devices() {
+    let dir = Scratch::new();
+    let plain = in_the_dark(&dir);
+    assert!(!EffectSet::of(&plain).texture_transforms);
+    // The emissive texture moved a quarter along v (its band of lit panels moves), the
+    // normal map half a turn along u: each read at its own coordinates (lancer's v runs
+    // up: glTF's offset down is −0.25 there).
+    let moved = edited_panel(&dir, "moved.gltf", |m| {
+        let t =
+            |offset: [f32; 2]| serde_json::json!({ "KHR_texture_transform": { "offset": offset } });
+        m["emissiveTexture"]["extensions"] = t([0.0, 0.25]);
+        m["normalTexture"]["extensions"] = t([0.5, 0.0]);
+    });
+    let text = std::fs::read_to_string(dir.path("dark.toml")).unwrap();
+    let panel_path = format!("{:?}", panel().to_str().unwrap());
+    let text = text.replace(&panel_path, &format!("{:?}", moved.to_str().unwrap()));
+    let scene = RenderScene::from_file(&dir.write("moved.toml", text)).unwrap();
+    let m = &scene.materials[scene.material_of[0] as usize];
+    let rows = |t: Option<usize>| scene.textures[t.unwrap()].uv_transform;
+    assert_eq!(
+        rows(m.emission_texture),
+        Some([[1.0, 0.0, 0.0], [0.0, 1.0, -0.25]])
+    );
+    assert_eq!(
+        rows(m.normal_texture),
+        Some([[1.0, 0.0, 0.5], [0.0, 1.0, 0.0]])
+    );
+    assert_eq!(rows(m.texture), None);
+    let fx = EffectSet::of(&scene);
+    assert!(fx.texture_transforms, "{fx}");
+    let options = RenderOptions::default();
+    let glow = |scene: &RenderScene, options: &RenderOptions| {
+        render(scene, &Device::cpu(), options).unwrap().image.pixels
+    };
+    let (a, b) = (glow(&plain, &options), glow(&scene, &options));
+    let lit = |px: &[Vec3]| {
+        px.iter()
+            .map(|c| c.max_element() > 0.05)
+            .collect::<Vec<_>>()
+    };
+    let moved_pixels = (lit(&a).iter())
+        .zip(lit(&b))
+        .filter(|(x, y)| **x != *y)
+        .count();
+    // Without the effect the file renders as the plain panel does, bit for bit.
+    let mut unmoved = fx;
+    unmoved.texture_transforms = false;
+    let c = glow(
+        &scene,
+        &RenderOptions {
+            effects: Some(unmoved),
+            ..RenderOptions::default()
+        },
+    );
+    println!("{moved_pixels} pixels glow or go dark where the emissive texture moved");
+    assert!(moved_pixels > 20, "{moved_pixels}");
+    assert_eq!(a, c);
+    let gpu = render(&scene, gpu_device(), &options).unwrap().image.pixels;
+    assert_alike("moved textures, CPU vs GPU", &b, &gpu);
 }

@@ -158,8 +158,8 @@ fn render_structs_match_rust() {
         "crop_width" => crop_width, "aov_base" => aov_base, "placement_base" => placement_base,
         "n_placements" => n_placements, "env_x" => env_x, "env_width" => env_width,
         "env_y" => env_y, "env_height" => env_height, "env_z" => env_z,
-        "env_texels" => env_texels, "env_cdf" => env_cdf, "has_env" => has_env, "pad1" => _pad1,
-        "pad2" => _pad2),
+        "env_texels" => env_texels, "env_cdf" => env_cdf, "has_env" => has_env,
+        "tangent_base" => tangent_base, "pad2" => _pad2),
     );
     assert_eq!(size_of::<RenderParams>(), 208);
 }

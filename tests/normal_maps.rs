@@ -81,6 +81,170 @@ fn decoded(texel: [u8; 3]) -> Vec3 {
     Vec3::from(texel.map(|c| c as f32 / 255.0)) * 2.0 - Vec3::ONE
 }
 
+/// Asserts that every pixel of `scene` (a [`lit_quad`]) shows the radiance of the map's
+/// normal `c` in the frame (t, b, +Y) lit from `light`, on the CPU and the GPU.
+fn assert_lit_in_frame(what: &str, scene: &RenderScene, [t, b]: [Vec3; 2], c: Vec3, light: Vec3) {
+    let fx = EffectSet::of(scene);
+    assert!(fx.normal_maps && fx.shading_normals, "{what}: {fx}");
+    let n = (t * c.x + b * c.y + Vec3::Y * c.z).normalize();
+    let want = 2.0 * FRAC_1_PI * n.dot(light);
+    for (device, name) in [(&Device::cpu(), "cpu"), (gpu_device(), "gpu")] {
+        let px = render(scene, device, &RenderOptions::default())
+            .unwrap()
+            .image
+            .pixels;
+        let worst = (px.iter())
+            .map(|p| ((p.x - want) / want).abs())
+            .fold(0.0, f32::max);
+        println!(
+            "{what} ({name}): want {want:.5}, got {:.5}, worst {worst:.1e}",
+            px[0].x
+        );
+        assert!(worst < 1e-4, "{what} ({name}): {} vs {want}", px[0].x);
+    }
+}
+
+/// [`quad_obj`]'s quad with the plain coordinates (u along +x, v along −z), the normal +Y,
+/// and the `TANGENT` `tangent` at every corner where given, as a glTF file.
+fn quad_gltf(dir: &Scratch, name: &str, tangent: Option<[f32; 4]>) {
+    let corners = [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+    let mut bin: Vec<u8> = Vec::new();
+    let mut put = |xs: &[f32]| bin.extend(xs.iter().flat_map(|x| x.to_le_bytes()));
+    for (x, z) in corners {
+        put(&[x, 0.0, z]);
+    }
+    for _ in corners {
+        put(&[0.0, 1.0, 0.0]);
+    }
+    // glTF's v runs down: 1 − the OBJ's.
+    for (x, z) in corners {
+        put(&[(x + 1.0) / 2.0, (1.0 + z) / 2.0]);
+    }
+    for _ in corners {
+        put(&tangent.unwrap_or_default());
+    }
+    bin.extend([0u16, 2, 1, 0, 3, 2].iter().flat_map(|i| i.to_le_bytes()));
+    let view = |offset: usize, length: usize| serde_json::json!({ "buffer": 0, "byteOffset": offset, "byteLength": length });
+    let accessor = |view: usize, kind: &str, extra: serde_json::Value| {
+        let mut a = serde_json::json!({ "bufferView": view, "componentType": 5126, "count": 4,
+                                        "type": kind });
+        a.as_object_mut()
+            .unwrap()
+            .extend(extra.as_object().unwrap().clone());
+        a
+    };
+    let mut attributes = serde_json::json!({ "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 });
+    if tangent.is_some() {
+        attributes["TANGENT"] = 3.into();
+    }
+    let doc = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [{ "attributes": attributes, "indices": 4 }] }],
+        "buffers": [{ "byteLength": bin.len(), "uri": format!("data:application/octet-stream;base64,{}",
+            base64::Engine::encode(&base64::engine::general_purpose::STANDARD, &bin)) }],
+        "bufferViews": [view(0, 48), view(48, 48), view(96, 32), view(128, 64), view(192, 12)],
+        "accessors": [
+            accessor(0, "VEC3", serde_json::json!({ "min": [-1, 0, -1], "max": [1, 0, 1] })),
+            accessor(1, "VEC3", serde_json::json!({})),
+            accessor(2, "VEC2", serde_json::json!({})),
+            accessor(3, "VEC4", serde_json::json!({})),
+            { "bufferView": 4, "componentType": 5123, "count": 6, "type": "SCALAR" },
+        ],
+    });
+    dir.write(name, serde_json::to_string(&doc).unwrap());
+}
+
+#[test]
+fn a_gltf_tangent_attribute_sets_the_frame() {
+    let dir = Scratch::new();
+    let texel = [191, 128, 238];
+    dir.png("tilt.png", 4, 4, |_, _| texel);
+    let light = Vec3::new(1.0, 1.0, -0.5).normalize();
+    // Without TANGENT: the coordinates' frame (t = +x, b = −z). With TANGENT (0, 0, −1, 1):
+    // t = −z, b = n × t = −x, the frame the turned coordinates give above.
+    quad_gltf(&dir, "own.gltf", None);
+    quad_gltf(&dir, "given.gltf", Some([0.0, 0.0, -1.0, 1.0]));
+    for (mesh, frame) in [
+        ("own.gltf", [Vec3::X, -Vec3::Z]),
+        ("given.gltf", [-Vec3::Z, -Vec3::X]),
+    ] {
+        let scene = lit_quad(&dir, mesh, "tilt.png", light);
+        assert_lit_in_frame(mesh, &scene, frame, decoded(texel), light);
+    }
+}
+
+#[test]
+fn tangents_run_on_smoothly_across_a_smooth_spheres_edges() {
+    let dir = Scratch::new();
+    dir.png("tilt.png", 4, 4, |_, _| [191, 128, 238]);
+    let text = r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+width = 8
+height = 8
+
+[materials.bumpy]
+type = "diffuse"
+albedo = [1.0, 1.0, 1.0]
+normal_texture = "tilt.png"
+
+[[objects]]
+shape = "sphere"
+segments = 16
+material = "bumpy"
+"#;
+    let scene = RenderScene::from_file(&dir.write("sphere.toml", text)).unwrap();
+    // Every edge two triangles share with the same texture coordinates at both ends (off
+    // the seam): the tangent at its midpoint, from either side.
+    let key = |p: Vec3, uv: glam::Vec2| [p.x, p.y, p.z, uv.x, uv.y].map(|c| (c + 0.0).to_bits());
+    let mut edges: std::collections::HashMap<_, Vec<(u32, [usize; 2])>> = Default::default();
+    for prim in 0..scene.mesh.len() as u32 {
+        let tri = scene.triangle(prim);
+        let uv = scene.uvs[tri.shade];
+        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+            let (a, b) = (key(tri.v[i], uv[i]), key(tri.v[j], uv[j]));
+            let ends = if a < b { (a, b) } else { (b, a) };
+            edges.entry(ends).or_default().push((prim, [i, j]));
+        }
+    }
+    let at_midpoint = |prim: u32, [i, j]: [usize; 2]| {
+        let mut w = [0.0; 3];
+        (w[i], w[j]) = (0.5, 0.5);
+        let (t, _) = scene
+            .tangent(&scene.triangle(prim), w[0], w[1], w[2])
+            .unwrap();
+        t.normalize()
+    };
+    // Each face's own tangent, u's direction across it (what every corner had before
+    // corners were welded).
+    let own = |prim: u32| {
+        let (v, uv) = (scene.triangle(prim).v, scene.uvs[prim as usize]);
+        let (e1, e2, d1, d2) = (v[1] - v[0], v[2] - v[0], uv[1] - uv[0], uv[2] - uv[0]);
+        (e1 * d2.y - e2 * d1.y).normalize()
+    };
+    let (mut shared, mut worst, mut worst_own) = (0, 1.0f32, 1.0f32);
+    for sides in edges.values().filter(|s| s.len() == 2) {
+        let (a, b) = (
+            at_midpoint(sides[0].0, sides[0].1),
+            at_midpoint(sides[1].0, sides[1].1),
+        );
+        worst = worst.min(a.dot(b));
+        worst_own = worst_own.min(own(sides[0].0).dot(own(sides[1].0)));
+        shared += 1;
+    }
+    println!(
+        "{shared} shared edges, least cos between sides {worst} (each face's own: {worst_own})"
+    );
+    assert!(shared > 250, "{shared}");
+    assert!(worst > 0.99999, "{worst}");
+    // The test can fail: unwelded, the faces' tangents turn across the edges.
+    assert!(worst_own < 0.99, "{worst_own}");
+}
+
 #[test]
 fn a_constant_map_tilts_the_shading_along_the_texture_frame() {
     let dir = Scratch::new();
@@ -100,24 +264,7 @@ fn a_constant_map_tilts_the_shading_along_the_texture_frame() {
         ("turned.obj", -Vec3::Z, -Vec3::X),
     ] {
         let scene = lit_quad(&dir, mesh, "tilt.png", light);
-        let fx = EffectSet::of(&scene);
-        assert!(fx.normal_maps && fx.shading_normals, "{mesh}: {fx}");
-        let n = (t * c.x + b * c.y + Vec3::Y * c.z).normalize();
-        let want = 2.0 * FRAC_1_PI * n.dot(light);
-        for (device, name) in [(&Device::cpu(), "cpu"), (gpu_device(), "gpu")] {
-            let px = render(&scene, device, &RenderOptions::default())
-                .unwrap()
-                .image
-                .pixels;
-            let worst = (px.iter())
-                .map(|p| ((p.x - want) / want).abs())
-                .fold(0.0, f32::max);
-            println!(
-                "{mesh} ({name}): want {want:.5}, got {:.5}, worst {worst:.1e}",
-                px[0].x
-            );
-            assert!(worst < 1e-4, "{mesh} ({name}): {} vs {want}", px[0].x);
-        }
+        assert_lit_in_frame(mesh, &scene, [t, b], c, light);
     }
     // The test can fail: the two frames tilt the normal different ways, and a flat map
     // (128, 128, 255) leaves it almost upright.
@@ -225,8 +372,13 @@ type = "point"
 position = [1.0, 2.0, 1.0]
 intensity = 3.0
 "#;
-    for mesh in ["flat.obj", "smooth.obj"] {
-        let t = text.replace("MESH", mesh);
+    // The sphere's tangents differ at every vertex: a kernel reading another triangle's
+    // corners would show.
+    for mesh in ["flat.obj", "smooth.obj", "sphere"] {
+        let t = match mesh {
+            "sphere" => text.replace("mesh = \"MESH\"", "shape = \"sphere\""),
+            _ => text.replace("MESH", mesh),
+        };
         let placed = RenderScene::from_file(&dir.write("copies.toml", t)).unwrap();
         assert!(placed.placements.is_some());
         let flat = placed.clone().flattened().unwrap();
@@ -245,9 +397,9 @@ intensity = 3.0
             .pixels;
         let lit = a.iter().filter(|c| c.max_element() > 0.02).count();
         assert!(lit > 300, "{mesh}: {lit} pixels lit");
-        // The flattened scene's tangents are computed in world space, the placed scene's
-        // moved by the copy's map; the mirror turns the winding, and the interpolated
-        // normal's side against it decides the handedness.
+        // The flattened scene's tangents are moved by the copy's map and packed again, the
+        // placed scene's moved as it shades; the mirror turns the winding, and the
+        // interpolated normal's side against it decides the handedness.
         assert_alike(&format!("{mesh}, placed vs flattened"), &a, &b);
         assert_alike(&format!("{mesh}, CPU vs GPU"), &a, &g);
     }

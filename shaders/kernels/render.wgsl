@@ -14,6 +14,7 @@ override ENVIRONMENT: bool = true;
 override SPOT_LIGHTS: bool = true;
 override NORMAL_MAPS: bool = true;
 override MICROFACET: bool = true;
+override TEXTURE_TRANSFORMS: bool = true;
 override WORKGROUP_SIZE: u32 = 64u;
 // AOVs (render::aov): sample 0 writes the first hit's depth, normal and albedo after the
 // accumulator; false compiles that code out.
@@ -76,18 +77,22 @@ fn placement_of(prim: u32) -> u32 {
     return lo;
 }
 
-// The placement of the last placed_shade, and its object-space vertices' magnitudes.
+// The placement of the last placed_shade, its object-space vertices' magnitudes, and its
+// shading triangle's number.
 var<private> placed: u32;
 var<private> placed_vmax: vec3<f32>;
+var<private> placed_index: u32;
 
 // RenderScene::triangle: triangle number prim in world space, with its shading data.
 fn placed_shade(prim: u32) -> Shade {
     if !INSTANCES {
+        placed_index = prim;
         return load_shade(prim);
     }
     placed = placement_of(prim);
     let ids = placement_word(placed, 6u);
-    var s = load_shade(ids.y + prim - ids.x);
+    placed_index = ids.y + prim - ids.x;
+    var s = load_shade(placed_index);
     placed_vmax = max(max(abs(s.v0), abs(s.v1)), abs(s.v2));
     let w0 = bitcast<vec4<f32>>(placement_word(placed, 0u));
     let w1 = bitcast<vec4<f32>>(placement_word(placed, 1u));
@@ -230,7 +235,7 @@ struct Params {
     env_texels: u32,
     env_cdf: u32,
     has_env: u32,
-    pad1: u32,
+    tangent_base: u32,
     pad2: u32,
 }
 
@@ -367,9 +372,22 @@ fn texture_taps(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> Taps {
     return Taps(vec4<u32>(offset) + vec4<u32>(at), vec2<f32>(fx, fy));
 }
 
-// The four texels around uv blended bilinearly: colour in .xyz, alpha in .w.
+// texture::texture_uv: where the texture from `offset` is read at interpolated uv — moved
+// by the 2 × 3 map in the two texels before its own (TEXTURE_TRANSFORMS; the upload
+// writes the identity there for a texture without one, which moves nothing).
+fn texture_uv(offset: u32, uv: vec2<f32>) -> vec2<f32> {
+    if !TEXTURE_TRANSFORMS {
+        return uv;
+    }
+    let a = texels[offset - 2u];
+    let b = texels[offset - 1u];
+    return vec2<f32>(a.x * uv.x + a.y * uv.y + a.z, b.x * uv.x + b.y * uv.y + b.z);
+}
+
+// The four texels around uv (moved: texture_uv) blended bilinearly: colour in .xyz, alpha
+// in .w.
 fn bilinear(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec4<f32> {
-    let t = texture_taps(offset, width, height, uv);
+    let t = texture_taps(offset, width, height, texture_uv(offset, uv));
     let a = texels[t.i.x];
     let b = texels[t.i.y];
     let c = texels[t.i.z];
@@ -435,6 +453,20 @@ fn unpack_tangent(w: u32) -> vec3<f32> {
     return vec3<f32>(x, y, z);
 }
 
+// tangents::interpolated: the last placed_shade's corner tangents (corner 0's in the
+// shade, 1 and 2 from params.tangent_base) at weights (w, u, v), not normalised, in .xyz;
+// its handedness (the corners' majority) in .w as 1 (flipped) or 0. Call only where the
+// shade has a tangent (then so do its other corners).
+fn interpolated_tangent(s: Shade, w: f32, u: f32, v: f32) -> vec4<f32> {
+    let pair = shade_word(params.tangent_base + placed_index / 2u);
+    let others = select(pair.xy, pair.zw, (placed_index & 1u) != 0u);
+    let t = unpack_tangent(s.tangent) * w + unpack_tangent(others.x) * u
+        + unpack_tangent(others.y) * v;
+    let flips = u32((s.tangent & TANGENT_FLIPPED) != 0u) + u32((others.x & TANGENT_FLIPPED) != 0u)
+        + u32((others.y & TANGENT_FLIPPED) != 0u);
+    return vec4<f32>(t, select(0.0, 1.0, flips >= 2u));
+}
+
 // CpuRenderer::mapped_normal: the normal map's normal (not normalised) in .xyz of `m` and
 // the unit normal of the frame it tilts in `front`, for the shading normal sn (zero: none)
 // and the last placed_shade's tangent (RenderScene::tangent: moved by the placement; its
@@ -446,8 +478,9 @@ fn mapped_normal(s: Shade, mat: Material, w: f32, u: f32, v: f32, sn: vec3<f32>)
     if !NORMAL_MAPS || (mat.flags & MAT_NORMAL_MAP) == 0u || (s.tangent & TANGENT_PRESENT) == 0u {
         return false;
     }
-    var t = unpack_tangent(s.tangent);
-    var flipped = (s.tangent & TANGENT_FLIPPED) != 0u;
+    let tangent = interpolated_tangent(s, w, u, v);
+    var t = tangent.xyz;
+    var flipped = tangent.w != 0.0;
     if INSTANCES {
         let w0 = bitcast<vec4<f32>>(placement_word(placed, 0u));
         let w1 = bitcast<vec4<f32>>(placement_word(placed, 1u));

@@ -17,7 +17,7 @@ use super::{
     classify, pack_corners, placeholder, Instance, InstanceSet, Mesh, TriStatus, BYTES_PER_TRIANGLE,
 };
 use crate::error::{Error, Result};
-use crate::geometry::{Affine, Triangle, NO_NORMAL};
+use crate::geometry::{cross, dot, pack_tangent, Affine, Triangle, NO_NORMAL, NO_TANGENT};
 
 /// Where a texture's encoded image is: bytes from a buffer or data URI, or a file.
 #[derive(Clone, Debug)]
@@ -28,6 +28,19 @@ pub enum GltfImage {
     File(PathBuf),
 }
 
+/// A texture a glTF material reads.
+#[derive(Clone, Debug)]
+pub struct GltfTexture {
+    /// The index of its image in the file.
+    pub image: usize,
+    /// Where the image's bytes are.
+    pub bytes: GltfImage,
+    /// Where it reads the coordinates lancer interpolates for the material
+    /// ([`GltfScene::uvs`], v up): rows of the 2 × 3 map that moves them, from the
+    /// textures' `KHR_texture_transform`s; None where it reads them as they are.
+    pub uv_transform: Option<[[f32; 3]; 2]>,
+}
+
 /// A glTF material's parameters that lancer maps onto its own materials.
 #[derive(Clone, Debug)]
 pub struct GltfMaterial {
@@ -35,23 +48,22 @@ pub struct GltfMaterial {
     pub name: String,
     /// Base colour factor, linear RGBA.
     pub base_color: [f32; 4],
-    /// Base colour texture: (index of the image in the file, where its bytes are).
-    pub base_color_texture: Option<(usize, GltfImage)>,
+    /// Base colour texture (sRGB).
+    pub base_color_texture: Option<GltfTexture>,
     /// Emissive factor × KHR_materials_emissive_strength, linear RGB.
     pub emissive: [f32; 3],
-    /// Emissive texture (sRGB), which multiplies the factor: (image index, its bytes).
-    pub emissive_texture: Option<(usize, GltfImage)>,
+    /// Emissive texture (sRGB), which multiplies the factor.
+    pub emissive_texture: Option<GltfTexture>,
     /// Metallic-roughness texture (linear; green: roughness, blue: metalness), which
-    /// multiplies the factors: (image index, its bytes).
-    pub metallic_roughness_texture: Option<(usize, GltfImage)>,
-    /// Normal map (linear, tangent space) and its scale of red and green: (image index,
-    /// its bytes, scale).
-    pub normal_texture: Option<(usize, GltfImage, f32)>,
-    /// Occlusion texture (linear, red channel) and its strength: (image index, its bytes,
-    /// strength).
-    pub occlusion_texture: Option<(usize, GltfImage, f32)>,
-    /// The textures of this material that read other coordinates than the one lancer
-    /// interpolates (the first of base colour, emissive, metallic-roughness), by name.
+    /// multiplies the factors.
+    pub metallic_roughness_texture: Option<GltfTexture>,
+    /// Normal map (linear, tangent space) and its scale of red and green.
+    pub normal_texture: Option<(GltfTexture, f32)>,
+    /// Occlusion texture (linear, red channel) and its strength.
+    pub occlusion_texture: Option<(GltfTexture, f32)>,
+    /// The textures of this material that read another set of texture coordinates than
+    /// the one lancer interpolates (the first of base colour, emissive,
+    /// metallic-roughness's), by name: read at the interpolated set's.
     pub other_coordinates: Vec<&'static str>,
     /// KHR_materials_transmission factor (0 when absent).
     pub transmission: f32,
@@ -83,6 +95,11 @@ pub struct GltfScene {
     /// Each triangle's corner normals (`NORMAL`, moved as the positions are), packed
     /// ([`pack_corners`]); empty where no primitive has normals.
     pub normals: Vec<[u32; 3]>,
+    /// Each triangle's corner tangents (`TANGENT`, of a primitive that also has `NORMAL`;
+    /// moved as the positions are), packed ([`pack_tangent`]) with the handedness relative
+    /// to the triangle's winding; [`NO_TANGENT`] where its primitive has none, empty where
+    /// none has any.
+    pub tangents: Vec<[u32; 3]>,
     /// Per triangle: index into `materials`, or None (a primitive with no material).
     pub material_ids: Vec<Option<usize>>,
     /// The file's materials, by glTF material index.
@@ -206,11 +223,42 @@ impl UvTransform {
         let Some(t) = t else {
             return UvTransform::IDENTITY;
         };
-        let ([ox, oy], [sx, sy], r) = (t.offset(), t.scale(), t.rotation());
+        UvTransform::from_parts(t.offset(), t.scale(), t.rotation())
+    }
+
+    /// The transform of `offset`, `scale` and `rotation` (radians).
+    fn from_parts([ox, oy]: [f32; 2], [sx, sy]: [f32; 2], r: f32) -> UvTransform {
         let (s, c) = r.sin_cos();
         UvTransform {
             rows: [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]],
         }
+    }
+
+    /// The map from coordinates moved by `base` to coordinates moved by `self`, both with
+    /// v up as lancer keeps them (v' = 1 − v): `flip ∘ self ∘ base⁻¹ ∘ flip`; None where
+    /// it is the identity, or `base` cannot be undone (it collapses the coordinates).
+    fn relative_to(&self, base: &UvTransform) -> Option<[[f32; 3]; 2]> {
+        if self == base {
+            return None;
+        }
+        let m = |t: &UvTransform| {
+            let [a, b] = t.rows.map(|r| r.map(f64::from));
+            glam::DMat3::from_cols_array_2d(&[
+                [a[0], b[0], 0.0],
+                [a[1], b[1], 0.0],
+                [a[2], b[2], 1.0],
+            ])
+        };
+        let flip =
+            glam::DMat3::from_cols_array_2d(&[[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 1.0, 1.0]]);
+        let base = m(base);
+        if base.determinant().abs() < 1e-12 {
+            return None;
+        }
+        let r = flip * m(self) * base.inverse() * flip;
+        let rows = [0, 1].map(|i| [r.x_axis[i], r.y_axis[i], r.z_axis[i]].map(|x| x as f32));
+        let finite = rows.iter().flatten().all(|x| x.is_finite());
+        (finite && rows != UvTransform::IDENTITY.rows).then_some(rows)
     }
 
     /// Gltf coordinates (v down) moved.
@@ -721,12 +769,19 @@ fn material(
             "colours and factors must be finite, colours non-negative".into(),
         ));
     }
-    let image_of = |texture: Option<::gltf::Texture>,
-                    sources: &mut Vec<PathBuf>|
-     -> Result<Option<(usize, GltfImage)>> {
-        let Some(texture) = texture else {
+    let used = texture_coordinates(m);
+    let (used_set, used_map) = used.unwrap_or((0, UvTransform::IDENTITY));
+    let mut other_coordinates: Vec<&'static str> = Vec::new();
+    let mut texture_of = |what: &'static str,
+                          texture: Option<(::gltf::Texture, (u32, UvTransform))>,
+                          sources: &mut Vec<PathBuf>|
+     -> Result<Option<GltfTexture>> {
+        let Some((texture, (set, map))) = texture else {
             return Ok(None);
         };
+        if set != used_set {
+            other_coordinates.push(what);
+        }
         let image = texture.source();
         let bytes = match image.source() {
             ::gltf::image::Source::View { view, .. } => GltfImage::Bytes(
@@ -745,42 +800,52 @@ fn material(
                 GltfImage::File(file)
             }
         };
-        Ok(Some((image.index(), bytes)))
+        Ok(Some(GltfTexture {
+            image: image.index(),
+            bytes,
+            uv_transform: (set == used_set)
+                .then(|| map.relative_to(&used_map))
+                .flatten(),
+        }))
     };
-    let base_color_texture = image_of(pbr.base_color_texture().map(|i| i.texture()), sources)?;
-    let emissive_texture = image_of(m.emissive_texture().map(|i| i.texture()), sources)?;
-    let metallic_roughness_texture = image_of(
-        pbr.metallic_roughness_texture().map(|i| i.texture()),
+
+    let base_color_texture = texture_of(
+        "base colour",
+        pbr.base_color_texture()
+            .map(|i| (i.texture(), coordinates_of(&i))),
         sources,
     )?;
+    let emissive_texture = texture_of(
+        "emissive",
+        m.emissive_texture()
+            .map(|i| (i.texture(), coordinates_of(&i))),
+        sources,
+    )?;
+    let metallic_roughness_texture = texture_of(
+        "metallic-roughness",
+        (pbr.metallic_roughness_texture()).map(|i| (i.texture(), coordinates_of(&i))),
+        sources,
+    )?;
+    // A normal or occlusion texture's KHR_texture_transform is read from its JSON (the
+    // gltf crate parses it for the others only).
     let normal = m.normal_texture();
-    let normal_texture = image_of(normal.as_ref().map(|n| n.texture()), sources)?
-        .map(|(i, image)| (i, image, normal.as_ref().map_or(1.0, |n| n.scale())));
+    let normal_coordinates = (normal.as_ref()).map(|n| {
+        (
+            n.texture(),
+            json_coordinates(n.tex_coord(), n.extension_value(TRANSFORM)),
+        )
+    });
+    let normal_texture = texture_of("normal", normal_coordinates, sources)?
+        .map(|t| (t, normal.as_ref().map_or(1.0, |n| n.scale())));
     let occlusion = m.occlusion_texture();
-    let occlusion_texture = image_of(occlusion.as_ref().map(|o| o.texture()), sources)?
-        .map(|(i, image)| (i, image, occlusion.as_ref().map_or(1.0, |o| o.strength())));
-    let named = [
-        ("base colour", pbr.base_color_texture()),
-        ("emissive", m.emissive_texture()),
-        ("metallic-roughness", pbr.metallic_roughness_texture()),
-    ];
-    let used = texture_coordinates(m);
-    let mut other_coordinates: Vec<&'static str> = (named.into_iter())
-        .filter_map(|(name, info)| info.map(|i| (name, coordinates_of(&i))))
-        .filter(|(_, c)| Some(*c) != used)
-        .map(|(name, _)| name)
-        .collect();
-    // A normal map's coordinates (lancer reads no KHR_texture_transform of its own).
-    if let Some(n) = &normal {
-        if used.unwrap_or((0, UvTransform::IDENTITY)) != (n.tex_coord(), UvTransform::IDENTITY) {
-            other_coordinates.push("normal");
-        }
-    }
-    if let Some(o) = &occlusion {
-        if used.unwrap_or((0, UvTransform::IDENTITY)) != (o.tex_coord(), UvTransform::IDENTITY) {
-            other_coordinates.push("occlusion");
-        }
-    }
+    let occlusion_coordinates = (occlusion.as_ref()).map(|o| {
+        (
+            o.texture(),
+            json_coordinates(o.tex_coord(), o.extension_value(TRANSFORM)),
+        )
+    });
+    let occlusion_texture = texture_of("occlusion", occlusion_coordinates, sources)?
+        .map(|t| (t, occlusion.as_ref().map_or(1.0, |o| o.strength())));
     Ok(GltfMaterial {
         name,
         base_color,
@@ -799,6 +864,38 @@ fn material(
         alpha_cutoff,
         alpha_blend,
     })
+}
+
+/// The name of the texture transform extension.
+const TRANSFORM: &str = "KHR_texture_transform";
+
+/// A normal or occlusion texture's coordinate set (`tex_coord`), moved by its
+/// KHR_texture_transform read from the extension's JSON `ext` (which may name another
+/// set); members that are missing or malformed take the extension's defaults.
+fn json_coordinates(tex_coord: u32, ext: Option<&serde_json::Value>) -> (u32, UvTransform) {
+    let Some(ext) = ext else {
+        return (tex_coord, UvTransform::IDENTITY);
+    };
+    let pair = |key: &str, default: [f32; 2]| {
+        let v = ext.get(key).and_then(|v| v.as_array());
+        let at = |i: usize| v.and_then(|v| v.get(i)).and_then(|x| x.as_f64());
+        match (at(0), at(1)) {
+            (Some(a), Some(b)) if v.is_some_and(|v| v.len() == 2) => [a as f32, b as f32],
+            _ => default,
+        }
+    };
+    let rotation = ext.get("rotation").and_then(|r| r.as_f64()).unwrap_or(0.0) as f32;
+    let set = (ext.get("texCoord").and_then(|t| t.as_u64()))
+        .and_then(|t| u32::try_from(t).ok())
+        .unwrap_or(tex_coord);
+    (
+        set,
+        UvTransform::from_parts(
+            pair("offset", [0.0, 0.0]),
+            pair("scale", [1.0, 1.0]),
+            rotation,
+        ),
+    )
 }
 
 /// A texture's coordinate set, moved by its KHR_texture_transform (which may name another
@@ -977,6 +1074,9 @@ struct Surface {
     uvs: Vec<Vec2>,
     /// Normals by vertex (empty where the primitive has none).
     normals: Vec<Vec3>,
+    /// Tangents by vertex, w the bitangent's sign (empty where the primitive has none, or
+    /// no normals: glTF then ignores them).
+    tangents: Vec<glam::Vec4>,
     material: Option<usize>,
     /// Indices left over after the last whole triangle (a short face).
     short: bool,
@@ -1047,6 +1147,18 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
         }
         None => Vec::new(),
     };
+    let tangents: Vec<glam::Vec4> = match p.get(&Semantic::Tangents) {
+        Some(a) if !normals.is_empty() => {
+            let n = check_accessor(path, &a, "TANGENT", Dimensions::Vec4, &[DataType::F32])?;
+            match n {
+                0 => Vec::new(),
+                _ => (reader.read_tangents())
+                    .map(|it| it.map(glam::Vec4::from).collect())
+                    .unwrap_or_default(),
+            }
+        }
+        _ => Vec::new(),
+    };
     let corners: Vec<[usize; 3]> = match mode {
         Mode::Triangles => indices
             .chunks_exact(3)
@@ -1066,9 +1178,34 @@ fn read_surface(path: &Path, p: &Primitive, buffers: &[Vec<u8>]) -> Result<Optio
         corners,
         uvs,
         normals,
+        tangents,
         material: p.material().index(),
         short: mode == Mode::Triangles && !indices.len().is_multiple_of(3),
     }))
+}
+
+/// The packed tangents of world-space triangle `t`'s corners `c` (vertex numbers): each
+/// vertex's tangent and bitangent (n × t, times w) moved by `linear`, the handedness read
+/// against `t`'s winding; [`NO_TANGENT`] three times where a corner has none or it is
+/// degenerate.
+fn corner_tangents(
+    t: &Triangle,
+    c: [usize; 3],
+    normals: &[Vec3],
+    tangents: &[glam::Vec4],
+    linear: &Mat3,
+) -> [u32; 3] {
+    let wn = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
+    let corner = |k: usize| {
+        let (n, tw) = (normals.get(k)?, tangents.get(k)?);
+        let tangent = linear.mul_vec3(tw.truncate());
+        let bitangent = linear.mul_vec3(cross(*n, tw.truncate()) * tw.w);
+        pack_tangent(tangent, dot(cross(wn, tangent), bitangent) < 0.0)
+    };
+    match c.map(corner) {
+        [Some(a), Some(b), Some(d)] => [a, b, d],
+        _ => [NO_TANGENT; 3],
+    }
 }
 
 /// Adds a surface's triangles, moved into world space by `world`, two corners swapped when
@@ -1079,6 +1216,7 @@ fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
         corners,
         uvs,
         normals,
+        tangents,
         material,
         short,
     } = s;
@@ -1089,6 +1227,12 @@ fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
     if with_normals {
         out.normals.resize(out.mesh.triangles.len(), [NO_NORMAL; 3]);
     }
+    let with_tangents = !tangents.is_empty() || !out.tangents.is_empty();
+    if with_tangents {
+        out.tangents
+            .resize(out.mesh.triangles.len(), [NO_TANGENT; 3]);
+    }
+    let linear = Mat3::from_mat4(*world);
     for &c in corners {
         let c = if flip { [c[0], c[2], c[1]] } else { c };
         let (t, s, uv) = match c.map(|k| positions.get(k)) {
@@ -1107,9 +1251,62 @@ fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
             let n = c.map(|k| normals.get(k).map_or(Vec3::ZERO, |&n| normal_map * n));
             out.normals.push(pack_corners(n));
         }
+        if with_tangents {
+            out.tangents
+                .push(corner_tangents(&t, c, normals, tangents, &linear));
+        }
         out.mesh.triangles.push(t);
         out.mesh.status.push(s);
         out.uvs.push(uv);
         out.material_ids.push(*material);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Option<[[f32; 3]; 2]>, b: [[f32; 3]; 2]) -> bool {
+        a.is_some_and(|a| {
+            (a.iter().flatten())
+                .zip(b.iter().flatten())
+                .all(|(x, y)| (x - y).abs() < 1e-6)
+        })
+    }
+
+    /// A texture's transform relative to the interpolated set's, in lancer's coordinates
+    /// (v up): an offset along glTF's v (down) moves lancer's v the other way; a quarter
+    /// turn maps (u, v) to (1 − v, 1 + u); against a moved base, the base is undone first.
+    #[test]
+    fn relative_transforms_are_in_lancers_coordinates() {
+        let id = UvTransform::IDENTITY;
+        let shifted = UvTransform::from_parts([0.5, 0.25], [1.0, 1.0], 0.0);
+        assert!(close(
+            shifted.relative_to(&id),
+            [[1.0, 0.0, 0.5], [0.0, 1.0, -0.25]]
+        ));
+        let turned = UvTransform::from_parts([0.0, 0.0], [1.0, 1.0], std::f32::consts::FRAC_PI_2);
+        assert!(close(
+            turned.relative_to(&id),
+            [[0.0, -1.0, 1.0], [1.0, 0.0, 1.0]]
+        ));
+        assert!(close(
+            id.relative_to(&shifted),
+            [[1.0, 0.0, -0.5], [0.0, 1.0, 0.25]]
+        ));
+        assert_eq!(shifted.relative_to(&shifted), None);
+        let collapsed = UvTransform::from_parts([0.0, 0.0], [0.0, 1.0], 0.0);
+        assert_eq!(shifted.relative_to(&collapsed), None);
+    }
+
+    /// A normal or occlusion texture's transform is read from its JSON, defaults filling
+    /// what is missing or malformed.
+    #[test]
+    fn json_transforms_take_the_extensions_defaults() {
+        let ext = serde_json::json!({ "offset": [0.5, 0.25], "scale": "big", "texCoord": 1 });
+        let (set, t) = json_coordinates(0, Some(&ext));
+        assert_eq!(set, 1);
+        assert_eq!(t, UvTransform::from_parts([0.5, 0.25], [1.0, 1.0], 0.0));
+        assert_eq!(json_coordinates(2, None), (2, UvTransform::IDENTITY));
     }
 }

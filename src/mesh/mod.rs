@@ -18,7 +18,7 @@ mod ply_layout;
 pub use format::{FileKind, KNOWN_EXTENSIONS};
 pub use gltf::{
     load_gltf, load_gltf_instances, load_gltf_placed, read_gltf, GltfCamera, GltfImage, GltfLight,
-    GltfLightKind, GltfLoaded, GltfMaterial, GltfPlaced, GltfScene,
+    GltfLightKind, GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, GltfTexture,
 };
 pub use instanced::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};
 pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};

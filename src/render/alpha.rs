@@ -6,6 +6,7 @@
 //! drawn per hit: a hash of the triangle and the hit's barycentric coordinates, uniform in
 //! [0, 1), the same bits on both devices.
 
+use super::effects::EffectSet;
 use super::sampling::pcg;
 use super::scene::RenderScene;
 use super::texture::sample_alpha;
@@ -14,12 +15,17 @@ use crate::accel::HitMask;
 /// The alpha masks of a scene's materials, as the traversal asks them.
 pub struct AlphaMask<'a> {
     scene: &'a RenderScene,
+    moved: bool,
 }
 
 impl<'a> AlphaMask<'a> {
-    /// The masks of `scene`'s materials.
-    pub fn new(scene: &'a RenderScene) -> Self {
-        AlphaMask { scene }
+    /// The masks of `scene`'s materials as a render simulating `fx` asks them: their
+    /// textures read at moved coordinates where it simulates `texture-transforms`.
+    pub fn new(scene: &'a RenderScene, fx: EffectSet) -> Self {
+        AlphaMask {
+            scene,
+            moved: fx.texture_transforms,
+        }
     }
 }
 
@@ -33,7 +39,7 @@ impl HitMask for AlphaMask<'_> {
         }
         let mut alpha = mat.alpha;
         if let Some(t) = mat.texture {
-            alpha *= sample_alpha(&scene.textures[t], scene.uv_at(shade, u, v));
+            alpha *= sample_alpha(&scene.textures[t], scene.uv_at(shade, u, v), self.moved);
         }
         match mat.alpha_cutoff {
             Some(cutoff) => alpha >= cutoff,

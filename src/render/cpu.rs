@@ -75,8 +75,10 @@ pub struct CpuRenderer<'a> {
     emit_total: f32,
     /// The epsilon of [`RayOffset::Fixed`]: FIXED_OFFSET of the scene's diagonal.
     fixed_offset: f32,
-    /// The materials' alpha masks, asked in the traversal where the effect is on.
-    alpha: AlphaMask<'a>,
+    /// The materials' alpha masks, asked in the traversal where the effect is on: reading
+    /// textures where they are ([0]) and where they are moved to ([1], the
+    /// `texture-transforms` effect).
+    alpha: [AlphaMask<'a>; 2],
 }
 
 impl<'a> CpuRenderer<'a> {
@@ -94,13 +96,20 @@ impl<'a> CpuRenderer<'a> {
             } else {
                 0.0
             },
-            alpha: AlphaMask::new(scene),
+            alpha: [false, true].map(|moved| {
+                let fx = EffectSet {
+                    texture_transforms: moved,
+                    ..EffectSet::ALL
+                };
+                AlphaMask::new(scene, fx)
+            }),
         }
     }
 
     /// The alpha masks where the effect is on.
     fn mask(&self, fx: EffectSet) -> Mask<'_> {
-        fx.alpha_mask.then_some(&self.alpha as &dyn HitMask)
+        let alpha = &self.alpha[usize::from(fx.texture_transforms)];
+        fx.alpha_mask.then_some(alpha as &dyn HitMask)
     }
 
     fn closest(&self, fx: EffectSet, r: &Ray) -> Hit {
@@ -268,7 +277,11 @@ impl<'a> CpuRenderer<'a> {
     fn texture_at(&self, fx: EffectSet, t: Option<usize>, shade: usize, hit: &Hit) -> Option<Vec3> {
         let t = t.filter(|_| fx.textures)?;
         let uv = self.scene.uv_at(shade, hit.u, hit.v);
-        Some(sample_texture(&self.scene.textures[t], uv))
+        Some(sample_texture(
+            &self.scene.textures[t],
+            uv,
+            fx.texture_transforms,
+        ))
     }
 
     /// The reflectance at a hit: the material's albedo, times its texture there (when
@@ -347,7 +360,7 @@ impl<'a> CpuRenderer<'a> {
         }
         let mat = &self.scene.materials[self.scene.material_of[tri.shade] as usize];
         let map = mat.normal_texture?;
-        let (t, flipped) = self.scene.tangent(tri)?;
+        let (t, flipped) = self.scene.tangent(tri, 1.0 - hit.u - hit.v, hit.u, hit.v)?;
         // The frame: the normal (interpolated, else the winding's), the tangent made
         // perpendicular to it, and their cross product turned by the handedness, which is
         // the winding's: turned again where the interpolated normal faces the other way
@@ -365,7 +378,8 @@ impl<'a> CpuRenderer<'a> {
         let t = normalize(t);
         let b = cross(n, t) * if flipped { -1.0 } else { 1.0 };
         let uv = self.scene.uv_at(tri.shade, hit.u, hit.v);
-        let c = sample_texture(&self.scene.textures[map], uv) * 2.0 - Vec3::ONE;
+        let c =
+            sample_texture(&self.scene.textures[map], uv, fx.texture_transforms) * 2.0 - Vec3::ONE;
         let m = t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
         Some((m, n))
     }

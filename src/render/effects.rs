@@ -37,6 +37,10 @@ pub struct EffectSet {
     /// below a cutoff drawn per hit) are skipped in the traversal (every ray: camera,
     /// bounce, shadow and AO rays alike).
     pub alpha_mask: bool,
+    /// Textures read at moved coordinates (glTF `KHR_texture_transform` where a texture's
+    /// differs from its material's interpolated set's): without it every texture is read
+    /// at the interpolated coordinates.
+    pub texture_transforms: bool,
 }
 
 impl EffectSet {
@@ -55,6 +59,7 @@ impl EffectSet {
         normal_maps: true,
         microfacet: true,
         alpha_mask: true,
+        texture_transforms: true,
     };
 
     /// What `scene` needs, and nothing more.
@@ -73,7 +78,7 @@ impl EffectSet {
             scene
                 .tangents
                 .get(i as usize)
-                .is_some_and(|&t| t != NO_TANGENT)
+                .is_some_and(|t| t[0] != NO_TANGENT)
         });
         EffectSet {
             shadows: !ao && (!scene.lights.is_empty() || !scene.emitters.is_empty() || environment),
@@ -98,11 +103,15 @@ impl EffectSet {
             alpha_mask: used
                 .iter()
                 .any(|m| m.alpha_cutoff.is_some() || m.alpha_blend),
+            // Whatever reads the texture (shading, normal maps, alpha masks) reads it there.
+            texture_transforms: used
+                .iter()
+                .any(|m| (m.textures()).any(|t| scene.textures[t].uv_transform.is_some())),
         }
     }
 
     /// (name, on) for printing and for the WGSL override constants.
-    pub fn flags(&self) -> [(&'static str, bool); 13] {
+    pub fn flags(&self) -> [(&'static str, bool); 14] {
         [
             ("SHADOWS", self.shadows),
             ("SOFT_SHADOWS", self.soft_shadows),
@@ -117,6 +126,7 @@ impl EffectSet {
             ("NORMAL_MAPS", self.normal_maps),
             ("MICROFACET", self.microfacet),
             ("ALPHA_MASK", self.alpha_mask),
+            ("TEXTURE_TRANSFORMS", self.texture_transforms),
         ]
     }
 }
@@ -126,7 +136,7 @@ impl EffectSet {
     /// it) and the set without it: what `bench render` times to price each effect.
     pub fn each_without(&self) -> Vec<(String, EffectSet)> {
         type Field = fn(&mut EffectSet) -> &mut bool;
-        let fields: [(&str, Field); 13] = [
+        let fields: [(&str, Field); 14] = [
             ("shadows", |f| &mut f.shadows),
             ("soft-shadows", |f| &mut f.soft_shadows),
             ("mirror", |f| &mut f.mirror),
@@ -140,6 +150,7 @@ impl EffectSet {
             ("normal-maps", |f| &mut f.normal_maps),
             ("microfacet", |f| &mut f.microfacet),
             ("alpha-mask", |f| &mut f.alpha_mask),
+            ("texture-transforms", |f| &mut f.texture_transforms),
         ];
         let mut out = Vec::new();
         for (name, field) in fields {

@@ -51,7 +51,8 @@ pub struct GpuShade {
     pub uv2: [f32; 2],
     /// Vertex 2's shading normal, packed.
     pub n2: u32,
-    /// The triangle's tangent, packed ([`RenderScene::tangents`]; [`NO_TANGENT`]: none).
+    /// Vertex 0's tangent, packed ([`RenderScene::tangents`]; [`NO_TANGENT`]: none); the
+    /// others' follow the placements ([`RenderParams::tangent_base`]).
     pub tangent: u32,
 }
 
@@ -253,8 +254,10 @@ pub struct RenderParams {
     /// 1: the scene has an environment (the ENVIRONMENT effect may be compiled in for a
     /// scene without: then it draws no random numbers, as on the CPU).
     pub has_env: u32,
-    /// Padding (zero).
-    pub _pad1: u32,
+    /// Where the triangles' other corner tangents start, in shading words: two per triangle
+    /// (corners 1 and 2; [`GpuShade::tangent`] is corner 0's), two triangles a word; read
+    /// only where a material has a normal map.
+    pub tangent_base: u32,
     /// Padding (zero).
     pub _pad2: u32,
 }
@@ -309,16 +312,21 @@ impl<'a> GpuRenderer<'a> {
                     uv1: uv[1].into(),
                     uv2: uv[2].into(),
                     n2: n[2],
-                    tangent: scene.tangents.get(i).copied().unwrap_or(NO_TANGENT),
+                    tangent: scene.tangents.get(i).map_or(NO_TANGENT, |t| t[0]),
                 }
             })
             .collect();
         let placement_base = shades.len() * 5;
         let placements = placements_of(scene);
         shades.extend_from_slice(bytemuck::cast_slice(&placements));
+        let tangent_base = shades.len() * 5;
+        shades.extend_from_slice(&other_tangents(scene));
         let mut texels: Vec<[f32; 4]> = Vec::new();
         let mut tex_at = Vec::new();
         for t in &scene.textures {
+            // Its coordinates' map first (WGSL texture_uv), the identity where it has none.
+            let [a, b] = t.uv_transform.unwrap_or([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+            texels.extend([a, b].map(|r| [r[0], r[1], r[2], 0.0]));
             tex_at.push(texels.len() as u32);
             // Alpha in w (1 where the image has none): what an alpha mask reads.
             let whole = t.alpha.len() == t.texels.len();
@@ -570,6 +578,8 @@ impl<'a> GpuRenderer<'a> {
             env_texels,
             env_cdf,
             has_env: env.is_some() as u32,
+            // Read only with tangents, which the upload's size check bounds.
+            tangent_base: tangent_base as u32,
             ..RenderParams::default()
         };
         Ok(GpuRenderer {
@@ -718,6 +728,15 @@ impl<'a> GpuRenderer<'a> {
         let cut = px.iter().map(|p| p[3] as u32).collect();
         Ok((sums, cut))
     }
+}
+
+/// The tangents of the triangles' corners 1 and 2 as the kernel reads them, two triangles
+/// a word, padded to whole [`GpuShade`]s: empty without tangents.
+fn other_tangents(scene: &RenderScene) -> Vec<GpuShade> {
+    let mut words: Vec<u32> = (scene.tangents.iter()).flat_map(|t| [t[1], t[2]]).collect();
+    let per_shade = std::mem::size_of::<GpuShade>() / 4;
+    words.resize(words.len().next_multiple_of(per_shade), NO_TANGENT);
+    bytemuck::pod_collect_to_vec(&words)
 }
 
 /// The scene's placements as the kernel reads them, padded to a whole number of

@@ -13,9 +13,10 @@ use super::file::{
 };
 use super::placements::{Motion, PlacedTriangle, Placements};
 use super::shapes;
+use super::tangents::{self, tangents_of};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{pack_tangent, unpack_tangent, unpack_unit, Aabb, Affine, Triangle};
+use crate::geometry::{unpack_unit, Aabb, Affine, Triangle};
 use crate::geometry::{NO_NORMAL, NO_TANGENT};
 use crate::mesh::{
     check_traceable, classify, warn_exclusions, Instance, InstanceSet, Mesh, ObjScene, TriStatus,
@@ -113,6 +114,19 @@ impl Material {
             || self.emission_texture.is_some()
             || self.occlusion_texture.is_some()
     }
+
+    /// Every texture it reads (indices into [`RenderScene::textures`]), the normal map too.
+    pub fn textures(&self) -> impl Iterator<Item = usize> {
+        [
+            self.texture,
+            self.metallic_roughness_texture,
+            self.emission_texture,
+            self.normal_texture,
+            self.occlusion_texture,
+        ]
+        .into_iter()
+        .flatten()
+    }
 }
 
 /// A texture in linear RGB, row 0 at the top (v = 1).
@@ -127,6 +141,11 @@ pub struct Texture {
     /// Their alpha (linear, in [0, 1]), or empty where the image has no alpha channel
     /// (opaque everywhere; so is an alpha of another length than `texels`).
     pub alpha: Vec<f32>,
+    /// Where it is read: the interpolated texture coordinates moved by this 2 × 3 map
+    /// (rows; a glTF texture's `KHR_texture_transform` relative to its material's
+    /// interpolated set) where the `texture-transforms` effect is simulated; None: where
+    /// they are.
+    pub uv_transform: Option<[[f32; 3]; 2]>,
 }
 
 /// A point or directional light (area lights are the emissive triangles).
@@ -244,11 +263,13 @@ pub struct RenderScene {
     /// space where it is placed), packed ([`pack_unit`](crate::geometry::pack_unit));
     /// [`NO_NORMAL`] on a triangle that shades flat. Empty where no triangle has normals.
     pub normals: Vec<[u32; 3]>,
-    /// The tangent of each triangle of [`Self::mesh`] whose material has a normal map (in
-    /// its object's space where it is placed), packed with its handedness
-    /// ([`pack_tangent`](crate::geometry::pack_tangent)); [`NO_TANGENT`] elsewhere. Empty
-    /// where no material has a normal map.
-    pub tangents: Vec<u32>,
+    /// The tangents at the vertices of each triangle of [`Self::mesh`] whose material has a
+    /// normal map (in its object's space where it is placed): a file's own (glTF
+    /// `TANGENT`), else generated MikkTSpace-style (welded corners averaged); each packed
+    /// with its handedness relative to the triangle's winding
+    /// ([`pack_tangent`](crate::geometry::pack_tangent)). [`NO_TANGENT`] three times
+    /// elsewhere; empty where no material has a normal map.
+    pub tangents: Vec<[u32; 3]>,
     /// Material index of each triangle of [`Self::mesh`].
     pub material_of: Vec<u32>,
     /// Distinct materials, indexed by `material_of`.
@@ -333,6 +354,7 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
             .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
             .collect(),
         alpha,
+        uv_transform: None,
     })
 }
 
@@ -345,6 +367,9 @@ pub(super) struct Builder {
     /// Packed corner normals, by triangle from the first object that has any (empty
     /// before: [`Builder::push`] fills the triangles before it flat).
     normals: Vec<[u32; 3]>,
+    /// A file's own packed corner tangents ([`Builder::give_tangents`]), by triangle from
+    /// the first that has any ([`NO_TANGENT`] before, and where none is given).
+    tangents: Vec<[u32; 3]>,
     material_of: Vec<u32>,
     materials: Vec<Material>,
     textures: Vec<Texture>,
@@ -489,6 +514,17 @@ impl Builder {
         self.status.push(status);
         self.uvs.push(uv);
         self.material_of.push(material);
+    }
+
+    /// Gives the last triangle pushed the file's corner tangents `t` (packed, handedness
+    /// relative to its winding as pushed).
+    pub(super) fn give_tangents(&mut self, t: [u32; 3]) {
+        if t[0] == NO_TANGENT && self.tangents.is_empty() {
+            return;
+        }
+        self.tangents
+            .resize(self.triangles.len() - 1, [NO_TANGENT; 3]);
+        self.tangents.push(t);
     }
 }
 
@@ -1185,7 +1221,14 @@ impl Builder {
             ),
             false => None,
         };
-        let tangents = tangents_of(&mesh, &self.uvs, &self.material_of, &self.materials);
+        let tangents = tangents_of(
+            &mesh,
+            &self.uvs,
+            &normals,
+            &self.tangents,
+            &self.material_of,
+            &self.materials,
+        );
         let mut scene = RenderScene {
             camera,
             settings: settings.clone(),
@@ -1343,17 +1386,19 @@ impl RenderScene {
         }
     }
 
-    /// The tangent of triangle `t` in world space (moved by its instance's map), not
-    /// normalised, and whether its bitangent is −(n × t) for n the normal its vertices
-    /// wind around; None where it has none.
-    pub fn tangent(&self, t: &PlacedTriangle) -> Option<(Vec3, bool)> {
-        let (v, flipped) = unpack_tangent(*self.tangents.get(t.shade)?)?;
+    /// The tangent of triangle `t` at the point of barycentric weights (w, u, v), in world
+    /// space (moved by its instance's map), not normalised: its corners' interpolated; and
+    /// whether its bitangent is −(n × t) for n the normal its vertices wind around (the
+    /// majority of its corners'); None where it has none. WGSL `mapped_normal` reads the
+    /// same.
+    pub fn tangent(&self, t: &PlacedTriangle, w: f32, u: f32, v: f32) -> Option<(Vec3, bool)> {
+        let (dir, flipped) = tangents::interpolated(self.tangents.get(t.shade)?, w, u, v)?;
         match (&self.placements, t.instance) {
             // Its handedness is the winding's, which a mirroring map turns with it.
             (Some(pl), Some(i)) => {
-                Some((pl.set().instances[i as usize].to_world.vector(v), flipped))
+                Some((pl.set().instances[i as usize].to_world.vector(dir), flipped))
             }
-            _ => Some((v, flipped)),
+            _ => Some((dir, flipped)),
         }
     }
 
@@ -1420,7 +1465,7 @@ impl RenderScene {
         mesh.short_faces = self.mesh.short_faces;
         let (mut uvs, mut material_of) = (Vec::with_capacity(n as usize), Vec::new());
         material_of.reserve(n as usize);
-        let mut normals = Vec::new();
+        let (mut normals, mut tangents) = (Vec::new(), Vec::new());
         for (i, inst) in pl.set().instances.iter().enumerate() {
             let base = pl.mesh_base()[inst.mesh as usize] as usize;
             let range = base..base + pl.set().meshes[inst.mesh as usize].len();
@@ -1432,10 +1477,13 @@ impl RenderScene {
                 let own = &self.normals[range.clone()];
                 normals.extend(own.iter().map(|n| map_normals(Some(nm), Some(n))));
             }
+            if !self.tangents.is_empty() {
+                let own = &self.tangents[range.clone()];
+                let m = |v| inst.to_world.vector(v);
+                tangents.extend(own.iter().map(|t| tangents::move_tangents(m, t)));
+            }
             material_of.extend_from_slice(&self.material_of[range]);
         }
-        // A triangle's tangent is linear in its vertices: computed again in world space.
-        let tangents = tangents_of(&mesh, &uvs, &material_of, &self.materials);
         Ok(RenderScene {
             mesh,
             uvs,
@@ -1446,39 +1494,6 @@ impl RenderScene {
             ..self
         })
     }
-}
-
-/// Each triangle's tangent where its material has a normal map (else [`NO_TANGENT`]): the
-/// direction in which u grows across it, from its texture coordinates (the per-triangle
-/// tangent that MikkTSpace averages over a vertex's triangles), flipped where v grows
-/// along −(n × t) for the winding's normal n; empty where no material has a normal map.
-fn tangents_of(
-    mesh: &Mesh,
-    uvs: &[[Vec2; 3]],
-    material_of: &[u32],
-    materials: &[Material],
-) -> Vec<u32> {
-    if !materials.iter().any(|m| m.normal_texture.is_some()) {
-        return Vec::new();
-    }
-    (mesh.triangles.iter().enumerate())
-        .map(|(i, t)| {
-            let mapped = materials[material_of[i] as usize].normal_texture.is_some();
-            let Some(uv) = uvs.get(i).filter(|_| mapped) else {
-                return NO_TANGENT;
-            };
-            let (e1, e2) = (t.v[1] - t.v[0], t.v[2] - t.v[0]);
-            let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
-            let det = d1.x * d2.y - d2.x * d1.y;
-            let tangent = (e1 * d2.y - e2 * d1.y) / det;
-            let bitangent = (e2 * d1.x - e1 * d2.x) / det;
-            let flipped = crate::geometry::dot(
-                crate::geometry::cross(crate::geometry::cross(e1, e2), tangent),
-                bitangent,
-            ) < 0.0;
-            pack_tangent(tangent, flipped).unwrap_or(NO_TANGENT)
-        })
-        .collect()
 }
 
 /// The message of an error without the file prefix it carries, to re-attach elsewhere.

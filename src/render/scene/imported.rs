@@ -9,13 +9,16 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::assemble::{decode_texture, error_message, map_normals, Builder, Material, NormalMap};
+use super::assemble::{
+    decode_texture, error_message, map_normals, Builder, Material, NormalMap, Texture,
+};
 use super::file::MaterialKind;
+use super::tangents::move_tangents;
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Triangle, NO_NORMAL};
 use crate::mesh::{
     load_gltf, load_obj_scene, load_ply_scene, read_gltf, warn_exclusions, FileKind, GltfImage,
-    GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, Instance, TriStatus,
+    GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, GltfTexture, Instance, TriStatus,
 };
 
 impl Builder {
@@ -69,7 +72,9 @@ impl Builder {
                     );
                 }
                 if nm.is_none() {
+                    // glTF ignores tangents where there are no normals.
                     g.normals = Vec::new();
+                    g.tangents = Vec::new();
                 }
                 self.add_gltf(path, g, material, grey, xf, nm.flatten())?
             }
@@ -103,6 +108,10 @@ impl Builder {
                 ids.push(self.material(m));
             }
         }
+        // Tangents move by the map's linear part (the inverse transpose's inverse
+        // transpose); their handedness, read against the winding, moves with it.
+        let linear = nm.map(|m| m.inverse().transpose());
+        let tangent_map = |v: Vec3| linear.map_or(v, |l| l * v);
         for (i, t) in g.mesh.triangles.iter().enumerate() {
             let id = material.unwrap_or_else(|| {
                 g.material_ids[i]
@@ -111,6 +120,9 @@ impl Builder {
             });
             let n = map_normals(nm, g.normals.get(i));
             self.push(xf_triangle(t, &xf), g.mesh.status[i], g.uvs[i], n, id);
+            if let Some(t) = g.tangents.get(i) {
+                self.give_tangents(move_tangents(tangent_map, t));
+            }
         }
         warn_exclusions(path, &g.mesh);
         self.short_faces += g.mesh.short_faces;
@@ -167,6 +179,9 @@ impl Builder {
                     .unwrap_or(grey);
                 let n = map_normals(None, m.normals.get(i));
                 self.push(*t, m.mesh.status[i], m.uvs[i], n, id);
+                if let Some(t) = m.tangents.get(i) {
+                    self.give_tangents(*t);
+                }
             }
             warn_exclusions(path, &m.mesh);
             self.short_faces += m.mesh.short_faces;
@@ -249,8 +264,8 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     }
     if !m.other_coordinates.is_empty() {
         log::warn!(
-            "{}: material {:?}: the {} texture(s) read other texture coordinates than the \
-             first; lancer reads them at the first's",
+            "{}: material {:?}: the {} texture(s) read another set of texture coordinates \
+             than the first; lancer reads them at the first's",
             path.display(),
             m.name,
             m.other_coordinates.join(", ")
@@ -260,18 +275,27 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     // Emission where hit (not sampled as a light): the factor times the texture.
     mat.emission = if glowing { emissive } else { Vec3::ZERO };
     mat.two_sided = true;
-    let mut image = |what: &str, t: Option<(usize, &GltfImage)>, srgb: bool| -> Result<_> {
-        let Some((index, image)) = t else {
+    let mut image = |what: &str, t: Option<&GltfTexture>, srgb: bool| -> Result<_> {
+        let Some(t) = t else {
             return Ok(None);
         };
-        let key = PathBuf::from(format!("{}#image{index}/{srgb}", path.display()));
+        let index = t.image;
+        // The same image read at other coordinates is another texture.
+        let moved = (t.uv_transform)
+            .map(|m| format!("/uv{:?}", m.map(|r| r.map(f32::to_bits))))
+            .unwrap_or_default();
+        let key = PathBuf::from(format!("{}#image{index}/{srgb}{moved}", path.display()));
         let texture = b.texture_with(key, || {
-            let decoded = match image {
+            let decoded = match &t.bytes {
                 GltfImage::Bytes(bytes) => decode_texture(bytes, srgb),
                 GltfImage::File(f) => crate::input::read(f)
                     .map_err(|e| e.to_string())
                     .and_then(|bytes| decode_texture(&bytes, srgb)),
             };
+            let decoded = decoded.map(|texture| Texture {
+                uv_transform: t.uv_transform,
+                ..texture
+            });
             decoded.map_err(|e| {
                 Error::input(
                     path,
@@ -287,24 +311,21 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
             Error::input(path, None, error_message(&e))
         })?))
     };
-    fn of(t: &Option<(usize, GltfImage)>) -> Option<(usize, &GltfImage)> {
-        t.as_ref().map(|(i, g)| (*i, g))
-    }
-    mat.texture = image("base colour", of(&m.base_color_texture), true)?;
+    mat.texture = image("base colour", m.base_color_texture.as_ref(), true)?;
     mat.metallic_roughness_texture = image(
         "metallic-roughness",
-        of(&m.metallic_roughness_texture),
+        m.metallic_roughness_texture.as_ref(),
         false,
     )?;
     if glowing {
-        mat.emission_texture = image("emissive", of(&m.emissive_texture), true)?;
+        mat.emission_texture = image("emissive", m.emissive_texture.as_ref(), true)?;
     }
-    if let Some((index, bytes, scale)) = &m.normal_texture {
-        mat.normal_texture = image("normal", Some((*index, bytes)), false)?;
+    if let Some((t, scale)) = &m.normal_texture {
+        mat.normal_texture = image("normal", Some(t), false)?;
         mat.normal_scale = *scale;
     }
-    if let Some((index, bytes, strength)) = &m.occlusion_texture {
-        mat.occlusion_texture = image("occlusion", Some((*index, bytes)), false)?;
+    if let Some((t, strength)) = &m.occlusion_texture {
+        mat.occlusion_texture = image("occlusion", Some(t), false)?;
         mat.occlusion_strength = strength.clamp(0.0, 1.0);
     }
     Ok(mat)

@@ -9,6 +9,7 @@ mod imported;
 mod open;
 mod placements;
 mod shapes;
+mod tangents;
 
 pub use assemble::{Light, Material, RenderScene, Settings, Texture};
 pub use file::{Integrator, LightKind, MaterialKind, SceneFile};
