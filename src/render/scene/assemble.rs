@@ -13,7 +13,7 @@ use super::file::{
 };
 use super::placements::{Motion, PlacedTriangle, Placements};
 use super::shapes;
-use super::tangents::{self, tangents_of};
+use super::tangents::{self, tangents_of, TangentInputs};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::geometry::{unpack_unit, Aabb, Affine, Triangle};
@@ -1221,14 +1221,19 @@ impl Builder {
             ),
             false => None,
         };
-        let tangents = tangents_of(
-            &mesh,
-            &self.uvs,
-            &normals,
-            &self.tangents,
-            &self.material_of,
-            &self.materials,
-        );
+        let tangents = tangents_of(&TangentInputs {
+            mesh: &mesh,
+            uvs: &self.uvs,
+            normals: &normals,
+            given: &self.tangents,
+            material_of: &self.material_of,
+            materials: &self.materials,
+            textures: &self.textures,
+            mesh_starts: match self.placed {
+                true => &self.mesh_starts,
+                false => &[],
+            },
+        });
         let mut scene = RenderScene {
             camera,
             settings: settings.clone(),

@@ -72,7 +72,8 @@ impl Builder {
                     );
                 }
                 if nm.is_none() {
-                    // glTF ignores tangents where there are no normals.
+                    // Flat shading drops the file's tangents with its normals (glTF has
+                    // none without normals): they are generated against the faces'.
                     g.normals = Vec::new();
                     g.tangents = Vec::new();
                 }

@@ -12,61 +12,89 @@ use std::collections::HashMap;
 
 use glam::{Vec2, Vec3};
 
-use super::assemble::Material;
+use super::assemble::{Material, Texture};
 use crate::geometry::{cross, dot, normalize, pack_tangent, unpack_tangent, unpack_unit};
 use crate::geometry::{NO_NORMAL, NO_TANGENT};
 use crate::mesh::Mesh;
 
-/// What a corner is welded by: its position, its normal (the vertex's, else the face's)
-/// and its texture coordinates, as bits, and the face's handedness.
-type Weld = ([u32; 8], bool);
+/// What a corner is welded by: its mesh, position, normal (the vertex's, else the
+/// face's) and texture coordinates, as bits, and the face's handedness.
+type Weld = ([u32; 9], bool);
+
+/// What [`tangents_of`] reads: a scene's triangles by number and what it knows of them.
+pub(super) struct TangentInputs<'a> {
+    pub mesh: &'a Mesh,
+    /// Each triangle's corners' texture coordinates.
+    pub uvs: &'a [[Vec2; 3]],
+    /// Each triangle's corners' packed normals (empty: none).
+    pub normals: &'a [[u32; 3]],
+    /// A file's own packed corner tangents (empty, or [`NO_TANGENT`]: none).
+    pub given: &'a [[u32; 3]],
+    pub material_of: &'a [u32],
+    pub materials: &'a [Material],
+    pub textures: &'a [Texture],
+    /// Where each placed mesh starts (empty: one mesh); corners of different meshes are
+    /// not welded.
+    pub mesh_starts: &'a [usize],
+}
 
 /// Each triangle's corner tangents where its material has a normal map, packed with the
 /// handedness relative to its winding ([`pack_tangent`]): `given`'s where it holds a
-/// tangent for the triangle, else generated (see the module comment); [`NO_TANGENT`] three
-/// times elsewhere, and where no tangent can be made (texture coordinates that do not
-/// span the triangle, and no welded neighbour that has one). Empty where no material has
-/// a normal map.
-pub(super) fn tangents_of(
-    mesh: &Mesh,
-    uvs: &[[Vec2; 3]],
-    normals: &[[u32; 3]],
-    given: &[[u32; 3]],
-    material_of: &[u32],
-    materials: &[Material],
-) -> Vec<[u32; 3]> {
-    if !materials.iter().any(|m| m.normal_texture.is_some()) {
+/// tangent for the triangle, else generated (see the module comment) in the frame of the
+/// coordinates the normal map is read at (moved by its texture's transform);
+/// [`NO_TANGENT`] three times elsewhere, and where no tangent can be made (texture
+/// coordinates that do not span the triangle, and no welded neighbour that has one).
+/// Empty where no material has a normal map.
+pub(super) fn tangents_of(x: &TangentInputs) -> Vec<[u32; 3]> {
+    if !x.materials.iter().any(|m| m.normal_texture.is_some()) {
         return Vec::new();
     }
-    let mapped = |i: usize| materials[material_of[i] as usize].normal_texture.is_some();
-    let own = |i: usize| given.get(i).filter(|g| g[0] != NO_TANGENT);
-    let n = mesh.triangles.len();
-    // First pass: every generated corner's weld and its face's tangent, summed per weld.
-    let mut faces: Vec<Option<FaceFrame>> = Vec::with_capacity(n);
+    let map_of = |i: usize| x.materials[x.material_of[i] as usize].normal_texture;
+    let own = |i: usize| x.given.get(i).filter(|g| g[0] != NO_TANGENT);
+    let n = x.mesh.triangles.len();
+    // Each triangle's mesh number, counted along (triangles are in mesh order).
+    let mesh_numbers = || {
+        let mut m = 0usize;
+        (0..n).map(move |i| {
+            while m + 1 < x.mesh_starts.len() && x.mesh_starts[m + 1] <= i {
+                m += 1;
+            }
+            m as u32
+        })
+    };
+    // The frame of a generated triangle (None: mapped by the file, or not at all).
+    let frame = |i: usize, mesh: u32| {
+        let map = map_of(i).filter(|_| own(i).is_none())?;
+        let uv_map = x.textures.get(map).and_then(|t| t.uv_transform);
+        FaceFrame::of(
+            mesh,
+            x.mesh.triangles[i].v,
+            x.uvs.get(i),
+            x.normals.get(i),
+            uv_map,
+        )
+    };
+    // First pass: every generated corner's face tangent, summed per weld.
     let mut sums: HashMap<Weld, Vec3> = HashMap::new();
-    for i in 0..n {
-        let frame = (mapped(i) && own(i).is_none())
-            .then(|| FaceFrame::of(mesh.triangles[i].v, uvs.get(i), normals.get(i)))
-            .flatten();
-        if let Some(f) = &frame {
-            for k in 0..3 {
-                if let Some((t, weight)) = f.projected[k] {
-                    *sums.entry((f.welds[k], f.flipped)).or_insert(Vec3::ZERO) += t * weight;
-                }
+    for (i, mesh) in mesh_numbers().enumerate() {
+        let Some(f) = frame(i, mesh) else {
+            continue;
+        };
+        for k in 0..3 {
+            if let Some((t, weight)) = f.projected[k] {
+                *sums.entry((f.welds[k], f.flipped)).or_insert(Vec3::ZERO) += t * weight;
             }
         }
-        faces.push(frame);
     }
-    // Second pass: each corner's tangent is its weld's sum.
-    (0..n)
-        .map(|i| {
-            if !mapped(i) {
-                return [NO_TANGENT; 3];
-            }
-            if let Some(g) = own(i) {
+    // Second pass (the frames made again rather than kept): each corner's tangent is its
+    // weld's sum.
+    mesh_numbers()
+        .enumerate()
+        .map(|(i, mesh)| {
+            if let Some(g) = own(i).filter(|_| map_of(i).is_some()) {
                 return *g;
             }
-            let Some(f) = &faces[i] else {
+            let Some(f) = frame(i, mesh) else {
                 return [NO_TANGENT; 3];
             };
             let corner = |k: usize| {
@@ -93,7 +121,7 @@ pub(super) fn tangents_of(
 
 /// A triangle's corners as [`tangents_of`] welds and sums them.
 struct FaceFrame {
-    welds: [[u32; 8]; 3],
+    welds: [[u32; 9]; 3],
     /// Whether its texture coordinates span it (else no tangent of its own).
     spans: bool,
     /// Its bitangent is −(n × t) for n the winding's normal.
@@ -104,8 +132,16 @@ struct FaceFrame {
 }
 
 impl FaceFrame {
+    /// The corners of triangle `v` of mesh `mesh`, its tangent the direction in which
+    /// its coordinates `uv` grow once moved by `uv_map` (the normal texture's transform);
     /// None for a triangle with no area (no normal to weld by).
-    fn of(v: [Vec3; 3], uv: Option<&[Vec2; 3]>, normals: Option<&[u32; 3]>) -> Option<Self> {
+    fn of(
+        mesh: u32,
+        v: [Vec3; 3],
+        uv: Option<&[Vec2; 3]>,
+        normals: Option<&[u32; 3]>,
+        uv_map: Option<[[f32; 3]; 2]>,
+    ) -> Option<Self> {
         let uv = uv.copied().unwrap_or([Vec2::ZERO; 3]);
         let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
         let wn = cross(e1, e2);
@@ -113,7 +149,11 @@ impl FaceFrame {
         if !face_n.is_finite() {
             return None;
         }
-        let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
+        let moved = |d: Vec2| match uv_map {
+            Some([a, b]) => Vec2::new(a[0] * d.x + a[1] * d.y, b[0] * d.x + b[1] * d.y),
+            None => d,
+        };
+        let (d1, d2) = (moved(uv[1] - uv[0]), moved(uv[2] - uv[0]));
         let det = d1.x * d2.y - d2.x * d1.y;
         let tangent = (e1 * d2.y - e2 * d1.y) / det;
         let bitangent = (e2 * d1.x - e1 * d2.x) / det;
@@ -130,13 +170,14 @@ impl FaceFrame {
             }
             _ => face_n,
         };
-        let mut welds = [[0; 8]; 3];
+        let mut welds = [[0; 9]; 3];
         let mut projected = [None; 3];
         for k in 0..3 {
             let n = corner_normal(k);
             let (p, t) = (v[k], uv[k]);
             // + 0 makes −0 the same as 0.
-            welds[k] = [p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y].map(|c| (c + 0.0).to_bits());
+            let w = [p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y].map(|c| (c + 0.0).to_bits());
+            welds[k] = [mesh, w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7]];
             if !spans {
                 continue;
             }
@@ -186,6 +227,27 @@ mod tests {
     use super::*;
     use crate::geometry::Triangle;
 
+    /// [`tangents_of`] of one mesh whose normal maps read no transform.
+    fn tangents(
+        mesh: &Mesh,
+        uvs: &[[Vec2; 3]],
+        normals: &[[u32; 3]],
+        given: &[[u32; 3]],
+        material_of: &[u32],
+        materials: &[Material],
+    ) -> Vec<[u32; 3]> {
+        tangents_of(&TangentInputs {
+            mesh,
+            uvs,
+            normals,
+            given,
+            material_of,
+            materials,
+            textures: &[],
+            mesh_starts: &[],
+        })
+    }
+
     fn diffuse_mapped() -> Material {
         let mut m = Material::diffuse(Vec3::ONE);
         m.normal_texture = Some(0);
@@ -214,16 +276,30 @@ mod tests {
             Triangle::new(p[1], p[3], p[2]),
         ]);
         let uvs = [[uv[0], uv[1], uv[2]], [uv[1], uv[3], uv[2]]];
-        let smooth = [crate::mesh::pack_corners([Vec3::Z; 3]); 2];
-        let t = tangents_of(&mesh, &uvs, &smooth, &[], &[0, 0], &[diffuse_mapped()]);
+        // One normal between the two faces' at every corner.
+        let n = (Vec3::Z + Vec3::new(-0.5, -0.5, 1.0).normalize()).normalize();
+        let smooth = [crate::mesh::pack_corners([n; 3]); 2];
+        let t = tangents(&mesh, &uvs, &smooth, &[], &[0, 0], &[diffuse_mapped()]);
         // Corner 1 of face 0 is corner 0 of face 1; corner 2 of face 0 is corner 2 of face 1.
         assert_eq!(t[0][1], t[1][0]);
         assert_eq!(t[0][2], t[1][2]);
-        let flat = tangents_of(&mesh, &uvs, &[], &[], &[0, 0], &[diffuse_mapped()]);
+        let flat = tangents(&mesh, &uvs, &[], &[], &[0, 0], &[diffuse_mapped()]);
         assert_ne!(flat[0][1], flat[1][0]);
+        // Nor are corners of two placed meshes.
+        let two_meshes = tangents_of(&TangentInputs {
+            mesh: &mesh,
+            uvs: &uvs,
+            normals: &smooth,
+            given: &[],
+            material_of: &[0, 0],
+            materials: &[diffuse_mapped()],
+            textures: &[],
+            mesh_starts: &[0, 1],
+        });
+        assert_ne!(two_meshes[0][1], two_meshes[1][0]);
         // Each face's own tangent differs (the fold), so the shared one is an average.
         let face = |i: usize| {
-            let f = FaceFrame::of(mesh.triangles[i].v, Some(&uvs[i]), None).unwrap();
+            let f = FaceFrame::of(0, mesh.triangles[i].v, Some(&uvs[i]), None, None).unwrap();
             f.projected[0].unwrap().0
         };
         assert!(dot(face(0), face(1)) < 0.999);
@@ -246,10 +322,10 @@ mod tests {
         // Its corner 0 (p1) has the good face's coordinates there: welded to it.
         let collapsed = [good[1]; 3];
         let uvs = [good, collapsed];
-        let t = tangents_of(&mesh, &uvs, &[], &[], &[0, 0], &[diffuse_mapped()]);
+        let t = tangents(&mesh, &uvs, &[], &[], &[0, 0], &[diffuse_mapped()]);
         assert_ne!(t[0][1], NO_TANGENT);
         assert_eq!(t[1], [t[0][1]; 3]);
-        let alone = tangents_of(
+        let alone = tangents(
             &Mesh::from_triangles(vec![mesh.triangles[1]]),
             &[collapsed],
             &[],
@@ -260,6 +336,37 @@ mod tests {
         assert_eq!(alone, vec![[NO_TANGENT; 3]]);
     }
 
+    /// A normal map read at turned coordinates (its texture's transform) turns the frame
+    /// with them: u' = 1 − v grows along −y where u grows along +x.
+    #[test]
+    fn a_moved_normal_map_moves_its_frame() {
+        let mesh = Mesh::from_triangles(vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)]);
+        let uvs = [[Vec2::ZERO, Vec2::X, Vec2::Y]];
+        let map = |uv_transform| Texture {
+            width: 1,
+            height: 1,
+            texels: vec![Vec3::new(0.5, 0.5, 1.0)],
+            alpha: Vec::new(),
+            uv_transform,
+        };
+        let direction = |texture: Texture| {
+            let t = tangents_of(&TangentInputs {
+                mesh: &mesh,
+                uvs: &uvs,
+                normals: &[],
+                given: &[],
+                material_of: &[0],
+                materials: &[diffuse_mapped()],
+                textures: &[texture],
+                mesh_starts: &[],
+            });
+            interpolated(&t[0], 1.0, 0.0, 0.0).unwrap().0.normalize()
+        };
+        assert!((direction(map(None)) - Vec3::X).length() < 1e-3);
+        let turned = Some([[0.0, -1.0, 1.0], [1.0, 0.0, 1.0]]);
+        assert!((direction(map(turned)) + Vec3::Y).length() < 1e-3);
+    }
+
     /// A file's tangents are kept as given, and a material without a map gets none.
     #[test]
     fn given_tangents_are_kept_and_unmapped_faces_get_none() {
@@ -267,7 +374,7 @@ mod tests {
         let uvs = [[Vec2::ZERO, Vec2::X, Vec2::Y]; 2];
         let given = [pack_tangent(Vec3::Y, true).unwrap(); 3];
         let mats = [diffuse_mapped(), Material::diffuse(Vec3::ONE)];
-        let t = tangents_of(&mesh, &uvs, &[], &[given, given], &[0, 1], &mats);
+        let t = tangents(&mesh, &uvs, &[], &[given, given], &[0, 1], &mats);
         assert_eq!(t, vec![given, [NO_TANGENT; 3]]);
         let (dir, flipped) = interpolated(&t[0], 0.2, 0.3, 0.5).unwrap();
         assert!(flipped && (dir - Vec3::Y).length() < 1e-3);
