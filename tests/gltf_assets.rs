@@ -14,7 +14,9 @@ use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
 use lancer::accel::{Mask, Query, RayStats};
-use lancer::render::{render, AlphaMask, EffectSet, MaterialKind, RenderOptions, RenderScene};
+use lancer::render::{
+    render, AlphaMask, EffectSet, MaterialKind, RenderOptions, RenderScene, TextureSlot,
+};
 use lancer::{AccelKind, Device, LayoutKind, Robustness};
 
 fn panel() -> PathBuf {
@@ -290,16 +292,18 @@ fn texture_transforms_move_each_texture_on_both_devices() {
     let text = text.replace(&panel_path, &format!("{:?}", moved.to_str().unwrap()));
     let scene = RenderScene::from_file(&dir.write("moved.toml", text)).unwrap();
     let m = &scene.materials[scene.material_of[0] as usize];
-    let rows = |t: Option<usize>| scene.textures[t.unwrap()].uv_transform;
+    let rows = |slot: TextureSlot| m.uv_transforms[slot as usize];
     assert_eq!(
-        rows(m.emission_texture),
+        rows(TextureSlot::Emission),
         Some([[1.0, 0.0, 0.0], [0.0, 1.0, -0.25]])
     );
     assert_eq!(
-        rows(m.normal_texture),
+        rows(TextureSlot::Normal),
         Some([[1.0, 0.0, 0.5], [0.0, 1.0, 0.0]])
     );
-    assert_eq!(rows(m.texture), None);
+    assert_eq!(rows(TextureSlot::Base), None);
+    // Each image is decoded once, however many coordinates read it.
+    assert_eq!(scene.textures.len(), plain.textures.len());
     let fx = EffectSet::of(&scene);
     assert!(fx.texture_transforms, "{fx}");
     let options = RenderOptions::default();

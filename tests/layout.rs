@@ -134,7 +134,7 @@ fn render_structs_match_rust() {
         "normal_scale" => normal_scale, "alpha" => alpha, "alpha_cutoff" => alpha_cutoff,
         "occlusion_offset" => occlusion_offset, "occlusion_width" => occlusion_width,
         "occlusion_height" => occlusion_height, "occlusion_strength" => occlusion_strength,
-        "pad1" => _pad1, "pad2" => _pad2),
+        "uv_maps" => uv_maps, "pad2" => _pad2),
     );
     check(
         m,

@@ -177,7 +177,7 @@ struct Material {
     occlusion_width: u32,
     occlusion_height: u32,
     occlusion_strength: f32,
-    pad1: u32,
+    uv_maps: u32,
     pad2: u32,
 }
 
@@ -372,22 +372,21 @@ fn texture_taps(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> Taps {
     return Taps(vec4<u32>(offset) + vec4<u32>(at), vec2<f32>(fx, fy));
 }
 
-// texture::texture_uv: where the texture from `offset` is read at interpolated uv — moved
-// by the 2 × 3 map in the two texels before its own (TEXTURE_TRANSFORMS; the upload
-// writes the identity there for a texture without one, which moves nothing).
-fn texture_uv(offset: u32, uv: vec2<f32>) -> vec2<f32> {
-    if !TEXTURE_TRANSFORMS {
+// CpuRenderer::slot_uv: where `mat`'s texture in `slot` (UV_SLOT_*) is read at
+// interpolated uv — moved by the slot's 2 × 3 map, two texels from mat.uv_maps + 2·slot
+// (TEXTURE_TRANSFORMS; the upload writes the identity for a slot without one).
+fn slot_uv(mat: Material, slot: u32, uv: vec2<f32>) -> vec2<f32> {
+    if !TEXTURE_TRANSFORMS || (mat.flags & MAT_UV_TRANSFORMS) == 0u {
         return uv;
     }
-    let a = texels[offset - 2u];
-    let b = texels[offset - 1u];
+    let a = texels[mat.uv_maps + 2u * slot];
+    let b = texels[mat.uv_maps + 2u * slot + 1u];
     return vec2<f32>(a.x * uv.x + a.y * uv.y + a.z, b.x * uv.x + b.y * uv.y + b.z);
 }
 
-// The four texels around uv (moved: texture_uv) blended bilinearly: colour in .xyz, alpha
-// in .w.
+// The four texels around uv blended bilinearly: colour in .xyz, alpha in .w.
 fn bilinear(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec4<f32> {
-    let t = texture_taps(offset, width, height, texture_uv(offset, uv));
+    let t = texture_taps(offset, width, height, uv);
     let a = texels[t.i.x];
     let b = texels[t.i.y];
     let c = texels[t.i.z];
@@ -427,7 +426,8 @@ fn alpha_keeps(prim: u32, u: f32, v: f32) -> bool {
         let e = shade_word(5u * i + 4u);
         let uv = bitcast<vec2<f32>>(d.xy) * (1.0 - u - v) + bitcast<vec2<f32>>(d.zw) * u
             + bitcast<vec2<f32>>(e.xy) * v;
-        alpha *= sample_alpha(mat.tex_offset, mat.tex_width, mat.tex_height, uv);
+        alpha *= sample_alpha(mat.tex_offset, mat.tex_width, mat.tex_height,
+                              slot_uv(mat, UV_SLOT_BASE, uv));
     }
     if (mat.flags & MAT_ALPHA_BLEND) != 0u {
         return alpha > blend_threshold(prim, u, v);
@@ -502,7 +502,8 @@ fn mapped_normal(s: Shade, mat: Material, w: f32, u: f32, v: f32, sn: vec3<f32>)
     t = normalize3(t);
     let b = cross3(n, t) * select(1.0, -1.0, flipped);
     let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
-    let c = sample_texture(mat.normal_offset, mat.normal_width, mat.normal_height, uv) * 2.0
+    let c = sample_texture(mat.normal_offset, mat.normal_width, mat.normal_height,
+                           slot_uv(mat, UV_SLOT_NORMAL, uv)) * 2.0
         - vec3<f32>(1.0);
     mapped_m = t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
     mapped_front = n;
@@ -549,7 +550,8 @@ fn keeps_side(d: vec3<f32>, n: vec3<f32>, toward: bool) -> bool {
 fn surface_albedo(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
     if TEXTURES && (mat.flags & MAT_TEXTURED) != 0u {
         let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
-        return sample_texture(mat.tex_offset, mat.tex_width, mat.tex_height, uv) * mat.albedo;
+        return sample_texture(mat.tex_offset, mat.tex_width, mat.tex_height,
+                              slot_uv(mat, UV_SLOT_BASE, uv)) * mat.albedo;
     }
     return mat.albedo;
 }
@@ -564,7 +566,8 @@ fn surface_bsdf(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> Bsdf {
     var roughness = mat.roughness;
     if TEXTURES && (mat.flags & MAT_METALLIC_ROUGHNESS) != 0u {
         let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
-        let mr = sample_texture(mat.mr_offset, mat.mr_width, mat.mr_height, uv);
+        let mr = sample_texture(mat.mr_offset, mat.mr_width, mat.mr_height,
+                                slot_uv(mat, UV_SLOT_METALLIC_ROUGHNESS, uv));
         roughness *= mr.y;
         metallic *= mr.z;
     }
@@ -575,7 +578,8 @@ fn surface_bsdf(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> Bsdf {
 fn surface_emission(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> vec3<f32> {
     if TEXTURES && (mat.flags & MAT_EMISSION_TEXTURE) != 0u {
         let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
-        let t = sample_texture(mat.emission_offset, mat.emission_width, mat.emission_height, uv);
+        let t = sample_texture(mat.emission_offset, mat.emission_width, mat.emission_height,
+                               slot_uv(mat, UV_SLOT_EMISSION, uv));
         return mat.emission * t;
     }
     return mat.emission;
@@ -589,7 +593,7 @@ fn surface_occlusion(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> f32 {
     if TEXTURES && (mat.flags & MAT_OCCLUSION) != 0u {
         let uv = s.uv0 * w + s.uv1 * u + s.uv2 * v;
         let t = sample_texture(mat.occlusion_offset, mat.occlusion_width, mat.occlusion_height,
-                               uv);
+                               slot_uv(mat, UV_SLOT_OCCLUSION, uv));
         return 1.0 + mat.occlusion_strength * (t.x - 1.0);
     }
     return 1.0;

@@ -9,7 +9,8 @@
 use super::effects::EffectSet;
 use super::sampling::pcg;
 use super::scene::RenderScene;
-use super::texture::sample_alpha;
+use super::scene::TextureSlot;
+use super::texture::{sample_alpha, texture_uv};
 use crate::accel::HitMask;
 
 /// The alpha masks of a scene's materials, as the traversal asks them.
@@ -39,7 +40,9 @@ impl HitMask for AlphaMask<'_> {
         }
         let mut alpha = mat.alpha;
         if let Some(t) = mat.texture {
-            alpha *= sample_alpha(&scene.textures[t], scene.uv_at(shade, u, v), self.moved);
+            let map = mat.uv_transforms[TextureSlot::Base as usize].filter(|_| self.moved);
+            let uv = texture_uv(map, scene.uv_at(shade, u, v));
+            alpha *= sample_alpha(&scene.textures[t], uv);
         }
         match mat.alpha_cutoff {
             Some(cutoff) => alpha >= cutoff,

@@ -2,7 +2,7 @@
 //! operation, over a CPU acceleration structure (a layout's twin). It is the reference the
 //! GPU images are tested against.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::alpha::AlphaMask;
@@ -11,8 +11,10 @@ use super::bsdf::{Bsdf, Principled};
 use super::crop::Crop;
 use super::effects::EffectSet;
 use super::sampling::{cosine_direction, offset_origin, Rng};
-use super::scene::{Integrator, Light, MaterialKind, PlacedTriangle, RenderScene};
-use super::texture::sample_texture;
+use super::scene::{
+    Integrator, Light, Material, MaterialKind, PlacedTriangle, RenderScene, TextureSlot,
+};
+use super::texture::{sample_texture, texture_uv};
 use crate::accel::{Accel, HitMask, Mask, Query, RayStats};
 use crate::camera::{CameraFrame, PRIMARY_TMAX};
 use crate::geometry::{cross, dot, normalize};
@@ -273,22 +275,33 @@ impl<'a> CpuRenderer<'a> {
         (self.frame.ray(x, y, jx, jy), rng)
     }
 
-    /// Texture `t` at a hit, where textures are simulated.
-    fn texture_at(&self, fx: EffectSet, t: Option<usize>, shade: usize, hit: &Hit) -> Option<Vec3> {
-        let t = t.filter(|_| fx.textures)?;
-        let uv = self.scene.uv_at(shade, hit.u, hit.v);
-        Some(sample_texture(
-            &self.scene.textures[t],
-            uv,
-            fx.texture_transforms,
-        ))
+    /// The texture in `slot` of the hit triangle's material at a hit, where textures are
+    /// simulated.
+    fn texture_at(
+        &self,
+        fx: EffectSet,
+        slot: TextureSlot,
+        shade: usize,
+        hit: &Hit,
+    ) -> Option<Vec3> {
+        let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
+        let t = mat.texture_in(slot).filter(|_| fx.textures)?;
+        let uv = self.slot_uv(fx, mat, slot, self.scene.uv_at(shade, hit.u, hit.v));
+        Some(sample_texture(&self.scene.textures[t], uv))
+    }
+
+    /// Where `mat`'s texture in `slot` is read at interpolated coordinates `uv` (moved
+    /// where texture transforms are simulated). WGSL `slot_uv`.
+    fn slot_uv(&self, fx: EffectSet, mat: &Material, slot: TextureSlot, uv: Vec2) -> Vec2 {
+        let map = mat.uv_transforms[slot as usize].filter(|_| fx.texture_transforms);
+        texture_uv(map, uv)
     }
 
     /// The reflectance at a hit: the material's albedo, times its texture there (when
     /// textures are simulated).
     fn albedo(&self, fx: EffectSet, shade: usize, hit: &Hit) -> Vec3 {
         let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
-        match self.texture_at(fx, mat.texture, shade, hit) {
+        match self.texture_at(fx, TextureSlot::Base, shade, hit) {
             Some(t) => t * mat.albedo,
             None => mat.albedo,
         }
@@ -303,7 +316,7 @@ impl<'a> CpuRenderer<'a> {
             return Bsdf::Diffuse(albedo);
         }
         let (mut metallic, mut roughness) = (mat.metallic, mat.roughness);
-        if let Some(mr) = self.texture_at(fx, mat.metallic_roughness_texture, shade, hit) {
+        if let Some(mr) = self.texture_at(fx, TextureSlot::MetallicRoughness, shade, hit) {
             roughness *= mr.y;
             metallic *= mr.z;
         }
@@ -314,7 +327,7 @@ impl<'a> CpuRenderer<'a> {
     /// texture.
     fn emission(&self, fx: EffectSet, shade: usize, hit: &Hit) -> Vec3 {
         let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
-        match self.texture_at(fx, mat.emission_texture, shade, hit) {
+        match self.texture_at(fx, TextureSlot::Emission, shade, hit) {
             Some(t) => mat.emission * t,
             None => mat.emission,
         }
@@ -378,8 +391,8 @@ impl<'a> CpuRenderer<'a> {
         let t = normalize(t);
         let b = cross(n, t) * if flipped { -1.0 } else { 1.0 };
         let uv = self.scene.uv_at(tri.shade, hit.u, hit.v);
-        let c =
-            sample_texture(&self.scene.textures[map], uv, fx.texture_transforms) * 2.0 - Vec3::ONE;
+        let uv = self.slot_uv(fx, mat, TextureSlot::Normal, uv);
+        let c = sample_texture(&self.scene.textures[map], uv) * 2.0 - Vec3::ONE;
         let m = t * (c.x * mat.normal_scale) + b * (c.y * mat.normal_scale) + n * c.z;
         Some((m, n))
     }
@@ -405,7 +418,7 @@ impl<'a> CpuRenderer<'a> {
     /// or where textures are not simulated). WGSL `surface_occlusion`.
     fn occlusion(&self, fx: EffectSet, shade: usize, hit: &Hit) -> f32 {
         let mat = &self.scene.materials[self.scene.material_of[shade] as usize];
-        match self.texture_at(fx, mat.occlusion_texture, shade, hit) {
+        match self.texture_at(fx, TextureSlot::Occlusion, shade, hit) {
             Some(t) => 1.0 + mat.occlusion_strength * (t.x - 1.0),
             None => 1.0,
         }

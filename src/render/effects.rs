@@ -104,9 +104,7 @@ impl EffectSet {
                 .iter()
                 .any(|m| m.alpha_cutoff.is_some() || m.alpha_blend),
             // Whatever reads the texture (shading, normal maps, alpha masks) reads it there.
-            texture_transforms: used
-                .iter()
-                .any(|m| (m.textures()).any(|t| scene.textures[t].uv_transform.is_some())),
+            texture_transforms: used.iter().any(|m| m.moves_textures()),
         }
     }
 

@@ -95,7 +95,8 @@ pub struct GpuMaterial {
     pub tex_height: u32,
     /// Bits: [`MAT_TEXTURED`] (albedo times the texture), [`MAT_TWO_SIDED`] (emits from
     /// both faces), [`MAT_METALLIC_ROUGHNESS`], [`MAT_EMISSION_TEXTURE`],
-    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`], [`MAT_OCCLUSION`], [`MAT_ALPHA_BLEND`].
+    /// [`MAT_NORMAL_MAP`], [`MAT_ALPHA_MASK`], [`MAT_OCCLUSION`], [`MAT_ALPHA_BLEND`],
+    /// [`MAT_UV_TRANSFORMS`].
     pub flags: u32,
     /// Principled: metalness.
     pub metallic: f32,
@@ -133,8 +134,10 @@ pub struct GpuMaterial {
     pub occlusion_height: u32,
     /// The occlusion texture's strength.
     pub occlusion_strength: f32,
-    /// Padding (zero).
-    pub _pad1: u32,
+    /// Where its textures' coordinate maps start in the texel buffer
+    /// ([`MAT_UV_TRANSFORMS`]): two texels (the rows) per [`TextureSlot`](super::TextureSlot), the identity for
+    /// a slot without one (WGSL `slot_uv`).
+    pub uv_maps: u32,
     /// Padding (zero).
     pub _pad2: u32,
 }
@@ -158,6 +161,9 @@ pub const MAT_OCCLUSION: u32 = 64;
 /// [`GpuMaterial::flags`] bit: stochastic transparency, the alpha tested against a cutoff
 /// drawn per hit (with [`MAT_ALPHA_MASK`]).
 pub const MAT_ALPHA_BLEND: u32 = 128;
+/// [`GpuMaterial::flags`] bit: a texture is read at moved coordinates
+/// ([`GpuMaterial::uv_maps`]).
+pub const MAT_UV_TRANSFORMS: u32 = 256;
 
 /// WGSL `Light`.
 /// WGSL twin: `Light` in shaders/kernels/render.wgsl; tests/layout.rs checks the layout.
@@ -324,9 +330,6 @@ impl<'a> GpuRenderer<'a> {
         let mut texels: Vec<[f32; 4]> = Vec::new();
         let mut tex_at = Vec::new();
         for t in &scene.textures {
-            // Its coordinates' map first (WGSL texture_uv), the identity where it has none.
-            let [a, b] = t.uv_transform.unwrap_or([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
-            texels.extend([a, b].map(|r| [r[0], r[1], r[2], 0.0]));
             tex_at.push(texels.len() as u32);
             // Alpha in w (1 where the image has none): what an alpha mask reads.
             let whole = t.alpha.len() == t.texels.len();
@@ -334,6 +337,20 @@ impl<'a> GpuRenderer<'a> {
             texels
                 .extend((t.texels.iter().enumerate()).map(|(i, c)| c.extend(alpha(i)).to_array()));
         }
+        // Each material's coordinate maps, where it moves any (WGSL slot_uv).
+        let uv_maps: Vec<u32> = (scene.materials.iter())
+            .map(|m| {
+                if !m.moves_textures() {
+                    return 0;
+                }
+                let at = texels.len() as u32;
+                for map in m.uv_transforms {
+                    let [a, b] = map.unwrap_or([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+                    texels.extend([a, b].map(|r| [r[0], r[1], r[2], 0.0]));
+                }
+                at
+            })
+            .collect();
         let env = scene.environment.as_ref();
         let (env_texels, env_cdf) = (
             texels.len() as u32,
@@ -358,8 +375,8 @@ impl<'a> GpuRenderer<'a> {
                 (tex_at[t], scene.textures[t].width, scene.textures[t].height)
             })
         };
-        let materials: Vec<GpuMaterial> = (scene.materials.iter())
-            .map(|m| {
+        let materials: Vec<GpuMaterial> = (scene.materials.iter().zip(&uv_maps))
+            .map(|(m, &uv_maps)| {
                 let (off, w, h) = slot(m.texture);
                 let (mr_off, mr_w, mr_h) = slot(m.metallic_roughness_texture);
                 let (e_off, e_w, e_h) = slot(m.emission_texture);
@@ -384,7 +401,8 @@ impl<'a> GpuRenderer<'a> {
                         | bit(m.normal_texture.is_some(), MAT_NORMAL_MAP)
                         | bit(m.alpha_cutoff.is_some() || m.alpha_blend, MAT_ALPHA_MASK)
                         | bit(m.alpha_blend && m.alpha_cutoff.is_none(), MAT_ALPHA_BLEND)
-                        | bit(m.occlusion_texture.is_some(), MAT_OCCLUSION),
+                        | bit(m.occlusion_texture.is_some(), MAT_OCCLUSION)
+                        | bit(m.moves_textures(), MAT_UV_TRANSFORMS),
                     metallic: m.metallic,
                     roughness: m.roughness,
                     mr_offset: mr_off,
@@ -403,7 +421,7 @@ impl<'a> GpuRenderer<'a> {
                     occlusion_width: o_w,
                     occlusion_height: o_h,
                     occlusion_strength: m.occlusion_strength,
-                    _pad1: 0,
+                    uv_maps,
                     _pad2: 0,
                 }
             })

@@ -9,9 +9,10 @@ use crate::gpu::shaders::{self, Shared};
 use super::bsdf::{ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
 use super::sampling::POINT_ERROR;
+use super::scene::TextureSlot;
 use super::trig::{ATAN_C, COS_C, INV_TAU, SIN_C};
 use super::{Integrator, LightKind, MaterialKind, TRANSFORM_ERROR};
-use super::{MAT_ALPHA_BLEND, MAT_OCCLUSION};
+use super::{MAT_ALPHA_BLEND, MAT_OCCLUSION, MAT_UV_TRANSFORMS};
 use super::{MAT_ALPHA_MASK, MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP};
 use super::{MAT_TEXTURED, MAT_TWO_SIDED};
 use crate::geometry::{NO_NORMAL, SNORM15_SCALE, SNORM16_SCALE, TANGENT_FLIPPED, TANGENT_PRESENT};
@@ -57,6 +58,16 @@ pub fn render_constants() -> Vec<(&'static str, Shared)> {
         ("MAT_ALPHA_MASK", U32(MAT_ALPHA_MASK)),
         ("MAT_OCCLUSION", U32(MAT_OCCLUSION)),
         ("MAT_ALPHA_BLEND", U32(MAT_ALPHA_BLEND)),
+        ("MAT_UV_TRANSFORMS", U32(MAT_UV_TRANSFORMS)),
+        // render::scene::TextureSlot
+        ("UV_SLOT_BASE", U32(TextureSlot::Base as u32)),
+        (
+            "UV_SLOT_METALLIC_ROUGHNESS",
+            U32(TextureSlot::MetallicRoughness as u32),
+        ),
+        ("UV_SLOT_EMISSION", U32(TextureSlot::Emission as u32)),
+        ("UV_SLOT_NORMAL", U32(TextureSlot::Normal as u32)),
+        ("UV_SLOT_OCCLUSION", U32(TextureSlot::Occlusion as u32)),
         ("POINT_ERROR", F32(POINT_ERROR)), // render::sampling::POINT_ERROR
         ("TRANSFORM_ERROR", F32(TRANSFORM_ERROR)), // render::scene::TRANSFORM_ERROR
         ("NO_NORMAL", U32(NO_NORMAL)),     // geometry::NO_NORMAL

@@ -35,7 +35,7 @@ pub use exr::ExrImage;
 pub use gpu::{
     GpuLight, GpuMaterial, GpuPlacement, GpuRenderer, GpuShade, RenderParams, MAT_ALPHA_BLEND,
     MAT_ALPHA_MASK, MAT_EMISSION_TEXTURE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL_MAP, MAT_OCCLUSION,
-    MAT_TEXTURED, MAT_TWO_SIDED,
+    MAT_TEXTURED, MAT_TWO_SIDED, MAT_UV_TRANSFORMS,
 };
 pub use image::{heat_ramp, image_kind, save_image, to_rgb16, to_rgb8, Image, ImageKind};
 pub use image_compare::{compare_images, load_image, ImageDiff};
@@ -46,8 +46,8 @@ pub use scene::builtin;
 pub use scene::{load_geometry, load_instances, load_traceable, Geometry};
 pub use scene::{
     ImageSize, Integrator, Light, LightKind, Material, MaterialKind, Motion, PlacedTriangle,
-    Placements, RenderScene, SceneFile, Settings, Texture, TRANSFORM_ERROR,
+    Placements, RenderScene, SceneFile, Settings, Texture, TextureSlot, TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;
-pub use texture::{sample_alpha, sample_texture};
+pub use texture::{sample_alpha, sample_texture, texture_uv};
 pub use trig::{atan2_turns, sin_cos_turns};

@@ -28,11 +28,11 @@ fn texture_taps(width: u32, height: u32, uv: Vec2) -> ([usize; 4], f32, f32) {
     )
 }
 
-/// Where texture `t` is read at interpolated coordinates `uv`: moved by its
-/// [`uv_transform`](Texture::uv_transform) where `moved` (the `texture-transforms` effect).
-/// WGSL: `texture_uv`.
-fn texture_uv(t: &Texture, uv: Vec2, moved: bool) -> Vec2 {
-    match t.uv_transform.filter(|_| moved) {
+/// Where a texture is read at interpolated coordinates `uv`: moved by its material slot's
+/// map ([`Material::uv_transforms`](super::scene::Material::uv_transforms)), if any. WGSL:
+/// `slot_uv`.
+pub fn texture_uv(map: Option<[[f32; 3]; 2]>, uv: Vec2) -> Vec2 {
+    match map {
         Some([a, b]) => Vec2::new(
             a[0] * uv.x + a[1] * uv.y + a[2],
             b[0] * uv.x + b[1] * uv.y + b[2],
@@ -41,24 +41,21 @@ fn texture_uv(t: &Texture, uv: Vec2, moved: bool) -> Vec2 {
     }
 }
 
-/// Bilinear lookup with wrap-around, in linear RGB, at interpolated coordinates `uv`
-/// (moved by the texture's transform where `moved`: [`texture_uv`]).
-pub fn sample_texture(t: &Texture, uv: Vec2, moved: bool) -> Vec3 {
-    let uv = texture_uv(t, uv, moved);
+/// Bilinear lookup with wrap-around, in linear RGB.
+pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
     let ([a, b, c, d], fx, fy) = texture_taps(t.width, t.height, uv);
     let lerp = |a: Vec3, b: Vec3, f: f32| a + (b - a) * f;
     let x = &t.texels;
     lerp(lerp(x[a], x[b], fx), lerp(x[c], x[d], fx), fy)
 }
 
-/// Bilinear lookup of a texture's alpha with wrap-around (1 where it has none), as
-/// [`sample_texture`] looks up its colour. WGSL: `sample_alpha`.
-pub fn sample_alpha(t: &Texture, uv: Vec2, moved: bool) -> f32 {
+/// Bilinear lookup of a texture's alpha with wrap-around (1 where it has none). WGSL:
+/// `sample_alpha`.
+pub fn sample_alpha(t: &Texture, uv: Vec2) -> f32 {
     // (An alpha channel of another size than the colours is none: the GPU's upload agrees.)
     if t.alpha.len() != t.texels.len() {
         return 1.0;
     }
-    let uv = texture_uv(t, uv, moved);
     let ([a, b, c, d], fx, fy) = texture_taps(t.width, t.height, uv);
     let lerp = |a: f32, b: f32, f: f32| a + (b - a) * f;
     let x = &t.alpha;

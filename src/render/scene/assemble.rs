@@ -71,6 +71,27 @@ pub struct Material {
     /// with probability alpha, decided by a hash of the hit (so rays, jittered from sample
     /// to sample, average to the blend).
     pub alpha_blend: bool,
+    /// Where each of its textures is read, by [`TextureSlot`]: the interpolated texture
+    /// coordinates moved by this 2 × 3 map (rows; a glTF texture's `KHR_texture_transform`
+    /// relative to the material's interpolated set) where the `texture-transforms` effect
+    /// is simulated; None: where they are.
+    pub uv_transforms: [Option<[[f32; 3]; 2]>; 5],
+}
+
+/// Which of a material's textures a lookup reads (the index of its
+/// [`Material::uv_transforms`]; WGSL `UV_SLOT_*`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TextureSlot {
+    /// [`Material::texture`] (base colour, and its alpha).
+    Base = 0,
+    /// [`Material::metallic_roughness_texture`].
+    MetallicRoughness = 1,
+    /// [`Material::emission_texture`].
+    Emission = 2,
+    /// [`Material::normal_texture`].
+    Normal = 3,
+    /// [`Material::occlusion_texture`].
+    Occlusion = 4,
 }
 
 impl Material {
@@ -94,6 +115,7 @@ impl Material {
             alpha_blend: false,
             occlusion_texture: None,
             occlusion_strength: 1.0,
+            uv_transforms: [None; 5],
         }
     }
 
@@ -115,17 +137,20 @@ impl Material {
             || self.occlusion_texture.is_some()
     }
 
-    /// Every texture it reads (indices into [`RenderScene::textures`]), the normal map too.
-    pub fn textures(&self) -> impl Iterator<Item = usize> {
-        [
-            self.texture,
-            self.metallic_roughness_texture,
-            self.emission_texture,
-            self.normal_texture,
-            self.occlusion_texture,
-        ]
-        .into_iter()
-        .flatten()
+    /// The texture in `slot` (an index into [`RenderScene::textures`]).
+    pub fn texture_in(&self, slot: TextureSlot) -> Option<usize> {
+        match slot {
+            TextureSlot::Base => self.texture,
+            TextureSlot::MetallicRoughness => self.metallic_roughness_texture,
+            TextureSlot::Emission => self.emission_texture,
+            TextureSlot::Normal => self.normal_texture,
+            TextureSlot::Occlusion => self.occlusion_texture,
+        }
+    }
+
+    /// Whether a texture it reads is read at moved coordinates.
+    pub fn moves_textures(&self) -> bool {
+        self.uv_transforms.iter().any(Option::is_some)
     }
 }
 
@@ -141,11 +166,6 @@ pub struct Texture {
     /// Their alpha (linear, in [0, 1]), or empty where the image has no alpha channel
     /// (opaque everywhere; so is an alpha of another length than `texels`).
     pub alpha: Vec<f32>,
-    /// Where it is read: the interpolated texture coordinates moved by this 2 × 3 map
-    /// (rows; a glTF texture's `KHR_texture_transform` relative to its material's
-    /// interpolated set) where the `texture-transforms` effect is simulated; None: where
-    /// they are.
-    pub uv_transform: Option<[[f32; 3]; 2]>,
 }
 
 /// A point or directional light (area lights are the emissive triangles).
@@ -354,7 +374,6 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
             .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
             .collect(),
         alpha,
-        uv_transform: None,
     })
 }
 
@@ -1228,7 +1247,6 @@ impl Builder {
             given: &self.tangents,
             material_of: &self.material_of,
             materials: &self.materials,
-            textures: &self.textures,
             mesh_starts: match self.placed {
                 true => &self.mesh_starts,
                 false => &[],

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 
 use super::assemble::{
-    decode_texture, error_message, map_normals, Builder, Material, NormalMap, Texture,
+    decode_texture, error_message, map_normals, Builder, Material, NormalMap, TextureSlot,
 };
 use super::file::MaterialKind;
 use super::tangents::move_tangents;
@@ -281,11 +281,7 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
             return Ok(None);
         };
         let index = t.image;
-        // The same image read at other coordinates is another texture.
-        let moved = (t.uv_transform)
-            .map(|m| format!("/uv{:?}", m.map(|r| r.map(f32::to_bits))))
-            .unwrap_or_default();
-        let key = PathBuf::from(format!("{}#image{index}/{srgb}{moved}", path.display()));
+        let key = PathBuf::from(format!("{}#image{index}/{srgb}", path.display()));
         let texture = b.texture_with(key, || {
             let decoded = match &t.bytes {
                 GltfImage::Bytes(bytes) => decode_texture(bytes, srgb),
@@ -293,10 +289,6 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
                     .map_err(|e| e.to_string())
                     .and_then(|bytes| decode_texture(&bytes, srgb)),
             };
-            let decoded = decoded.map(|texture| Texture {
-                uv_transform: t.uv_transform,
-                ..texture
-            });
             decoded.map_err(|e| {
                 Error::input(
                     path,
@@ -328,6 +320,26 @@ fn gltf_material(b: &mut Builder, path: &Path, m: &GltfMaterial) -> Result<Mater
     if let Some((t, strength)) = &m.occlusion_texture {
         mat.occlusion_texture = image("occlusion", Some(t), false)?;
         mat.occlusion_strength = strength.clamp(0.0, 1.0);
+    }
+    // Each texture's own coordinates, where they differ (one image, decoded once, may be
+    // read at several: an atlas).
+    let slots = [
+        (TextureSlot::Base, m.base_color_texture.as_ref()),
+        (
+            TextureSlot::MetallicRoughness,
+            m.metallic_roughness_texture.as_ref(),
+        ),
+        (TextureSlot::Emission, m.emissive_texture.as_ref()),
+        (TextureSlot::Normal, m.normal_texture.as_ref().map(|n| &n.0)),
+        (
+            TextureSlot::Occlusion,
+            m.occlusion_texture.as_ref().map(|o| &o.0),
+        ),
+    ];
+    for (slot, t) in slots {
+        if mat.texture_in(slot).is_some() {
+            mat.uv_transforms[slot as usize] = t.and_then(|t| t.uv_transform);
+        }
     }
     Ok(mat)
 }

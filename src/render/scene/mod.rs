@@ -11,7 +11,7 @@ mod placements;
 mod shapes;
 mod tangents;
 
-pub use assemble::{Light, Material, RenderScene, Settings, Texture};
+pub use assemble::{Light, Material, RenderScene, Settings, Texture, TextureSlot};
 pub use file::{Integrator, LightKind, MaterialKind, SceneFile};
 pub use open::ImageSize;
 pub use placements::{Motion, PlacedTriangle, Placements, TRANSFORM_ERROR};

@@ -12,7 +12,7 @@ use std::collections::HashMap;
 
 use glam::{Vec2, Vec3};
 
-use super::assemble::{Material, Texture};
+use super::assemble::{Material, TextureSlot};
 use crate::geometry::{cross, dot, normalize, pack_tangent, unpack_tangent, unpack_unit};
 use crate::geometry::{NO_NORMAL, NO_TANGENT};
 use crate::mesh::Mesh;
@@ -32,7 +32,6 @@ pub(super) struct TangentInputs<'a> {
     pub given: &'a [[u32; 3]],
     pub material_of: &'a [u32],
     pub materials: &'a [Material],
-    pub textures: &'a [Texture],
     /// Where each placed mesh starts (empty: one mesh); corners of different meshes are
     /// not welded.
     pub mesh_starts: &'a [usize],
@@ -64,8 +63,9 @@ pub(super) fn tangents_of(x: &TangentInputs) -> Vec<[u32; 3]> {
     };
     // The frame of a generated triangle (None: mapped by the file, or not at all).
     let frame = |i: usize, mesh: u32| {
-        let map = map_of(i).filter(|_| own(i).is_none())?;
-        let uv_map = x.textures.get(map).and_then(|t| t.uv_transform);
+        map_of(i).filter(|_| own(i).is_none())?;
+        let material = &x.materials[x.material_of[i] as usize];
+        let uv_map = material.uv_transforms[TextureSlot::Normal as usize];
         FaceFrame::of(
             mesh,
             x.mesh.triangles[i].v,
@@ -243,7 +243,6 @@ mod tests {
             given,
             material_of,
             materials,
-            textures: &[],
             mesh_starts: &[],
         })
     }
@@ -293,7 +292,6 @@ mod tests {
             given: &[],
             material_of: &[0, 0],
             materials: &[diffuse_mapped()],
-            textures: &[],
             mesh_starts: &[0, 1],
         });
         assert_ne!(two_meshes[0][1], two_meshes[1][0]);
@@ -336,35 +334,29 @@ mod tests {
         assert_eq!(alone, vec![[NO_TANGENT; 3]]);
     }
 
-    /// A normal map read at turned coordinates (its texture's transform) turns the frame
+    /// A normal map read at turned coordinates (its slot's transform) turns the frame
     /// with them: u' = 1 − v grows along −y where u grows along +x.
     #[test]
     fn a_moved_normal_map_moves_its_frame() {
         let mesh = Mesh::from_triangles(vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)]);
         let uvs = [[Vec2::ZERO, Vec2::X, Vec2::Y]];
-        let map = |uv_transform| Texture {
-            width: 1,
-            height: 1,
-            texels: vec![Vec3::new(0.5, 0.5, 1.0)],
-            alpha: Vec::new(),
-            uv_transform,
-        };
-        let direction = |texture: Texture| {
+        let direction = |uv_map: Option<[[f32; 3]; 2]>| {
+            let mut material = diffuse_mapped();
+            material.uv_transforms[TextureSlot::Normal as usize] = uv_map;
             let t = tangents_of(&TangentInputs {
                 mesh: &mesh,
                 uvs: &uvs,
                 normals: &[],
                 given: &[],
                 material_of: &[0],
-                materials: &[diffuse_mapped()],
-                textures: &[texture],
+                materials: &[material],
                 mesh_starts: &[],
             });
             interpolated(&t[0], 1.0, 0.0, 0.0).unwrap().0.normalize()
         };
-        assert!((direction(map(None)) - Vec3::X).length() < 1e-3);
+        assert!((direction(None) - Vec3::X).length() < 1e-3);
         let turned = Some([[0.0, -1.0, 1.0], [1.0, 0.0, 1.0]]);
-        assert!((direction(map(turned)) + Vec3::Y).length() < 1e-3);
+        assert!((direction(turned) + Vec3::Y).length() < 1e-3);
     }
 
     /// A file's tangents are kept as given, and a material without a map gets none.
