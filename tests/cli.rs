@@ -1776,3 +1776,37 @@ fn render_frames_writes_a_numbered_sequence() {
     assert_eq!(refused.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("no frame in 5..5"));
 }
+
+#[test]
+fn texture_coordinates_that_are_not_finite_are_read_as_zero_and_counted() {
+    let dir = Scratch::new();
+    let obj = dir.path("nan-uv.obj");
+    std::fs::write(
+        &obj,
+        "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt nan 0\nvt 1 inf\nvt 0 1\n\
+         f 1/1 2/2 3/3\nf 1/1 3/4 4/4\n",
+    )
+    .unwrap();
+    let png = dir.path("nan-uv.png");
+    let out = lancer_ok(&[
+        "render",
+        s(&obj),
+        "-o",
+        s(&png),
+        "--device",
+        "cpu",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("1 triangle(s) have texture coordinates that are not finite"),
+        "{err}"
+    );
+    let scene = lancer::render::RenderScene::from_mesh(&obj, 8, 8).unwrap();
+    assert!(scene.uvs.iter().flatten().all(|c| c.is_finite()));
+    assert_eq!(scene.uvs[0][1], glam::Vec2::new(0.0, 0.0));
+    assert_eq!(scene.uvs[0][2], glam::Vec2::new(1.0, 0.0));
+}

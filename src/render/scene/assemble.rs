@@ -394,6 +394,8 @@ pub(super) struct Builder {
     textures: Vec<Texture>,
     texture_ids: HashMap<PathBuf, usize>,
     pub(super) short_faces: usize,
+    /// Triangles with a texture coordinate that is not finite (read as 0 there).
+    unfinite_uvs: usize,
     /// Every file read: the scene, meshes, MTL libraries, textures.
     pub(super) sources: Vec<PathBuf>,
     /// The triangles as meshes placed by instances: where each mesh starts (its triangles
@@ -520,6 +522,14 @@ impl Builder {
         normals: [u32; 3],
         material: u32,
     ) {
+        // NaN or infinite coordinates (a file's) would wrap to texels that differ between
+        // devices: read as 0, and counted.
+        let uv = if uv.iter().all(|c| c.is_finite()) {
+            uv
+        } else {
+            self.unfinite_uvs += 1;
+            uv.map(|c| Vec2::select(c.is_finite_mask(), c, Vec2::ZERO))
+        };
         // A transform can make a good triangle degenerate or overflow: classify again.
         let status = match status {
             TriStatus::Ok => classify(&t),
@@ -1224,6 +1234,14 @@ impl Builder {
         let mut normals = self.normals;
         if !normals.is_empty() {
             normals.resize(self.triangles.len(), [NO_NORMAL; 3]);
+        }
+        if self.unfinite_uvs > 0 {
+            log::warn!(
+                "{}: {} triangle(s) have texture coordinates that are not finite (NaN or \
+                 infinite): read as 0 there",
+                path.display(),
+                self.unfinite_uvs
+            );
         }
         let mesh = Mesh {
             triangles: self.triangles,
