@@ -167,7 +167,7 @@ fn gltf_with_cameras(d: &Scratch) -> PathBuf {
     let mut doc = common::writers::gltf_json(&m, Some(common::writers::data_uri(&bin)));
     let h = std::f32::consts::FRAC_1_SQRT_2;
     doc["cameras"] = serde_json::json!([
-        { "type": "perspective", "perspective": { "yfov": 0.6, "znear": 0.1 } },
+        { "type": "perspective", "perspective": { "yfov": 0.6, "aspectRatio": 2.0, "znear": 0.1 } },
         { "type": "perspective", "name": "Side", "perspective": { "yfov": 0.5, "znear": 0.1 } },
         { "type": "orthographic", "orthographic": { "xmag": 1, "ymag": 1, "znear": 0.1, "zfar": 10 } }
     ]);
@@ -218,6 +218,25 @@ fn gltf_cameras_give_the_view_and_camera_picks_one() {
     let scene = lancer::RenderScene::from_mesh(&g, 8, 8).unwrap();
     assert_eq!(scene.camera.eye, glam::Vec3::new(0.0, 0.0, 5.0));
     assert!((scene.camera.vfov_deg - 0.6f32.to_degrees()).abs() < 1e-4);
+    // The first camera's aspect ratio (2) shapes the image where the size is not given
+    // whole; "Side" has none: the mesh's own 640 × 480.
+    let size = |width: Option<u32>, height: Option<u32>, camera: Option<&str>| {
+        let size = lancer::render::ImageSize {
+            width,
+            height,
+            scale: None,
+        };
+        let view = lancer::camera::ViewChange {
+            camera: camera.map(str::to_string),
+            ..Default::default()
+        };
+        let scene = lancer::RenderScene::open(&g, &size, &view).unwrap();
+        (scene.camera.width, scene.camera.height)
+    };
+    assert_eq!(size(None, None, None), (640, 320));
+    assert_eq!(size(Some(100), None, None), (100, 50));
+    assert_eq!(size(Some(30), Some(30), None), (30, 30));
+    assert_eq!(size(None, None, Some("Side")), (640, 480));
     // An unknown camera names the ones there are; a scene file has its own.
     let out = dir.path("x.png");
     let o = lancer(&[

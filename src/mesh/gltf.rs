@@ -157,6 +157,10 @@ pub struct GltfCamera {
     pub up: Vec3,
     /// Vertical field of view, degrees.
     pub yfov_deg: f32,
+    /// The width over the height of its view (`aspectRatio`; None where the file gives
+    /// none, or one that is not finite and positive): `lancer render` sizes a mesh's image
+    /// by it where the command line gives no more than one side.
+    pub aspect_ratio: Option<f32>,
 }
 
 /// The perspective cameras of the nodes `walked` (each with its world map), in that order;
@@ -199,6 +203,7 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
             look_at: eye + ahead.normalize(),
             up: up.normalize(),
             yfov_deg,
+            aspect_ratio: p.aspect_ratio().filter(|a| a.is_finite() && *a > 0.0),
         });
     }
     out

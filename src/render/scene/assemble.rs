@@ -1174,14 +1174,14 @@ impl RenderScene {
     }
 
     /// [`RenderScene::from_mesh`] seen from the file's camera `camera` names (by index or
-    /// name; None: its first, if any); and whether a camera of the file was used (else
-    /// the default view).
+    /// name; None: its first, if any); and the file's camera used (None: the default
+    /// view).
     pub fn from_mesh_with_camera(
         path: &Path,
         width: u32,
         height: u32,
         camera: Option<&str>,
-    ) -> Result<(RenderScene, bool)> {
+    ) -> Result<(RenderScene, Option<crate::mesh::GltfCamera>)> {
         let mut b = Builder::default();
         let grey = b.material(Material::diffuse(Vec3::splat(0.7)));
         let bounds = b.add_placed_file(path, grey)?;
@@ -1194,7 +1194,7 @@ impl RenderScene {
         }
         let picked = crate::camera::pick_camera(&b.cameras, camera)
             .map_err(|e| Error::input(path, None, e))?;
-        let from_file = picked.is_some();
+        let from_file = picked.cloned();
         let camera = match picked {
             Some(c) => Camera::from_gltf(c, width, height),
             None => Camera::default_view(&bounds, width, height),

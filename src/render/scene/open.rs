@@ -41,8 +41,9 @@ const MESH_SIZE: (u32, u32) = (640, 480);
 
 impl RenderScene {
     /// What `lancer render PATH` renders: a scene file (.toml), or a mesh (.obj, .ply,
-    /// .gltf, .glb) from its default view at 640×480 ([`RenderScene::from_mesh`]), at the
-    /// image size `size` asks for, seen as `view` changes it. A mesh's default view fits
+    /// .gltf, .glb) from its default view at 640×480 ([`RenderScene::from_mesh`]; from a
+    /// glTF camera with an aspect ratio, 640 wide at that ratio), at the image size `size`
+    /// asks for, seen as `view` changes it. A mesh's default view fits
     /// the final image size, and a new field of view alone keeps it framed.
     pub fn open(path: &Path, size: &ImageSize, view: &ViewChange) -> Result<RenderScene> {
         if size.width == Some(0) || size.height == Some(0) {
@@ -58,9 +59,18 @@ impl RenderScene {
         let mesh = FileKind::of(path)? != FileKind::Scene;
         let (mut scene, default_view) = if mesh {
             let (w, h) = size.of(MESH_SIZE);
-            let (scene, from_file) =
+            let (mut scene, from_file) =
                 RenderScene::from_mesh_with_camera(path, w, h, view.camera.as_deref())?;
-            (scene, !from_file)
+            // A file's camera with an aspect ratio gives the mesh's own size its shape.
+            if let Some(aspect) = from_file.as_ref().and_then(|c| c.aspect_ratio) {
+                let tall = (MESH_SIZE.0 as f32 / aspect)
+                    .round()
+                    .clamp(1.0, 64.0 * MESH_SIZE.0 as f32);
+                let own = (MESH_SIZE.0, tall as u32);
+                let camera = &mut scene.camera;
+                (camera.width, camera.height) = size.of(own);
+            }
+            (scene, from_file.is_none())
         } else {
             if let Some(c) = &view.camera {
                 return Err(Error::Usage(format!(
