@@ -1796,6 +1796,74 @@ fn render_frames_writes_a_numbered_sequence() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("no frame in 5..5"));
 }
 
+/// `render FILE.gltf --frames A..` plays the file's animation to its last key at `--fps`;
+/// `A..` is refused where nothing is animated, and a frame whose map scales to 0 is refused
+/// naming the frame (exit 2).
+#[test]
+fn render_frames_plays_a_gltf_animation() {
+    let dir = Scratch::new();
+    let write = |name: &str, vanish: bool| {
+        let path = dir.path(name);
+        let doc = common::writers::animated_cube([1.5, 0.0, 0.0], vanish);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        path
+    };
+    let slide = write("slide.gltf", false);
+    let out = dir.path("a.png");
+    let args = |file: &Path, frames: &str| {
+        let mut a: Vec<String> = ["render", s(file), "--width", "32", "--height", "24"]
+            .map(String::from)
+            .to_vec();
+        a.extend(
+            [
+                "--spp",
+                "1",
+                "--fps",
+                "2",
+                "--frames",
+                frames,
+                "-o",
+                s(&out),
+            ]
+            .map(String::from),
+        );
+        a
+    };
+    let run = |a: &[String]| lancer(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let done = run(&args(&slide, "0.."));
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    let frames: Vec<Vec<u8>> = ["a-0000.png", "a-0001.png", "a-0002.png"]
+        .iter()
+        .map(|f| std::fs::read(dir.path(f)).unwrap())
+        .collect();
+    assert!(
+        !dir.path("a-0003.png").exists(),
+        "one second at 2 frames a second: 0, 1, 2"
+    );
+    assert!(
+        frames[0] != frames[1] && frames[1] != frames[2],
+        "the cube moves"
+    );
+    let still = dir.path("still.toml");
+    std::fs::write(
+        &still,
+        std::fs::read_to_string("scenes/copies.toml").unwrap(),
+    )
+    .unwrap();
+    let open_end = run(&args(&still, "0.."));
+    assert_eq!(open_end.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&open_end.stderr).contains("plays no glTF animation"));
+    let vanish = write("vanish.gltf", true);
+    let refused = run(&args(&vanish, "0..3"));
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("frame 2") && err.contains("singular"), "{err}");
+}
+
 #[test]
 fn texture_coordinates_that_are_not_finite_are_read_as_zero_and_counted() {
     let dir = Scratch::new();

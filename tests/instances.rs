@@ -908,3 +908,79 @@ fn refitting_a_mesh_traces_as_a_tracer_built_over_it() {
             .unwrap();
     assert!(plain.refit_mesh(0, &deformed).is_err());
 }
+
+/// A glTF file's first animation moves its meshes frame by frame (frame f at f ÷ fps
+/// seconds): a parent's `LINEAR` translation and a child's `STEP` rotation compose as the
+/// node tree does, keys hold before the first and after the last, the frame rate can be
+/// set; a map that scales to 0 is refused at the frame it happens, naming it. A frame
+/// rendered with the two levels of frame 0 handed over equals one rendered from scratch.
+#[test]
+fn gltf_animations_move_their_meshes_frame_by_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, vanish: bool| {
+        let path = dir.path().join(name);
+        let doc = common::writers::animated_cube([2.0, 0.0, 0.0], vanish);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        path
+    };
+    let mut scene = lancer::RenderScene::from_mesh(&write("slide.gltf", false), 40, 30).unwrap();
+    assert!(scene.moves());
+    assert_eq!(scene.animation_frames(), Some(24));
+    let corner = Vec3::splat(0.5);
+    let placed = |s: &lancer::RenderScene| {
+        // The cube, then the ground `render MESH` adds.
+        let set = s.placements.as_ref().unwrap().set();
+        assert_eq!(set.instances.len(), 2);
+        set.instances[0].to_world.point(corner)
+    };
+    assert_eq!(placed(&scene), corner, "at rest");
+    // A quarter turn about +Y takes (x, y, z) to (z, y, −x).
+    let turned = Vec3::new(2.5, 0.5, -0.5);
+    for (frame, want) in [
+        (0, corner),
+        (12, corner + Vec3::X),
+        (23, corner + Vec3::X * (2.0 * 23.0 / 24.0)),
+        (24, turned),
+        (100, turned),
+    ] {
+        let got = placed(&scene.at_frame(frame).unwrap());
+        assert!(
+            (got - want).abs().max_element() < 1e-5,
+            "frame {frame}: {got} against {want}"
+        );
+    }
+    scene.set_frame_rate(12.0).unwrap();
+    assert_eq!(scene.animation_frames(), Some(12));
+    assert!((placed(&scene.at_frame(12).unwrap()) - turned).length() < 1e-5);
+    assert!(scene.set_frame_rate(0.0).is_err() && scene.set_frame_rate(f32::NAN).is_err());
+
+    let opts = RenderOptions {
+        spp: Some(1),
+        ..RenderOptions::default()
+    };
+    let moved = scene.at_frame(6).unwrap();
+    for device in [cpu_device(), gpu_device()] {
+        let first = lancer::render::Renderer::new(&scene, device, &opts).unwrap();
+        let reuse = RenderOptions {
+            two_level: Some(first.two_level().expect("two levels")),
+            ..opts.clone()
+        };
+        let mut next = lancer::render::Renderer::new(&moved, device, &reuse).unwrap();
+        let got = next.render(&reuse).unwrap().image.pixels;
+        let fresh = lancer::render::render(&moved, device, &opts).unwrap();
+        assert!(
+            got == fresh.image.pixels,
+            "{device}: frame 6 reused ≠ fresh"
+        );
+        let rest = lancer::render::render(&scene, device, &opts).unwrap();
+        assert!(got != rest.image.pixels, "{device}: the cube moved");
+    }
+
+    let vanishing = lancer::RenderScene::from_mesh(&write("vanish.gltf", true), 40, 30).unwrap();
+    assert!(vanishing.at_frame(12).is_ok(), "half size");
+    let err = vanishing.at_frame(24).unwrap_err().to_string();
+    assert!(
+        err.contains("frame 24") && err.contains("singular"),
+        "{err}"
+    );
+}

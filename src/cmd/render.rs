@@ -99,24 +99,33 @@ pub struct RenderCmd {
     /// under one over its copies.
     #[arg(long)]
     flatten: bool,
-    /// Render frames A to B−1 of a scene whose objects move (`move`, `spin`), each into the
-    /// output's name numbered (out-0000.png, …); in two levels only the top level is built
-    /// again from frame to frame.
+    /// Render frames A to B−1 of a scene whose objects move (`move`, `spin`, a glTF
+    /// file's animation), each into the output's name numbered (out-0000.png, …); in two
+    /// levels only the top level is built again from frame to frame. `A..` plays a glTF
+    /// animation to its last key.
     #[arg(long, value_name = "A..B", value_parser = frame_range, conflicts_with = "flatten")]
-    frames: Option<(u32, u32)>,
+    frames: Option<(u32, Option<u32>)>,
+    /// Frames a second at which a glTF file's animation is played (frame f shows it at
+    /// f ÷ FPS seconds).
+    #[arg(long, default_value_t = lancer::render::DEFAULT_FRAME_RATE)]
+    fps: f32,
 }
 
-/// `--frames A..B`: first frame, one past the last.
-fn frame_range(s: &str) -> std::result::Result<(u32, u32), String> {
+/// `--frames A..B`: first frame, one past the last (None: to the animation's end).
+fn frame_range(s: &str) -> std::result::Result<(u32, Option<u32>), String> {
     let (a, b) = s
         .split_once("..")
         .ok_or_else(|| format!("{s}: give frames as A..B (B excluded), e.g. 0..24"))?;
     let parse = |x: &str| x.trim().parse::<u32>().map_err(|e| format!("{s}: {e}"));
-    let (a, b) = (parse(a)?, parse(b)?);
+    let a = parse(a)?;
+    if b.trim().is_empty() {
+        return Ok((a, None));
+    }
+    let b = parse(b)?;
     if a >= b {
         return Err(format!("{s}: no frame in {a}..{b} (B is excluded)"));
     }
-    Ok((a, b))
+    Ok((a, Some(b)))
 }
 
 /// `out` numbered for frame `frame`: out-0007.png.
@@ -169,6 +178,7 @@ impl RenderCmd {
             scale: self.scale,
         };
         let mut scene = RenderScene::open(&self.scene, &size, &self.view.change())?;
+        scene.set_frame_rate(self.fps)?;
         if let Some(spec) = &self.environment {
             scene.environment = match super::point(spec) {
                 Ok(rgb) if rgb.min_element() >= 0.0 => {
@@ -240,11 +250,35 @@ impl RenderCmd {
             Some((a, b)) => {
                 if !scene.moves() {
                     log::warn!(
-                        "{}: nothing moves (no object has 'move' or 'spin'): every frame is \
-                         the same image",
+                        "{}: nothing moves (no object has 'move' or 'spin', no glTF animation \
+                         moves a mesh): every frame is the same image",
                         self.scene.display()
                     );
                 }
+                let last = scene.animation_frames();
+                if let Some(n) = last {
+                    log::info!(
+                        "{}: its animation ends at frame {n} ({} frames a second)",
+                        self.scene.display(),
+                        self.fps
+                    );
+                }
+                let b = match (b, last) {
+                    (Some(b), _) => b,
+                    (None, Some(n)) if n >= a => n.saturating_add(1),
+                    (None, Some(n)) => {
+                        return Err(Error::Usage(format!(
+                            "--frames {a}..: the animation ends at frame {n}"
+                        )))
+                    }
+                    (None, None) => {
+                        return Err(Error::Usage(format!(
+                            "--frames {a}..: {} plays no glTF animation; give the last frame \
+                             (A..B)",
+                            self.scene.display()
+                        )))
+                    }
+                };
                 for f in a..b {
                     lancer::output::check_output(&numbered(&self.out, f), &scene.mesh.sources)?;
                 }

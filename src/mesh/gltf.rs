@@ -13,6 +13,7 @@ use ::gltf::{Accessor, Document, Node, Primitive};
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
+use super::gltf_animation::GltfAnimation;
 use super::{
     classify, pack_corners, placeholder, Instance, InstanceSet, Mesh, TriStatus, BYTES_PER_TRIANGLE,
 };
@@ -463,6 +464,9 @@ pub struct GltfPlaced {
     pub cameras: Vec<GltfCamera>,
     /// The lights its nodes place ([`GltfScene::lights`]).
     pub lights: Vec<GltfLight>,
+    /// The file's first animation, where it moves its meshes: the instances' maps at any
+    /// time (one per instance, in order).
+    pub animation: Option<GltfAnimation>,
 }
 
 impl GltfPlaced {
@@ -505,7 +509,8 @@ pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
 }
 
 /// Reads a glTF file once: the default scene's meshes placed by instances, when a mesh is
-/// drawn by several nodes; else (the flattened scene is then no bigger) [`load_gltf`]'s
+/// drawn by several nodes or its first animation moves a mesh ([`GltfPlaced::animation`]);
+/// else (the flattened scene is then no bigger) [`load_gltf`]'s
 /// flattened scene. One mesh per glTF mesh (its primitives' triangles in order, in its own space), one
 /// instance per node that draws it, in the order [`load_gltf`] walks them, so triangles are
 /// numbered alike. A mirroring node draws a copy of its mesh with two corners swapped (as
@@ -546,7 +551,17 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         placements.push(Instance { mesh: id, to_world });
     }
     let drawn_meshes: std::collections::HashSet<usize> = order.iter().map(|k| k.0).collect();
-    if placements.len() <= drawn_meshes.len() {
+    // An animation that moves meshes places them (each then moves with its node).
+    let (mesh_nodes, others): (Vec<_>, Vec<_>) =
+        placed.iter().partition(|(n, _)| n.mesh().is_some());
+    let mesh_nodes = mesh_nodes
+        .into_iter()
+        .map(|(n, w)| (n.index(), *w))
+        .collect();
+    let others: Vec<usize> = others.into_iter().map(|(n, _)| n.index()).collect();
+    let animation =
+        GltfAnimation::read(path, &opened.document, &opened.buffers, mesh_nodes, &others)?;
+    if placements.len() <= drawn_meshes.len() && animation.is_none() {
         return flatten_opened(path, opened).map(GltfLoaded::Flat);
     }
     let cameras = cameras_of(path, &placed);
@@ -617,6 +632,7 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         instances: placements,
         cameras,
         lights,
+        animation,
     };
     // The maps were checked above (a singular one placed at the identity); the count is
     // what InstanceSet::new would refuse.
@@ -983,7 +999,7 @@ fn instances<'a>(path: &Path, doc: &'a Document) -> Result<Vec<(Node<'a>, Mat4)>
 /// Checks an accessor before the gltf crate reads it (its reader panics on some bad
 /// layouts): type, no sparse storage, stride, and bounds within its buffer view. Returns
 /// the element count.
-fn check_accessor(
+pub(super) fn check_accessor(
     path: &Path,
     acc: &Accessor,
     what: &str,

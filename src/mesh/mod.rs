@@ -4,6 +4,7 @@
 
 mod format;
 mod gltf;
+mod gltf_animation;
 mod gltf_check;
 mod indexed;
 mod instanced;
@@ -20,6 +21,7 @@ pub use gltf::{
     load_gltf, load_gltf_instances, load_gltf_placed, read_gltf, GltfCamera, GltfImage, GltfLight,
     GltfLightKind, GltfLoaded, GltfMaterial, GltfPlaced, GltfScene, GltfTexture,
 };
+pub use gltf_animation::GltfAnimation;
 pub use instanced::{Instance, InstanceSet, MAX_INSTANCED_TRIANGLES};
 pub use load::{check_traceable, check_usable, load_mesh, warn_exclusions};
 pub use obj::{load_obj, load_obj_scene, ObjScene};

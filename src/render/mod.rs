@@ -46,7 +46,8 @@ pub use scene::builtin;
 pub use scene::{load_geometry, load_instances, load_traceable, Geometry};
 pub use scene::{
     ImageSize, Integrator, Light, LightKind, Material, MaterialKind, Motion, PlacedTriangle,
-    Placements, RenderScene, SceneFile, Settings, Texture, TextureSlot, TRANSFORM_ERROR,
+    Placements, RenderScene, SceneFile, Settings, Texture, TextureSlot, DEFAULT_FRAME_RATE,
+    TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;
 pub use texture::{sample_alpha, sample_texture, texture_uv};

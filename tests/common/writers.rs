@@ -174,3 +174,67 @@ pub fn glb(doc: &Value, bin: Option<&[u8]>) -> Vec<u8> {
     out.extend(chunks);
     out
 }
+
+/// A glTF document (buffer embedded) of a unit cube drawn by node 1, a child of node 0,
+/// with one animation: node 0 moves from the origin to `to` over the first second
+/// (`LINEAR`), node 1 turns a quarter about +Y at 1 s (`STEP`), and with `vanish` node 1
+/// also scales from 1 to 0 over the first second (`LINEAR`).
+pub fn animated_cube(to: [f32; 3], vanish: bool) -> Value {
+    let cube = Indexed {
+        verts: (0..8)
+            .map(|i| [i & 1, (i >> 1) & 1, (i >> 2) & 1].map(|b| b as f32 - 0.5))
+            .collect(),
+        faces: vec![
+            vec![0, 2, 3, 1],
+            vec![4, 5, 7, 6],
+            vec![0, 1, 5, 4],
+            vec![2, 6, 7, 3],
+            vec![0, 4, 6, 2],
+            vec![1, 3, 7, 5],
+        ],
+    };
+    let mut bin = gltf_buffer(&cube);
+    let mut doc = gltf_json(&cube, None);
+    // Keys appended after the mesh: (accessor type, count, f32 values).
+    let turn = std::f32::consts::FRAC_1_SQRT_2;
+    let mut keys: Vec<(&str, usize, Vec<f32>)> = vec![
+        ("SCALAR", 2, vec![0.0, 1.0]),
+        ("VEC3", 2, [[0.0; 3], to].concat()),
+        ("VEC4", 2, vec![0.0, 0.0, 0.0, 1.0, 0.0, turn, 0.0, turn]),
+    ];
+    if vanish {
+        keys.push(("VEC3", 2, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0]));
+    }
+    let first = doc["accessors"].as_array().unwrap().len();
+    for (kind, count, values) in keys {
+        let view = doc["bufferViews"].as_array().unwrap().len();
+        doc["bufferViews"].as_array_mut().unwrap().push(json!({
+            "buffer": 0, "byteOffset": bin.len(), "byteLength": values.len() * 4
+        }));
+        let mut accessor = json!({
+            "bufferView": view, "componentType": 5126, "count": count, "type": kind
+        });
+        if kind == "SCALAR" {
+            accessor["min"] = json!([values[0]]);
+            accessor["max"] = json!([values[count - 1]]);
+        }
+        doc["accessors"].as_array_mut().unwrap().push(accessor);
+        bin.extend(values.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    let mut channels = vec![
+        json!({ "sampler": 0, "target": { "node": 0, "path": "translation" } }),
+        json!({ "sampler": 1, "target": { "node": 1, "path": "rotation" } }),
+    ];
+    let mut samplers = vec![
+        json!({ "input": first, "output": first + 1, "interpolation": "LINEAR" }),
+        json!({ "input": first, "output": first + 2, "interpolation": "STEP" }),
+    ];
+    if vanish {
+        channels.push(json!({ "sampler": 2, "target": { "node": 1, "path": "scale" } }));
+        samplers.push(json!({ "input": first, "output": first + 3, "interpolation": "LINEAR" }));
+    }
+    doc["nodes"] = json!([{ "children": [1] }, { "mesh": 0 }]);
+    doc["animations"] = json!([{ "name": "slide", "channels": channels, "samplers": samplers }]);
+    doc["buffers"] = json!([{ "byteLength": bin.len(), "uri": data_uri(&bin) }]);
+    doc
+}

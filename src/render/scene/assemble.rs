@@ -407,6 +407,9 @@ pub(super) struct Builder {
     /// Each instance's motion from frame to frame, where a scene file gives any (else
     /// empty: nothing moves).
     motions: Vec<Motion>,
+    /// A glTF file's animation and the first instance it places, where a file added by
+    /// [`Builder::add_placed_file`] moves its meshes.
+    pub(super) animation: Option<(usize, crate::mesh::GltfAnimation)>,
     /// The perspective cameras of a glTF file added by [`Builder::add_placed_file`].
     pub(super) cameras: Vec<crate::mesh::GltfCamera>,
     /// The punctual lights of a glTF file added by [`Builder::add_placed_file`].
@@ -1252,10 +1255,14 @@ impl Builder {
         // Exclusions were counted per mesh file as each was added (add_obj).
         check_traceable(path, &mesh)?;
         let placements = match self.placed {
-            true => Some(
-                place_meshes(path, &mesh, &self.mesh_starts, self.instances)?
-                    .with_motions(&self.motions),
-            ),
+            true => {
+                let pl = place_meshes(path, &mesh, &self.mesh_starts, self.instances)?
+                    .with_motions(&self.motions);
+                Some(match self.animation {
+                    Some((first, clip)) => pl.with_animation(first, clip),
+                    None => pl,
+                })
+            }
             false => None,
         };
         let tangents = tangents_of(&TangentInputs {
@@ -1463,9 +1470,25 @@ impl RenderScene {
         }
     }
 
-    /// Whether anything moves from frame to frame (`move`, `spin`).
+    /// Whether anything moves from frame to frame (`move`, `spin`, a glTF animation).
     pub fn moves(&self) -> bool {
         self.placements.as_ref().is_some_and(Placements::moves)
+    }
+
+    /// Sets the frames a second at which a glTF animation is played
+    /// ([`Placements::set_frame_rate`]; [`DEFAULT_FRAME_RATE`](super::DEFAULT_FRAME_RATE)
+    /// unless set). Refused unless positive and finite.
+    pub fn set_frame_rate(&mut self, fps: f32) -> Result<()> {
+        match &mut self.placements {
+            Some(pl) => pl.set_frame_rate(fps),
+            None => Placements::check_frame_rate(fps),
+        }
+    }
+
+    /// The frames a glTF animation lasts at its frame rate (its last key's frame, rounded
+    /// up), where the scene plays one.
+    pub fn animation_frames(&self) -> Option<u32> {
+        self.placements.as_ref()?.animation_frames()
     }
 
     /// The scene at frame `frame`: its placements moved to that frame (and its emitters'

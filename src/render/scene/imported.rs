@@ -189,6 +189,9 @@ impl Builder {
             self.sources.extend(m.mesh.sources.iter().cloned());
             mesh_bounds.push(m.mesh.bounds());
         }
+        if let Some(clip) = g.animation {
+            self.animation = Some((self.instances.len(), clip));
+        }
         let mut bounds = Aabb::EMPTY;
         for inst in &g.instances {
             bounds = bounds.union(inst.to_world.image_box(&mesh_bounds[inst.mesh as usize]));

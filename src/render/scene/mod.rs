@@ -14,7 +14,7 @@ mod tangents;
 pub use assemble::{Light, Material, RenderScene, Settings, Texture, TextureSlot};
 pub use file::{Integrator, LightKind, MaterialKind, SceneFile};
 pub use open::ImageSize;
-pub use placements::{Motion, PlacedTriangle, Placements, TRANSFORM_ERROR};
+pub use placements::{Motion, PlacedTriangle, Placements, DEFAULT_FRAME_RATE, TRANSFORM_ERROR};
 
 /// The mesh of a mesh file (.obj, .ply, .gltf, .glb) or of a scene (.toml: all its objects
 /// in one mesh, copies flattened), chosen by the extension; an unknown extension is

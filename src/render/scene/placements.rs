@@ -16,10 +16,12 @@
 //! the interpolation's own bound ([`point_error`](crate::render::point_error)) before it
 //! offsets a secondary ray's origin, on the CPU and in WGSL (`placed_error`) alike.
 
+use std::sync::Arc;
+
 use glam::{DMat3, DVec3, Vec3};
 
 use crate::geometry::{gamma, Aabb, Affine};
-use crate::mesh::{Instance, InstanceSet};
+use crate::mesh::{GltfAnimation, Instance, InstanceSet};
 
 /// The relative rounding of a placement in a hit point's error bound (see the module
 /// comment).
@@ -35,6 +37,21 @@ pub struct Placements {
     to_object: Vec<Affine>,
     /// Each instance's motion per frame and its map at frame 0; empty when nothing moves.
     motions: Vec<(Motion, Affine)>,
+    /// A glTF animation that moves some instances, where the scene has one.
+    animation: Option<Animated>,
+}
+
+/// Frames a second of an animation in seconds (a glTF file's) unless set
+/// ([`Placements::set_frame_rate`]).
+pub const DEFAULT_FRAME_RATE: f32 = 24.0;
+
+/// A glTF animation placing instances `first..` (as many as it places), frame f at f ÷ `fps`
+/// seconds.
+#[derive(Clone, Debug)]
+struct Animated {
+    first: usize,
+    clip: Arc<GltfAnimation>,
+    fps: f32,
 }
 
 /// How an instance moves from frame to frame (`render --frames`): at frame f its map is
@@ -128,7 +145,49 @@ impl Placements {
             first_prims,
             to_object,
             motions: Vec::new(),
+            animation: None,
         }
+    }
+
+    /// The placements with instances `first..` moved by a glTF file's animation (one
+    /// instance for each map it gives), frame f at f ÷ [`DEFAULT_FRAME_RATE`] seconds.
+    /// Ignored where those instances do not exist.
+    pub fn with_animation(mut self, first: usize, clip: GltfAnimation) -> Self {
+        if first + clip.placements() <= self.set.instances.len() {
+            self.animation = Some(Animated {
+                first,
+                clip: Arc::new(clip),
+                fps: DEFAULT_FRAME_RATE,
+            });
+        }
+        self
+    }
+
+    /// Sets the frames a second at which an animation in seconds is sampled (a glTF
+    /// file's); motions given per frame do not change. Refused unless positive and finite.
+    pub fn set_frame_rate(&mut self, fps: f32) -> crate::Result<()> {
+        Self::check_frame_rate(fps)?;
+        if let Some(a) = &mut self.animation {
+            a.fps = fps;
+        }
+        Ok(())
+    }
+
+    /// Refuses a frame rate that is not positive and finite.
+    pub(super) fn check_frame_rate(fps: f32) -> crate::Result<()> {
+        match fps.is_finite() && fps > 0.0 {
+            true => Ok(()),
+            false => Err(crate::Error::Usage(format!(
+                "frames a second must be a positive number, not {fps}"
+            ))),
+        }
+    }
+
+    /// The length of its glTF animation in frames (the frame of its last key, rounded up),
+    /// where it has one.
+    pub fn animation_frames(&self) -> Option<u32> {
+        let a = self.animation.as_ref()?;
+        Some((a.clip.duration() * a.fps).ceil().min(u32::MAX as f32) as u32)
     }
 
     /// The placements with each instance moving by `motions[i]` from frame to frame (one
@@ -144,23 +203,33 @@ impl Placements {
 
     /// Whether an instance moves from frame to frame.
     pub fn moves(&self) -> bool {
-        !self.motions.is_empty()
+        !self.motions.is_empty() || self.animation.is_some()
     }
 
-    /// Each instance's map at frame `frame` (its own where nothing moves).
-    pub fn maps_at(&self, frame: u32) -> Vec<Affine> {
-        match self.motions.is_empty() {
+    /// Each instance's map at frame `frame` (its own where nothing moves). Refused where
+    /// an animation's map turns singular or mirrors its mesh otherwise than at rest.
+    pub fn maps_at(&self, frame: u32) -> crate::Result<Vec<Affine>> {
+        let mut maps: Vec<Affine> = match self.motions.is_empty() {
             true => self.set.instances.iter().map(|i| i.to_world).collect(),
             false => (self.motions.iter())
                 .map(|(motion, first)| motion.at(first, frame))
                 .collect(),
+        };
+        if let Some(a) = &self.animation {
+            let t = (frame as f64 / a.fps as f64) as f32;
+            let moved = a
+                .clip
+                .maps_at(t)
+                .map_err(|e| crate::Error::Usage(format!("frame {frame}: {e}")))?;
+            maps[a.first..a.first + moved.len()].copy_from_slice(&moved);
         }
+        Ok(maps)
     }
 
     /// The same meshes placed as at frame `frame`, the motions kept. Refused where a moved
-    /// map is not invertible (a motion that overflows f32).
+    /// map is not invertible (a motion that overflows f32, an animation that scales to 0).
     pub fn at_frame(&self, frame: u32) -> crate::Result<Placements> {
-        let instances = (self.set.instances.iter().zip(self.maps_at(frame)))
+        let instances = (self.set.instances.iter().zip(self.maps_at(frame)?))
             .map(|(i, to_world)| Instance {
                 mesh: i.mesh,
                 to_world,
@@ -169,6 +238,7 @@ impl Placements {
         let set = InstanceSet::new(self.set.meshes.clone(), instances)?;
         let mut moved = Placements::new(set, self.mesh_base.clone());
         moved.motions = self.motions.clone();
+        moved.animation = self.animation.clone();
         Ok(moved)
     }
 
