@@ -118,6 +118,12 @@ fn mesh_from_arrays_traces_like_any_mesh() {
         hits.len()
     );
     assert!(hits.iter().all(|h| !h.is_hit() || h.prim < 128));
+    // Handing the mesh over (freed before the upload) traces the same.
+    let mut owned = Tracer::from_mesh(&device, mesh, &TracerOptions::default()).unwrap();
+    assert_eq!(
+        bits(&owned.trace(&rays(), Query::Closest).unwrap().hits),
+        bits(&hits)
+    );
 }
 
 #[test]

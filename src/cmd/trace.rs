@@ -81,7 +81,11 @@ impl TraceCmd {
         inputs.push(self.rays.clone());
         inputs.extend(self.bvh.clone());
         check_output(&self.out, &inputs)?;
-        let rays = read_rays(&self.rays)?;
+        // The rays are read once the structure is built (they would add to its peak of
+        // memory); a ray file of partial rays is refused now.
+        if !is_std(&self.rays) {
+            lancer::trace::files::check_ray_file(&self.rays)?;
+        }
         let bvh = (self.bvh.as_ref())
             .map(|p| load_bvh(p, &mesh))
             .transpose()?;
@@ -93,8 +97,13 @@ impl TraceCmd {
         let kind = self.accel.with_layout(layout);
         let mut tracer = match &bvh {
             Some(file) => Tracer::with_layout(&device, file.layout.clone(), &options)?,
+            // A BVH's layout holds the triangles: the mesh goes before the upload.
+            None if matches!(kind, AccelKind::Bvh(_)) => {
+                Tracer::from_mesh(&device, mesh, &options)?
+            }
             None => Tracer::with_structure(&device, &mesh, kind, &options)?,
         };
+        let rays = read_rays(&self.rays)?;
         let result = tracer.trace(&rays, self.query())?;
         self.report(
             &result,

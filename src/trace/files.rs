@@ -30,18 +30,30 @@ pub fn decode_rays(name: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
     Ok(rays)
 }
 
-fn decode_ray_bytes(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
-    if !bytes.len().is_multiple_of(RAY_BYTES) {
-        return Err(Error::input(
-            path,
-            None,
-            format!(
-                "size {} bytes is not a multiple of {RAY_BYTES} (one ray = origin xyz, tmin, direction xyz, tmax as f32); the last {} bytes are a partial ray",
-                bytes.len(),
-                bytes.len() % RAY_BYTES
-            ),
-        ));
+/// Checks a ray file before it is read: a regular file of whole rays (32 bytes each), so
+/// that a bad one is refused before work that precedes the read (the ray file itself is
+/// read and checked again when its rays are needed).
+pub fn check_ray_file(path: &Path) -> Result<()> {
+    whole_rays(path, crate::input::regular_file(path)?)
+}
+
+/// Refuses a size (`len` bytes, of `path`) that is not whole rays.
+fn whole_rays(path: &Path, len: u64) -> Result<()> {
+    if len.is_multiple_of(RAY_BYTES as u64) {
+        return Ok(());
     }
+    Err(Error::input(
+        path,
+        None,
+        format!(
+            "size {len} bytes is not a multiple of {RAY_BYTES} (one ray = origin xyz, tmin, direction xyz, tmax as f32); the last {} bytes are a partial ray",
+            len % RAY_BYTES as u64
+        ),
+    ))
+}
+
+fn decode_ray_bytes(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
+    whole_rays(path, bytes.len() as u64)?;
     // Decode explicitly little-endian, whatever the host.
     Ok(bytes
         .chunks_exact(RAY_BYTES)

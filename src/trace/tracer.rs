@@ -100,6 +100,26 @@ impl<'d> Tracer<'d> {
     /// Builds the BVH over the mesh's usable triangles, flattens it, and uploads it when
     /// the device is a GPU.
     pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
+        let layout = Self::flattened(device, mesh, options)?;
+        Self::with_layout(device, layout, options)
+    }
+
+    /// [`Tracer::new`] taking the mesh, which is freed once the layout holds its triangles
+    /// and before the layout is uploaded: the mesh, the layout and the device's copy of it
+    /// never take memory at once (a software driver's device memory is the host's).
+    pub fn from_mesh(device: &'d Device, mesh: Mesh, options: &TracerOptions) -> Result<Self> {
+        let layout = Self::flattened(device, &mesh, options)?;
+        drop(mesh);
+        Self::with_layout(device, layout, options)
+    }
+
+    /// The BVH over `mesh` built and flattened into the options' layout (the device's
+    /// default where none is given).
+    fn flattened(
+        device: &Device,
+        mesh: &Mesh,
+        options: &TracerOptions,
+    ) -> Result<Arc<dyn GpuForm>> {
         let start = std::time::Instant::now();
         let tree = bvh::build(mesh, &options.build);
         let built = start.elapsed();
@@ -111,7 +131,7 @@ impl<'d> Tracer<'d> {
             built.as_secs_f64() * 1e3,
             (start.elapsed() - built).as_secs_f64() * 1e3
         );
-        Self::with_layout(device, layout, options)
+        Ok(layout)
     }
 
     /// Builds the structure `kind` over the mesh: on a GPU device its GPU form
