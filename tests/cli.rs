@@ -1804,7 +1804,7 @@ fn render_frames_plays_a_gltf_animation() {
     let dir = Scratch::new();
     let write = |name: &str, vanish: bool| {
         let path = dir.path(name);
-        let doc = common::writers::animated_cube([1.5, 0.0, 0.0], vanish);
+        let doc = common::writers::animated_cube([1.5, 0.0, 0.0], vanish, false);
         std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
         path
     };

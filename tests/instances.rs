@@ -919,7 +919,7 @@ fn gltf_animations_move_their_meshes_frame_by_frame() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, vanish: bool| {
         let path = dir.path().join(name);
-        let doc = common::writers::animated_cube([2.0, 0.0, 0.0], vanish);
+        let doc = common::writers::animated_cube([2.0, 0.0, 0.0], vanish, false);
         std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
         path
     };
@@ -983,4 +983,44 @@ fn gltf_animations_move_their_meshes_frame_by_frame() {
         err.contains("frame 24") && err.contains("singular"),
         "{err}"
     );
+}
+
+/// A glTF camera its file's animation moves is the view of each frame (frame f at f ÷ fps
+/// seconds); a view given on the command line (`--look-from`, …) holds in every frame; a
+/// still camera stays still.
+#[test]
+fn gltf_animations_move_the_files_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, dolly: bool| {
+        let path = dir.path().join(name);
+        let doc = common::writers::animated_cube([0.0; 3], false, dolly);
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        path
+    };
+    let dolly = write("dolly.gltf", true);
+    let size = lancer::render::ImageSize {
+        width: Some(40),
+        height: Some(30),
+        scale: None,
+    };
+    let scene = lancer::RenderScene::open(&dolly, &size, &Default::default()).unwrap();
+    let eye = |s: &lancer::RenderScene, f: u32| s.at_frame(f).unwrap().camera.eye;
+    assert_eq!(scene.camera.eye, Vec3::new(0.0, 0.0, 5.0), "at rest");
+    assert_eq!(eye(&scene, 0), Vec3::new(0.0, 0.0, 5.0));
+    assert!((eye(&scene, 12) - Vec3::new(0.0, 0.0, 4.0)).length() < 1e-5);
+    assert!((eye(&scene, 30) - Vec3::new(0.0, 0.0, 3.0)).length() < 1e-5);
+    assert_eq!(scene.at_frame(30).unwrap().camera.width, 40);
+    let view = lancer::camera::ViewChange {
+        look_from: Some(Vec3::new(1.0, 2.0, 6.0)),
+        ..Default::default()
+    };
+    let held = lancer::RenderScene::open(&dolly, &size, &view).unwrap();
+    assert_eq!(
+        eye(&held, 30),
+        Vec3::new(1.0, 2.0, 6.0),
+        "the command line's view holds"
+    );
+    let still =
+        lancer::RenderScene::open(&write("still.gltf", false), &size, &Default::default()).unwrap();
+    assert_eq!(eye(&still, 30), Vec3::new(0.0, 0.0, 5.0));
 }

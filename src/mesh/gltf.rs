@@ -156,6 +156,8 @@ pub struct GltfCamera {
     pub look_at: Vec3,
     /// The node's +Y.
     pub up: Vec3,
+    /// The index of the node that places it (a file's animation may move it).
+    pub node: usize,
     /// Vertical field of view, degrees.
     pub yfov_deg: f32,
     /// The width over the height of its view (`aspectRatio`; None where the file gives
@@ -181,33 +183,39 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
             );
             continue;
         };
-        let eye = world.transform_point3(Vec3::ZERO);
-        let ahead = world.transform_vector3(-Vec3::Z);
-        let up = world.transform_vector3(Vec3::Y);
         let yfov_deg = p.yfov().to_degrees();
-        let usable = eye.is_finite()
-            && ahead.length() > 0.0
-            && ahead.is_finite()
-            && up.cross(ahead).length() > 0.0
-            && yfov_deg > 0.0
-            && yfov_deg < 180.0;
-        if !usable {
+        let frame = camera_frame(world).filter(|_| yfov_deg > 0.0 && yfov_deg < 180.0);
+        let Some((eye, look_at, up)) = frame else {
             log::warn!(
                 "{}: camera {name:?} not used: its node's map or field of view is degenerate",
                 path.display()
             );
             continue;
-        }
+        };
         out.push(GltfCamera {
             name,
             eye,
-            look_at: eye + ahead.normalize(),
-            up: up.normalize(),
+            look_at,
+            up,
+            node: node.index(),
             yfov_deg,
             aspect_ratio: p.aspect_ratio().filter(|a| a.is_finite() && *a > 0.0),
         });
     }
     out
+}
+
+/// Where a camera placed by the world map `world` looks: its eye, a point straight ahead
+/// (along −Z) and its up (+Y); None where the map leaves it no position or direction.
+pub(super) fn camera_frame(world: &Mat4) -> Option<(Vec3, Vec3, Vec3)> {
+    let eye = world.transform_point3(Vec3::ZERO);
+    let ahead = world.transform_vector3(-Vec3::Z);
+    let up = world.transform_vector3(Vec3::Y);
+    let usable = eye.is_finite()
+        && ahead.length() > 0.0
+        && ahead.is_finite()
+        && up.cross(ahead).length() > 0.0;
+    usable.then(|| (eye, eye + ahead.normalize(), up.normalize()))
 }
 
 /// A `KHR_texture_transform`: glTF texture coordinates scaled, turned, then offset, as
@@ -552,15 +560,28 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
     }
     let drawn_meshes: std::collections::HashSet<usize> = order.iter().map(|k| k.0).collect();
     // An animation that moves meshes places them (each then moves with its node).
-    let (mesh_nodes, others): (Vec<_>, Vec<_>) =
-        placed.iter().partition(|(n, _)| n.mesh().is_some());
-    let mesh_nodes = mesh_nodes
-        .into_iter()
+    let nodes_with = |has: fn(&Node) -> bool| -> Vec<usize> {
+        placed
+            .iter()
+            .filter(|(n, _)| has(n))
+            .map(|(n, _)| n.index())
+            .collect()
+    };
+    let mesh_nodes = (placed.iter())
+        .filter(|(n, _)| n.mesh().is_some())
         .map(|(n, w)| (n.index(), *w))
         .collect();
-    let others: Vec<usize> = others.into_iter().map(|(n, _)| n.index()).collect();
-    let animation =
-        GltfAnimation::read(path, &opened.document, &opened.buffers, mesh_nodes, &others)?;
+    let (camera_nodes, light_nodes) = (
+        nodes_with(|n| n.camera().is_some()),
+        nodes_with(|n| n.light().is_some()),
+    );
+    let animation = GltfAnimation::read(
+        path,
+        &opened.document,
+        &opened.buffers,
+        mesh_nodes,
+        (&camera_nodes, &light_nodes),
+    )?;
     if placements.len() <= drawn_meshes.len() && animation.is_none() {
         return flatten_opened(path, opened).map(GltfLoaded::Flat);
     }

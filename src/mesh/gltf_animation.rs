@@ -1,6 +1,6 @@
 //! glTF node animations: the keyframes of a file's first animation that move nodes
 //! (translation, rotation, scale), sampled at any time as the world maps of the nodes that
-//! draw meshes. Interpolation follows glTF 2.0 §3.11: `STEP` holds a key, `LINEAR` lerps
+//! draw meshes and of the cameras. Interpolation follows glTF 2.0 §3.11: `STEP` holds a key, `LINEAR` lerps
 //! translations and scales and slerps rotations, `CUBICSPLINE` is a cubic Hermite spline
 //! over (in-tangent, value, out-tangent) triples. Before the first key a channel holds its
 //! first value, after the last its last. Morph-target weights (and skins) are not played.
@@ -13,7 +13,7 @@ use ::gltf::animation::{Interpolation, Property};
 use ::gltf::Document;
 use glam::{Mat4, Quat, Vec3, Vec4};
 
-use super::gltf::check_accessor;
+use super::gltf::{camera_frame, check_accessor, GltfCamera};
 use crate::error::{Error, Result};
 use crate::geometry::Affine;
 
@@ -83,7 +83,8 @@ impl Channel {
     }
 }
 
-/// A glTF file's first animation, as far as it moves the nodes that draw meshes.
+/// A glTF file's first animation, as far as it moves the nodes that draw meshes or place
+/// cameras.
 #[derive(Clone, Debug)]
 pub struct GltfAnimation {
     /// Its name, or its index, for messages.
@@ -106,16 +107,17 @@ pub struct GltfAnimation {
 
 impl GltfAnimation {
     /// The file's first animation, where it moves one of `placed` (the nodes that draw
-    /// meshes, in placement order, with their world maps at rest); None where it has none
-    /// or moves only other nodes. Cameras and lights among `others` that it moves are
-    /// warned about: they stay where they are at rest. Accessors are checked before they
-    /// are read; times must be finite and non-decreasing, values finite.
+    /// meshes, in placement order, with their world maps at rest) or of `cameras` (the
+    /// nodes that place cameras); None where it has none or moves only other nodes. Lights
+    /// among `lights` that it moves are warned about: they stay where they are at rest.
+    /// Accessors are checked before they are read; times must be finite and non-decreasing,
+    /// values finite.
     pub(super) fn read(
         path: &Path,
         doc: &Document,
         buffers: &[Vec<u8>],
         placed: Vec<(usize, Mat4)>,
-        others: &[usize],
+        (cameras, lights): (&[usize], &[usize]),
     ) -> Result<Option<GltfAnimation>> {
         let Some(anim) = doc.animations().next() else {
             return Ok(None);
@@ -245,32 +247,10 @@ impl GltfAnimation {
         for c in &channels {
             animated[c.node] = true;
         }
-        // Whether a node or one of its ancestors moves (parents form trees: checked when
-        // the scene was walked, so the climb ends).
-        let moves = |mut x: usize| loop {
-            if animated[x] {
-                return true;
-            }
-            match parents[x] {
-                Some(p) => x = p,
-                None => return false,
-            }
-        };
-        let moved_others = others.iter().filter(|&&x| moves(x)).count();
-        if moved_others > 0 {
-            log::warn!(
-                "{}: {name} moves {moved_others} camera or light node(s): they stay where \
-                 they are at rest",
-                path.display()
-            );
-        }
-        if !placed.iter().any(|&(x, _)| moves(x)) {
-            return Ok(None);
-        }
         let duration = (channels.iter())
             .filter_map(|c| c.times.last().copied())
             .fold(0.0, f32::max);
-        Ok(Some(GltfAnimation {
+        let clip = GltfAnimation {
             name,
             parents,
             rest,
@@ -279,7 +259,78 @@ impl GltfAnimation {
             channels,
             placed,
             duration,
-        }))
+        };
+        let moved_lights = lights.iter().filter(|&&x| clip.moves(x)).count();
+        if moved_lights > 0 {
+            log::warn!(
+                "{}: {} moves {moved_lights} light node(s): they stay where they are at rest",
+                path.display(),
+                clip.name
+            );
+        }
+        let moves_any = clip.placed.iter().any(|&(x, _)| clip.moves(x))
+            || cameras.iter().any(|&x| clip.moves(x));
+        Ok(moves_any.then_some(clip))
+    }
+
+    /// Whether node `x` or one of its ancestors moves (parents form trees: checked when the
+    /// scene was walked, so the climb ends).
+    pub fn moves(&self, mut x: usize) -> bool {
+        loop {
+            if self.animated.get(x).copied().unwrap_or(false) {
+                return true;
+            }
+            match self.parents.get(x).copied().flatten() {
+                Some(p) => x = p,
+                None => return false,
+            }
+        }
+    }
+
+    /// Camera `camera` (placed by a node of this file) at time `t`, seconds: where its
+    /// node's animated world map puts it (as it if does not move). Refused where that map
+    /// leaves it no direction.
+    pub fn camera_at(
+        &self,
+        camera: &GltfCamera,
+        t: f32,
+    ) -> std::result::Result<GltfCamera, String> {
+        if !self.moves(camera.node) || camera.node >= self.rest.len() {
+            return Ok(camera.clone());
+        }
+        let locals = self.locals_at(t);
+        let mut world = vec![None; locals.len()];
+        let map = self.world_of(camera.node, &locals, &mut world);
+        let (eye, look_at, up) = camera_frame(&map).ok_or_else(|| {
+            format!(
+                "{} at {t} s: camera {:?}'s map leaves it no direction",
+                self.name,
+                camera.name.as_deref().unwrap_or("")
+            )
+        })?;
+        Ok(GltfCamera {
+            eye,
+            look_at,
+            up,
+            ..camera.clone()
+        })
+    }
+
+    /// The world map of node `x` at the time `locals` were taken, composing (and keeping in
+    /// `world`) those of its ancestors not composed yet, as the scene's walk composes them.
+    fn world_of(&self, x: usize, locals: &[Mat4], world: &mut [Option<Mat4>]) -> Mat4 {
+        let mut chain = Vec::new();
+        let mut y = Some(x);
+        while let Some(z) = y.filter(|&z| world[z].is_none()) {
+            chain.push(z);
+            y = self.parents[z];
+        }
+        let mut up = y.and_then(|z| world[z]).unwrap_or(Mat4::IDENTITY);
+        for &z in chain.iter().rev() {
+            up *= locals[z];
+            world[z] = Some(up);
+        }
+        world[x].unwrap_or(Mat4::IDENTITY)
     }
 
     /// The time of its last key, seconds (after it every node holds its last pose).
@@ -320,22 +371,9 @@ impl GltfAnimation {
     pub fn maps_at(&self, t: f32) -> std::result::Result<Vec<Affine>, String> {
         let locals = self.locals_at(t);
         let mut world: Vec<Option<Mat4>> = vec![None; locals.len()];
-        let mut chain = Vec::new();
         let mut maps = Vec::with_capacity(self.placed.len());
         for &(x, at_rest) in &self.placed {
-            // Climb to the nearest ancestor already composed, then compose down.
-            chain.clear();
-            let mut y = Some(x);
-            while let Some(z) = y.filter(|&z| world[z].is_none()) {
-                chain.push(z);
-                y = self.parents[z];
-            }
-            let mut up = y.and_then(|z| world[z]).unwrap_or(Mat4::IDENTITY);
-            for &z in chain.iter().rev() {
-                up *= locals[z];
-                world[z] = Some(up);
-            }
-            let map = world[x].unwrap_or(Mat4::IDENTITY);
+            let map = self.world_of(x, &locals, &mut world);
             if Affine::from_mat4(&at_rest).inverse().is_none() {
                 maps.push(Affine::IDENTITY);
                 continue;

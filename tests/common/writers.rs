@@ -178,8 +178,10 @@ pub fn glb(doc: &Value, bin: Option<&[u8]>) -> Vec<u8> {
 /// A glTF document (buffer embedded) of a unit cube drawn by node 1, a child of node 0,
 /// with one animation: node 0 moves from the origin to `to` over the first second
 /// (`LINEAR`), node 1 turns a quarter about +Y at 1 s (`STEP`), and with `vanish` node 1
-/// also scales from 1 to 0 over the first second (`LINEAR`).
-pub fn animated_cube(to: [f32; 3], vanish: bool) -> Value {
+/// also scales from 1 to 0 over the first second (`LINEAR`). Node 2 places a perspective
+/// camera at (0, 0, 5) looking along −Z; with `dolly` it moves to (0, 0, 3) over the
+/// first second (`LINEAR`).
+pub fn animated_cube(to: [f32; 3], vanish: bool, dolly: bool) -> Value {
     let cube = Indexed {
         verts: (0..8)
             .map(|i| [i & 1, (i >> 1) & 1, (i >> 2) & 1].map(|b| b as f32 - 0.5))
@@ -205,6 +207,9 @@ pub fn animated_cube(to: [f32; 3], vanish: bool) -> Value {
     if vanish {
         keys.push(("VEC3", 2, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0]));
     }
+    if dolly {
+        keys.push(("VEC3", 2, vec![0.0, 0.0, 5.0, 0.0, 0.0, 3.0]));
+    }
     let first = doc["accessors"].as_array().unwrap().len();
     for (kind, count, values) in keys {
         let view = doc["bufferViews"].as_array().unwrap().len();
@@ -229,11 +234,27 @@ pub fn animated_cube(to: [f32; 3], vanish: bool) -> Value {
         json!({ "input": first, "output": first + 1, "interpolation": "LINEAR" }),
         json!({ "input": first, "output": first + 2, "interpolation": "STEP" }),
     ];
+    let mut output = first + 3;
     if vanish {
-        channels.push(json!({ "sampler": 2, "target": { "node": 1, "path": "scale" } }));
-        samplers.push(json!({ "input": first, "output": first + 3, "interpolation": "LINEAR" }));
+        channels
+            .push(json!({ "sampler": samplers.len(), "target": { "node": 1, "path": "scale" } }));
+        samplers.push(json!({ "input": first, "output": output, "interpolation": "LINEAR" }));
+        output += 1;
     }
-    doc["nodes"] = json!([{ "children": [1] }, { "mesh": 0 }]);
+    if dolly {
+        channels.push(
+            json!({ "sampler": samplers.len(), "target": { "node": 2, "path": "translation" } }),
+        );
+        samplers.push(json!({ "input": first, "output": output, "interpolation": "LINEAR" }));
+    }
+    doc["nodes"] = json!([
+        { "children": [1] },
+        { "mesh": 0 },
+        { "camera": 0, "translation": [0.0, 0.0, 5.0] }
+    ]);
+    doc["scenes"] = json!([{ "nodes": [0, 2] }]);
+    doc["cameras"] =
+        json!([{ "type": "perspective", "perspective": { "yfov": 0.8, "znear": 0.1 } }]);
     doc["animations"] = json!([{ "name": "slide", "channels": channels, "samplers": samplers }]);
     doc["buffers"] = json!([{ "byteLength": bin.len(), "uri": data_uri(&bin) }]);
     doc

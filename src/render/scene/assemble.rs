@@ -1218,10 +1218,12 @@ impl RenderScene {
                 irradiance: Vec3::new(2.6, 2.4, 2.1),
             });
         }
-        Ok((
-            b.finish(path, camera, settings, lights, Some(sky))?,
-            from_file,
-        ))
+        let mut scene = b.finish(path, camera, settings, lights, Some(sky))?;
+        // A camera the file's animation moves moves from frame to frame.
+        if let (Some(pl), Some(c)) = (&mut scene.placements, &from_file) {
+            pl.animate_camera(c);
+        }
+        Ok((scene, from_file))
     }
 }
 
@@ -1499,6 +1501,10 @@ impl RenderScene {
         if let Some(pl) = self.placements.as_ref().filter(|p| p.moves()) {
             scene.placements = Some(pl.at_frame(frame)?);
             scene.find_emitters()?;
+            if let Some(c) = pl.camera_at(frame)? {
+                let (w, h) = (self.camera.width, self.camera.height);
+                scene.camera = Camera::from_gltf(&c, w, h);
+            }
         }
         Ok(scene)
     }

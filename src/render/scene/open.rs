@@ -84,6 +84,13 @@ impl RenderScene {
         };
         view.apply(&mut scene.camera, default_view)
             .map_err(Error::Usage)?;
+        // A view given here holds in every frame; only the file's own camera is animated.
+        let (look_from, look_at, fov) = (view.look_from, view.look_at, view.fov);
+        if look_from.is_some() || look_at.is_some() || fov.is_some() {
+            if let Some(pl) = &mut scene.placements {
+                pl.stop_camera();
+            }
+        }
         Ok(scene)
     }
 }

@@ -21,7 +21,7 @@ use std::sync::Arc;
 use glam::{DMat3, DVec3, Vec3};
 
 use crate::geometry::{gamma, Aabb, Affine};
-use crate::mesh::{GltfAnimation, Instance, InstanceSet};
+use crate::mesh::{GltfAnimation, GltfCamera, Instance, InstanceSet};
 
 /// The relative rounding of a placement in a hit point's error bound (see the module
 /// comment).
@@ -52,6 +52,15 @@ struct Animated {
     first: usize,
     clip: Arc<GltfAnimation>,
     fps: f32,
+    /// The file's camera the scene is seen from, where the animation moves it.
+    camera: Option<GltfCamera>,
+}
+
+impl Animated {
+    /// The time of frame `frame`, seconds.
+    fn time(&self, frame: u32) -> f32 {
+        (frame as f64 / self.fps as f64) as f32
+    }
 }
 
 /// How an instance moves from frame to frame (`render --frames`): at frame f its map is
@@ -158,6 +167,7 @@ impl Placements {
                 first,
                 clip: Arc::new(clip),
                 fps: DEFAULT_FRAME_RATE,
+                camera: None,
             });
         }
         self
@@ -171,6 +181,35 @@ impl Placements {
             a.fps = fps;
         }
         Ok(())
+    }
+
+    /// Moves the view with the animation where it moves `camera` (the file's camera the
+    /// scene is seen from): [`Placements::camera_at`] then places it.
+    pub fn animate_camera(&mut self, camera: &GltfCamera) {
+        if let Some(a) = &mut self.animation {
+            a.camera = a.clip.moves(camera.node).then(|| camera.clone());
+        }
+    }
+
+    /// Keeps the view where it is in every frame (a view given on the command line).
+    pub fn stop_camera(&mut self) {
+        if let Some(a) = &mut self.animation {
+            a.camera = None;
+        }
+    }
+
+    /// The animated camera at frame `frame` (None where the view does not move). Refused
+    /// where the animation leaves it no direction.
+    pub fn camera_at(&self, frame: u32) -> crate::Result<Option<GltfCamera>> {
+        let Some(a) = &self.animation else {
+            return Ok(None);
+        };
+        let Some(camera) = &a.camera else {
+            return Ok(None);
+        };
+        (a.clip.camera_at(camera, a.time(frame)))
+            .map(Some)
+            .map_err(|e| crate::Error::Usage(format!("frame {frame}: {e}")))
     }
 
     /// Refuses a frame rate that is not positive and finite.
@@ -216,10 +255,9 @@ impl Placements {
                 .collect(),
         };
         if let Some(a) = &self.animation {
-            let t = (frame as f64 / a.fps as f64) as f32;
             let moved = a
                 .clip
-                .maps_at(t)
+                .maps_at(a.time(frame))
                 .map_err(|e| crate::Error::Usage(format!("frame {frame}: {e}")))?;
             maps[a.first..a.first + moved.len()].copy_from_slice(&moved);
         }
