@@ -237,6 +237,13 @@ fn gltf_cameras_give_the_view_and_camera_picks_one() {
     assert_eq!(size(Some(100), None, None), (100, 50));
     assert_eq!(size(Some(30), Some(30), None), (30, 30));
     assert_eq!(size(None, None, Some("Side")), (640, 480));
+    // `rays` shapes its 512-wide default alike.
+    let r = dir.path("shaped.rays");
+    lancer_ok(&["rays", s(&g), "-o", s(&r)]);
+    assert_eq!(
+        lancer::trace::files::read_rays(&r).unwrap().len(),
+        512 * 256
+    );
     // An unknown camera names the ones there are; a scene file has its own.
     let out = dir.path("x.png");
     let o = lancer(&[
@@ -1857,6 +1864,13 @@ fn render_frames_plays_a_gltf_animation() {
     let open_end = run(&args(&still, "0.."));
     assert_eq!(open_end.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&open_end.stderr).contains("plays no glTF animation"));
+    // An animation's end far off at a high frame rate: refused, not rendered for ever.
+    let far: Vec<String> = (args(&slide, "0..").into_iter())
+        .map(|a| if a == "2" { "1e7".to_string() } else { a })
+        .collect();
+    let too_many = run(&far);
+    assert_eq!(too_many.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&too_many.stderr).contains("split the range"));
     let vanish = write("vanish.gltf", true);
     let refused = run(&args(&vanish, "0..3"));
     assert_eq!(refused.status.code(), Some(2));

@@ -983,6 +983,19 @@ fn gltf_animations_move_their_meshes_frame_by_frame() {
         err.contains("frame 24") && err.contains("singular"),
         "{err}"
     );
+
+    // Still uses (trace, rays) take a file that is placed only for its animation flattened.
+    let slide = dir.path().join("slide.gltf");
+    assert!(lancer::render::load_instances(&slide).unwrap().is_none());
+    // An animation that cannot be played (its key times read from a VEC3 accessor) leaves
+    // the file drawn still.
+    let mut doc = common::writers::animated_cube([2.0, 0.0, 0.0], false, false);
+    let first_output = doc["animations"][0]["samplers"][0]["output"].clone();
+    doc["animations"][0]["samplers"][0]["input"] = first_output;
+    let broken = dir.path().join("broken.gltf");
+    std::fs::write(&broken, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let still = lancer::RenderScene::from_mesh(&broken, 40, 30).unwrap();
+    assert!(!still.moves());
 }
 
 /// A glTF camera its file's animation moves is the view of each frame (frame f at f ÷ fps

@@ -17,7 +17,8 @@ pub struct RaysCmd {
     /// Image width in pixels (default: the scene camera's, or 512 for a mesh).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     width: Option<u32>,
-    /// Image height in pixels (default: the scene camera's, or 512 for a mesh).
+    /// Image height in pixels (default: the scene camera's, or 512 for a mesh; a glTF
+    /// camera's aspect ratio sets it from the width's default).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     height: Option<u32>,
     #[command(flatten)]
@@ -71,7 +72,11 @@ impl RaysCmd {
                     Geometry::Mesh(mesh) => (mesh.bounds(), mesh.sources),
                 };
                 match picked {
-                    Some(c) => (Camera::from_gltf(c, w, h), sources, false),
+                    // A camera's aspect ratio shapes the image (512 wide), as in `render`.
+                    Some(c) => {
+                        let (w, h) = c.shaped(512).map_or((w, h), size);
+                        (Camera::from_gltf(c, w, h), sources, false)
+                    }
                     None => (Camera::default_view(&bounds, w, h), sources, true),
                 }
             }

@@ -111,6 +111,10 @@ pub struct RenderCmd {
     fps: f32,
 }
 
+/// Most frames one `render --frames` run renders (an animation's last key may lie far
+/// off).
+const MAX_FRAMES: u32 = 1_000_000;
+
 /// `--frames A..B`: first frame, one past the last (None: to the animation's end).
 fn frame_range(s: &str) -> std::result::Result<(u32, Option<u32>), String> {
     let (a, b) = s
@@ -268,7 +272,10 @@ impl RenderCmd {
                     (None, Some(n)) if n >= a => n.saturating_add(1),
                     (None, Some(n)) => {
                         return Err(Error::Usage(format!(
-                            "--frames {a}..: the animation ends at frame {n}"
+                            "--frames {a}..: {}'s animation ends at frame {n} ({} frames a \
+                             second): start at or before it",
+                            self.scene.display(),
+                            self.fps
                         )))
                     }
                     (None, None) => {
@@ -279,6 +286,13 @@ impl RenderCmd {
                         )))
                     }
                 };
+                if b - a > MAX_FRAMES {
+                    return Err(Error::Usage(format!(
+                        "--frames {a}..{b}: {} frames, more than one run renders ({MAX_FRAMES}): \
+                         split the range (or lower --fps)",
+                        b - a
+                    )));
+                }
                 for f in a..b {
                     lancer::output::check_output(&numbered(&self.out, f), &scene.mesh.sources)?;
                 }

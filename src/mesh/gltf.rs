@@ -166,6 +166,17 @@ pub struct GltfCamera {
     pub aspect_ratio: Option<f32>,
 }
 
+impl GltfCamera {
+    /// The image size `width` pixels wide at its aspect ratio (None where it gives none).
+    pub fn shaped(&self, width: u32) -> Option<(u32, u32)> {
+        let aspect = self.aspect_ratio?;
+        let tall = (width as f32 / aspect)
+            .round()
+            .clamp(1.0, 64.0 * width as f32);
+        Some((width, tall as u32))
+    }
+}
+
 /// The perspective cameras of the nodes `walked` (each with its world map), in that order;
 /// orthographic ones are left out with a warning (lancer's camera is a pinhole), as are
 /// cameras whose map has no direction left.
@@ -472,9 +483,12 @@ pub struct GltfPlaced {
     pub cameras: Vec<GltfCamera>,
     /// The lights its nodes place ([`GltfScene::lights`]).
     pub lights: Vec<GltfLight>,
-    /// The file's first animation, where it moves its meshes: the instances' maps at any
-    /// time (one per instance, in order).
+    /// The file's first animation, where it moves its meshes or its cameras: the
+    /// instances' maps at any time (one per instance, in order).
     pub animation: Option<GltfAnimation>,
+    /// Whether a mesh is drawn by several nodes; else the file is placed only for its
+    /// animation, and a still use of it ([`load_gltf_instances`]) takes it flattened.
+    pub shares_meshes: bool,
 }
 
 impl GltfPlaced {
@@ -497,10 +511,13 @@ pub enum GltfLoaded {
     Placed(GltfPlaced),
 }
 
-/// The default scene's meshes placed by instances ([`load_gltf_placed`]), geometry alone.
+/// The default scene's meshes placed by instances ([`load_gltf_placed`]) where a mesh is
+/// drawn by several nodes, geometry alone (None also where the file is placed only for its
+/// animation: a still use takes it flattened).
 pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
     match read_gltf(path)? {
         GltfLoaded::Flat(_) => Ok(None),
+        GltfLoaded::Placed(p) if !p.shares_meshes => Ok(None),
         GltfLoaded::Placed(p) => (p.instance_set())
             .map(Some)
             .map_err(|e| Error::input(path, None, e.to_string())),
@@ -508,7 +525,7 @@ pub fn load_gltf_instances(path: &Path) -> Result<Option<InstanceSet>> {
 }
 
 /// The default scene's meshes placed by instances, when a mesh is drawn by several nodes
-/// (as [`read_gltf`] reads it; None when each is drawn once).
+/// or an animation moves the file (as [`read_gltf`] reads it; None otherwise).
 pub fn load_gltf_placed(path: &Path) -> Result<Option<GltfPlaced>> {
     Ok(match read_gltf(path)? {
         GltfLoaded::Flat(_) => None,
@@ -575,14 +592,20 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         nodes_with(|n| n.camera().is_some()),
         nodes_with(|n| n.light().is_some()),
     );
-    let animation = GltfAnimation::read(
+    let read = GltfAnimation::read(
         path,
         &opened.document,
         &opened.buffers,
         mesh_nodes,
         (&camera_nodes, &light_nodes),
-    )?;
-    if placements.len() <= drawn_meshes.len() && animation.is_none() {
+    );
+    // An animation that cannot be played does not keep the file from being drawn still.
+    let animation = read.unwrap_or_else(|e| {
+        log::warn!("{e}: the animation is not played");
+        None
+    });
+    let shares_meshes = placements.len() > drawn_meshes.len();
+    if !shares_meshes && animation.is_none() {
         return flatten_opened(path, opened).map(GltfLoaded::Flat);
     }
     let cameras = cameras_of(path, &placed);
@@ -654,6 +677,7 @@ pub fn read_gltf(path: &Path) -> Result<GltfLoaded> {
         cameras,
         lights,
         animation,
+        shares_meshes,
     };
     // The maps were checked above (a singular one placed at the identity); the count is
     // what InstanceSet::new would refuse.

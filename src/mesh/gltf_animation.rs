@@ -87,8 +87,9 @@ impl Channel {
 /// cameras.
 #[derive(Clone, Debug)]
 pub struct GltfAnimation {
-    /// Its name, or its index, for messages.
+    /// Its name, or its index, and its file, for messages.
     name: String,
+    file: std::path::PathBuf,
     /// Each node's parent.
     parents: Vec<Option<usize>>,
     /// Each node's map at rest (as the file gives it).
@@ -213,7 +214,7 @@ impl GltfAnimation {
             };
             if times.len() != keys || values.len() != outputs {
                 return Err(bad(format!(
-                    "channel {}'s keys could not be read",
+                    "channel {}'s keys could not be read from its accessors",
                     c.index()
                 )));
             }
@@ -226,6 +227,17 @@ impl GltfAnimation {
             if values.iter().any(|v| !v.is_finite()) {
                 return Err(bad(format!(
                     "channel {} has values that are not finite",
+                    c.index()
+                )));
+            }
+            // A spline's tangents may be zero; its values and other keys are turns.
+            let turns = values
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| per_key == 1 || i % 3 == 1);
+            if part == Part::Rotation && turns.clone().any(|(_, q)| q.length() == 0.0) {
+                return Err(bad(format!(
+                    "channel {} has a rotation of length 0 (no turn)",
                     c.index()
                 )));
             }
@@ -252,6 +264,7 @@ impl GltfAnimation {
             .fold(0.0, f32::max);
         let clip = GltfAnimation {
             name,
+            file: path.to_path_buf(),
             parents,
             rest,
             trs,
@@ -264,6 +277,17 @@ impl GltfAnimation {
         if moved_lights > 0 {
             log::warn!(
                 "{}: {} moves {moved_lights} light node(s): they stay where they are at rest",
+                path.display(),
+                clip.name
+            );
+        }
+        let hidden = (clip.placed.iter())
+            .filter(|&&(x, rest)| clip.moves(x) && Affine::from_mat4(&rest).inverse().is_none())
+            .count();
+        if hidden > 0 {
+            log::warn!(
+                "{}: {} moves {hidden} mesh node(s) whose map at rest is singular (a scale of \
+                 0): they stay hidden in every frame",
                 path.display(),
                 clip.name
             );
@@ -303,7 +327,9 @@ impl GltfAnimation {
         let map = self.world_of(camera.node, &locals, &mut world);
         let (eye, look_at, up) = camera_frame(&map).ok_or_else(|| {
             format!(
-                "{} at {t} s: camera {:?}'s map leaves it no direction",
+                "{}: {} at {t} s: camera {:?}'s map leaves it no direction; end --frames \
+                 before this frame",
+                self.file.display(),
                 self.name,
                 camera.name.as_deref().unwrap_or("")
             )
@@ -381,15 +407,17 @@ impl GltfAnimation {
             let affine = Affine::from_mat4(&map);
             if affine.inverse().is_none() {
                 return Err(format!(
-                    "{} at {t} s: node {x}'s map is singular (a scale of 0?): lancer places \
-                     only invertible maps",
+                    "{}: {} at {t} s: node {x}'s map is singular (a scale of 0): lancer places \
+                     only invertible maps; end --frames before this frame",
+                    self.file.display(),
                     self.name
                 ));
             }
             if (map.determinant() < 0.0) != (at_rest.determinant() < 0.0) {
                 return Err(format!(
-                    "{} at {t} s: node {x} mirrors its mesh where it did not at rest (or the \
-                     reverse): not supported",
+                    "{}: {} at {t} s: node {x} mirrors its mesh where it did not at rest (or \
+                     the reverse), which lancer does not support; end --frames before this frame",
+                    self.file.display(),
                     self.name
                 ));
             }

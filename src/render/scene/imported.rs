@@ -132,9 +132,9 @@ impl Builder {
     }
 
     /// Adds a mesh file as `render MESH` shows it, after the meshes so far, and returns the
-    /// bounds of what it added: a glTF file that draws a mesh with several nodes as its
-    /// meshes placed by its nodes (numbered as the flattened file), any other as one mesh
-    /// placed once. The file is read once.
+    /// bounds of what it added: a glTF file that draws a mesh with several nodes, or whose
+    /// animation moves it, as its meshes placed by its nodes (numbered as the flattened
+    /// file), any other as one mesh placed once. The file is read once.
     pub(super) fn add_placed_file(&mut self, path: &Path, grey: u32) -> Result<Aabb> {
         if matches!(FileKind::of(path)?, FileKind::Gltf) {
             match read_gltf(path)? {

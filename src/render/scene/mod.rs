@@ -32,8 +32,9 @@ pub fn load_geometry(path: &std::path::Path) -> crate::Result<crate::mesh::Mesh>
 pub enum Geometry {
     /// The file's mesh ([`load_geometry`]'s).
     Mesh(crate::mesh::Mesh),
-    /// A glTF mesh drawn by several nodes ([`load_gltf_placed`]), or a scene object with
-    /// `copies` or a `grid` ([`RenderScene::placements`]).
+    /// A glTF mesh drawn by several nodes ([`load_gltf_placed`]; a file placed only for its
+    /// animation is taken flattened), or a scene object with `copies` or a `grid`
+    /// ([`RenderScene::placements`]).
     ///
     /// [`load_gltf_placed`]: crate::mesh::load_gltf_placed
     Placed(crate::mesh::InstanceSet),
@@ -46,6 +47,10 @@ pub fn load_traceable(path: &std::path::Path) -> crate::Result<Geometry> {
     Ok(match FileKind::of(path)? {
         FileKind::Gltf => match crate::mesh::read_gltf(path)? {
             GltfLoaded::Flat(g) => Geometry::Mesh(g.mesh),
+            // Placed only for its animation: traced still, flattened as before.
+            GltfLoaded::Placed(p) if !p.shares_meshes => {
+                Geometry::Mesh(crate::mesh::load_gltf(path)?.mesh)
+            }
             GltfLoaded::Placed(p) => Geometry::Placed(
                 (p.instance_set()).map_err(|e| crate::Error::input(path, None, e.to_string()))?,
             ),

@@ -62,11 +62,7 @@ impl RenderScene {
             let (mut scene, from_file) =
                 RenderScene::from_mesh_with_camera(path, w, h, view.camera.as_deref())?;
             // A file's camera with an aspect ratio gives the mesh's own size its shape.
-            if let Some(aspect) = from_file.as_ref().and_then(|c| c.aspect_ratio) {
-                let tall = (MESH_SIZE.0 as f32 / aspect)
-                    .round()
-                    .clamp(1.0, 64.0 * MESH_SIZE.0 as f32);
-                let own = (MESH_SIZE.0, tall as u32);
+            if let Some(own) = from_file.as_ref().and_then(|c| c.shaped(MESH_SIZE.0)) {
                 let camera = &mut scene.camera;
                 (camera.width, camera.height) = size.of(own);
             }

@@ -217,7 +217,7 @@ impl Placements {
         match fps.is_finite() && fps > 0.0 {
             true => Ok(()),
             false => Err(crate::Error::Usage(format!(
-                "frames a second must be a positive number, not {fps}"
+                "frames a second (--fps) must be a positive number, not {fps}"
             ))),
         }
     }
