@@ -802,6 +802,10 @@ fn moving_objects_render_each_frame_as_a_render_from_scratch() {
     for device in [cpu_device(), gpu_device()] {
         let first = lancer::render::Renderer::new(&scene, device, &opts).unwrap();
         let two = first.two_level().expect("two levels");
+        // One renderer moved from frame to frame (only the top level's words, the
+        // placements and the emitters written over what was uploaded).
+        let mut mover = lancer::render::Renderer::new(&scene, device, &opts).unwrap();
+        mover.render(&opts).unwrap();
         let mut images = Vec::new();
         for frame in [2u32, 5] {
             let moved = scene.at_frame(frame).unwrap();
@@ -817,8 +821,15 @@ fn moving_objects_render_each_frame_as_a_render_from_scratch() {
                 .pixels;
             let differ = got.iter().zip(&fresh).filter(|(a, b)| a != b).count();
             assert_eq!(differ, 0, "{device} frame {frame}");
+            assert!(mover.can_move_to(&moved));
+            mover.move_to(moved, &opts).unwrap();
+            let kept = mover.render(&opts).unwrap().image.pixels;
+            let differ = kept.iter().zip(&fresh).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{device} frame {frame}, the renderer moved");
             images.push(got);
         }
+        // Another scene's placements are refused, the renderer kept.
+        assert!(!mover.can_move_to(&still));
         let moved = images[0]
             .iter()
             .zip(&images[1])
@@ -1036,4 +1047,21 @@ fn gltf_animations_move_the_files_camera() {
     let still =
         lancer::RenderScene::open(&write("still.gltf", false), &size, &Default::default()).unwrap();
     assert_eq!(eye(&still, 30), Vec3::new(0.0, 0.0, 5.0));
+    // A renderer moved to a frame takes that frame's view: as a renderer made for it.
+    let opts = RenderOptions {
+        spp: Some(1),
+        ..RenderOptions::default()
+    };
+    for device in [cpu_device(), gpu_device()] {
+        let mut mover = lancer::render::Renderer::new(&scene, device, &opts).unwrap();
+        let rest = mover.render(&opts).unwrap().image.pixels;
+        let frame = scene.at_frame(12).unwrap();
+        let fresh = lancer::render::render(&frame, device, &opts)
+            .unwrap()
+            .image
+            .pixels;
+        mover.move_to(frame, &opts).unwrap();
+        let got = mover.render(&opts).unwrap().image.pixels;
+        assert!(got == fresh && got != rest, "{device}");
+    }
 }

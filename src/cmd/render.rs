@@ -299,20 +299,28 @@ impl RenderCmd {
                 (a..b).map(Some).collect()
             }
         };
-        let mut two_level = None;
+        // One renderer for every frame: from frame to frame only the top level is built
+        // again and, on a GPU, written over what was uploaded (Renderer::move_to).
+        let mut current: Option<Renderer> = None;
         for frame in frames {
             let (out, at_frame) = match frame {
                 Some(f) => (numbered(&self.out, f), Some(scene.at_frame(f)?)),
                 None => (self.out.clone(), None),
             };
-            let scene = at_frame.as_ref().unwrap_or(&scene);
-            let options = RenderOptions {
-                two_level: two_level.take(),
-                ..options.clone()
+            let renderer = match (current.take(), at_frame) {
+                (Some(mut r), Some(moved)) if r.can_move_to(&moved) => {
+                    r.move_to(moved, &options)?;
+                    r
+                }
+                (_, Some(moved)) => Renderer::new_owned(moved, &device, &options)?,
+                (_, None) => Renderer::new(&scene, &device, &options)?,
             };
+            let renderer = current.insert(renderer);
+            let full = (
+                renderer.scene().camera.width,
+                renderer.scene().camera.height,
+            );
             bar.reset();
-            let mut renderer = Renderer::new(scene, &device, &options)?;
-            two_level = renderer.two_level();
             let done = renderer.render(&options);
             bar.finish_and_clear();
             let done = done?;
@@ -321,7 +329,7 @@ impl RenderCmd {
             let tile = match crop {
                 Some(c) => format!(
                     " tile {} {} {} {} of {}x{}",
-                    c.x0, c.y0, c.x1, c.y1, scene.camera.width, scene.camera.height
+                    c.x0, c.y0, c.x1, c.y1, full.0, full.1
                 ),
                 None => String::new(),
             };
@@ -342,9 +350,8 @@ impl RenderCmd {
                 done.seconds
             ));
             if self.stats {
-                let full = (scene.camera.width, scene.camera.height);
                 let stats =
-                    RenderStats::new(&renderer, &done, &device, &options, full, layout, &out);
+                    RenderStats::new(renderer, &done, &device, &options, full, layout, &out);
                 stats.text().into_iter().for_each(say);
                 if self.json {
                     print_json(&stats)?;

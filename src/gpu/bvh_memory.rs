@@ -96,63 +96,11 @@ impl GpuBvh {
     fn write_words(
         &self,
         ctx: &GpuContext,
-        (buffer, texture): (&wgpu::Buffer, &wgpu::Texture),
+        array: (&wgpu::Buffer, &wgpu::Texture),
         first: u32,
         bytes: &[u8],
     ) -> Result<()> {
-        let words = bytes.len() / 16;
-        if words * 16 != bytes.len() {
-            return Err(Error::Usage("node words are 16 bytes each".into()));
-        }
-        match self.memory {
-            BvhMemory::Buffers => {
-                let end = (first as u64 + words as u64) * 16;
-                if end > buffer.size() {
-                    return Err(Error::Usage(format!(
-                        "words {first}..{} lie past the uploaded {} words",
-                        first as u64 + words as u64,
-                        buffer.size() / 16
-                    )));
-                }
-                ctx.queue.write_buffer(buffer, first as u64 * 16, bytes);
-            }
-            BvhMemory::Textures => {
-                let row = TEXEL_ROW as usize;
-                let (mut at, mut rest) = (first as usize, bytes);
-                let rows = texture.height() as usize;
-                if (at + words).div_ceil(row) > rows {
-                    return Err(Error::Usage(format!(
-                        "words {first}..{} lie past the uploaded texture",
-                        at + words
-                    )));
-                }
-                // One write per row touched: its part of the words.
-                while !rest.is_empty() {
-                    let (x, y) = (at % row, at / row);
-                    let n = (row - x).min(rest.len() / 16);
-                    let mut to = texture.as_image_copy();
-                    to.origin = wgpu::Origin3d {
-                        x: x as u32,
-                        y: y as u32,
-                        z: 0,
-                    };
-                    let layout = wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some((n * 16) as u32),
-                        rows_per_image: None,
-                    };
-                    let size = wgpu::Extent3d {
-                        width: n as u32,
-                        height: 1,
-                        depth_or_array_layers: 1,
-                    };
-                    ctx.queue.write_texture(to, &rest[..n * 16], layout, size);
-                    (at, rest) = (at + n, &rest[n * 16..]);
-                }
-            }
-        }
-        ctx.finish_writes();
-        Ok(())
+        write_words(ctx, self.memory, array, first, bytes)
     }
 
     /// The override constant that tells traversal.wgsl which bindings to read.
@@ -189,21 +137,75 @@ impl GpuBvh {
     }
 }
 
+/// Writes `bytes` (whole 16-byte words) over the words of one array of `memory` (its buffer
+/// and texture, as [`words_in_memory`] made them) from word `first` on; refuses words past
+/// the array.
+pub(crate) fn write_words(
+    ctx: &GpuContext,
+    memory: BvhMemory,
+    (buffer, texture): (&wgpu::Buffer, &wgpu::Texture),
+    first: u32,
+    bytes: &[u8],
+) -> Result<()> {
+    let words = bytes.len() / 16;
+    if words * 16 != bytes.len() {
+        return Err(Error::Usage("words are 16 bytes each".into()));
+    }
+    match memory {
+        BvhMemory::Buffers => {
+            let end = (first as u64 + words as u64) * 16;
+            if end > buffer.size() {
+                return Err(Error::Usage(format!(
+                    "words {first}..{} lie past the uploaded {} words",
+                    first as u64 + words as u64,
+                    buffer.size() / 16
+                )));
+            }
+            ctx.queue.write_buffer(buffer, first as u64 * 16, bytes);
+        }
+        BvhMemory::Textures => {
+            let row = TEXEL_ROW as usize;
+            let (mut at, mut rest) = (first as usize, bytes);
+            let rows = texture.height() as usize;
+            if (at + words).div_ceil(row) > rows {
+                return Err(Error::Usage(format!(
+                    "words {first}..{} lie past the uploaded texture",
+                    at + words
+                )));
+            }
+            // One write per row touched: its part of the words.
+            while !rest.is_empty() {
+                let (x, y) = (at % row, at / row);
+                let n = (row - x).min(rest.len() / 16);
+                let mut to = texture.as_image_copy();
+                to.origin = wgpu::Origin3d {
+                    x: x as u32,
+                    y: y as u32,
+                    z: 0,
+                };
+                let layout = wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some((n * 16) as u32),
+                    rows_per_image: None,
+                };
+                let size = wgpu::Extent3d {
+                    width: n as u32,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                };
+                ctx.queue.write_texture(to, &rest[..n * 16], layout, size);
+                (at, rest) = (at + n, &rest[n * 16..]);
+            }
+        }
+    }
+    ctx.finish_writes();
+    Ok(())
+}
+
 /// 16-byte words (`what`, for messages) in `memory`: a storage buffer and a placeholder
 /// texture, or a placeholder buffer and a storage texture; refuses sizes the device cannot
 /// bind, naming the size and the limit.
-pub(crate) fn words_in(
-    ctx: &GpuContext,
-    memory: BvhMemory,
-    what: &str,
-    bytes: &[u8],
-) -> Result<(wgpu::Buffer, wgpu::TextureView)> {
-    let (buffer, texture) = words_in_memory(ctx, memory, what, bytes)?;
-    Ok((buffer, texture.create_view(&Default::default())))
-}
-
-/// [`words_in`], the texture itself rather than its view.
-fn words_in_memory(
+pub(crate) fn words_in_memory(
     ctx: &GpuContext,
     memory: BvhMemory,
     what: &str,

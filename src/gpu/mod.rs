@@ -11,7 +11,7 @@ pub mod shaders;
 mod trace;
 
 pub use adapters::{adapters, AdapterSummary};
-pub(crate) use bvh_memory::words_in;
+pub(crate) use bvh_memory::{words_in_memory, write_words};
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
 pub use context::{AdapterReport, GpuContext, SubgroupSizes};
 pub use driver::DriverTracer;

@@ -11,7 +11,7 @@ use super::effects::EffectSet;
 use super::scene::{Light, LightKind, RenderScene};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geometry::{Affine, Robustness, NO_NORMAL, NO_TANGENT};
 use crate::gpu::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, texel_entry,
@@ -273,6 +273,10 @@ pub struct RenderParams {
 pub struct GpuRenderer<'a> {
     ctx: &'a GpuContext,
     bvh: GpuBvh,
+    /// The shading words (the placements among them) in the BVH's memory, and the
+    /// emitters: written over where the scene moves ([`GpuRenderer::move_to`]).
+    shades: (wgpu::Buffer, wgpu::Texture),
+    emitters: wgpu::Buffer,
     layout_constants: Vec<(&'static str, f64)>,
     kernel: Kernel,
     bind: wgpu::BindGroup,
@@ -464,9 +468,7 @@ impl<'a> GpuRenderer<'a> {
             .collect();
         let n_lights = lights.len() as u32;
         lights.push(bytemuck::Zeroable::zeroed());
-        let mut emitters: Vec<[u32; 2]> = (scene.emitters.iter().zip(&scene.emitter_cdf))
-            .map(|(&p, &c)| [p, c.to_bits()])
-            .collect();
+        let mut emitters = emitter_words(scene);
         let n_emitters = emitters.len() as u32;
         emitters.push([0; 2]);
 
@@ -499,16 +501,26 @@ impl<'a> GpuRenderer<'a> {
         }
         ctx.check_binding("the image accumulator", accum_bytes)?;
         // The shading triangles, one per mesh triangle, go where the BVH's triangles do.
-        let (shade_buf, shade_tex) = crate::gpu::words_in(
+        let (shade_buf, shade_texture) = crate::gpu::words_in_memory(
             ctx,
             memory,
             "the shading triangles",
             bytemuck::cast_slice(&shades),
         )?;
+        let shade_tex = shade_texture.create_view(&Default::default());
         drop(shades);
+        // The emitters may be written over (their areas move with the placements).
+        let usage = |b: u32| match b == bindings::RENDER_EMITTERS {
+            true => wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            false => wgpu::BufferUsages::STORAGE,
+        };
         let buffers: Vec<(u32, wgpu::Buffer)> = (sized.iter())
-            .map(|&(b, what, bytes)| (b, ctx.buffer_with(what, bytes, wgpu::BufferUsages::STORAGE)))
+            .map(|&(b, what, bytes)| (b, ctx.buffer_with(what, bytes, usage(b))))
             .collect();
+        let emitters_buf = (buffers.iter())
+            .find(|(b, _)| *b == bindings::RENDER_EMITTERS)
+            .map(|(_, buf)| buf.clone())
+            .ok_or_else(|| Error::Gpu("no emitters buffer".into()))?;
         let accum = output_buffer(ctx, "accum", accum_bytes);
         let chunks = Chunks::new(ctx, pixels, CHUNK, PARAMS_SIZE as u32);
         let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -560,17 +572,8 @@ impl<'a> GpuRenderer<'a> {
             PARAMS_SIZE,
         ));
         let bind = kernel.bind(ctx, &bind_entries)?;
-        let f = scene.camera.frame();
         let s = &scene.settings;
-        let base = RenderParams {
-            eye: f.eye.into(),
-            width: scene.camera.width,
-            fwd: f.fwd.into(),
-            height: scene.camera.height,
-            right: f.right.into(),
-            inv_w2: f.inv_w2,
-            up: f.up.into(),
-            inv_h2: f.inv_h2,
+        let mut base = RenderParams {
             env_radiance: env.map_or(Vec3::ZERO, |e| e.radiance).into(),
             seed: s.seed,
             max_bounces: s.max_bounces,
@@ -600,9 +603,12 @@ impl<'a> GpuRenderer<'a> {
             tangent_base: tangent_base as u32,
             ..RenderParams::default()
         };
+        set_view(&mut base, scene);
         Ok(GpuRenderer {
             ctx,
             bvh,
+            shades: (shade_buf, shade_texture),
+            emitters: emitters_buf,
             layout_constants: layout.overrides(),
             kernel,
             bind,
@@ -614,6 +620,42 @@ impl<'a> GpuRenderer<'a> {
             aovs,
             mode,
         })
+    }
+
+    /// Moves what was uploaded to `scene`, the scene it was made for at another frame
+    /// ([`RenderScene::at_frame`]: the same meshes, materials and lights; its placements,
+    /// emitters' areas and view moved): writes `top` (the first word and the words of the
+    /// moved two levels' top level) over the BVH's, the placements and the emitters over
+    /// theirs, and takes the new view. Nothing else is uploaded and no kernel is made
+    /// again. Refused where the emitters or placements are not as many as uploaded.
+    pub fn move_to(&mut self, scene: &RenderScene, (first, top): (u32, &[u8])) -> Result<()> {
+        let placements = placements_of(scene);
+        let n_placements = (scene.placements.as_ref()).map_or(0, |p| p.set().instances.len());
+        let n_emitters = scene.emitters.len() as u32;
+        if n_placements as u32 != self.base.n_placements || n_emitters != self.base.n_emitters {
+            return Err(Error::Usage(format!(
+                "the moved scene has {n_placements} placements and {n_emitters} emitters \
+                 where the uploaded one had {} and {}: render it anew",
+                self.base.n_placements, self.base.n_emitters
+            )));
+        }
+        let mut emitters = emitter_words(scene);
+        emitters.push([0; 2]);
+        self.bvh.write_node_words(self.ctx, first, top)?;
+        let shades = (&self.shades.0, &self.shades.1);
+        let at = self.base.placement_base;
+        crate::gpu::write_words(
+            self.ctx,
+            self.bvh.memory,
+            shades,
+            at,
+            bytemuck::cast_slice(&placements),
+        )?;
+        (self.ctx.queue).write_buffer(&self.emitters, 0, bytemuck::cast_slice(&emitters));
+        self.ctx.finish_writes();
+        self.base.emit_total = scene.emitter_cdf.last().copied().unwrap_or(0.0);
+        set_view(&mut self.base, scene);
+        Ok(())
     }
 
     /// The traversal mode the kernel runs: the one asked for, or per ray where it could not.
@@ -755,6 +797,26 @@ fn other_tangents(scene: &RenderScene) -> Vec<GpuShade> {
     let per_shade = std::mem::size_of::<GpuShade>() / 4;
     words.resize(words.len().next_multiple_of(per_shade), NO_TANGENT);
     bytemuck::pod_collect_to_vec(&words)
+}
+
+/// The emissive triangles and the running sum of their areas, as the kernel reads them.
+fn emitter_words(scene: &RenderScene) -> Vec<[u32; 2]> {
+    (scene.emitters.iter().zip(&scene.emitter_cdf))
+        .map(|(&p, &c)| [p, c.to_bits()])
+        .collect()
+}
+
+/// Sets the camera's frame and image size in `params` from `scene`'s camera.
+fn set_view(params: &mut RenderParams, scene: &RenderScene) {
+    let f = scene.camera.frame();
+    params.eye = f.eye.into();
+    params.width = scene.camera.width;
+    params.fwd = f.fwd.into();
+    params.height = scene.camera.height;
+    params.right = f.right.into();
+    params.inv_w2 = f.inv_w2;
+    params.up = f.up.into();
+    params.inv_h2 = f.inv_h2;
 }
 
 /// The scene's placements as the kernel reads them, padded to a whole number of

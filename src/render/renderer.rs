@@ -129,7 +129,9 @@ pub struct Rendered {
 
 /// A scene's acceleration structure built and (on a GPU) uploaded with the render kernel.
 pub struct Renderer<'a> {
-    scene: &'a RenderScene,
+    /// The scene it was made for, or (after [`Renderer::move_to`]) that scene at another
+    /// frame.
+    scene: std::borrow::Cow<'a, RenderScene>,
     kind: AccelKind,
     /// What the CPU traces: the structure, or the GPU form's twin.
     accel: Arc<dyn Accel>,
@@ -152,6 +154,24 @@ impl<'a> Renderer<'a> {
         device: &'a Device,
         options: &RenderOptions,
     ) -> Result<Self> {
+        Self::made(std::borrow::Cow::Borrowed(scene), device, options)
+    }
+
+    /// [`Renderer::new`] taking the scene (a frame made by [`RenderScene::at_frame`], say).
+    pub fn new_owned(
+        scene: RenderScene,
+        device: &'a Device,
+        options: &RenderOptions,
+    ) -> Result<Self> {
+        Self::made(std::borrow::Cow::Owned(scene), device, options)
+    }
+
+    fn made(
+        owned: std::borrow::Cow<'a, RenderScene>,
+        device: &'a Device,
+        options: &RenderOptions,
+    ) -> Result<Self> {
+        let scene: &RenderScene = &owned;
         let (w, h) = (scene.camera.width, scene.camera.height);
         // Pixel indices of the full image seed the random numbers: they must fit a u32.
         crate::limits::check_image(w, h, 0, "use a smaller --width/--height")?;
@@ -245,7 +265,7 @@ impl<'a> Renderer<'a> {
         }
         let upload_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(Renderer {
-            scene,
+            scene: owned,
             kind,
             accel,
             stats,
@@ -256,6 +276,58 @@ impl<'a> Renderer<'a> {
             gpu,
             two_level,
         })
+    }
+
+    /// Moves the renderer to `scene`: the scene it renders at another frame
+    /// ([`RenderScene::at_frame`]), whose placements (and view) moved. Only the top level is
+    /// built again; on a GPU its words, the placements, the emitters and the view are
+    /// written over what was uploaded, and no kernel is made again. The next
+    /// [`Renderer::render`] then renders `scene` as a renderer made for it would, bit for
+    /// bit. Refused, the renderer unchanged, where this renderer has no two levels or
+    /// `scene` does not place the same meshes as many times (then make a renderer for it).
+    pub fn move_to(&mut self, scene: RenderScene, options: &RenderOptions) -> Result<()> {
+        let (Some(two), Some(pl)) = (&self.two_level, &scene.placements) else {
+            return Err(Error::Usage(
+                "move_to moves a renderer of a scene with placements in two levels".into(),
+            ));
+        };
+        if !self.can_move_to(&scene) {
+            return Err(Error::Usage(
+                "the scene moved to does not place the same meshes, emitters and image size: \
+                 make a renderer for it"
+                    .into(),
+            ));
+        }
+        let start = Instant::now();
+        let maps: Vec<_> = pl.set().instances.iter().map(|i| i.to_world).collect();
+        let moved = Arc::new(two.moved(&maps, &options.build)?);
+        self.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        if let Some(gpu) = &mut self.gpu {
+            let (first, top) = moved.top_words();
+            gpu.move_to(&scene, (first, &top))?;
+        }
+        self.upload_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.accel = moved.clone();
+        self.two_level = Some(moved);
+        self.scene = std::borrow::Cow::Owned(scene);
+        Ok(())
+    }
+
+    /// Whether [`Renderer::move_to`] takes `scene`: this renderer renders in two levels,
+    /// and `scene` places the same meshes as many times, with as many emitters, at the
+    /// same image size.
+    pub fn can_move_to(&self, scene: &RenderScene) -> bool {
+        let (Some(two), Some(pl)) = (&self.two_level, &scene.placements) else {
+            return false;
+        };
+        let size = |a: &RenderScene| (a.camera.width, a.camera.height, a.emitters.len());
+        two.places(pl.set()) && size(scene) == size(&self.scene)
+    }
+
+    /// The scene it renders.
+    pub fn scene(&self) -> &RenderScene {
+        &self.scene
     }
 
     /// A scene with placements rendered through a BVH: its two levels, to hand to the
@@ -326,7 +398,7 @@ impl<'a> Renderer<'a> {
                 g.add_sample(fx, robustness, seed, sample)?;
             }
             None => {
-                let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), robustness);
+                let cpu = CpuRenderer::new(&self.scene, self.accel.as_ref(), robustness);
                 cpu.accumulate(fx, seed, self.crop, accum, sample, 1);
             }
         }
@@ -340,7 +412,9 @@ impl<'a> Renderer<'a> {
         let settings = &self.scene.settings;
         let spp = options.spp.unwrap_or(settings.spp);
         let seed = options.seed.unwrap_or(settings.seed);
-        let fx = options.effects.unwrap_or_else(|| EffectSet::of(self.scene));
+        let fx = options
+            .effects
+            .unwrap_or_else(|| EffectSet::of(&self.scene));
         let rob = options.robustness;
         let (w, h) = (self.scene.camera.width, self.scene.camera.height);
         let crop = self.crop;
@@ -391,7 +465,7 @@ impl<'a> Renderer<'a> {
             ));
         }
         let mut cpu_pixels = 0;
-        let cpu = CpuRenderer::new(self.scene, self.accel.as_ref(), rob);
+        let cpu = CpuRenderer::new(&self.scene, self.accel.as_ref(), rob);
         let mut aovs = None;
         if self.aovs && self.gpu.is_none() {
             let hits: Vec<FirstHit> = (0..pixels)
