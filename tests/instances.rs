@@ -830,6 +830,24 @@ fn moving_objects_render_each_frame_as_a_render_from_scratch() {
         }
         // Another scene's placements are refused, the renderer kept.
         assert!(!mover.can_move_to(&still));
+        // The fixed offset (a share of the scene's diagonal, which moves) moves too.
+        let fixed = RenderOptions {
+            robustness: lancer::Robustness {
+                ray_offset: lancer::geometry::RayOffset::Fixed,
+                ..Default::default()
+            },
+            ..opts.clone()
+        };
+        let mut mover = lancer::render::Renderer::new(&scene, device, &fixed).unwrap();
+        let moved = scene.at_frame(40).unwrap();
+        let fresh = lancer::render::render(&moved, device, &fixed).unwrap();
+        assert_ne!(moved.fixed_offset(), scene.fixed_offset());
+        mover.move_to(moved, &fixed).unwrap();
+        let kept = mover.render(&fixed).unwrap().image.pixels;
+        assert!(
+            kept == fresh.image.pixels,
+            "{device}: fixed offset, the renderer moved"
+        );
         let moved = images[0]
             .iter()
             .zip(&images[1])

@@ -654,6 +654,8 @@ impl<'a> GpuRenderer<'a> {
         (self.ctx.queue).write_buffer(&self.emitters, 0, bytemuck::cast_slice(&emitters));
         self.ctx.finish_writes();
         self.base.emit_total = scene.emitter_cdf.last().copied().unwrap_or(0.0);
+        // The fixed offset is a share of the scene's diagonal, which moves with it.
+        self.base.fixed_offset = scene.fixed_offset();
         set_view(&mut self.base, scene);
         Ok(())
     }

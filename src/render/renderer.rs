@@ -280,11 +280,12 @@ impl<'a> Renderer<'a> {
 
     /// Moves the renderer to `scene`: the scene it renders at another frame
     /// ([`RenderScene::at_frame`]), whose placements (and view) moved. Only the top level is
-    /// built again; on a GPU its words, the placements, the emitters and the view are
-    /// written over what was uploaded, and no kernel is made again. The next
-    /// [`Renderer::render`] then renders `scene` as a renderer made for it would, bit for
-    /// bit. Refused, the renderer unchanged, where this renderer has no two levels or
-    /// `scene` does not place the same meshes as many times (then make a renderer for it).
+    /// built again (with `options.build`); on a GPU its words, the placements, the emitters,
+    /// the view and the fixed offset are written over what was uploaded, and no kernel is
+    /// made again. The renderer keeps the other options it was made with (structure,
+    /// memory, crop, AOVs, mode); with those, the next [`Renderer::render`] renders `scene`
+    /// as a renderer made for it would, bit for bit. Refused, the renderer unchanged, where
+    /// [`Renderer::can_move_to`] says no (then make a renderer for it).
     pub fn move_to(&mut self, scene: RenderScene, options: &RenderOptions) -> Result<()> {
         let (Some(two), Some(pl)) = (&self.two_level, &scene.placements) else {
             return Err(Error::Usage(
@@ -301,13 +302,13 @@ impl<'a> Renderer<'a> {
         let start = Instant::now();
         let maps: Vec<_> = pl.set().instances.iter().map(|i| i.to_world).collect();
         let moved = Arc::new(two.moved(&maps, &options.build)?);
-        self.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        let build_ms = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
         if let Some(gpu) = &mut self.gpu {
             let (first, top) = moved.top_words();
             gpu.move_to(&scene, (first, &top))?;
         }
-        self.upload_ms = start.elapsed().as_secs_f64() * 1e3;
+        (self.build_ms, self.upload_ms) = (build_ms, start.elapsed().as_secs_f64() * 1e3);
         self.accel = moved.clone();
         self.two_level = Some(moved);
         self.scene = std::borrow::Cow::Owned(scene);
@@ -316,13 +317,19 @@ impl<'a> Renderer<'a> {
 
     /// Whether [`Renderer::move_to`] takes `scene`: this renderer renders in two levels,
     /// and `scene` places the same meshes as many times, with as many emitters, at the
-    /// same image size.
+    /// same image size, with the same settings and as many lights, materials and textures
+    /// and an environment alike (what an [`RenderScene::at_frame`] keeps; what it moves is
+    /// written over what was uploaded, the rest is not).
     pub fn can_move_to(&self, scene: &RenderScene) -> bool {
         let (Some(two), Some(pl)) = (&self.two_level, &scene.placements) else {
             return false;
         };
-        let size = |a: &RenderScene| (a.camera.width, a.camera.height, a.emitters.len());
-        two.places(pl.set()) && size(scene) == size(&self.scene)
+        let kept = |a: &RenderScene| {
+            let counts = (a.lights.len(), a.materials.len(), a.textures.len());
+            let size = (a.camera.width, a.camera.height, a.emitters.len());
+            (size, counts, a.environment.is_some(), a.settings.clone())
+        };
+        two.places(pl.set()) && kept(scene) == kept(&self.scene)
     }
 
     /// The scene it renders.
@@ -341,14 +348,16 @@ impl<'a> Renderer<'a> {
         self.stats.as_ref()
     }
 
-    /// Milliseconds spent building (and flattening) the structure.
+    /// Milliseconds spent building (and flattening) the structure; after
+    /// [`Renderer::move_to`], building the moved top level.
     pub fn build_ms(&self) -> f64 {
         self.build_ms
     }
 
     /// GPU: milliseconds spent uploading the structure and the scene and creating the shader
     /// module (parsed and validated; the driver compiles it per effect set, see
-    /// [`Rendered::compile_ms`]). 0 on the CPU.
+    /// [`Rendered::compile_ms`]); after [`Renderer::move_to`], writing what moved. 0 on the
+    /// CPU.
     pub fn upload_ms(&self) -> f64 {
         self.upload_ms
     }
