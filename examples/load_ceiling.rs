@@ -144,9 +144,10 @@ fn probe(
         wgpu::BufferUsages::STORAGE,
     );
     let source = format!(
-        "{}\n{}\n{PROBE}",
+        "{}\n{}\n{PROBE}\n{}",
         shaders::library_source(),
-        shaders::KEEP_EVERY_HIT
+        shaders::KEEP_EVERY_HIT,
+        bvh.parts().bvh_wgsl()
     );
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("load probe"),
@@ -171,7 +172,7 @@ fn probe(
         },
         cache: None,
     });
-    let mut entries = Vec::from(bvh.bind_entries());
+    let mut entries = bvh.bind_entries();
     entries.push(wgpu::BindGroupEntry {
         binding: bindings::TRACE_RAYS,
         resource: ray_buf.as_entire_binding(),

@@ -84,13 +84,26 @@ fn compare_form(
     memory: BvhMemory,
     form: AccelKind,
 ) -> (usize, usize) {
+    compare_form_on(gpu_device(), name, mesh, rays, kernel, memory, form)
+}
+
+/// [`compare_form`] on the given GPU device.
+fn compare_form_on(
+    gpu: &Device,
+    name: &str,
+    mesh: &Mesh,
+    rays: &[Ray],
+    kernel: TraceKernel,
+    memory: BvhMemory,
+    form: AccelKind,
+) -> (usize, usize) {
     let options = kernel.options(memory);
     let cpu_device = Device::cpu();
     let c = Tracer::with_structure(&cpu_device, mesh, form, &options)
         .unwrap()
         .trace(rays, kernel.query)
         .unwrap();
-    let g = Tracer::with_structure(gpu_device(), mesh, form, &options)
+    let g = Tracer::with_structure(gpu, mesh, form, &options)
         .unwrap()
         .trace(rays, kernel.query)
         .unwrap();
@@ -481,12 +494,13 @@ fn oversized_bvh_is_refused_naming_size_and_limit() {
     gpu_device(); // fails with the install hint when there is no adapter
     let mut ctx = lancer::gpu::GpuContext::new().unwrap();
     ctx.limits.max_storage_buffer_binding_size = 1024;
+    ctx.limits.max_buffer_size = 1024;
     ctx.limits.max_texture_dimension_2d = 1024;
     let device = Device::gpu(ctx);
     let mut rng = Rng::new(5);
     let mesh = soup(&mut rng, 100, 0.2);
     for (memory, limit) in [
-        (BvhMemory::Buffers, "max_storage_buffer_binding_size"),
+        (BvhMemory::Buffers, "max_buffer_size"),
         (BvhMemory::Textures, "max_texture_dimension_2d"),
     ] {
         // dfs-sign's arrays: a size in KiB (the default layout's may be smaller).
@@ -501,5 +515,53 @@ fn oversized_bvh_is_refused_naming_size_and_limit() {
             .to_string();
         assert!(e.contains(limit), "{memory:?}: {e}");
         assert!(e.contains("KiB"), "{memory:?}: the size is not named: {e}");
+    }
+}
+
+/// Node and triangle arrays bigger than one storage binding in buffer memory are bound in
+/// parts: on a device whose recorded binding limit is shrunk to 2 KiB (parts of 128 words),
+/// every GPU form traces what its CPU twin does, closest and any hit, in the checked module
+/// (whose bounds checks turn a word read from the wrong part into zero) and the trusted one.
+/// Too many parts for the device's storage buffers a stage are refused, naming the limit.
+#[test]
+fn arrays_beyond_one_binding_are_bound_in_parts() {
+    gpu_device(); // fails with the install hint when there is no adapter
+    let mut ctx = lancer::gpu::GpuContext::new().unwrap();
+    ctx.limits.max_storage_buffer_binding_size = 2048;
+    let mut rng = Rng::new(17);
+    let mesh = soup(&mut rng, 100, 0.2);
+    let rays = random_rays(&mut rng, 1000, &mesh);
+    let bvh = lancer::accel::bvh::build(&mesh, &BuildOptions::default());
+    let dfs = lancer::accel::bvh::layouts::flatten(LayoutKind::DfsSign, &bvh, &mesh);
+    let parts = lancer::gpu::GpuTracer::new(&ctx, dfs.as_ref(), BvhMemory::Buffers)
+        .unwrap()
+        .parts();
+    assert!(parts.nodes > 1 && parts.tris > 1, "{parts:?}");
+    assert_eq!(parts.shift, 7);
+    let mut few = lancer::gpu::GpuContext::new().unwrap();
+    few.limits.max_storage_buffer_binding_size = 2048;
+    few.limits.max_storage_buffers_per_shader_stage = 6;
+    let e = lancer::gpu::GpuTracer::new(&few, dfs.as_ref(), BvhMemory::Buffers)
+        .err()
+        .expect("more storage buffers than the device allows")
+        .to_string();
+    assert!(e.contains("storage buffers") && e.contains("allows 6"), "{e}");
+
+    let gpu = Device::gpu(ctx);
+    for checked_module in [true, false] {
+        let robustness = Robustness {
+            checked_module,
+            ..Robustness::default()
+        };
+        for kernel in kernels() {
+            let kernel = TraceKernel {
+                robustness,
+                ..kernel
+            };
+            for form in gpu_forms() {
+                let name = format!("parts {form} checked {checked_module}");
+                compare_form_on(&gpu, &name, &mesh, &rays, kernel, BvhMemory::Buffers, form);
+            }
+        }
     }
 }

@@ -52,7 +52,7 @@ fn all_shaders_validate() {
 #[test]
 fn gpu_structs_match_rust() {
     let layout = &layouts()[0];
-    let src = shaders::trace_source(layout.as_ref());
+    let src = shaders::trace_source(layout.as_ref(), &lancer::gpu::BufferParts::WHOLE);
     check(
         &src,
         "Tri",
@@ -104,7 +104,7 @@ fn gpu_structs_match_rust() {
 fn render_structs_match_rust() {
     use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
     let layout = &layouts()[0];
-    let src = lancer::render::kernel::render_source(layout.as_ref());
+    let src = lancer::render::kernel::render_source(layout.as_ref(), &lancer::gpu::BufferParts::WHOLE);
     let m = &src;
     macro_rules! fields {
         ($t:ty; $($w:literal => $f:ident),*) => {

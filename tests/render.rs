@@ -175,21 +175,25 @@ fn both_bvh_memories_render_the_same_image() {
     }
 }
 
-/// Shading triangles (80 bytes each) beyond one storage binding render from textures: on a
-/// device whose recorded binding limit is shrunk below the teapot's, the textures memory
-/// renders the CPU's image (before, the shading triangles were always a storage buffer and
-/// were refused); the buffers memory is refused, naming the limit.
+/// Shading triangles (80 bytes each) beyond one storage binding render in both memories: on
+/// a device whose recorded binding limit is shrunk below the teapot's, textures hold them and
+/// buffers are bound in parts (so are the BVH's triangles); both render the CPU's image, bit
+/// for bit the same. A buffer beyond `max_buffer_size` is refused, naming the limit.
 #[test]
-fn shading_triangles_beyond_a_storage_binding_render_from_textures() {
+fn shading_triangles_beyond_a_storage_binding_render_in_both_memories() {
     gpu_device(); // fails with the install hint when there is no adapter
     let Some(path) = common::model("teapot.obj") else {
         return;
     };
     let s = RenderScene::from_mesh(&path, 32, 24).unwrap();
     let shade_bytes = s.mesh.len() as u64 * 80;
-    let mut ctx = lancer::gpu::GpuContext::new().unwrap();
-    ctx.limits.max_storage_buffer_binding_size = shade_bytes / 2;
-    let device = Device::gpu(ctx);
+    let small = |buffer: u64| {
+        let mut ctx = lancer::gpu::GpuContext::new().unwrap();
+        ctx.limits.max_storage_buffer_binding_size = shade_bytes / 2;
+        ctx.limits.max_buffer_size = buffer;
+        Device::gpu(ctx)
+    };
+    let device = small(u64::MAX);
     let fx = EffectSet::of(&s);
     let options = |memory| RenderOptions {
         spp: Some(1),
@@ -197,16 +201,15 @@ fn shading_triangles_beyond_a_storage_binding_render_from_textures() {
         memory,
         ..RenderOptions::default()
     };
-    let gpu = render(&s, &device, &options(BvhMemory::Textures))
-        .unwrap()
-        .image
-        .pixels;
-    assert_gpu_matches_cpu("teapot, small bindings", &s, &gpu, &cpu_image(&s, fx, 1));
-    let Err(e) = render(&s, &device, &options(BvhMemory::Buffers)) else {
-        panic!("buffers beyond the limit were bound");
+    let image = |memory| render(&s, &device, &options(memory)).unwrap().image.pixels;
+    let textures = image(BvhMemory::Textures);
+    assert_gpu_matches_cpu("teapot, small bindings", &s, &textures, &cpu_image(&s, fx, 1));
+    assert_eq!(image(BvhMemory::Buffers), textures, "buffer parts ≠ textures");
+    let Err(e) = render(&s, &small(shade_bytes / 2), &options(BvhMemory::Buffers)) else {
+        panic!("a buffer beyond max_buffer_size was made");
     };
     let e = e.to_string();
-    assert!(e.contains("max_storage_buffer_binding_size"), "{e}");
+    assert!(e.contains("max_buffer_size"), "{e}");
 }
 
 /// A GPU render of `s` (one sample) traversing in `mode` through `layout`, cropped where

@@ -41,7 +41,7 @@ fn shade_word(i: u32) -> vec4<u32> {
     if BVH_TEXTURES {
         return textureLoad(shade_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
     }
-    return shade_words[i];
+    return shade_buffer_word(i);
 }
 
 fn load_shade(i: u32) -> Shade {
@@ -241,7 +241,8 @@ struct Params {
 
 // The shading triangles, five words each, in the BVH's memory (BVH_TEXTURES,
 // lib/traversal.wgsl): a storage buffer, or a storage texture (which holds more than one
-// storage binding may: lavapipe binds 128 MiB). The unused binding is a placeholder.
+// storage binding may: lavapipe binds 128 MiB). The unused binding is a placeholder. A buffer
+// bigger than one binding is bound in parts, read by shade_buffer_word (gpu::BufferParts).
 @group(0) @binding(BINDING_RENDER_SHADES) var<storage, read> shade_words: array<vec4<u32>>;
 @group(0) @binding(BINDING_RENDER_SHADE_TEXELS)
 var shade_texels: texture_storage_2d<rgba32uint, read>;

@@ -10,7 +10,9 @@ override COUNT_STATS: bool = false;  // count nodes visited / triangles tested
 //
 // The same words live either in storage buffers or, with BVH_TEXTURES, in read-only
 // rgba32uint storage textures of TEXEL_ROW texels a row, which lavapipe loads with a gather
-// (~18% more rays/s). Both pairs are declared; the unused pair is a placeholder.
+// (~18% more rays/s). Both pairs are declared; the unused pair is a placeholder. A buffer
+// bigger than one storage binding is bound in parts: node_buffer_word and tri_buffer_word
+// (generated for the parts there are, gpu::BufferParts) read part 0 here or the others.
 override BVH_TEXTURES: bool = false;
 @group(0) @binding(BINDING_NODE_WORDS) var<storage, read> node_words: array<vec4<u32>>;
 @group(0) @binding(BINDING_TRI_WORDS) var<storage, read> tri_words: array<vec4<u32>>;
@@ -52,7 +54,7 @@ fn array_node_word(i: u32) -> vec4<u32> {
     if BVH_TEXTURES {
         return textureLoad(node_texels, vec2<u32>(i % TEXEL_ROW, i / TEXEL_ROW));
     }
-    return node_words[i];
+    return node_buffer_word(i);
 }
 
 fn node_word(i: u32) -> vec4<u32> {
@@ -70,7 +72,7 @@ fn tri_word(i: u32) -> vec4<u32> {
     if BVH_TEXTURES {
         return textureLoad(tri_texels, vec2<u32>(j % TEXEL_ROW, j / TEXEL_ROW));
     }
-    return tri_words[j];
+    return tri_buffer_word(j);
 }
 
 // accel::LeafTri: vertices, original triangle index in v0's w slot.

@@ -1,6 +1,8 @@
 //! Binding numbers of group 0, shared by the Rust bind groups and the WGSL declarations
 //! (generated into the prelude; the kernels write `@binding(BINDING_…)`).
 
+pub use super::word_array::ArrayBindings;
+
 /// The layout's node words in a storage buffer.
 pub const NODE_WORDS: u32 = 0;
 /// The leaf triangles' words in a storage buffer.
@@ -9,6 +11,26 @@ pub const TRI_WORDS: u32 = 1;
 pub const NODE_TEXELS: u32 = 10;
 /// The leaf triangles' words in a storage texture.
 pub const TRI_TEXELS: u32 = 11;
+
+/// The node words' bindings: part k ≥ 1 of an array bigger than one storage binding at
+/// `100 + k` (buffer memory, `gpu::word_array`).
+pub const NODE_ARRAY: ArrayBindings = ArrayBindings {
+    words: NODE_WORDS,
+    parts: 100,
+    texels: NODE_TEXELS,
+};
+/// The leaf triangles' bindings (parts from 201).
+pub const TRI_ARRAY: ArrayBindings = ArrayBindings {
+    words: TRI_WORDS,
+    parts: 200,
+    texels: TRI_TEXELS,
+};
+/// The render kernel's shading words' bindings (parts from 301).
+pub const SHADE_ARRAY: ArrayBindings = ArrayBindings {
+    words: RENDER_SHADES,
+    parts: 300,
+    texels: RENDER_SHADE_TEXELS,
+};
 
 /// Trace kernel: rays.
 pub const TRACE_RAYS: u32 = 2;

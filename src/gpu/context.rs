@@ -71,7 +71,7 @@ pub struct SubgroupSizes {
 }
 
 /// Storage buffers the trace kernel binds (nodes, triangles, rays, hits, statistics).
-const MIN_STORAGE_BUFFERS: u32 = 5;
+const MIN_STORAGE_BUFFERS: u32 = super::trace::TRACE_STORAGE_BUFFERS;
 
 const INSTALL_HINT: &str = "no GPU adapter found; install a Vulkan driver (on Debian/Ubuntu: \
 apt-get install mesa-vulkan-drivers libvulkan1, which includes the lavapipe software driver) \

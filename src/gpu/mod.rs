@@ -3,15 +3,17 @@
 
 mod adapters;
 pub mod bindings;
+mod buffer_parts;
 mod bvh_memory;
 mod context;
 mod driver;
 pub mod plumbing;
 pub mod shaders;
 mod trace;
+mod word_array;
 
 pub use adapters::{adapters, AdapterSummary};
-pub(crate) use bvh_memory::{words_in_memory, write_words};
+pub use buffer_parts::BufferParts;
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
 pub use context::{AdapterReport, GpuContext, SubgroupSizes};
 pub use driver::DriverTracer;
@@ -19,3 +21,4 @@ pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};
 /// The wgpu crate lancer is built on: create the device you hand to
 /// [`GpuContext::from_wgpu`] with it (or with the same major version, wgpu 30).
 pub use wgpu;
+pub(crate) use word_array::WordArray;

@@ -8,7 +8,7 @@ use crate::camera::PRIMARY_TMAX;
 use crate::geometry::{FAR_WIDEN, MISS, NEAR_HIT_PLANE_REL, PARALLEL_INV, RECIP_FLOOR, TIE_SLACK};
 
 use super::bindings;
-use super::{INCOMPLETE, TEXEL_ROW};
+use super::{BufferParts, INCOMPLETE, TEXEL_ROW};
 
 /// Types, ray/box/triangle tests shared by every kernel.
 pub const COMMON: &str = include_str!("../../shaders/lib/common.wgsl");
@@ -104,16 +104,17 @@ fn trace_kernel() -> String {
     format!("{TRACE}\n{KEEP_EVERY_HIT}")
 }
 
-/// The trace kernel's full source for a layout.
-pub fn trace_source(layout: &dyn GpuForm) -> String {
-    kernel_source(layout, &trace_kernel())
+/// The trace kernel's full source for a layout whose arrays are bound in `parts`
+/// ([`BufferParts::WHOLE`] where each fits one binding).
+pub fn trace_source(layout: &dyn GpuForm, parts: &BufferParts) -> String {
+    kernel_source(layout, &trace_kernel(), parts)
 }
 
 /// The trace kernel's source for a layout's subgroup traversal
 /// ([`GpuForm::subgroup_wgsl`]), or None when the layout has none. The module needs the
 /// device's `Features::SUBGROUP` (and no `enable subgroups;`, which naga 30 rejects).
-pub fn trace_subgroup_source(layout: &dyn GpuForm) -> Option<String> {
-    subgroup_kernel_source(layout, &trace_kernel())
+pub fn trace_subgroup_source(layout: &dyn GpuForm, parts: &BufferParts) -> Option<String> {
+    subgroup_kernel_source(layout, &trace_kernel(), parts)
 }
 
 /// The kernels trace through `trace_ray`: a one-level form's own traversal, unless the form
@@ -132,14 +133,20 @@ fn trace_ray(layout: &dyn GpuForm) -> &'static str {
     }
 }
 
-/// The prelude, the shared library, the subgroup helpers, a GPU form's subgroup traversal
-/// and then `kernel`; None when the form has no subgroup traversal.
-pub fn subgroup_kernel_source(layout: &dyn GpuForm, kernel: &str) -> Option<String> {
+/// The prelude, the shared library, the subgroup helpers, a GPU form's subgroup traversal,
+/// `kernel` and the readers of the node and triangle words bound in `parts`; None when the
+/// form has no subgroup traversal.
+pub fn subgroup_kernel_source(
+    layout: &dyn GpuForm,
+    kernel: &str,
+    parts: &BufferParts,
+) -> Option<String> {
     let traversal = layout.subgroup_wgsl()?;
     Some(format!(
-        "{}\n{SUBGROUP}\n{traversal}\n{}\n{kernel}",
+        "{}\n{SUBGROUP}\n{traversal}\n{}\n{kernel}\n{}",
         library_source(),
-        trace_ray(layout)
+        trace_ray(layout),
+        parts.bvh_wgsl()
     ))
 }
 
@@ -152,13 +159,15 @@ pub fn driver_trace_source() -> String {
     )
 }
 
-/// The prelude, the shared library, a GPU form's traversal and then `kernel`.
-pub fn kernel_source(layout: &dyn GpuForm, kernel: &str) -> String {
+/// The prelude, the shared library, a GPU form's traversal, `kernel` and the readers of the
+/// node and triangle words bound in `parts`.
+pub fn kernel_source(layout: &dyn GpuForm, kernel: &str, parts: &BufferParts) -> String {
     format!(
-        "{}\n{}\n{}\n{kernel}",
+        "{}\n{}\n{}\n{kernel}\n{}",
         library_source(),
         layout.wgsl(),
-        trace_ray(layout)
+        trace_ray(layout),
+        parts.bvh_wgsl()
     )
 }
 
@@ -166,8 +175,9 @@ pub fn kernel_source(layout: &dyn GpuForm, kernel: &str) -> String {
 /// where the form has a subgroup traversal (the renderer's kernels:
 /// `render::kernel::all_kernels`).
 pub fn all(layout: &dyn GpuForm) -> Vec<(&'static str, String)> {
-    let mut v = vec![("trace", trace_source(layout))];
-    v.extend(trace_subgroup_source(layout).map(|s| ("trace-subgroup", s)));
+    let whole = &BufferParts::WHOLE;
+    let mut v = vec![("trace", trace_source(layout, whole))];
+    v.extend(trace_subgroup_source(layout, whole).map(|s| ("trace-subgroup", s)));
     v
 }
 

@@ -8,7 +8,7 @@ use super::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, Chunks,
     Kernel, Readback, Timer,
 };
-use super::{bindings, shaders, BvhMemory, GpuBvh, GpuContext};
+use super::{bindings, shaders, BufferParts, BvhMemory, GpuBvh, GpuContext};
 use crate::accel::GpuForm;
 use crate::accel::TraversalMode;
 use crate::accel::{Query, RayStats};
@@ -23,6 +23,10 @@ pub const INCOMPLETE: u32 = u32::MAX - 1;
 
 /// Rays per dispatch: ~10–20 ms on lavapipe, far less on a real GPU.
 pub(super) const CHUNK: u32 = 1 << 18;
+/// Storage buffers the trace kernel binds with the BVH's arrays in one part each (nodes,
+/// triangles, rays, hits, statistics).
+pub(super) const TRACE_STORAGE_BUFFERS: u32 = 5;
+
 /// Rays per batch at most (further bounded by the storage binding limit).
 const MAX_BATCH: usize = 1 << 22;
 
@@ -118,7 +122,9 @@ impl<'a> GpuTracer<'a> {
             layout.name(),
             start.elapsed().as_secs_f64() * 1e3
         );
-        let mut entries: Vec<_> = GpuBvh::layout_entries().into();
+        let parts = bvh.parts();
+        parts.check(ctx, "trace", TRACE_STORAGE_BUFFERS, false)?;
+        let mut entries = bvh.layout_entries();
         entries.extend([
             storage_entry(bindings::TRACE_RAYS, true),
             storage_entry(bindings::TRACE_HITS, false),
@@ -131,11 +137,12 @@ impl<'a> GpuTracer<'a> {
             ctx,
             "trace",
             "trace",
-            &shaders::trace_source(layout),
+            &shaders::trace_source(layout, &parts),
             &entries,
             true,
         )?;
-        let subgroup_source = (ctx.subgroups).and_then(|_| shaders::trace_subgroup_source(layout));
+        let subgroup_source =
+            (ctx.subgroups).and_then(|_| shaders::trace_subgroup_source(layout, &parts));
         Ok(GpuTracer {
             ctx,
             bvh,
@@ -177,6 +184,12 @@ impl<'a> GpuTracer<'a> {
     /// Where this tracer's BVH lives on the device.
     pub fn memory(&self) -> BvhMemory {
         self.bvh.memory
+    }
+
+    /// The parts its node and triangle buffers are bound in (1 each in texture memory, and
+    /// for arrays that one storage binding holds).
+    pub fn parts(&self) -> BufferParts {
+        self.bvh.parts()
     }
 
     fn pipeline(&mut self, k: TraceKernel) -> Result<wgpu::ComputePipeline> {
@@ -276,7 +289,7 @@ impl<'a> GpuTracer<'a> {
         };
         let hit_buf = output_buffer(ctx, "hits", hit_size);
         let stat_buf = output_buffer(ctx, "stats", stat_size);
-        let mut entries: Vec<_> = self.bvh.bind_entries().into();
+        let mut entries = self.bvh.bind_entries();
         entries.extend([
             buffer_binding(bindings::TRACE_RAYS, &ray_buf),
             buffer_binding(bindings::TRACE_HITS, &hit_buf),

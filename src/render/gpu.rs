@@ -14,10 +14,14 @@ use crate::accel::TraversalMode;
 use crate::error::{Error, Result};
 use crate::geometry::{Affine, Robustness, NO_NORMAL, NO_TANGENT};
 use crate::gpu::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, texel_entry,
-    uniform_binding, wait, Chunks, Kernel, Readback,
+    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
+    Chunks, Kernel, Readback,
 };
-use crate::gpu::{bindings, BvhMemory, GpuBvh, GpuContext};
+use crate::gpu::{bindings, BufferParts, BvhMemory, GpuBvh, GpuContext, WordArray};
+
+/// Storage buffers the render kernel binds with every word array in one part (nodes,
+/// triangles, shading words, materials, lights, emitters, texels, the accumulator).
+const RENDER_STORAGE_BUFFERS: u32 = 8;
 
 /// Pixels per dispatch: keeps every dispatch short on a software rasteriser.
 const CHUNK: u32 = 1 << 16;
@@ -275,7 +279,7 @@ pub struct GpuRenderer<'a> {
     bvh: GpuBvh,
     /// The shading words (the placements among them) in the BVH's memory, and the
     /// emitters: written over where the scene moves ([`GpuRenderer::move_to`]).
-    shades: (wgpu::Buffer, wgpu::Texture),
+    shades: WordArray,
     emitters: wgpu::Buffer,
     layout_constants: Vec<(&'static str, f64)>,
     kernel: Kernel,
@@ -501,13 +505,12 @@ impl<'a> GpuRenderer<'a> {
         }
         ctx.check_binding("the image accumulator", accum_bytes)?;
         // The shading triangles, one per mesh triangle, go where the BVH's triangles do.
-        let (shade_buf, shade_texture) = crate::gpu::words_in_memory(
+        let shade_words = WordArray::upload(
             ctx,
             memory,
             "the shading triangles",
             bytemuck::cast_slice(&shades),
         )?;
-        let shade_tex = shade_texture.create_view(&Default::default());
         drop(shades);
         // The emitters may be written over (their areas move with the placements).
         let usage = |b: u32| match b == bindings::RENDER_EMITTERS {
@@ -529,16 +532,20 @@ impl<'a> GpuRenderer<'a> {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut entries: Vec<_> = GpuBvh::layout_entries().into();
-        entries.push(storage_entry(bindings::RENDER_SHADES, true));
-        entries.push(texel_entry(bindings::RENDER_SHADE_TEXELS));
+        let parts = BufferParts {
+            shades: shade_words.parts(),
+            ..bvh.parts()
+        };
+        parts.check(ctx, "render", RENDER_STORAGE_BUFFERS, true)?;
+        let mut entries = bvh.layout_entries();
+        entries.extend(shade_words.layout_entries(bindings::SHADE_ARRAY));
         entries.extend(sized.iter().map(|&(b, _, _)| storage_entry(b, true)));
         entries.push(storage_entry(bindings::RENDER_ACCUM, false));
         entries.push(dynamic_uniform_entry(bindings::RENDER_PARAMS, PARAMS_SIZE));
         let subgroup_source = match mode {
             TraversalMode::PerRay => None,
             TraversalMode::Subgroup => {
-                let source = super::kernel::render_subgroup_source(layout);
+                let source = super::kernel::render_subgroup_source(layout, &parts);
                 let why = ctx.subgroup_unavailable(layout.name(), source.is_some(), WORKGROUP);
                 if let Some(why) = &why {
                     log::warn!("no {mode} traversal ({why}): rendering per ray");
@@ -550,7 +557,8 @@ impl<'a> GpuRenderer<'a> {
             Some(_) => TraversalMode::Subgroup,
             None => TraversalMode::PerRay,
         };
-        let source = subgroup_source.unwrap_or_else(|| super::kernel::render_source(layout));
+        let source =
+            subgroup_source.unwrap_or_else(|| super::kernel::render_source(layout, &parts));
         let kernel = Kernel::new(
             ctx, "render", "render", &source, &entries,
             // Trusted modules are offered: the layout was validated by GpuBvh::upload, the
@@ -558,12 +566,8 @@ impl<'a> GpuRenderer<'a> {
             // every pixel index is guarded by params.count.
             true,
         )?;
-        let mut bind_entries: Vec<_> = bvh.bind_entries().into();
-        bind_entries.push(buffer_binding(bindings::RENDER_SHADES, &shade_buf));
-        bind_entries.push(wgpu::BindGroupEntry {
-            binding: bindings::RENDER_SHADE_TEXELS,
-            resource: wgpu::BindingResource::TextureView(&shade_tex),
-        });
+        let mut bind_entries = bvh.bind_entries();
+        bind_entries.extend(shade_words.bind_entries(bindings::SHADE_ARRAY));
         bind_entries.extend(buffers.iter().map(|(b, buf)| buffer_binding(*b, buf)));
         bind_entries.push(buffer_binding(bindings::RENDER_ACCUM, &accum));
         bind_entries.push(uniform_binding(
@@ -607,7 +611,7 @@ impl<'a> GpuRenderer<'a> {
         Ok(GpuRenderer {
             ctx,
             bvh,
-            shades: (shade_buf, shade_texture),
+            shades: shade_words,
             emitters: emitters_buf,
             layout_constants: layout.overrides(),
             kernel,
@@ -642,15 +646,8 @@ impl<'a> GpuRenderer<'a> {
         let mut emitters = emitter_words(scene);
         emitters.push([0; 2]);
         self.bvh.write_node_words(self.ctx, first, top)?;
-        let shades = (&self.shades.0, &self.shades.1);
         let at = self.base.placement_base;
-        crate::gpu::write_words(
-            self.ctx,
-            self.bvh.memory,
-            shades,
-            at,
-            bytemuck::cast_slice(&placements),
-        )?;
+        (self.shades).write(self.ctx, at, bytemuck::cast_slice(&placements))?;
         (self.ctx.queue).write_buffer(&self.emitters, 0, bytemuck::cast_slice(&emitters));
         self.ctx.finish_writes();
         self.base.emit_total = scene.emitter_cdf.last().copied().unwrap_or(0.0);

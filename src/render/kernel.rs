@@ -5,6 +5,7 @@
 
 use crate::accel::GpuForm;
 use crate::gpu::shaders::{self, Shared};
+use crate::gpu::BufferParts;
 
 use super::bsdf::{ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
 use super::environment::{MAP_PDF_SCALE, UNIFORM_SPHERE_PDF};
@@ -111,15 +112,17 @@ fn render_kernel(lanes: &str) -> String {
 }
 
 /// The render kernel's full source for a GPU form.
-pub fn render_source(form: &dyn GpuForm) -> String {
-    shaders::kernel_source(form, &render_kernel(LANES_PER_RAY))
+pub fn render_source(form: &dyn GpuForm, parts: &BufferParts) -> String {
+    let kernel = render_kernel(LANES_PER_RAY) + &parts.shade_wgsl();
+    shaders::kernel_source(form, &kernel, parts)
 }
 
 /// The render kernel's source for a GPU form's subgroup traversal, or None when the form
 /// has none; like [`shaders::trace_subgroup_source`], it needs the device's
 /// `Features::SUBGROUP`.
-pub fn render_subgroup_source(form: &dyn GpuForm) -> Option<String> {
-    shaders::subgroup_kernel_source(form, &render_kernel(LANES_SUBGROUP))
+pub fn render_subgroup_source(form: &dyn GpuForm, parts: &BufferParts) -> Option<String> {
+    let kernel = render_kernel(LANES_SUBGROUP) + &parts.shade_wgsl();
+    shaders::subgroup_kernel_source(form, &kernel, parts)
 }
 
 /// Every kernel's full source for a GPU form, by name (for validation and layout tests):
@@ -127,7 +130,8 @@ pub fn render_subgroup_source(form: &dyn GpuForm) -> Option<String> {
 /// included where the form has a subgroup traversal.
 pub fn all_kernels(form: &dyn GpuForm) -> Vec<(&'static str, String)> {
     let mut v = shaders::all(form);
-    v.push(("render", render_source(form)));
-    v.extend(render_subgroup_source(form).map(|s| ("render-subgroup", s)));
+    let whole = &BufferParts::WHOLE;
+    v.push(("render", render_source(form, whole)));
+    v.extend(render_subgroup_source(form, whole).map(|s| ("render-subgroup", s)));
     v
 }

@@ -161,7 +161,7 @@ mod tests {
             ("link", offset_of!(BihNode, link)),
             ("count", offset_of!(BihNode, count)),
         ];
-        let src = shaders::trace_source(&tree);
+        let src = shaders::trace_source(&tree, &crate::gpu::BufferParts::WHOLE);
         shaders::check_struct(&src, "BihNode", size_of::<BihNode>(), &fields).unwrap();
         assert_eq!(tree.arrays().nodes.len(), 16 * tree.stats().nodes);
         assert!(tree.stats().nodes > 9, "{:?}", tree.stats());

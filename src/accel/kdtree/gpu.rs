@@ -156,7 +156,7 @@ mod tests {
             .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
         }
         let fields = [("a", offset_of!(Node, a)), ("b", offset_of!(Node, b))];
-        let src = shaders::trace_source(&tree);
+        let src = shaders::trace_source(&tree, &crate::gpu::BufferParts::WHOLE);
         shaders::check_struct(&src, "KdNode", size_of::<Node>(), &fields).unwrap();
         assert_eq!(2 * size_of::<Node>(), 16, "two nodes to a word");
         assert_eq!(tree.arrays().nodes.len() % 16, 0);

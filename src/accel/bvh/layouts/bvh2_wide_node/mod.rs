@@ -329,7 +329,7 @@ mod tests {
         let mesh = soup(1);
         let layout =
             Bvh2WideNode::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
-        let src = shaders::trace_source(&layout);
+        let src = shaders::trace_source(&layout, &crate::gpu::BufferParts::WHOLE);
         let fields = [
             ("lo0", offset_of!(WideNode, lo0)),
             ("a0", offset_of!(WideNode, a0)),

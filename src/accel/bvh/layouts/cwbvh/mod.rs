@@ -573,7 +573,7 @@ mod tests {
             .collect();
         let mesh = Mesh::from_triangles(tris);
         let layout = Cwbvh::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
-        let src = shaders::trace_source(&layout);
+        let src = shaders::trace_source(&layout, &crate::gpu::BufferParts::WHOLE);
         let fields = [
             ("p", offset_of!(CwNode, p)),
             ("e_imask", offset_of!(CwNode, e)),

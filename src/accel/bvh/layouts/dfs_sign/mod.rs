@@ -264,7 +264,7 @@ mod tests {
             glam::Vec3::Y,
         )]);
         let layout = DfsSign::flatten(&crate::accel::bvh::build(&mesh, &Default::default()), &mesh);
-        let src = shaders::trace_source(&layout);
+        let src = shaders::trace_source(&layout, &crate::gpu::BufferParts::WHOLE);
         let fields = [
             ("lo", offset_of!(DfsNode, lo)),
             ("a", offset_of!(DfsNode, a)),

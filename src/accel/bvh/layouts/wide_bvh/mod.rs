@@ -399,7 +399,7 @@ mod tests {
         for (p, offset) in offsets.into_iter().enumerate() {
             assert_eq!(offset, 16 * p * groups, "plane {p}");
         }
-        let src = shaders::trace_source(&layout);
+        let src = shaders::trace_source(&layout, &crate::gpu::BufferParts::WHOLE);
         for constant in [
             format!("const WIDE_WIDTH: u32 = {W}u;"),
             format!("const WIDE_GROUPS: u32 = {groups}u;"),

@@ -1,0 +1,158 @@
+//! The WGSL readers of the word arrays in buffer memory: `node_buffer_word(i)`,
+//! `tri_buffer_word(i)` and, in the render kernel, `shade_buffer_word(i)`. An array in one
+//! storage binding is read straight; one bound in several parts
+//! ([`WordArray`](super::word_array::WordArray)) declares its further parts and picks one by
+//! the word index's high bits. Generated, not written once in WGSL, because WGSL cannot
+//! declare bindings by an override constant: a kernel declares exactly the parts its arrays
+//! have, so a device with wgpu's default limits (8 storage buffers a stage) still runs every
+//! scene that fits one binding an array.
+
+use std::fmt::Write;
+
+use crate::error::{Error, Result};
+use crate::util::human_bytes;
+
+use super::bindings;
+use super::word_array::ArrayBindings;
+use super::GpuContext;
+
+/// How many parts each word array of a kernel is bound in, and the words of one part
+/// (2^`shift`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BufferParts {
+    /// Parts of the node words.
+    pub nodes: u32,
+    /// Parts of the triangle words.
+    pub tris: u32,
+    /// Parts of the shading words (render kernel).
+    pub shades: u32,
+    /// log2 of the words of one part.
+    pub shift: u32,
+}
+
+/// One word array's WGSL names and bindings.
+struct Array {
+    /// Part 0's variable, declared in the WGSL source.
+    var: &'static str,
+    /// The reader function generated.
+    reader: &'static str,
+    bindings: ArrayBindings,
+}
+
+const NODES: Array = Array {
+    var: "node_words",
+    reader: "node_buffer_word",
+    bindings: bindings::NODE_ARRAY,
+};
+const TRIS: Array = Array {
+    var: "tri_words",
+    reader: "tri_buffer_word",
+    bindings: bindings::TRI_ARRAY,
+};
+const SHADES: Array = Array {
+    var: "shade_words",
+    reader: "shade_buffer_word",
+    bindings: bindings::SHADE_ARRAY,
+};
+
+impl BufferParts {
+    /// Every array in one binding: the kernels as they are checked without a device.
+    pub const WHOLE: BufferParts = BufferParts {
+        nodes: 1,
+        tris: 1,
+        shades: 1,
+        shift: 31,
+    };
+
+    /// The node and triangle arrays' readers (every kernel that traverses a BVH).
+    pub fn bvh_wgsl(&self) -> String {
+        let mut s = reader(&NODES, self.nodes, self.shift);
+        s += &reader(&TRIS, self.tris, self.shift);
+        s
+    }
+
+    /// The shading words' reader (the render kernel).
+    pub fn shade_wgsl(&self) -> String {
+        reader(&SHADES, self.shades, self.shift)
+    }
+
+    /// Refuses a kernel (`kernel`, for messages; `base` storage buffers of its own with
+    /// each array in one part; the shading words' parts counted when `shades`) that binds
+    /// more storage buffers than the device allows a shader stage.
+    pub fn check(&self, ctx: &GpuContext, kernel: &str, base: u32, shades: bool) -> Result<()> {
+        let extra = self.nodes + self.tris - 2 + if shades { self.shades - 1 } else { 0 };
+        let (need, max) = (
+            base + extra,
+            ctx.limits.max_storage_buffers_per_shader_stage,
+        );
+        if need > max {
+            return Err(Error::Gpu(format!(
+                "the {kernel} kernel would bind {need} storage buffers (arrays bigger than one \
+                 binding of {} are bound in parts) but {} allows {max} a shader stage; use \
+                 --bvh-memory textures, a smaller scene or --device cpu",
+                human_bytes(16u64 << self.shift),
+                ctx.adapter.name
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The reader of `array` bound in `parts` parts of 2^`shift` words.
+fn reader(array: &Array, parts: u32, shift: u32) -> String {
+    let (var, f) = (array.var, array.reader);
+    if parts <= 1 {
+        return format!("fn {f}(i: u32) -> vec4<u32> {{\n    return {var}[i];\n}}\n");
+    }
+    let mut s = format!("// {var} in {parts} parts of 2^{shift} words (gpu::word_array)\n");
+    for k in 1..parts {
+        let binding = array.bindings.parts + k;
+        // Writing to a String cannot fail.
+        let _ = writeln!(
+            s,
+            "@group(0) @binding({binding}) var<storage, read> {var}_{k}: array<vec4<u32>>;"
+        );
+    }
+    let mask = (1u64 << shift) - 1;
+    let _ = write!(
+        s,
+        "fn {f}(i: u32) -> vec4<u32> {{\n    let j = i & {mask}u;\n    switch i >> {shift}u {{\n        case 0u: {{ return {var}[j]; }}\n"
+    );
+    for k in 1..parts - 1 {
+        let _ = writeln!(s, "        case {k}u: {{ return {var}_{k}[j]; }}");
+    }
+    let last = parts - 1;
+    let _ = write!(
+        s,
+        "        default: {{ return {var}_{last}[j]; }}\n    }}\n}}\n"
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_split_reader_parses_and_picks_parts_by_the_high_bits() {
+        let parts = BufferParts {
+            nodes: 3,
+            tris: 1,
+            shades: 2,
+            shift: 8,
+        };
+        let wgsl = parts.bvh_wgsl() + &parts.shade_wgsl();
+        assert!(wgsl.contains("switch i >> 8u"), "{wgsl}");
+        assert!(wgsl.contains("let j = i & 255u;"), "{wgsl}");
+        assert!(
+            wgsl.contains("default: { return node_words_2[j]; }"),
+            "{wgsl}"
+        );
+        assert!(wgsl.contains("return tri_words[i];"), "{wgsl}");
+        let decls = "@group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;\n\
+                     @group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;\n\
+                     @group(0) @binding(2) var<storage, read> shade_words: array<vec4<u32>>;\n";
+        let module = naga::front::wgsl::parse_str(&format!("{decls}{wgsl}"));
+        assert!(module.is_ok(), "{wgsl}");
+    }
+}
