@@ -545,7 +545,10 @@ fn arrays_beyond_one_binding_are_bound_in_parts() {
         .err()
         .expect("more storage buffers than the device allows")
         .to_string();
-    assert!(e.contains("storage buffers") && e.contains("allows 6"), "{e}");
+    assert!(
+        e.contains("storage buffers") && e.contains("allows 6"),
+        "{e}"
+    );
 
     let gpu = Device::gpu(ctx);
     for checked_module in [true, false] {

@@ -10,6 +10,7 @@ use lancer::accel::bvh::{build, BuildOptions};
 use lancer::accel::{GpuForm, LeafTri};
 use lancer::geometry::{Hit, Ray, Triangle};
 use lancer::gpu::shaders::{self, Shared};
+use lancer::gpu::BufferParts;
 use lancer::mesh::Mesh;
 use lancer::render::kernel::{all_kernels, render_constants};
 
@@ -37,7 +38,19 @@ fn check(src: &str, name: &str, rust_size: usize, rust: &[(&str, usize)]) {
 #[test]
 fn all_shaders_validate() {
     for layout in layouts() {
-        for (name, src) in all_kernels(layout.as_ref()) {
+        // Each array in one binding, and bound in parts (the readers generated for them).
+        let split = BufferParts {
+            nodes: 3,
+            tris: 2,
+            shades: 2,
+            texels: 4,
+            shift: 8,
+        };
+        let kernels: Vec<_> = [BufferParts::WHOLE, split]
+            .iter()
+            .flat_map(|parts| all_kernels(layout.as_ref(), parts))
+            .collect();
+        for (name, src) in kernels {
             let m = module(&src);
             naga::valid::Validator::new(
                 naga::valid::ValidationFlags::all(),
@@ -52,7 +65,7 @@ fn all_shaders_validate() {
 #[test]
 fn gpu_structs_match_rust() {
     let layout = &layouts()[0];
-    let src = shaders::trace_source(layout.as_ref(), &lancer::gpu::BufferParts::WHOLE);
+    let src = shaders::trace_source(layout.as_ref(), &BufferParts::WHOLE);
     check(
         &src,
         "Tri",
@@ -104,7 +117,7 @@ fn gpu_structs_match_rust() {
 fn render_structs_match_rust() {
     use lancer::render::{GpuLight, GpuMaterial, GpuShade, RenderParams};
     let layout = &layouts()[0];
-    let src = lancer::render::kernel::render_source(layout.as_ref(), &lancer::gpu::BufferParts::WHOLE);
+    let src = lancer::render::kernel::render_source(layout.as_ref(), &BufferParts::WHOLE);
     let m = &src;
     macro_rules! fields {
         ($t:ty; $($w:literal => $f:ident),*) => {
@@ -167,7 +180,7 @@ fn render_structs_match_rust() {
 #[test]
 fn shared_constants_read_back_as_the_rust_values() {
     let layout = &layouts()[0];
-    for (kernel, src) in all_kernels(layout.as_ref()) {
+    for (kernel, src) in all_kernels(layout.as_ref(), &BufferParts::WHOLE) {
         let m = module(&src);
         // The render kernels also carry the renderer's own constants.
         let mut constants = shaders::shared_constants();
@@ -209,7 +222,7 @@ fn bindings_are_the_rust_numbers() {
     ];
     let layout = &layouts()[0];
     let mut seen = 0;
-    let kernels = all_kernels(layout.as_ref());
+    let kernels = all_kernels(layout.as_ref(), &BufferParts::WHOLE);
     let of_kind = |k: &str| kernels.iter().filter(|(n, _)| n.starts_with(k)).count();
     // dfs-sign has a subgroup form of both kernels.
     let (traces, renders) = (of_kind("trace"), of_kind("render"));

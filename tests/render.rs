@@ -203,13 +203,80 @@ fn shading_triangles_beyond_a_storage_binding_render_in_both_memories() {
     };
     let image = |memory| render(&s, &device, &options(memory)).unwrap().image.pixels;
     let textures = image(BvhMemory::Textures);
-    assert_gpu_matches_cpu("teapot, small bindings", &s, &textures, &cpu_image(&s, fx, 1));
-    assert_eq!(image(BvhMemory::Buffers), textures, "buffer parts ≠ textures");
+    assert_gpu_matches_cpu(
+        "teapot, small bindings",
+        &s,
+        &textures,
+        &cpu_image(&s, fx, 1),
+    );
+    assert_same(
+        &image(BvhMemory::Buffers),
+        &textures,
+        "buffer parts ≠ textures",
+    );
     let Err(e) = render(&s, &small(shade_bytes / 2), &options(BvhMemory::Buffers)) else {
         panic!("a buffer beyond max_buffer_size was made");
     };
     let e = e.to_string();
     assert!(e.contains("max_buffer_size"), "{e}");
+}
+
+/// Texels (textures and the environment map, always in a storage buffer) beyond one storage
+/// binding are bound in parts: `principled.toml` (a 64² checker under a 128 × 64 sky) on a
+/// device whose recorded binding limit is shrunk to 16 KiB renders what an unshrunk device
+/// renders, bit for bit (the checked module reads a word of a wrong part as zero). And
+/// `copies.toml`'s two levels, in buffer memory at 4 KiB, render what textures render.
+#[test]
+fn textures_environment_and_two_levels_beyond_a_storage_binding_render() {
+    gpu_device(); // fails with the install hint when there is no adapter
+    let shrunk = |binding: u64| {
+        let mut ctx = lancer::gpu::GpuContext::new().unwrap();
+        ctx.limits.max_storage_buffer_binding_size = binding;
+        Device::gpu(ctx)
+    };
+    // Images small enough for the accumulator to fit one shrunk binding.
+    let scene = |name: &str, (w, h)| {
+        let path = scenes_dir().join(format!("{name}.toml"));
+        let mut s = RenderScene::from_file(&path).unwrap();
+        (s.camera.width, s.camera.height) = (w, h);
+        s
+    };
+    let s = scene("principled", (32, 24));
+    let texel_bytes: usize = s.textures.iter().map(|t| t.texels.len() * 16).sum();
+    assert!(
+        texel_bytes > 2 * 16384,
+        "{texel_bytes} bytes of texture texels"
+    );
+    let fx = EffectSet::of(&s);
+    let whole = gpu_image(&s, fx, 1);
+    let parts = image_on(&shrunk(16384), &s, fx, 1, BvhMemory::Textures);
+    assert_same(&parts, &whole, "principled: texels in parts");
+    assert_gpu_matches_cpu(
+        "principled, texels in parts",
+        &s,
+        &parts,
+        &cpu_image(&s, fx, 1),
+    );
+
+    let s = scene("copies", (16, 12));
+    assert!(
+        s.placements.is_some(),
+        "copies.toml is placed in two levels"
+    );
+    let fx = EffectSet::of(&s);
+    let textures = gpu_image_in(&s, fx, 1, BvhMemory::Textures);
+    let buffers = image_on(&shrunk(4096), &s, fx, 1, BvhMemory::Buffers);
+    assert_same(&buffers, &textures, "copies: two levels in buffer parts");
+}
+
+/// Two images equal bit for bit; the failure counts the pixels that differ.
+fn assert_same(a: &[Vec3], b: &[Vec3], what: &str) {
+    let differ = a.iter().zip(b).filter(|(x, y)| x != y).count();
+    assert!(
+        a.len() == b.len() && differ == 0,
+        "{what}: {differ} of {} pixels differ",
+        a.len()
+    );
 }
 
 /// A GPU render of `s` (one sample) traversing in `mode` through `layout`, cropped where

@@ -138,7 +138,9 @@ fn every_layout_with_the_mode_has_a_valid_subgroup_kernel() {
     let mut offered = Vec::new();
     for &kind in LayoutKind::ALL {
         let layout = flatten(kind, &tree, &mesh);
-        let Some(src) = shaders::trace_subgroup_source(layout.as_ref(), &lancer::gpu::BufferParts::WHOLE) else {
+        let Some(src) =
+            shaders::trace_subgroup_source(layout.as_ref(), &lancer::gpu::BufferParts::WHOLE)
+        else {
             continue;
         };
         let m = naga::front::wgsl::parse_str(&src)

@@ -380,18 +380,18 @@ fn slot_uv(mat: Material, slot: u32, uv: vec2<f32>) -> vec2<f32> {
     if !TEXTURE_TRANSFORMS || (mat.flags & MAT_UV_TRANSFORMS) == 0u {
         return uv;
     }
-    let a = texels[mat.uv_maps + 2u * slot];
-    let b = texels[mat.uv_maps + 2u * slot + 1u];
+    let a = texel(mat.uv_maps + 2u * slot);
+    let b = texel(mat.uv_maps + 2u * slot + 1u);
     return vec2<f32>(a.x * uv.x + a.y * uv.y + a.z, b.x * uv.x + b.y * uv.y + b.z);
 }
 
 // The four texels around uv blended bilinearly: colour in .xyz, alpha in .w.
 fn bilinear(offset: u32, width: u32, height: u32, uv: vec2<f32>) -> vec4<f32> {
     let t = texture_taps(offset, width, height, uv);
-    let a = texels[t.i.x];
-    let b = texels[t.i.y];
-    let c = texels[t.i.z];
-    let d = texels[t.i.w];
+    let a = texel(t.i.x);
+    let b = texel(t.i.y);
+    let c = texel(t.i.z);
+    let d = texel(t.i.w);
     let top = a + (b - a) * t.f.x;
     let bottom = c + (d - c) * t.f.x;
     return top + (bottom - top) * t.f.y;

@@ -42,11 +42,11 @@ fn atan2_turns(y: f32, x: f32) -> f32 {
 }
 
 fn env_cdf_at(k: u32) -> f32 {
-    return texels[params.env_cdf + k / 4u][k % 4u];
+    return texel(params.env_cdf + k / 4u)[k % 4u];
 }
 
 fn env_texel(i: u32, j: u32) -> vec3<f32> {
-    return texels[params.env_texels + j * params.env_width + i].xyz;
+    return texel(params.env_texels + j * params.env_width + i).xyz;
 }
 
 // environment::find: the cell u falls in among n from entry `base` of the CDFs.

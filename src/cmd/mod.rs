@@ -202,7 +202,7 @@ pub struct DeviceArgs {
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// GPU: where the kernels read the BVH and the shading triangles from (storage textures,
-    /// which hold more than one storage buffer may, or storage buffers).
+    /// or storage buffers: an array bigger than one binding is bound in parts).
     #[arg(long, value_enum, default_value_t = BvhMemory::default())]
     bvh_memory: BvhMemory,
 }

@@ -1,7 +1,17 @@
 //! Binding numbers of group 0, shared by the Rust bind groups and the WGSL declarations
 //! (generated into the prelude; the kernels write `@binding(BINDING_…)`).
 
-pub use super::word_array::ArrayBindings;
+/// Where a word array is bound: part 0 of its buffer at `words` (the binding its WGSL source
+/// declares), part k ≥ 1 at `parts + k`, its texture (where it may live in one) at `texels`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ArrayBindings {
+    /// Part 0 of the buffer.
+    pub words: u32,
+    /// One below part 1's binding.
+    pub parts: u32,
+    /// The texture (None: the array lives in buffer memory only).
+    pub texels: Option<u32>,
+}
 
 /// The layout's node words in a storage buffer.
 pub const NODE_WORDS: u32 = 0;
@@ -17,19 +27,26 @@ pub const TRI_TEXELS: u32 = 11;
 pub const NODE_ARRAY: ArrayBindings = ArrayBindings {
     words: NODE_WORDS,
     parts: 100,
-    texels: NODE_TEXELS,
+    texels: Some(NODE_TEXELS),
 };
 /// The leaf triangles' bindings (parts from 201).
 pub const TRI_ARRAY: ArrayBindings = ArrayBindings {
     words: TRI_WORDS,
     parts: 200,
-    texels: TRI_TEXELS,
+    texels: Some(TRI_TEXELS),
 };
 /// The render kernel's shading words' bindings (parts from 301).
 pub const SHADE_ARRAY: ArrayBindings = ArrayBindings {
     words: RENDER_SHADES,
     parts: 300,
-    texels: RENDER_SHADE_TEXELS,
+    texels: Some(RENDER_SHADE_TEXELS),
+};
+/// The render kernel's texels (textures, coordinate maps, the environment map and its CDF),
+/// in buffer memory whatever the BVH's (parts from 401).
+pub const TEXEL_ARRAY: ArrayBindings = ArrayBindings {
+    words: RENDER_TEXELS,
+    parts: 400,
+    texels: None,
 };
 
 /// Trace kernel: rays.

@@ -1,5 +1,5 @@
 //! The WGSL readers of the word arrays in buffer memory: `node_buffer_word(i)`,
-//! `tri_buffer_word(i)` and, in the render kernel, `shade_buffer_word(i)`. An array in one
+//! `tri_buffer_word(i)` and, in the render kernel, `shade_buffer_word(i)` and `texel(i)`. An array in one
 //! storage binding is read straight; one bound in several parts
 //! ([`WordArray`](super::word_array::WordArray)) declares its further parts and picks one by
 //! the word index's high bits. Generated, not written once in WGSL, because WGSL cannot
@@ -12,8 +12,7 @@ use std::fmt::Write;
 use crate::error::{Error, Result};
 use crate::util::human_bytes;
 
-use super::bindings;
-use super::word_array::ArrayBindings;
+use super::bindings::{self, ArrayBindings};
 use super::GpuContext;
 
 /// How many parts each word array of a kernel is bound in, and the words of one part
@@ -26,6 +25,8 @@ pub struct BufferParts {
     pub tris: u32,
     /// Parts of the shading words (render kernel).
     pub shades: u32,
+    /// Parts of the texels (render kernel).
+    pub texels: u32,
     /// log2 of the words of one part.
     pub shift: u32,
 }
@@ -36,23 +37,34 @@ struct Array {
     var: &'static str,
     /// The reader function generated.
     reader: &'static str,
+    /// The WGSL element type.
+    ty: &'static str,
     bindings: ArrayBindings,
 }
 
 const NODES: Array = Array {
     var: "node_words",
     reader: "node_buffer_word",
+    ty: "vec4<u32>",
     bindings: bindings::NODE_ARRAY,
 };
 const TRIS: Array = Array {
     var: "tri_words",
     reader: "tri_buffer_word",
+    ty: "vec4<u32>",
     bindings: bindings::TRI_ARRAY,
 };
 const SHADES: Array = Array {
     var: "shade_words",
     reader: "shade_buffer_word",
+    ty: "vec4<u32>",
     bindings: bindings::SHADE_ARRAY,
+};
+const TEXELS: Array = Array {
+    var: "texels",
+    reader: "texel",
+    ty: "vec4<f32>",
+    bindings: bindings::TEXEL_ARRAY,
 };
 
 impl BufferParts {
@@ -61,6 +73,7 @@ impl BufferParts {
         nodes: 1,
         tris: 1,
         shades: 1,
+        texels: 1,
         shift: 31,
     };
 
@@ -71,26 +84,35 @@ impl BufferParts {
         s
     }
 
-    /// The shading words' reader (the render kernel).
-    pub fn shade_wgsl(&self) -> String {
-        reader(&SHADES, self.shades, self.shift)
+    /// The shading words' and the texels' readers (the render kernel).
+    pub fn render_wgsl(&self) -> String {
+        reader(&SHADES, self.shades, self.shift) + &reader(&TEXELS, self.texels, self.shift)
     }
 
     /// Refuses a kernel (`kernel`, for messages; `base` storage buffers of its own with
-    /// each array in one part; the shading words' parts counted when `shades`) that binds
-    /// more storage buffers than the device allows a shader stage.
-    pub fn check(&self, ctx: &GpuContext, kernel: &str, base: u32, shades: bool) -> Result<()> {
-        let extra = self.nodes + self.tris - 2 + if shades { self.shades - 1 } else { 0 };
+    /// each array in one part; the shading words' and texels' parts counted when `render`)
+    /// that binds more storage buffers than the device allows a shader stage.
+    pub fn check(&self, ctx: &GpuContext, kernel: &str, base: u32, render: bool) -> Result<()> {
+        let mut extra = self.nodes + self.tris - 2;
+        if render {
+            extra += self.shades + self.texels - 2;
+        }
         let (need, max) = (
             base + extra,
             ctx.limits.max_storage_buffers_per_shader_stage,
         );
         if need > max {
+            let why = match extra {
+                0 => String::new(),
+                _ => format!(
+                    ", {extra} of them for arrays bigger than one binding of {}",
+                    human_bytes(16u64 << self.shift)
+                ),
+            };
             return Err(Error::Gpu(format!(
-                "the {kernel} kernel would bind {need} storage buffers (arrays bigger than one \
-                 binding of {} are bound in parts) but {} allows {max} a shader stage; use \
-                 --bvh-memory textures, a smaller scene or --device cpu",
-                human_bytes(16u64 << self.shift),
+                "the {kernel} kernel would bind {need} storage buffers{why}, but {} allows \
+                 {max} a shader stage (max_storage_buffers_per_shader_stage); use --bvh-memory \
+                 textures, a smaller scene or --device cpu",
                 ctx.adapter.name
             )));
         }
@@ -100,9 +122,9 @@ impl BufferParts {
 
 /// The reader of `array` bound in `parts` parts of 2^`shift` words.
 fn reader(array: &Array, parts: u32, shift: u32) -> String {
-    let (var, f) = (array.var, array.reader);
+    let (var, f, ty) = (array.var, array.reader, array.ty);
     if parts <= 1 {
-        return format!("fn {f}(i: u32) -> vec4<u32> {{\n    return {var}[i];\n}}\n");
+        return format!("fn {f}(i: u32) -> {ty} {{\n    return {var}[i];\n}}\n");
     }
     let mut s = format!("// {var} in {parts} parts of 2^{shift} words (gpu::word_array)\n");
     for k in 1..parts {
@@ -110,13 +132,13 @@ fn reader(array: &Array, parts: u32, shift: u32) -> String {
         // Writing to a String cannot fail.
         let _ = writeln!(
             s,
-            "@group(0) @binding({binding}) var<storage, read> {var}_{k}: array<vec4<u32>>;"
+            "@group(0) @binding({binding}) var<storage, read> {var}_{k}: array<{ty}>;"
         );
     }
     let mask = (1u64 << shift) - 1;
     let _ = write!(
         s,
-        "fn {f}(i: u32) -> vec4<u32> {{\n    let j = i & {mask}u;\n    switch i >> {shift}u {{\n        case 0u: {{ return {var}[j]; }}\n"
+        "fn {f}(i: u32) -> {ty} {{\n    let j = i & {mask}u;\n    switch i >> {shift}u {{\n        case 0u: {{ return {var}[j]; }}\n"
     );
     for k in 1..parts - 1 {
         let _ = writeln!(s, "        case {k}u: {{ return {var}_{k}[j]; }}");
@@ -139,9 +161,10 @@ mod tests {
             nodes: 3,
             tris: 1,
             shades: 2,
+            texels: 2,
             shift: 8,
         };
-        let wgsl = parts.bvh_wgsl() + &parts.shade_wgsl();
+        let wgsl = parts.bvh_wgsl() + &parts.render_wgsl();
         assert!(wgsl.contains("switch i >> 8u"), "{wgsl}");
         assert!(wgsl.contains("let j = i & 255u;"), "{wgsl}");
         assert!(
@@ -149,9 +172,11 @@ mod tests {
             "{wgsl}"
         );
         assert!(wgsl.contains("return tri_words[i];"), "{wgsl}");
+        assert!(wgsl.contains("fn texel(i: u32) -> vec4<f32>"), "{wgsl}");
         let decls = "@group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;\n\
                      @group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;\n\
-                     @group(0) @binding(2) var<storage, read> shade_words: array<vec4<u32>>;\n";
+                     @group(0) @binding(2) var<storage, read> shade_words: array<vec4<u32>>;\n\
+                     @group(0) @binding(3) var<storage, read> texels: array<vec4<f32>>;\n";
         let module = naga::front::wgsl::parse_str(&format!("{decls}{wgsl}"));
         assert!(module.is_ok(), "{wgsl}");
     }

@@ -10,12 +10,13 @@ use super::word_array::{self, WordArray};
 use super::{bindings, BufferParts, GpuContext};
 
 /// Where the kernels read nodes and triangles from (and the render kernel its shading
-/// triangles). The words are the same; only the kind of binding differs: a texture holds
-/// more than one storage binding may (lavapipe: 128 MiB).
+/// triangles). The words are the same; only the kind of binding differs. Either holds more
+/// than one storage binding may (lavapipe: 128 MiB): a texture up to its largest size, a
+/// buffer bound in parts (`gpu::word_array`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BvhMemory {
-    /// Read-only storage buffers.
+    /// Read-only storage buffers (an array bigger than one binding is bound in parts).
     Buffers,
     /// Read-only rgba32uint storage textures, TEXEL_ROW texels a row.
     /// lavapipe loads these with a gather instead of a per-lane loop: ~18% more rays/s there.
@@ -67,6 +68,20 @@ impl GpuBvh {
         })
     }
 
+    /// The parts [`GpuBvh::upload`] would bind `layout`'s arrays in, in `memory` (the render
+    /// kernel's arrays left at one): to check a kernel's bindings before anything is uploaded.
+    pub fn parts_for(ctx: &GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> BufferParts {
+        let arrays = layout.arrays();
+        let parts = |bytes: &[u8]| word_array::parts_for(ctx, memory, bytes.len() as u64);
+        BufferParts {
+            nodes: parts(arrays.nodes),
+            tris: parts(arrays.tris),
+            shades: 1,
+            texels: 1,
+            shift: word_array::part_shift(ctx),
+        }
+    }
+
     /// Writes `bytes` (whole 16-byte words) over the node words from word `first` on, in
     /// either memory: for a structure whose part changed in place
     /// ([`GpuTwoLevel::moved`](crate::accel::instances::GpuTwoLevel::moved)). The caller
@@ -86,13 +101,14 @@ impl GpuBvh {
         ("BVH_TEXTURES", if on { 1.0 } else { 0.0 })
     }
 
-    /// The parts the node and triangle buffers are bound in (the shading words' left at
-    /// one), which the kernel's source must be generated for ([`BufferParts::bvh_wgsl`]).
+    /// The parts the node and triangle buffers are bound in (the render kernel's arrays left
+    /// at one), which the kernel's source must be generated for ([`BufferParts::bvh_wgsl`]).
     pub fn parts(&self) -> BufferParts {
         BufferParts {
             nodes: self.nodes.parts(),
             tris: self.tris.parts(),
             shades: 1,
+            texels: 1,
             shift: self.shift,
         }
     }

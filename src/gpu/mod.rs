@@ -10,7 +10,7 @@ mod driver;
 pub mod plumbing;
 pub mod shaders;
 mod trace;
-mod word_array;
+pub(crate) mod word_array;
 
 pub use adapters::{adapters, AdapterSummary};
 pub use buffer_parts::BufferParts;

@@ -171,13 +171,12 @@ pub fn kernel_source(layout: &dyn GpuForm, kernel: &str, parts: &BufferParts) ->
     )
 }
 
-/// Every trace kernel's full source for a GPU form, by name, the subgroup kernel included
-/// where the form has a subgroup traversal (the renderer's kernels:
-/// `render::kernel::all_kernels`).
-pub fn all(layout: &dyn GpuForm) -> Vec<(&'static str, String)> {
-    let whole = &BufferParts::WHOLE;
-    let mut v = vec![("trace", trace_source(layout, whole))];
-    v.extend(trace_subgroup_source(layout, whole).map(|s| ("trace-subgroup", s)));
+/// Every trace kernel's full source for a GPU form whose arrays are bound in `parts`, by
+/// name, the subgroup kernel included where the form has a subgroup traversal (the
+/// renderer's kernels: `render::kernel::all_kernels`).
+pub fn all(layout: &dyn GpuForm, parts: &BufferParts) -> Vec<(&'static str, String)> {
+    let mut v = vec![("trace", trace_source(layout, parts))];
+    v.extend(trace_subgroup_source(layout, parts).map(|s| ("trace-subgroup", s)));
     v
 }
 

@@ -116,14 +116,15 @@ impl<'a> GpuTracer<'a> {
     /// Validates and uploads a layout in the given memory and compiles the kernel.
     pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
         let start = std::time::Instant::now();
+        // The kernel's bindings checked before anything is uploaded.
+        let parts = GpuBvh::parts_for(ctx, layout, memory);
+        parts.check(ctx, "trace", TRACE_STORAGE_BUFFERS, false)?;
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
         log::info!(
             "{} layout checked, packed and uploaded ({memory:?}) in {:.0} ms",
             layout.name(),
             start.elapsed().as_secs_f64() * 1e3
         );
-        let parts = bvh.parts();
-        parts.check(ctx, "trace", TRACE_STORAGE_BUFFERS, false)?;
         let mut entries = bvh.layout_entries();
         entries.extend([
             storage_entry(bindings::TRACE_RAYS, true),

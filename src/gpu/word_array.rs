@@ -10,25 +10,18 @@
 use crate::error::{Error, Result};
 use crate::util::human_bytes;
 
+use super::bindings::ArrayBindings;
 use super::context::UPLOAD_SLICE;
 use super::plumbing::{storage_entry, texel_entry};
 use super::{BvhMemory, GpuContext, TEXEL_ROW};
 
 /// Most parts one array may be bound in (their binding numbers are
-/// [`ArrayBindings::parts`]` + k`, below the next array's).
+/// [`ArrayBindings::parts`]` + k`, 100 below the next array's).
 pub const MAX_PARTS: u32 = 64;
+const _: () = assert!(MAX_PARTS < 100);
 
-/// Where a word array is bound: part 0 of its buffer at `words` (the binding its WGSL source
-/// declares), part k ≥ 1 at `parts + k`, its texture at `texels`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ArrayBindings {
-    /// Part 0 of the buffer.
-    pub words: u32,
-    /// One below part 1's binding.
-    pub parts: u32,
-    /// The texture.
-    pub texels: u32,
-}
+/// Most words an array may have: the kernels index them with a u32.
+const MAX_WORDS: u64 = 1 << 32;
 
 /// 16-byte words in one of the two memories (see the module's documentation).
 pub(crate) struct WordArray {
@@ -53,8 +46,9 @@ pub(crate) fn part_shift(ctx: &GpuContext) -> u32 {
 }
 
 impl WordArray {
-    /// Uploads `bytes` (whole 16-byte words; `what` names them in messages) into `memory`;
-    /// refuses sizes the device cannot hold, naming the size and the limit.
+    /// Uploads `bytes` (whole 16-byte words; `what` names them in messages; none: one zero
+    /// word) into `memory`; refuses sizes the device cannot hold, naming the size and the
+    /// limit.
     pub fn upload(
         ctx: &GpuContext,
         memory: BvhMemory,
@@ -62,6 +56,8 @@ impl WordArray {
         bytes: &[u8],
     ) -> Result<WordArray> {
         let word = [0u8; 16];
+        // A binding is never empty.
+        let bytes = if bytes.is_empty() { &word[..] } else { bytes };
         // COPY_DST: a part may be written over later (WordArray::write).
         let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         WordArray::check(ctx, memory, what, bytes.len())?;
@@ -77,9 +73,17 @@ impl WordArray {
         };
         let part_bytes = 16u64 << part_shift(ctx);
         let size = buffer.size();
-        let parts = (0..size.div_ceil(part_bytes).max(1))
+        let parts: Vec<(u64, u64)> = (0..parts_for(ctx, BvhMemory::Buffers, size) as u64)
             .map(|k| (k * part_bytes, part_bytes.min(size - k * part_bytes)))
             .collect();
+        if parts.len() > 1 {
+            log::info!(
+                "{what} ({}) bound in {} storage bindings of at most {}",
+                human_bytes(size),
+                parts.len(),
+                human_bytes(part_bytes)
+            );
+        }
         Ok(WordArray {
             memory,
             view: texture.create_view(&Default::default()),
@@ -109,7 +113,7 @@ impl WordArray {
         let mut entries: Vec<_> = (0..self.parts())
             .map(|k| storage_entry(part_binding(at, k), true))
             .collect();
-        entries.push(texel_entry(at.texels));
+        entries.extend(at.texels.map(texel_entry));
         entries
     }
 
@@ -125,10 +129,10 @@ impl WordArray {
                 }),
             })
             .collect();
-        entries.push(wgpu::BindGroupEntry {
-            binding: at.texels,
+        entries.extend(at.texels.map(|binding| wgpu::BindGroupEntry {
+            binding,
             resource: wgpu::BindingResource::TextureView(&self.view),
-        });
+        }));
         entries
     }
 
@@ -192,6 +196,14 @@ impl WordArray {
     }
 }
 
+/// The parts an array of `len` bytes is bound in, in `memory` (1 in texture memory).
+pub(crate) fn parts_for(ctx: &GpuContext, memory: BvhMemory, len: u64) -> u32 {
+    match memory {
+        BvhMemory::Buffers => len.div_ceil(16u64 << part_shift(ctx)).max(1) as u32,
+        BvhMemory::Textures => 1,
+    }
+}
+
 /// The binding of part `k` of an array bound at `at`.
 fn part_binding(at: ArrayBindings, k: u32) -> u32 {
     match k {
@@ -204,12 +216,14 @@ fn part_binding(at: ArrayBindings, k: u32) -> u32 {
 /// [`MAX_PARTS`] parts cannot hold on this device, naming the size and the limits.
 fn check_buffer(ctx: &GpuContext, what: &str, len: u64) -> Result<()> {
     let part = 16u64 << part_shift(ctx);
-    let max = ctx.limits.max_buffer_size.min(part * MAX_PARTS as u64);
+    let max = (ctx.limits.max_buffer_size)
+        .min(part * MAX_PARTS as u64)
+        .min(16 * MAX_WORDS);
     if len > max {
         return Err(Error::Gpu(format!(
             "{what} need {} but {} holds at most {} in one buffer (max_buffer_size {}, \
-             {MAX_PARTS} storage bindings of {}); use --bvh-memory textures, a smaller scene \
-             or --device cpu",
+             {MAX_PARTS} storage bindings of {}, 2^32 words); use --bvh-memory textures, a \
+             smaller scene or --device cpu",
             human_bytes(len),
             ctx.adapter.name,
             human_bytes(max),

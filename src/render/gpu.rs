@@ -17,7 +17,7 @@ use crate::gpu::plumbing::{
     buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
     Chunks, Kernel, Readback,
 };
-use crate::gpu::{bindings, BufferParts, BvhMemory, GpuBvh, GpuContext, WordArray};
+use crate::gpu::{bindings, word_array, BufferParts, BvhMemory, GpuBvh, GpuContext, WordArray};
 
 /// Storage buffers the render kernel binds with every word array in one part (nodes,
 /// triangles, shading words, materials, lights, emitters, texels, the accumulator).
@@ -308,7 +308,6 @@ impl<'a> GpuRenderer<'a> {
         aovs: bool,
         mode: TraversalMode,
     ) -> Result<Self> {
-        let bvh = GpuBvh::upload(ctx, layout, memory)?;
         // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
         let pixels = crop.pixels() as u32;
         let mut shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
@@ -478,7 +477,7 @@ impl<'a> GpuRenderer<'a> {
 
         // The sums, then (with AOVs) two entries a pixel.
         let accum_bytes = pixels as u64 * 16 * if aovs { 3 } else { 1 };
-        let sized: [(u32, &str, &[u8]); 4] = [
+        let sized: [(u32, &str, &[u8]); 3] = [
             (
                 bindings::RENDER_MATERIALS,
                 "the materials",
@@ -494,24 +493,30 @@ impl<'a> GpuRenderer<'a> {
                 "the emitters",
                 bytemuck::cast_slice(&emitters),
             ),
-            (
-                bindings::RENDER_TEXELS,
-                "the textures",
-                bytemuck::cast_slice(&texels),
-            ),
         ];
         for (_, what, bytes) in &sized {
             ctx.check_binding(what, bytes.len() as u64)?;
         }
         ctx.check_binding("the image accumulator", accum_bytes)?;
+        let texel_bytes: &[u8] = bytemuck::cast_slice(&texels);
+        let shade_bytes: &[u8] = bytemuck::cast_slice(&shades);
+        WordArray::check(ctx, BvhMemory::Buffers, "the textures", texel_bytes.len())?;
+        WordArray::check(ctx, memory, "the shading triangles", shade_bytes.len())?;
+        // The kernel's bindings checked before anything is uploaded.
+        let parts = BufferParts {
+            shades: word_array::parts_for(ctx, memory, shade_bytes.len() as u64),
+            texels: word_array::parts_for(ctx, BvhMemory::Buffers, texel_bytes.len() as u64),
+            ..GpuBvh::parts_for(ctx, layout, memory)
+        };
+        parts.check(ctx, "render", RENDER_STORAGE_BUFFERS, true)?;
+        let bvh = GpuBvh::upload(ctx, layout, memory)?;
         // The shading triangles, one per mesh triangle, go where the BVH's triangles do.
-        let shade_words = WordArray::upload(
-            ctx,
-            memory,
-            "the shading triangles",
-            bytemuck::cast_slice(&shades),
-        )?;
+        let shade_words = WordArray::upload(ctx, memory, "the shading triangles", shade_bytes)?;
         drop(shades);
+        // The texels (textures, coordinate maps, the environment) in a storage buffer, in
+        // parts where one binding cannot hold them.
+        let texel_words = WordArray::upload(ctx, BvhMemory::Buffers, "the textures", texel_bytes)?;
+        drop(texels);
         // The emitters may be written over (their areas move with the placements).
         let usage = |b: u32| match b == bindings::RENDER_EMITTERS {
             true => wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
@@ -532,13 +537,9 @@ impl<'a> GpuRenderer<'a> {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let parts = BufferParts {
-            shades: shade_words.parts(),
-            ..bvh.parts()
-        };
-        parts.check(ctx, "render", RENDER_STORAGE_BUFFERS, true)?;
         let mut entries = bvh.layout_entries();
         entries.extend(shade_words.layout_entries(bindings::SHADE_ARRAY));
+        entries.extend(texel_words.layout_entries(bindings::TEXEL_ARRAY));
         entries.extend(sized.iter().map(|&(b, _, _)| storage_entry(b, true)));
         entries.push(storage_entry(bindings::RENDER_ACCUM, false));
         entries.push(dynamic_uniform_entry(bindings::RENDER_PARAMS, PARAMS_SIZE));
@@ -568,6 +569,7 @@ impl<'a> GpuRenderer<'a> {
         )?;
         let mut bind_entries = bvh.bind_entries();
         bind_entries.extend(shade_words.bind_entries(bindings::SHADE_ARRAY));
+        bind_entries.extend(texel_words.bind_entries(bindings::TEXEL_ARRAY));
         bind_entries.extend(buffers.iter().map(|(b, buf)| buffer_binding(*b, buf)));
         bind_entries.push(buffer_binding(bindings::RENDER_ACCUM, &accum));
         bind_entries.push(uniform_binding(

@@ -113,7 +113,7 @@ fn render_kernel(lanes: &str) -> String {
 
 /// The render kernel's full source for a GPU form.
 pub fn render_source(form: &dyn GpuForm, parts: &BufferParts) -> String {
-    let kernel = render_kernel(LANES_PER_RAY) + &parts.shade_wgsl();
+    let kernel = render_kernel(LANES_PER_RAY) + &parts.render_wgsl();
     shaders::kernel_source(form, &kernel, parts)
 }
 
@@ -121,17 +121,16 @@ pub fn render_source(form: &dyn GpuForm, parts: &BufferParts) -> String {
 /// has none; like [`shaders::trace_subgroup_source`], it needs the device's
 /// `Features::SUBGROUP`.
 pub fn render_subgroup_source(form: &dyn GpuForm, parts: &BufferParts) -> Option<String> {
-    let kernel = render_kernel(LANES_SUBGROUP) + &parts.shade_wgsl();
+    let kernel = render_kernel(LANES_SUBGROUP) + &parts.render_wgsl();
     shaders::subgroup_kernel_source(form, &kernel, parts)
 }
 
-/// Every kernel's full source for a GPU form, by name (for validation and layout tests):
-/// the trace kernels ([`shaders::all`]) and the render kernels, the subgroup kernels
-/// included where the form has a subgroup traversal.
-pub fn all_kernels(form: &dyn GpuForm) -> Vec<(&'static str, String)> {
-    let mut v = shaders::all(form);
-    let whole = &BufferParts::WHOLE;
-    v.push(("render", render_source(form, whole)));
-    v.extend(render_subgroup_source(form, whole).map(|s| ("render-subgroup", s)));
+/// Every kernel's full source for a GPU form whose arrays are bound in `parts`, by name (for
+/// validation and layout tests): the trace kernels ([`shaders::all`]) and the render
+/// kernels, the subgroup kernels included where the form has a subgroup traversal.
+pub fn all_kernels(form: &dyn GpuForm, parts: &BufferParts) -> Vec<(&'static str, String)> {
+    let mut v = shaders::all(form, parts);
+    v.push(("render", render_source(form, parts)));
+    v.extend(render_subgroup_source(form, parts).map(|s| ("render-subgroup", s)));
     v
 }

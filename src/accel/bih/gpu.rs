@@ -146,7 +146,9 @@ mod tests {
     #[test]
     fn the_wgsl_validates_and_its_node_matches_the_rust_node() {
         let tree = row();
-        for (kernel, src) in crate::render::kernel::all_kernels(&tree) {
+        for (kernel, src) in
+            crate::render::kernel::all_kernels(&tree, &crate::gpu::BufferParts::WHOLE)
+        {
             let m = naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
             naga::valid::Validator::new(
