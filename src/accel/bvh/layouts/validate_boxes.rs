@@ -22,6 +22,10 @@
 //! the walk meets every node once: linear in nodes and triangles, with one flag per
 //! triangle and one frame per level as its only allocations.
 
+use std::collections::HashSet;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, OnceLock};
+
 use crate::accel::LeafTri;
 use crate::geometry::{covered, Aabb};
 
@@ -141,23 +145,27 @@ fn narrowed(within: &Aabb, slot: &Slot) -> Aabb {
 
 /// The prims with several records, counted the first time one is asked about (only trees
 /// with a triangle outside a box on the way to its leaf pay for it).
-struct Several(Option<std::collections::HashSet<u32>>);
+struct Several(Option<HashSet<u32>>);
 
 impl Several {
     fn holds(&mut self, tris: &[LeafTri], prim: u32) -> bool {
-        let set = self.0.get_or_insert_with(|| {
-            let mut count = std::collections::HashMap::<u32, u32>::new();
-            for t in tris {
-                *count.entry(t.prim).or_default() += 1;
-            }
-            count
-                .into_iter()
-                .filter(|&(_, n)| n > 1)
-                .map(|(p, _)| p)
-                .collect()
-        });
-        set.contains(&prim)
+        self.0
+            .get_or_insert_with(|| several_prims(tris))
+            .contains(&prim)
     }
+}
+
+/// The prims with more than one record.
+fn several_prims(tris: &[LeafTri]) -> HashSet<u32> {
+    let mut count = std::collections::HashMap::<u32, u32>::new();
+    for t in tris {
+        *count.entry(t.prim).or_default() += 1;
+    }
+    count
+        .into_iter()
+        .filter(|&(_, n)| n > 1)
+        .map(|(p, _)| p)
+        .collect()
 }
 
 /// A triangle record whose leaf box does not hold it all: where it is, the box, a vertex
@@ -172,7 +180,20 @@ struct Part {
 
 /// Checks that every slot's box holds the triangles below it and that the leaves under
 /// each root refer to every triangle record once; the error names the first bad slot.
-pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
+/// A big tree is walked on all threads first ([`holds_everywhere`]); only where that finds a
+/// fault does the walk in order run, to name the first one (the same whatever the threads).
+pub(crate) fn check_boxes<T: BoxTree + Sync>(tree: &T) -> Result<(), String> {
+    if tree.tris().len() >= PARALLEL_TRIS && holds_everywhere(tree) {
+        return Ok(());
+    }
+    check_in_order(tree)
+}
+
+/// Trees of at least this many triangle records are checked on all threads first.
+const PARALLEL_TRIS: usize = 1 << 16;
+
+/// [`check_boxes`]'s walk in depth-first order on one thread.
+fn check_in_order<T: BoxTree>(tree: &T) -> Result<(), String> {
     let tris = tree.tris();
     let roots: Vec<Slot> = tree.roots().collect();
     let several = roots.len() > 1;
@@ -188,7 +209,7 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
         let root_within = narrowed(&ALL, &root);
         let below = match root.child {
             Child::Tris { first, count } => {
-                leaf(&root, first, count, tris, root_within, &mut walk)?
+                leaf(&root, (first, count), tris, root_within, &mut walk)?
             }
             Child::Node(n) => {
                 stack.push(Frame {
@@ -212,7 +233,7 @@ pub(crate) fn check_boxes<T: BoxTree>(tree: &T) -> Result<(), String> {
                     let within = narrowed(&top.within, &slot);
                     match slot.child {
                         Child::Tris { first, count } => {
-                            let b = leaf(&slot, first, count, tris, within, &mut walk)?;
+                            let b = leaf(&slot, (first, count), tris, within, &mut walk)?;
                             top.below = top.below.union(b);
                         }
                         Child::Node(n) => stack.push(Frame {
@@ -249,26 +270,43 @@ struct Walk {
     several: Several,
 }
 
-/// Marks a leaf's triangles seen and checks their vertices against its box; returns the
-/// box of those vertices. A triangle with several records (a spatial split's) and a vertex
-/// outside the boxes on the way here (`within`, this leaf's included) is kept in `parts`
+/// What a leaf step records: the walk's own ([`Walk`]), or shared by all threads
+/// ([`SharedMarks`]).
+trait Marks {
+    /// Marks record `r` seen; returns whether it was seen before.
+    fn mark(&mut self, r: usize) -> bool;
+    /// Keeps a part of a split triangle for [`check_parts`].
+    fn part(&mut self, p: Part);
+    /// Whether `prim` has several records.
+    fn several(&mut self, tris: &[LeafTri], prim: u32) -> bool;
+}
+
+impl Marks for Walk {
+    fn mark(&mut self, r: usize) -> bool {
+        std::mem::replace(&mut self.seen[r], true)
+    }
+    fn part(&mut self, p: Part) {
+        self.parts.push(p);
+    }
+    fn several(&mut self, tris: &[LeafTri], prim: u32) -> bool {
+        self.several.holds(tris, prim)
+    }
+}
+
+/// Marks records seen; checks their vertices against the leaf's box; returns the box of
+/// those vertices. A triangle with several records (a spatial split's) and a vertex
+/// outside the boxes on the way here (`within`, this leaf's included) is kept as a part
 /// for [`check_parts`] (its other leaves may hold the rest), and only its bounds within
 /// `within` count as below.
 fn leaf(
     slot: &Slot,
-    first: u32,
-    count: u32,
+    (first, count): (u32, u32),
     tris: &[LeafTri],
     within: Aabb,
-    walk: &mut Walk,
+    marks: &mut impl Marks,
 ) -> Result<Aabb, String> {
-    let Walk {
-        seen,
-        parts,
-        several,
-    } = walk;
     let (first, end) = (first as usize, first as usize + count as usize);
-    let (Some(ts), Some(flags)) = (tris.get(first..end), seen.get_mut(first..end)) else {
+    let Some(ts) = tris.get(first..end) else {
         return Err(format!(
             "{} refers to triangles {first}..{end} of {}",
             slot.at,
@@ -276,9 +314,9 @@ fn leaf(
         ));
     };
     let mut below = Aabb::EMPTY;
-    for (k, (t, flag)) in ts.iter().zip(flags).enumerate() {
+    for (k, t) in ts.iter().enumerate() {
         let record = first + k;
-        if std::mem::replace(flag, true) {
+        if marks.mark(record) {
             return Err(format!("{}: triangle {record} is in two leaves", slot.at));
         }
         let vs = [t.v0, t.v1, t.v2].map(glam::Vec3::from);
@@ -294,14 +332,14 @@ fn leaf(
             None => below = vs.into_iter().fold(below, Aabb::grow),
             // A part of a triangle other leaves hold too: only its bounds within count here,
             // and the parts together must cover it.
-            Some(off) if vs.iter().all(|v| v.is_finite()) && several.holds(tris, t.prim) => {
+            Some(off) if vs.iter().all(|v| v.is_finite()) && marks.several(tris, t.prim) => {
                 let (bbox, vertex) = outside_slot.unwrap_or(off);
                 let tb = Aabb::from_points(&vs);
                 below = below.union(Aabb {
                     lo: tb.lo.max(within.lo),
                     hi: tb.hi.min(within.hi),
                 });
-                parts.push(Part {
+                marks.part(Part {
                     at: slot.at,
                     record: record as u32,
                     bbox,
@@ -319,6 +357,93 @@ fn leaf(
         }
     }
     Ok(below)
+}
+
+/// The marks of the walk on all threads.
+#[derive(Clone, Copy)]
+struct SharedMarks<'a> {
+    seen: &'a [AtomicBool],
+    parts: &'a Mutex<Vec<Part>>,
+    several: &'a OnceLock<HashSet<u32>>,
+}
+
+impl Marks for SharedMarks<'_> {
+    fn mark(&mut self, r: usize) -> bool {
+        self.seen[r].swap(true, Ordering::Relaxed)
+    }
+    fn part(&mut self, p: Part) {
+        // A poisoned lock only means another thread panicked: its parts are still there.
+        let mut parts = self.parts.lock().unwrap_or_else(|e| e.into_inner());
+        parts.push(p);
+    }
+    fn several(&mut self, tris: &[LeafTri], prim: u32) -> bool {
+        self.several
+            .get_or_init(|| several_prims(tris))
+            .contains(&prim)
+    }
+}
+
+/// Tasks the walk on all threads spreads the top of the tree over.
+const TASKS: usize = 64;
+
+/// Whether every check of [`check_in_order`] passes, the tree walked on all threads: each
+/// slot's subtree is checked on its own and returns the box of the vertices below it.
+fn holds_everywhere<T: BoxTree + Sync>(tree: &T) -> bool {
+    let tris = tree.tris();
+    let seen: Vec<AtomicBool> = (0..tris.len()).map(|_| AtomicBool::new(false)).collect();
+    let several = OnceLock::new();
+    for root in tree.roots() {
+        seen.iter().for_each(|s| s.store(false, Ordering::Relaxed));
+        let parts = Mutex::new(Vec::new());
+        let marks = SharedMarks {
+            seen: &seen,
+            parts: &parts,
+            several: &several,
+        };
+        if subtree(tree, &root, narrowed(&ALL, &root), marks, TASKS).is_none() {
+            return false;
+        }
+        let parts = parts.into_inner().unwrap_or_else(|e| e.into_inner());
+        if check_parts(tris, &parts).is_err() || !seen.iter().all(|s| s.load(Ordering::Relaxed)) {
+            return false;
+        }
+    }
+    true
+}
+
+/// The box of the vertices below `slot` (reached within `within`), every check below it
+/// passed; None at the first that fails. Subtrees are walked on `tasks` threads' worth of
+/// tasks, split evenly among the slots of each node, one task each below.
+fn subtree<T: BoxTree + Sync>(
+    tree: &T,
+    slot: &Slot,
+    within: Aabb,
+    marks: SharedMarks<'_>,
+    tasks: usize,
+) -> Option<Aabb> {
+    let below = match slot.child {
+        Child::Tris { first, count } => {
+            leaf(slot, (first, count), tree.tris(), within, &mut { marks }).ok()?
+        }
+        Child::Node(n) if tasks > 1 => {
+            use rayon::prelude::*;
+            let slots: Vec<Slot> = tree.slots(n).collect();
+            let each = tasks / slots.len().max(1);
+            slots
+                .par_iter()
+                .map(|s| subtree(tree, s, narrowed(&within, s), marks, each))
+                .try_reduce(|| Aabb::EMPTY, |a, b| Some(a.union(b)))?
+        }
+        Child::Node(n) => {
+            let mut below = Aabb::EMPTY;
+            for s in tree.slots(n) {
+                below = below.union(subtree(tree, &s, narrowed(&within, &s), marks, 1)?);
+            }
+            below
+        }
+    };
+    inner(slot, &below).ok()?;
+    Some(below)
 }
 
 fn outside_message(at: At, record: usize, t: &LeafTri, bbox: &Aabb, v: glam::Vec3) -> String {
@@ -458,6 +583,86 @@ mod tests {
                 vec![slot(2.0, 3.0, Child::Tris { first: 2, count: 1 }, at(1, 0))],
             ],
             tris: (0..3).map(tri).collect(),
+        }
+    }
+
+    /// A binary tree over `n` triangles (leaves of at most 4), its boxes exact.
+    fn big(n: u32) -> Lists {
+        fn add(nodes: &mut Vec<Vec<Slot>>, (a, b): (u32, u32), at: At) -> Slot {
+            if b - a <= 4 {
+                let leaf = Child::Tris {
+                    first: a,
+                    count: b - a,
+                };
+                return slot(a as f32, b as f32, leaf, at);
+            }
+            let node = nodes.len() as u32;
+            nodes.push(Vec::new());
+            let m = (a + b) / 2;
+            let kids = [(a, m), (m, b)].into_iter().enumerate();
+            let slots = kids.map(|(k, r)| {
+                add(
+                    nodes,
+                    r,
+                    At::Slot {
+                        node,
+                        slot: k as u32,
+                    },
+                )
+            });
+            nodes[node as usize] = slots.collect();
+            slot(a as f32, b as f32, Child::Node(node), at)
+        }
+        let mut nodes = Vec::new();
+        let root = add(&mut nodes, (0, n), At::Root);
+        Lists {
+            roots: vec![root],
+            nodes,
+            tris: (0..n).map(tri).collect(),
+        }
+    }
+
+    #[test]
+    fn the_walk_on_all_threads_passes_what_the_walk_in_order_passes() {
+        let n = PARALLEL_TRIS as u32 + 1000;
+        let t = big(n);
+        assert!(holds_everywhere(&t));
+        check_boxes(&t).unwrap();
+        // Where it finds a fault, the walk in order names it: the same message.
+        type Fault<'f> = (&'f str, &'f dyn Fn(&mut Lists));
+        let faults: [Fault; 5] = [
+            ("a leaf box short", &|t| {
+                let leaf = (t.nodes.iter_mut().rev().flatten())
+                    .find(|s| matches!(s.child, Child::Tris { .. }))
+                    .unwrap();
+                leaf.bbox.as_mut().unwrap().hi.x -= 0.5;
+            }),
+            ("an inner box short", &|t| {
+                t.nodes[7][1].bbox.as_mut().unwrap().lo.y += 0.5;
+            }),
+            ("a NaN vertex", &|t| t.tris[40_000].v2[1] = f32::NAN),
+            ("a triangle in two leaves", &|t| {
+                let leaf = (t.nodes.iter_mut().flatten())
+                    .find(|s| matches!(s.child, Child::Tris { first, .. } if first > 30_000))
+                    .unwrap();
+                if let Child::Tris { first, count } = &mut leaf.child {
+                    (*first, *count) = (*first - 1, *count + 1);
+                }
+            }),
+            ("a triangle in no leaf", &|t| {
+                let leaf = (t.nodes.iter_mut().flatten())
+                    .find(|s| matches!(s.child, Child::Tris { count: 4, .. }))
+                    .unwrap();
+                leaf.child = Child::Tris { first: 0, count: 3 };
+            }),
+        ];
+        for (what, f) in faults {
+            let mut t = big(n);
+            f(&mut t);
+            assert!(!holds_everywhere(&t), "{what}: passed on all threads");
+            let (e, want) = (check_boxes(&t), check_in_order(&t));
+            assert!(e.is_err(), "{what}: passed");
+            assert_eq!(e, want, "{what}");
         }
     }
 
