@@ -44,6 +44,7 @@ fn all_shaders_validate() {
             tris: 2,
             shades: 2,
             texels: 4,
+            accum: 2,
             shift: 8,
         };
         let kernels: Vec<_> = [BufferParts::WHOLE, split]

@@ -605,8 +605,8 @@ fn surface_occlusion(mat: Material, s: Shade, w: f32, u: f32, v: f32) -> f32 {
 // runtime ∞).
 fn write_aovs(depth: f32, n: vec3<f32>, albedo: vec3<f32>, occlusion: f32) {
     if AOVS && params.sample == 0u {
-        accum[params.aov_base + 2u * aov_slot] = vec4<f32>(depth, n);
-        accum[params.aov_base + 2u * aov_slot + 1u] = vec4<f32>(albedo, occlusion);
+        accum_store(params.aov_base + 2u * aov_slot, vec4<f32>(depth, n));
+        accum_store(params.aov_base + 2u * aov_slot + 1u, vec4<f32>(albedo, occlusion));
     }
 }
 
@@ -1117,6 +1117,6 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     if live {
         // w counts the samples of this pixel that a driver cut short.
-        accum[pixel] += vec4<f32>(rad, select(0.0, 1.0, sample_incomplete));
+        accum_store(pixel, accum_load(pixel) + vec4<f32>(rad, select(0.0, 1.0, sample_incomplete)));
     }
 }

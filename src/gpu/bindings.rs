@@ -49,6 +49,13 @@ pub const TEXEL_ARRAY: ArrayBindings = ArrayBindings {
     texels: None,
 };
 
+/// The render kernel's accumulator (parts from 501).
+pub const ACCUM_ARRAY: ArrayBindings = ArrayBindings {
+    words: RENDER_ACCUM,
+    parts: 500,
+    texels: None,
+};
+
 /// Trace kernel: rays.
 pub const TRACE_RAYS: u32 = 2;
 /// Trace kernel: hits.

@@ -1,5 +1,6 @@
 //! The WGSL readers of the word arrays in buffer memory: `node_buffer_word(i)`,
-//! `tri_buffer_word(i)` and, in the render kernel, `shade_buffer_word(i)` and `texel(i)`. An array in one
+//! `tri_buffer_word(i)` and, in the render kernel, `shade_buffer_word(i)`, `texel(i)` and the
+//! accumulator's `accum_load(i)` and `accum_store(i, value)`. An array in one
 //! storage binding is read straight; one bound in several parts
 //! ([`WordArray`](super::word_array::WordArray)) declares its further parts and picks one by
 //! the word index's high bits. Generated, not written once in WGSL, because WGSL cannot
@@ -27,6 +28,8 @@ pub struct BufferParts {
     pub shades: u32,
     /// Parts of the texels (render kernel).
     pub texels: u32,
+    /// Parts of the accumulator (render kernel).
+    pub accum: u32,
     /// log2 of the words of one part.
     pub shift: u32,
 }
@@ -39,6 +42,8 @@ struct Array {
     reader: &'static str,
     /// The WGSL element type.
     ty: &'static str,
+    /// The writer function generated, for an array the kernel writes (read_write).
+    writer: Option<&'static str>,
     bindings: ArrayBindings,
 }
 
@@ -46,25 +51,36 @@ const NODES: Array = Array {
     var: "node_words",
     reader: "node_buffer_word",
     ty: "vec4<u32>",
+    writer: None,
     bindings: bindings::NODE_ARRAY,
 };
 const TRIS: Array = Array {
     var: "tri_words",
     reader: "tri_buffer_word",
     ty: "vec4<u32>",
+    writer: None,
     bindings: bindings::TRI_ARRAY,
 };
 const SHADES: Array = Array {
     var: "shade_words",
     reader: "shade_buffer_word",
     ty: "vec4<u32>",
+    writer: None,
     bindings: bindings::SHADE_ARRAY,
 };
 const TEXELS: Array = Array {
     var: "texels",
     reader: "texel",
     ty: "vec4<f32>",
+    writer: None,
     bindings: bindings::TEXEL_ARRAY,
+};
+const ACCUM: Array = Array {
+    var: "accum",
+    reader: "accum_load",
+    ty: "vec4<f32>",
+    writer: Some("accum_store"),
+    bindings: bindings::ACCUM_ARRAY,
 };
 
 impl BufferParts {
@@ -74,6 +90,7 @@ impl BufferParts {
         tris: 1,
         shades: 1,
         texels: 1,
+        accum: 1,
         shift: 31,
     };
 
@@ -84,9 +101,12 @@ impl BufferParts {
         s
     }
 
-    /// The shading words' and the texels' readers (the render kernel).
+    /// The shading words' and the texels' readers and the accumulator's reader and writer
+    /// (the render kernel).
     pub fn render_wgsl(&self) -> String {
-        reader(&SHADES, self.shades, self.shift) + &reader(&TEXELS, self.texels, self.shift)
+        reader(&SHADES, self.shades, self.shift)
+            + &reader(&TEXELS, self.texels, self.shift)
+            + &reader(&ACCUM, self.accum, self.shift)
     }
 
     /// Refuses a kernel (`kernel`, for messages; `base` storage buffers of its own with
@@ -95,7 +115,7 @@ impl BufferParts {
     pub fn check(&self, ctx: &GpuContext, kernel: &str, base: u32, render: bool) -> Result<()> {
         let mut extra = self.nodes + self.tris - 2;
         if render {
-            extra += self.shades + self.texels - 2;
+            extra += self.shades + self.texels + self.accum - 3;
         }
         let (need, max) = (
             base + extra,
@@ -120,35 +140,59 @@ impl BufferParts {
     }
 }
 
-/// The reader of `array` bound in `parts` parts of 2^`shift` words.
+/// The reader of `array` bound in `parts` parts of 2^`shift` words (and its writer, where
+/// the kernel writes it).
 fn reader(array: &Array, parts: u32, shift: u32) -> String {
     let (var, f, ty) = (array.var, array.reader, array.ty);
-    if parts <= 1 {
-        return format!("fn {f}(i: u32) -> {ty} {{\n    return {var}[i];\n}}\n");
+    let access = if array.writer.is_some() {
+        "read_write"
+    } else {
+        "read"
+    };
+    let mut s = String::new();
+    if parts > 1 {
+        s += &format!("// {var} in {parts} parts of 2^{shift} words (gpu::word_array)\n");
     }
-    let mut s = format!("// {var} in {parts} parts of 2^{shift} words (gpu::word_array)\n");
     for k in 1..parts {
         let binding = array.bindings.parts + k;
         // Writing to a String cannot fail.
         let _ = writeln!(
             s,
-            "@group(0) @binding({binding}) var<storage, read> {var}_{k}: array<{ty}>;"
+            "@group(0) @binding({binding}) var<storage, {access}> {var}_{k}: array<{ty}>;"
         );
     }
-    let mask = (1u64 << shift) - 1;
-    let _ = write!(
-        s,
-        "fn {f}(i: u32) -> {ty} {{\n    let j = i & {mask}u;\n    switch i >> {shift}u {{\n        case 0u: {{ return {var}[j]; }}\n"
-    );
-    for k in 1..parts - 1 {
-        let _ = writeln!(s, "        case {k}u: {{ return {var}_{k}[j]; }}");
+    let _ = writeln!(s, "fn {f}(i: u32) -> {ty} {{");
+    s += &by_part(var, parts, shift, |v, j| format!("return {v}[{j}];"));
+    s += "}\n";
+    if let Some(w) = array.writer {
+        let _ = writeln!(s, "fn {w}(i: u32, value: {ty}) {{");
+        s += &by_part(var, parts, shift, |v, j| format!("{v}[{j}] = value;"));
+        s += "}\n";
     }
-    let last = parts - 1;
-    let _ = write!(
-        s,
-        "        default: {{ return {var}_{last}[j]; }}\n    }}\n}}\n"
-    );
     s
+}
+
+/// A function body doing `step(part's variable, index within it)` on word i of `var`, bound
+/// in `parts` parts of 2^`shift` words: straight where there is one part, else in the part
+/// the index's high bits name.
+fn by_part(var: &str, parts: u32, shift: u32, step: impl Fn(&str, &str) -> String) -> String {
+    if parts <= 1 {
+        return format!("    {}\n", step(var, "i"));
+    }
+    let mask = (1u64 << shift) - 1;
+    let mut s = format!("    let j = i & {mask}u;\n    switch i >> {shift}u {{\n");
+    for k in 0..parts {
+        let v = match k {
+            0 => var.to_string(),
+            k => format!("{var}_{k}"),
+        };
+        let case = match k == parts - 1 {
+            true => "default".to_string(),
+            false => format!("case {k}u"),
+        };
+        let _ = writeln!(s, "        {case}: {{ {} }}", step(&v, "j"));
+    }
+    s + "    }\n"
 }
 
 #[cfg(test)]
@@ -162,6 +206,7 @@ mod tests {
             tris: 1,
             shades: 2,
             texels: 2,
+            accum: 3,
             shift: 8,
         };
         let wgsl = parts.bvh_wgsl() + &parts.render_wgsl();
@@ -173,10 +218,13 @@ mod tests {
         );
         assert!(wgsl.contains("return tri_words[i];"), "{wgsl}");
         assert!(wgsl.contains("fn texel(i: u32) -> vec4<f32>"), "{wgsl}");
+        assert!(wgsl.contains("default: { accum_2[j] = value; }"), "{wgsl}");
+        assert!(wgsl.contains("var<storage, read_write> accum_1"), "{wgsl}");
         let decls = "@group(0) @binding(0) var<storage, read> node_words: array<vec4<u32>>;\n\
                      @group(0) @binding(1) var<storage, read> tri_words: array<vec4<u32>>;\n\
                      @group(0) @binding(2) var<storage, read> shade_words: array<vec4<u32>>;\n\
-                     @group(0) @binding(3) var<storage, read> texels: array<vec4<f32>>;\n";
+                     @group(0) @binding(3) var<storage, read> texels: array<vec4<f32>>;\n\
+                     @group(0) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;\n";
         let module = naga::front::wgsl::parse_str(&format!("{decls}{wgsl}"));
         assert!(module.is_ok(), "{wgsl}");
     }

@@ -76,9 +76,8 @@ impl GpuBvh {
         BufferParts {
             nodes: parts(arrays.nodes),
             tris: parts(arrays.tris),
-            shades: 1,
-            texels: 1,
             shift: word_array::part_shift(ctx),
+            ..BufferParts::WHOLE
         }
     }
 
@@ -107,9 +106,8 @@ impl GpuBvh {
         BufferParts {
             nodes: self.nodes.parts(),
             tris: self.tris.parts(),
-            shades: 1,
-            texels: 1,
             shift: self.shift,
+            ..BufferParts::WHOLE
         }
     }
 

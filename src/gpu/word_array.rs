@@ -26,6 +26,8 @@ const MAX_WORDS: u64 = 1 << 32;
 /// 16-byte words in one of the two memories (see the module's documentation).
 pub(crate) struct WordArray {
     memory: BvhMemory,
+    /// The kernel writes it (its parts are bound read-write).
+    writable: bool,
     buffer: wgpu::Buffer,
     texture: wgpu::Texture,
     view: wgpu::TextureView,
@@ -71,6 +73,40 @@ impl WordArray {
                 (unused, texels(ctx, what, bytes)?)
             }
         };
+        Ok(WordArray::bound(
+            ctx,
+            what,
+            memory,
+            false,
+            (buffer, texture),
+        ))
+    }
+
+    /// A zeroed storage buffer of `len` bytes (whole 16-byte words; `what` names them in
+    /// messages) that the kernel writes and the host reads back, bound in parts where one
+    /// binding cannot hold it; refuses sizes the device cannot hold, naming the limit.
+    pub fn output(ctx: &GpuContext, what: &str, len: u64) -> Result<WordArray> {
+        check_buffer(ctx, what, len)?;
+        let buffer = super::plumbing::output_buffer(ctx, what, len);
+        let texture = texels(ctx, "unused texels", &[0u8; 16])?;
+        Ok(WordArray::bound(
+            ctx,
+            what,
+            BvhMemory::Buffers,
+            true,
+            (buffer, texture),
+        ))
+    }
+
+    /// The array made of its buffer and texture: the buffer's parts (logged where there are
+    /// several) and the texture's view.
+    fn bound(
+        ctx: &GpuContext,
+        what: &str,
+        memory: BvhMemory,
+        writable: bool,
+        (buffer, texture): (wgpu::Buffer, wgpu::Texture),
+    ) -> WordArray {
         let part_bytes = 16u64 << part_shift(ctx);
         let size = buffer.size();
         let parts: Vec<(u64, u64)> = (0..parts_for(ctx, BvhMemory::Buffers, size) as u64)
@@ -84,13 +120,19 @@ impl WordArray {
                 human_bytes(part_bytes)
             );
         }
-        Ok(WordArray {
+        WordArray {
             memory,
+            writable,
             view: texture.create_view(&Default::default()),
             buffer,
             texture,
             parts,
-        })
+        }
+    }
+
+    /// The buffer (in texture memory, a placeholder): to clear or read back.
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
     }
 
     /// Refuses `len` bytes of words (`what`, for messages) that `memory` cannot hold on this
@@ -111,7 +153,7 @@ impl WordArray {
     /// Bind-group-layout entries of its bindings: each buffer part and the texture.
     pub fn layout_entries(&self, at: ArrayBindings) -> Vec<wgpu::BindGroupLayoutEntry> {
         let mut entries: Vec<_> = (0..self.parts())
-            .map(|k| storage_entry(part_binding(at, k), true))
+            .map(|k| storage_entry(part_binding(at, k), !self.writable))
             .collect();
         entries.extend(at.texels.map(texel_entry));
         entries

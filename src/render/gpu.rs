@@ -14,8 +14,8 @@ use crate::accel::TraversalMode;
 use crate::error::{Error, Result};
 use crate::geometry::{Affine, Robustness, NO_NORMAL, NO_TANGENT};
 use crate::gpu::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, wait,
-    Chunks, Kernel, Readback,
+    buffer_binding, dynamic_uniform_entry, storage_entry, uniform_binding, wait, Chunks, Kernel,
+    Readback,
 };
 use crate::gpu::{bindings, word_array, BufferParts, BvhMemory, GpuBvh, GpuContext, WordArray};
 
@@ -284,7 +284,7 @@ pub struct GpuRenderer<'a> {
     layout_constants: Vec<(&'static str, f64)>,
     kernel: Kernel,
     bind: wgpu::BindGroup,
-    accum: wgpu::Buffer,
+    accum: WordArray,
     params: wgpu::Buffer,
     pipelines: HashMap<(EffectSet, Robustness), wgpu::ComputePipeline>,
     aovs: bool,
@@ -497,7 +497,12 @@ impl<'a> GpuRenderer<'a> {
         for (_, what, bytes) in &sized {
             ctx.check_binding(what, bytes.len() as u64)?;
         }
-        ctx.check_binding("the image accumulator", accum_bytes)?;
+        WordArray::check(
+            ctx,
+            BvhMemory::Buffers,
+            "the image accumulator",
+            accum_bytes as usize,
+        )?;
         let texel_bytes: &[u8] = bytemuck::cast_slice(&texels);
         let shade_bytes: &[u8] = bytemuck::cast_slice(&shades);
         WordArray::check(ctx, BvhMemory::Buffers, "the textures", texel_bytes.len())?;
@@ -506,6 +511,7 @@ impl<'a> GpuRenderer<'a> {
         let parts = BufferParts {
             shades: word_array::parts_for(ctx, memory, shade_bytes.len() as u64),
             texels: word_array::parts_for(ctx, BvhMemory::Buffers, texel_bytes.len() as u64),
+            accum: word_array::parts_for(ctx, BvhMemory::Buffers, accum_bytes),
             ..GpuBvh::parts_for(ctx, layout, memory)
         };
         parts.check(ctx, "render", RENDER_STORAGE_BUFFERS, true)?;
@@ -529,7 +535,7 @@ impl<'a> GpuRenderer<'a> {
             .find(|(b, _)| *b == bindings::RENDER_EMITTERS)
             .map(|(_, buf)| buf.clone())
             .ok_or_else(|| Error::Gpu("no emitters buffer".into()))?;
-        let accum = output_buffer(ctx, "accum", accum_bytes);
+        let accum = WordArray::output(ctx, "the image accumulator", accum_bytes)?;
         let chunks = Chunks::new(ctx, pixels, CHUNK, PARAMS_SIZE as u32);
         let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("render params"),
@@ -541,7 +547,7 @@ impl<'a> GpuRenderer<'a> {
         entries.extend(shade_words.layout_entries(bindings::SHADE_ARRAY));
         entries.extend(texel_words.layout_entries(bindings::TEXEL_ARRAY));
         entries.extend(sized.iter().map(|&(b, _, _)| storage_entry(b, true)));
-        entries.push(storage_entry(bindings::RENDER_ACCUM, false));
+        entries.extend(accum.layout_entries(bindings::ACCUM_ARRAY));
         entries.push(dynamic_uniform_entry(bindings::RENDER_PARAMS, PARAMS_SIZE));
         let subgroup_source = match mode {
             TraversalMode::PerRay => None,
@@ -571,7 +577,7 @@ impl<'a> GpuRenderer<'a> {
         bind_entries.extend(shade_words.bind_entries(bindings::SHADE_ARRAY));
         bind_entries.extend(texel_words.bind_entries(bindings::TEXEL_ARRAY));
         bind_entries.extend(buffers.iter().map(|(b, buf)| buffer_binding(*b, buf)));
-        bind_entries.push(buffer_binding(bindings::RENDER_ACCUM, &accum));
+        bind_entries.extend(accum.bind_entries(bindings::ACCUM_ARRAY));
         bind_entries.push(uniform_binding(
             bindings::RENDER_PARAMS,
             &params,
@@ -716,7 +722,7 @@ impl<'a> GpuRenderer<'a> {
     /// Sets the accumulator to zero.
     pub fn clear(&mut self) -> Result<()> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        enc.clear_buffer(&self.accum, 0, None);
+        enc.clear_buffer(self.accum.buffer(), 0, None);
         self.ctx.queue.submit([enc.finish()]);
         wait(self.ctx)
     }
@@ -757,7 +763,7 @@ impl<'a> GpuRenderer<'a> {
     pub fn read_aovs(&self) -> Result<Vec<FirstHit>> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let n = self.chunks.items as u64;
-        let readback = Readback::record(self.ctx, &mut enc, &[(&self.accum, n * 48)]);
+        let readback = Readback::record(self.ctx, &mut enc, &[(self.accum.buffer(), n * 48)]);
         self.ctx.queue.submit([enc.finish()]);
         let bytes = readback.read(self.ctx)?;
         let px: Vec<[f32; 8]> = bytemuck::pod_collect_to_vec(&bytes[0][n as usize * 16..]);
@@ -781,7 +787,7 @@ impl<'a> GpuRenderer<'a> {
     pub fn read_accum(&self) -> Result<(Vec<Vec3>, Vec<u32>)> {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let size = self.chunks.items as u64 * 16;
-        let readback = Readback::record(self.ctx, &mut enc, &[(&self.accum, size)]);
+        let readback = Readback::record(self.ctx, &mut enc, &[(self.accum.buffer(), size)]);
         self.ctx.queue.submit([enc.finish()]);
         let bytes = readback.read(self.ctx)?;
         let px: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
