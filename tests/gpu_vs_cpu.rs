@@ -71,24 +71,13 @@ fn compare_in(
     let mut counts = (0, 0);
     for form in gpu_forms() {
         let name = format!("{name} {form}");
-        counts = compare_form(&name, mesh, rays, kernel, memory, form);
+        counts = compare_form(gpu_device(), &name, mesh, rays, kernel, memory, form);
     }
     counts
 }
 
+/// One GPU form on `gpu` against its CPU twin; returns (agree, tie).
 fn compare_form(
-    name: &str,
-    mesh: &Mesh,
-    rays: &[Ray],
-    kernel: TraceKernel,
-    memory: BvhMemory,
-    form: AccelKind,
-) -> (usize, usize) {
-    compare_form_on(gpu_device(), name, mesh, rays, kernel, memory, form)
-}
-
-/// [`compare_form`] on the given GPU device.
-fn compare_form_on(
     gpu: &Device,
     name: &str,
     mesh: &Mesh,
@@ -563,7 +552,7 @@ fn arrays_beyond_one_binding_are_bound_in_parts() {
             };
             for form in gpu_forms() {
                 let name = format!("parts {form} checked {checked_module}");
-                compare_form_on(&gpu, &name, &mesh, &rays, kernel, BvhMemory::Buffers, form);
+                compare_form(&gpu, &name, &mesh, &rays, kernel, BvhMemory::Buffers, form);
             }
         }
     }
