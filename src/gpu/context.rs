@@ -289,15 +289,18 @@ impl GpuContext {
             usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let mut slices = SlicedWrites::new(self);
         for (i, slice) in contents.chunks(UPLOAD_SLICE).enumerate() {
             let offset = (i * UPLOAD_SLICE) as u64;
             self.queue.write_buffer(&buffer, offset, slice);
-            self.finish_writes();
+            slices.submitted();
         }
+        self.finish_writes();
         buffer
     }
 
     /// Lets the device do the queued writes, so that wgpu frees their staging memory.
+    /// (Writes in slices: [`SlicedWrites`].)
     pub(crate) fn finish_writes(&self) {
         self.queue.submit([]);
         // A poll that waits without a timeout cannot fail; device errors are reported by
@@ -405,4 +408,31 @@ fn check_environment() -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Writes queued in slices: each slice is submitted as it is queued and the one before it
+/// waited for, so that the device copies one slice while the next is staged, and no more
+/// than two slices' staging memory is held.
+pub(crate) struct SlicedWrites<'c> {
+    ctx: &'c GpuContext,
+    pending: Option<wgpu::SubmissionIndex>,
+}
+
+impl<'c> SlicedWrites<'c> {
+    pub(crate) fn new(ctx: &'c GpuContext) -> Self {
+        SlicedWrites { ctx, pending: None }
+    }
+
+    /// Submits the slice just queued and waits for the one before.
+    pub(crate) fn submitted(&mut self) {
+        let index = self.ctx.queue.submit([]);
+        if let Some(before) = self.pending.replace(index) {
+            // A wait without a timeout cannot fail; device errors are reported by the next
+            // `plumbing::wait`.
+            let _ = self.ctx.device.poll(wgpu::PollType::Wait {
+                submission_index: Some(before),
+                timeout: None,
+            });
+        }
+    }
 }

@@ -11,7 +11,7 @@ use crate::error::{Error, Result};
 use crate::util::human_bytes;
 
 use super::bindings::ArrayBindings;
-use super::context::UPLOAD_SLICE;
+use super::context::{SlicedWrites, UPLOAD_SLICE};
 use super::plumbing::{storage_entry, texel_entry};
 use super::{BvhMemory, GpuContext, TEXEL_ROW};
 
@@ -322,15 +322,16 @@ fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::Texture> {
         bytes_per_row: Some(row_bytes as u32),
         rows_per_image: None,
     };
-    // In slices of whole rows, each waited for (see UPLOAD_SLICE).
+    // In slices of whole rows, the device copying one while the next is staged (SlicedWrites).
     let slice_rows = (UPLOAD_SLICE / row_bytes).max(1);
+    let mut slices = SlicedWrites::new(ctx);
     for first in (0..full).step_by(slice_rows) {
         let rows = slice_rows.min(full - first);
         let slice = &bytes[first * row_bytes..(first + rows) * row_bytes];
         let mut at = texture.as_image_copy();
         at.origin.y = first as u32;
         ctx.queue.write_texture(at, slice, layout, size(rows));
-        ctx.finish_writes();
+        slices.submitted();
     }
     let rest = &bytes[full * row_bytes..];
     if !rest.is_empty() {
@@ -340,5 +341,6 @@ fn texels(ctx: &GpuContext, what: &str, bytes: &[u8]) -> Result<wgpu::Texture> {
         at.origin.y = full as u32;
         ctx.queue.write_texture(at, &last, layout, size(1));
     }
+    ctx.finish_writes();
     Ok(texture)
 }
