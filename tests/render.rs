@@ -234,7 +234,8 @@ fn textures_environment_and_two_levels_beyond_a_storage_binding_render() {
         ctx.limits.max_storage_buffer_binding_size = binding;
         Device::gpu(ctx)
     };
-    // Images small enough for the accumulator to fit one shrunk binding.
+    // Small images: the other arrays bound in one part each stay under the storage
+    // buffers a stage.
     let scene = |name: &str, (w, h)| {
         let path = scenes_dir().join(format!("{name}.toml"));
         let mut s = RenderScene::from_file(&path).unwrap();

@@ -250,6 +250,8 @@ var shade_texels: texture_storage_2d<rgba32uint, read>;
 @group(0) @binding(BINDING_RENDER_LIGHTS) var<storage, read> lights: array<Light>;
 // (original triangle index, running area sum as f32 bits)
 @group(0) @binding(BINDING_RENDER_EMITTERS) var<storage, read> emitters: array<vec2<u32>>;
+// The texels and the accumulator may be bound in parts (gpu::BufferParts): read them only
+// through texel(i), accum_load(i) and accum_store(i, value), never indexed here.
 @group(0) @binding(BINDING_RENDER_TEXELS) var<storage, read> texels: array<vec4<f32>>;
 @group(0) @binding(BINDING_RENDER_ACCUM) var<storage, read_write> accum: array<vec4<f32>>;
 @group(0) @binding(BINDING_RENDER_PARAMS) var<uniform> params: Params;

@@ -110,7 +110,8 @@ impl BufferParts {
     }
 
     /// Refuses a kernel (`kernel`, for messages; `base` storage buffers of its own with
-    /// each array in one part; the shading words' and texels' parts counted when `render`)
+    /// each array in one part; the shading words', texels' and accumulator's parts counted
+    /// when `render`)
     /// that binds more storage buffers than the device allows a shader stage.
     pub fn check(&self, ctx: &GpuContext, kernel: &str, base: u32, render: bool) -> Result<()> {
         let mut extra = self.nodes + self.tris - 2;
@@ -132,7 +133,8 @@ impl BufferParts {
             return Err(Error::Gpu(format!(
                 "the {kernel} kernel would bind {need} storage buffers{why}, but {} allows \
                  {max} a shader stage (max_storage_buffers_per_shader_stage); use --bvh-memory \
-                 textures, a smaller scene or --device cpu",
+                 textures (for the BVH and shading words), a smaller scene or image, or \
+                 --device cpu",
                 ctx.adapter.name
             )));
         }

@@ -69,16 +69,25 @@ impl GpuBvh {
     }
 
     /// The parts [`GpuBvh::upload`] would bind `layout`'s arrays in, in `memory` (the render
-    /// kernel's arrays left at one): to check a kernel's bindings before anything is uploaded.
-    pub fn parts_for(ctx: &GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> BufferParts {
+    /// kernel's arrays left at one), their sizes checked as it checks them: to check a
+    /// kernel's bindings before anything is uploaded.
+    pub fn checked_parts(
+        ctx: &GpuContext,
+        layout: &dyn GpuForm,
+        memory: BvhMemory,
+    ) -> Result<BufferParts> {
         let arrays = layout.arrays();
-        let parts = |bytes: &[u8]| word_array::parts_for(ctx, memory, bytes.len() as u64);
-        BufferParts {
-            nodes: parts(arrays.nodes),
-            tris: parts(arrays.tris),
+        // With no triangle, one unused zero triangle is bound (see upload).
+        let tris = arrays.tris.len().max(std::mem::size_of::<LeafTri>());
+        WordArray::check(ctx, memory, "the BVH nodes", arrays.nodes.len())?;
+        WordArray::check(ctx, memory, "the triangles", tris)?;
+        let parts = |len: usize| word_array::parts_for(ctx, memory, len as u64);
+        Ok(BufferParts {
+            nodes: parts(arrays.nodes.len()),
+            tris: parts(tris),
             shift: word_array::part_shift(ctx),
             ..BufferParts::WHOLE
-        }
+        })
     }
 
     /// Writes `bytes` (whole 16-byte words) over the node words from word `first` on, in

@@ -26,10 +26,11 @@ impl std::fmt::Display for AdapterReport {
     }
 }
 
-/// Bytes one upload stages at most. wgpu copies every write into a staging buffer of its
-/// own, freed once the device has done the copy; big arrays go up in slices of this size,
-/// each waited for, so that the process holds one slice besides the array rather than a
-/// second copy of it (on a software adapter, a third: the device memory is the process's).
+/// Bytes one upload slice stages. wgpu copies every write into a staging buffer of its
+/// own, freed once the device has done the copy; big arrays go up in slices of this size
+/// ([`SlicedWrites`]: the device copies one while the next is staged), so that the process
+/// holds two slices besides the array rather than a second copy of it (on a software
+/// adapter, a third: the device memory is the process's).
 pub(crate) const UPLOAD_SLICE: usize = 32 << 20;
 
 /// A headless device and queue (a clone shares them): opened by lancer
@@ -266,7 +267,7 @@ impl GpuContext {
     }
 
     /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM). Contents
-    /// over 32 MiB (`UPLOAD_SLICE`) go up in slices, each waited for.
+    /// over 32 MiB (`UPLOAD_SLICE`) go up in slices ([`SlicedWrites`]).
     pub fn buffer_with(
         &self,
         label: &str,
@@ -427,8 +428,8 @@ impl<'c> SlicedWrites<'c> {
     pub(crate) fn submitted(&mut self) {
         let index = self.ctx.queue.submit([]);
         if let Some(before) = self.pending.replace(index) {
-            // A wait without a timeout cannot fail; device errors are reported by the next
-            // `plumbing::wait`.
+            // A wait without a timeout fails only after a failed submission, whose error the
+            // next `plumbing::wait` reports.
             let _ = self.ctx.device.poll(wgpu::PollType::Wait {
                 submission_index: Some(before),
                 timeout: None,

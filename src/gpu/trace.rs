@@ -117,7 +117,7 @@ impl<'a> GpuTracer<'a> {
     pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
         let start = std::time::Instant::now();
         // The kernel's bindings checked before anything is uploaded.
-        let parts = GpuBvh::parts_for(ctx, layout, memory);
+        let parts = GpuBvh::checked_parts(ctx, layout, memory)?;
         parts.check(ctx, "trace", TRACE_STORAGE_BUFFERS, false)?;
         let bvh = GpuBvh::upload(ctx, layout, memory)?;
         log::info!(

@@ -150,7 +150,8 @@ impl WordArray {
         self.parts.len() as u32
     }
 
-    /// Bind-group-layout entries of its bindings: each buffer part and the texture.
+    /// Bind-group-layout entries of its bindings: each buffer part, and the texture where
+    /// the array has a binding for one.
     pub fn layout_entries(&self, at: ArrayBindings) -> Vec<wgpu::BindGroupLayoutEntry> {
         let mut entries: Vec<_> = (0..self.parts())
             .map(|k| storage_entry(part_binding(at, k), !self.writable))
@@ -264,8 +265,8 @@ fn check_buffer(ctx: &GpuContext, what: &str, len: u64) -> Result<()> {
     if len > max {
         return Err(Error::Gpu(format!(
             "{what} need {} but {} holds at most {} in one buffer (max_buffer_size {}, \
-             {MAX_PARTS} storage bindings of {}, 2^32 words); use --bvh-memory textures, a \
-             smaller scene or --device cpu",
+             {MAX_PARTS} storage bindings of {}, 2^32 words); use --bvh-memory textures (for \
+             the BVH and shading words), a smaller scene or image, or --device cpu",
             human_bytes(len),
             ctx.adapter.name,
             human_bytes(max),

@@ -512,7 +512,7 @@ impl<'a> GpuRenderer<'a> {
             shades: word_array::parts_for(ctx, memory, shade_bytes.len() as u64),
             texels: word_array::parts_for(ctx, BvhMemory::Buffers, texel_bytes.len() as u64),
             accum: word_array::parts_for(ctx, BvhMemory::Buffers, accum_bytes),
-            ..GpuBvh::parts_for(ctx, layout, memory)
+            ..GpuBvh::checked_parts(ctx, layout, memory)?
         };
         parts.check(ctx, "render", RENDER_STORAGE_BUFFERS, true)?;
         let bvh = GpuBvh::upload(ctx, layout, memory)?;

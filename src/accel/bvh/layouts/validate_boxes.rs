@@ -20,7 +20,8 @@
 //!
 //! The structural checks run first (indices in range, a tree: each node reached once), so
 //! the walk meets every node once: linear in nodes and triangles, with one flag per
-//! triangle and one frame per level as its only allocations.
+//! triangle and one frame per level (a stack, not recursion: a `threaded` file's tree has
+//! no depth cap). A big tree is first walked on all threads, its top split into tasks.
 
 use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -202,51 +203,10 @@ fn check_in_order<T: BoxTree>(tree: &T) -> Result<(), String> {
         parts: Vec::new(),
         several: Several(None),
     };
-    let mut stack = Vec::new();
     for root in roots {
         walk.seen.fill(false);
         walk.parts.clear();
-        let root_within = narrowed(&ALL, &root);
-        let below = match root.child {
-            Child::Tris { first, count } => {
-                leaf(&root, (first, count), tris, root_within, &mut walk)?
-            }
-            Child::Node(n) => {
-                stack.push(Frame {
-                    entered: root,
-                    slots: tree.slots(n),
-                    below: Aabb::EMPTY,
-                    within: root_within,
-                });
-                let mut below = Aabb::EMPTY;
-                while let Some(top) = stack.last_mut() {
-                    let Some(slot) = top.slots.next() else {
-                        // Every slot walked: the box it was entered through must hold it all.
-                        let Some(done) = stack.pop() else { break };
-                        inner(&done.entered, &done.below)?;
-                        match stack.last_mut() {
-                            Some(parent) => parent.below = parent.below.union(done.below),
-                            None => below = done.below,
-                        }
-                        continue;
-                    };
-                    let within = narrowed(&top.within, &slot);
-                    match slot.child {
-                        Child::Tris { first, count } => {
-                            let b = leaf(&slot, (first, count), tris, within, &mut walk)?;
-                            top.below = top.below.union(b);
-                        }
-                        Child::Node(n) => stack.push(Frame {
-                            entered: slot,
-                            slots: tree.slots(n),
-                            below: Aabb::EMPTY,
-                            within,
-                        }),
-                    }
-                }
-                below
-            }
-        };
+        let below = walk_slot(tree, &root, narrowed(&ALL, &root), &mut walk)?;
         inner(&root, &below)?;
         check_parts(tris, &walk.parts)?;
         let seen = &walk.seen;
@@ -260,6 +220,55 @@ fn check_in_order<T: BoxTree>(tree: &T) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// The box of the vertices below `slot` (reached within `within`, its own box included),
+/// walked depth first in slot order with a stack of frames rather than recursion (a
+/// `threaded` file's tree has no depth cap); the error names the first fault.
+fn walk_slot<T: BoxTree>(
+    tree: &T,
+    slot: &Slot,
+    within: Aabb,
+    marks: &mut impl Marks,
+) -> Result<Aabb, String> {
+    let n = match slot.child {
+        Child::Tris { first, count } => {
+            return leaf(slot, (first, count), tree.tris(), within, marks)
+        }
+        Child::Node(n) => n,
+    };
+    let mut stack = vec![Frame {
+        entered: *slot,
+        slots: tree.slots(n),
+        below: Aabb::EMPTY,
+        within,
+    }];
+    while let Some(top) = stack.last_mut() {
+        let Some(slot) = top.slots.next() else {
+            // Every slot walked: the box it was entered through must hold it all.
+            let Some(done) = stack.pop() else { break };
+            inner(&done.entered, &done.below)?;
+            match stack.last_mut() {
+                Some(parent) => parent.below = parent.below.union(done.below),
+                None => return Ok(done.below),
+            }
+            continue;
+        };
+        let within = narrowed(&top.within, &slot);
+        match slot.child {
+            Child::Tris { first, count } => {
+                let b = leaf(&slot, (first, count), tree.tris(), within, marks)?;
+                top.below = top.below.union(b);
+            }
+            Child::Node(n) => stack.push(Frame {
+                entered: slot,
+                slots: tree.slots(n),
+                below: Aabb::EMPTY,
+                within,
+            }),
+        }
+    }
+    Ok(Aabb::EMPTY)
 }
 
 /// What the walk under one root gathers: the records seen, the parts of split triangles,
@@ -412,8 +421,9 @@ fn holds_everywhere<T: BoxTree + Sync>(tree: &T) -> bool {
 }
 
 /// The box of the vertices below `slot` (reached within `within`), every check below it
-/// passed; None at the first that fails. Subtrees are walked on `tasks` threads' worth of
-/// tasks, split evenly among the slots of each node, one task each below.
+/// passed; None at the first that fails. The top of the tree is split into `tasks` tasks,
+/// evenly among the slots of each node (recursing a few levels at most); each walks its
+/// subtree with [`walk_slot`].
 fn subtree<T: BoxTree + Sync>(
     tree: &T,
     slot: &Slot,
@@ -422,9 +432,6 @@ fn subtree<T: BoxTree + Sync>(
     tasks: usize,
 ) -> Option<Aabb> {
     let below = match slot.child {
-        Child::Tris { first, count } => {
-            leaf(slot, (first, count), tree.tris(), within, &mut { marks }).ok()?
-        }
         Child::Node(n) if tasks > 1 => {
             use rayon::prelude::*;
             let slots: Vec<Slot> = tree.slots(n).collect();
@@ -434,13 +441,8 @@ fn subtree<T: BoxTree + Sync>(
                 .map(|s| subtree(tree, s, narrowed(&within, s), marks, each))
                 .try_reduce(|| Aabb::EMPTY, |a, b| Some(a.union(b)))?
         }
-        Child::Node(n) => {
-            let mut below = Aabb::EMPTY;
-            for s in tree.slots(n) {
-                below = below.union(subtree(tree, &s, narrowed(&within, &s), marks, 1)?);
-            }
-            below
-        }
+        // One task: the walk in order (no recursion, whatever the depth).
+        _ => return walk_slot(tree, slot, within, &mut { marks }).ok(),
     };
     inner(slot, &below).ok()?;
     Some(below)
@@ -470,6 +472,8 @@ fn check_parts(tris: &[LeafTri], parts: &[Part]) -> Result<(), String> {
             .or_default()
             .push(p);
     }
+    // In record order, whatever order the walk met them in (the walk on all threads).
+    split.values_mut().for_each(|g| g.sort_by_key(|p| p.record));
     // A record that is not a part sits whole in its leaf: its triangle is covered.
     let mut is_part = vec![false; tris.len()];
     for p in parts {
@@ -663,6 +667,84 @@ mod tests {
             let (e, want) = (check_boxes(&t), check_in_order(&t));
             assert!(e.is_err(), "{what}: passed");
             assert_eq!(e, want, "{what}");
+        }
+    }
+
+    #[test]
+    fn a_chain_deeper_than_any_stack_is_walked() {
+        // A `threaded` file's tree has no depth cap: node i holds triangle i and node i + 1.
+        let n = PARALLEL_TRIS as u32 + 1000;
+        let at = |node, slot| At::Slot { node, slot };
+        let nodes = (0..n)
+            .map(|i| {
+                let mut slots = vec![slot(
+                    i as f32,
+                    i as f32 + 1.0,
+                    Child::Tris { first: i, count: 1 },
+                    at(i, 0),
+                )];
+                if i + 1 < n {
+                    let below = Child::Node(i + 1);
+                    slots.push(slot(i as f32 + 1.0, n as f32, below, at(i, 1)));
+                }
+                slots
+            })
+            .collect();
+        let root = slot(0.0, n as f32, Child::Node(0), At::Root);
+        let mut t = Lists {
+            roots: vec![root],
+            nodes,
+            tris: (0..n).map(tri).collect(),
+        };
+        assert!(holds_everywhere(&t));
+        check_boxes(&t).unwrap();
+        t.tris[n as usize - 2].v1[2] = n as f32 + 1.0;
+        let e = check_boxes(&t).unwrap_err();
+        assert!(e.contains("lies outside the box"), "{e}");
+    }
+
+    #[test]
+    fn built_layouts_pass_the_walk_on_all_threads() {
+        use crate::accel::bvh::layouts::{cwbvh::Cwbvh, dfs_sign::DfsSign, threaded::Threaded};
+        use crate::accel::bvh::{build, BuildOptions, Builder};
+        // Small triangles on a grid and long thin ones across it: the SBVH splits the long
+        // ones (records in several leaves); threaded walks eight roots.
+        let n = PARALLEL_TRIS + 500;
+        let small = (0..n).map(|i| {
+            let p = Vec3::new((i % 256) as f32, (i / 256) as f32, (i % 7) as f32 * 0.1);
+            crate::geometry::Triangle::new(p, p + Vec3::X * 0.5, p + Vec3::Y * 0.5)
+        });
+        let long = (0..300).map(|k| {
+            let p = Vec3::new(k as f32 * 0.8, 0.0, (k % 5) as f32 * 0.2);
+            let d = Vec3::new(((k * 37) % 200) as f32 - 100.0, 250.0, 0.3);
+            crate::geometry::Triangle::new(p, p + d, p + Vec3::Z * 0.05)
+        });
+        let triangles: Vec<_> = small.chain(long).collect();
+        let n = triangles.len();
+        let mesh = crate::mesh::Mesh::from_triangles(triangles);
+        for builder in [Builder::Sweep, Builder::Sbvh] {
+            let opts = BuildOptions {
+                builder,
+                ..BuildOptions::default()
+            };
+            let bvh = build(&mesh, &opts);
+            let split = Cwbvh::flatten(&bvh, &mesh).leaf_tris().len() - n;
+            println!("{builder:?}: {split} records beyond the triangles");
+            assert!(
+                holds_everywhere(&Threaded::flatten(&bvh, &mesh)),
+                "{builder:?}"
+            );
+            assert!(
+                holds_everywhere(&Cwbvh::flatten(&bvh, &mesh)),
+                "{builder:?}"
+            );
+            assert!(
+                holds_everywhere(&DfsSign::flatten(&bvh, &mesh)),
+                "{builder:?}"
+            );
+            if builder == Builder::Sbvh {
+                assert!(split > 0, "the SBVH split nothing");
+            }
         }
     }
 
