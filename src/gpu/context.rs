@@ -267,7 +267,7 @@ impl GpuContext {
     }
 
     /// A buffer created holding `contents`, with `usage` (e.g. STORAGE or UNIFORM). Contents
-    /// over 32 MiB (`UPLOAD_SLICE`) go up in slices ([`SlicedWrites`]).
+    /// over 32 MiB (`UPLOAD_SLICE`) go up in slices (`SlicedWrites`).
     pub fn buffer_with(
         &self,
         label: &str,
