@@ -557,3 +557,88 @@ fn arrays_beyond_one_binding_are_bound_in_parts() {
         }
     }
 }
+
+/// A layout whose triangles may have been moved after it was built: its validation runs
+/// the layout's own checks on the arrays it uploads.
+struct Moved {
+    inner: Box<dyn lancer::accel::GpuForm>,
+    kind: LayoutKind,
+    tris: Vec<u8>,
+}
+
+impl lancer::accel::Accel for Moved {
+    fn bounds(&self) -> lancer::geometry::Aabb {
+        self.inner.bounds()
+    }
+
+    fn intersect_masked(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: lancer::accel::Mask<'_>,
+        stats: &mut lancer::accel::RayStats,
+    ) -> Hit {
+        self.inner
+            .intersect_masked(ray, query, robustness, mask, stats)
+    }
+}
+
+impl lancer::accel::GpuForm for Moved {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+
+    fn arrays(&self) -> lancer::accel::GpuArrays<'_> {
+        lancer::accel::GpuArrays {
+            nodes: self.inner.arrays().nodes,
+            tris: &self.tris,
+        }
+    }
+
+    fn wgsl(&self) -> String {
+        self.inner.wgsl()
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        lancer::accel::bvh::layouts::from_arrays(self.kind, self.arrays()).map(|_| ())
+    }
+
+    fn node_bytes(&self) -> usize {
+        self.inner.node_bytes()
+    }
+}
+
+/// The validation runs beside the upload, and its verdict still decides: a layout whose
+/// first triangle was moved out of its boxes is refused in both memories, naming what is
+/// wrong; the same layout unmoved is uploaded.
+#[test]
+fn a_layout_failing_validation_is_refused_though_uploaded_beside_it() {
+    let ctx = common::gpu();
+    let mut rng = Rng::new(23);
+    let mesh = soup(&mut rng, 300, 0.2);
+    let bvh = lancer::accel::bvh::build(&mesh, &BuildOptions::default());
+    for kind in [LayoutKind::Cwbvh, LayoutKind::DfsSign] {
+        let inner = lancer::accel::bvh::layouts::flatten(kind, &bvh, &mesh);
+        let tris = inner.arrays().tris.to_vec();
+        let mut moved = Moved { inner, kind, tris };
+        for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
+            let uploaded = lancer::gpu::GpuTracer::new(ctx, &moved, memory);
+            assert!(
+                uploaded.is_ok(),
+                "{kind} {memory:?}: the unmoved layout refused"
+            );
+        }
+        moved.tris[..4].copy_from_slice(&1.0e6f32.to_le_bytes());
+        for memory in [BvhMemory::Buffers, BvhMemory::Textures] {
+            let e = match lancer::gpu::GpuTracer::new(ctx, &moved, memory) {
+                Ok(_) => panic!("{kind} {memory:?}: a moved triangle was uploaded"),
+                Err(e) => e.to_string(),
+            };
+            assert!(
+                e.contains("refusing to upload an invalid BVH"),
+                "{kind}: {e}"
+            );
+        }
+    }
+}
