@@ -11,7 +11,9 @@ pub const FAR_WIDEN: f32 = 1.000_000_4;
 pub const PARALLEL_INV: f32 = 5e29;
 
 /// Axis-aligned bounding box. An empty box has `lo > hi` (lo = +MAX, hi = −MAX).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// `Zeroable` so that arrays of boxes written in full can be allocated zeroed (pages the
+/// threads fault in as they write, not one initialising pass).
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Zeroable)]
 pub struct Aabb {
     /// Minimum corner.
     pub lo: Vec3,

@@ -99,13 +99,9 @@ pub(crate) struct Decision<const W: usize> {
     leaf: bool,
 }
 
-impl<const W: usize> Decision<W> {
-    /// A placeholder, overwritten before use.
-    pub const NONE: Decision<W> = Decision {
-        split: [0; W],
-        leaf: true,
-    };
-}
+// SAFETY: byte arrays and a bool, for which all zeros is a valid value (an array of
+// decisions written in full is allocated zeroed: `bytemuck::zeroed_vec`).
+unsafe impl<const W: usize> bytemuck::Zeroable for Decision<W> {}
 
 /// The programme's decisions for every binary node, for W slots.
 pub(crate) struct Plan<const W: usize> {
@@ -121,8 +117,8 @@ impl<const W: usize> Plan<W> {
 
     /// The children of the wide internal node made from `n`: (binary node, is a wide
     /// leaf), at most W. A binary leaf (a one-leaf tree) is its own only child.
-    pub fn children(&self, tree: &impl BinaryTree, n: u32) -> Vec<(u32, bool)> {
-        let mut out = Vec::with_capacity(W);
+    pub fn children(&self, tree: &impl BinaryTree, n: u32) -> Children<W> {
+        let mut out = Children::EMPTY;
         match tree.kids(n) {
             None => out.push((n, true)),
             Some([l, r]) => {
@@ -136,7 +132,7 @@ impl<const W: usize> Plan<W> {
 
     /// The at most `slots` subtrees that hold `n`'s subtree.
     /// A binary leaf is a wide leaf: its decision is not read (a tree may store none).
-    fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Vec<(u32, bool)>) {
+    fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Children<W>) {
         let Some([l, r]) = tree.kids(n) else {
             out.push((n, true));
             return;
@@ -153,5 +149,34 @@ impl<const W: usize> Plan<W> {
         let k = decision.split[i - 1] as usize;
         self.collect(tree, l, k, out);
         self.collect(tree, r, i - k, out);
+    }
+}
+
+/// A wide node's children as the plan gives them: (binary node, is a wide leaf), at most W,
+/// held in place (a wide node is made for every few triangles: no allocation each).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Children<const W: usize> {
+    items: [(u32, bool); W],
+    len: usize,
+}
+
+impl<const W: usize> Children<W> {
+    const EMPTY: Children<W> = Children {
+        items: [(0, false); W],
+        len: 0,
+    };
+
+    /// Appends a child; the programme never spreads a node over more than W slots.
+    fn push(&mut self, child: (u32, bool)) {
+        self.items[self.len] = child;
+        self.len += 1;
+    }
+}
+
+impl<const W: usize> std::ops::Deref for Children<W> {
+    type Target = [(u32, bool)];
+
+    fn deref(&self) -> &[(u32, bool)] {
+        &self.items[..self.len]
     }
 }

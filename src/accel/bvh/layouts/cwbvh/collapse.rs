@@ -170,7 +170,7 @@ impl<'a> Binary<'a> {
             root: 0,
             leaves: tris,
         };
-        let mut decisions = vec![Decision::NONE; len];
+        let mut decisions = bytemuck::zeroed_vec::<Decision<WIDTH>>(len);
         let share = Share {
             base: 0,
             boxes: &mut t.boxes,

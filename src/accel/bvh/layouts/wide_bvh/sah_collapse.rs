@@ -6,6 +6,7 @@
 
 use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
+use crate::geometry::Aabb;
 
 use super::{WideNode, INNER};
 
@@ -16,61 +17,75 @@ pub(super) const C_TRI: f32 = 0.3;
 /// Most triangles a leaf made of several binary leaves holds.
 pub(super) const MAX_LEAF_TRIS: u32 = 4;
 
-/// The binary tree in arrays, children before parents (post-order, the root last).
-struct Arena<'a> {
-    nodes: Vec<&'a Node>,
-    kids: Vec<Option<[u32; 2]>>,
+/// The binary tree in arrays, children before parents (post-order, the root last): what
+/// the wide nodes are written from, read in place of the tree's boxed nodes.
+struct Arena {
+    boxes: Vec<Aabb>,
+    /// The first leaf-order position of the node's triangles.
+    first: Vec<u32>,
+    /// The two children's indices; `NO_KIDS` for a leaf (an inner node's two differ).
+    kids: Vec<[u32; 2]>,
     tris: Vec<u32>,
+}
+
+/// The `kids` of a leaf.
+const NO_KIDS: [u32; 2] = [0, 0];
+
+/// One node's entries in the arena (and its decision in the plan).
+struct Own<'s, const W: usize> {
+    bbox: &'s mut Aabb,
+    first: &'s mut u32,
+    kids: &'s mut [u32; 2],
+    tris: &'s mut u32,
+    decision: &'s mut Decision<W>,
 }
 
 /// A subtree's share of the arena and of the plan: its nodes' slots, children before
 /// parents, the subtree's root last.
-struct Share<'s, 'a, const W: usize> {
-    nodes: &'s mut [&'a Node],
-    kids: &'s mut [Option<[u32; 2]>],
+struct Share<'s, const W: usize> {
+    boxes: &'s mut [Aabb],
+    first: &'s mut [u32],
+    kids: &'s mut [[u32; 2]],
     tris: &'s mut [u32],
     decisions: &'s mut [Decision<W>],
 }
 
-impl<'s, 'a, const W: usize> Share<'s, 'a, W> {
-    /// The first `at` slots, the rest before the last, and the last slot's parts.
-    #[allow(clippy::type_complexity)] // four parallel arrays, split alike
-    fn split(
-        self,
-        at: usize,
-    ) -> (
-        Self,
-        Self,
-        (
-            &'s mut &'a Node,
-            &'s mut Option<[u32; 2]>,
-            &'s mut u32,
-            &'s mut Decision<W>,
-        ),
-    ) {
-        let last = self.nodes.len() - 1;
-        let (n, n_own) = self.nodes.split_at_mut(last);
+impl<'s, const W: usize> Share<'s, W> {
+    /// The first `at` slots, the rest before the last, and the last slot's entries.
+    fn split(self, at: usize) -> (Self, Self, Own<'s, W>) {
+        let last = self.boxes.len() - 1;
+        let (b, b_own) = self.boxes.split_at_mut(last);
+        let (f, f_own) = self.first.split_at_mut(last);
         let (k, k_own) = self.kids.split_at_mut(last);
         let (t, t_own) = self.tris.split_at_mut(last);
         let (e, e_own) = self.decisions.split_at_mut(last);
-        let (n0, n1) = n.split_at_mut(at);
+        let (b0, b1) = b.split_at_mut(at);
+        let (f0, f1) = f.split_at_mut(at);
         let (k0, k1) = k.split_at_mut(at);
         let (t0, t1) = t.split_at_mut(at);
         let (e0, e1) = e.split_at_mut(at);
         (
             Share {
-                nodes: n0,
+                boxes: b0,
+                first: f0,
                 kids: k0,
                 tris: t0,
                 decisions: e0,
             },
             Share {
-                nodes: n1,
+                boxes: b1,
+                first: f1,
                 kids: k1,
                 tris: t1,
                 decisions: e1,
             },
-            (&mut n_own[0], &mut k_own[0], &mut t_own[0], &mut e_own[0]),
+            Own {
+                bbox: &mut b_own[0],
+                first: &mut f_own[0],
+                kids: &mut k_own[0],
+                tris: &mut t_own[0],
+                decision: &mut e_own[0],
+            },
         )
     }
 }
@@ -81,29 +96,26 @@ const PARALLEL_NODES: u32 = 8192;
 /// Fills `share` with `node`'s subtree in post-order, its first slot at index `base`, and
 /// the programme's decisions bottom-up (each subtree on its own thread where big); returns
 /// the entry of `node`, which its parent's is made from.
-fn fill<'a, const W: usize>(
-    node: &'a Node,
-    base: u32,
-    share: Share<'_, 'a, W>,
-    costs: SahCosts,
-) -> Entry<W> {
-    let area = node.bbox().area();
+fn fill<const W: usize>(node: &Node, base: u32, share: Share<'_, W>, costs: SahCosts) -> Entry<W> {
+    let bbox = *node.bbox();
+    let area = bbox.area();
     let Node::Inner { children, .. } = node else {
-        let count = match node {
-            Node::Leaf { count, .. } => *count,
-            Node::Inner { .. } => 0,
+        let (start, count) = match node {
+            Node::Leaf { start, count, .. } => (*start, *count),
+            Node::Inner { .. } => (0, 0),
         };
         let entry = Entry::new(area, count, None, costs);
-        share.nodes[0] = node;
-        share.kids[0] = None;
+        share.boxes[0] = bbox;
+        share.first[0] = start;
+        share.kids[0] = NO_KIDS;
         share.tris[0] = count;
         share.decisions[0] = entry.decision();
         return entry;
     };
     let nl = children[0].nodes();
     let (left, right, own) = share.split(nl as usize);
-    let (l, r) = (nl as usize - 1, right.nodes.len() - 1);
-    let go = |c: &'a Node, b: u32, s: Share<'_, 'a, W>| fill(c, b, s, costs);
+    let (l, r) = (nl as usize - 1, right.boxes.len() - 1);
+    let go = |c: &Node, b: u32, s: Share<'_, W>| fill(c, b, s, costs);
     let ((left, le), (right, re)) = if node.nodes() >= PARALLEL_NODES {
         rayon::join(
             || {
@@ -125,25 +137,28 @@ fn fill<'a, const W: usize>(
     };
     let tris = left.tris[l] + right.tris[r];
     let entry = Entry::new(area, tris, Some([&le, &re]), costs);
-    *own.0 = node;
-    *own.1 = Some([base + l as u32, base + nl + r as u32]);
-    *own.2 = tris;
-    *own.3 = entry.decision();
+    *own.bbox = bbox;
+    *own.first = left.first[0];
+    *own.kids = [base + l as u32, base + nl + r as u32];
+    *own.tris = tris;
+    *own.decision = entry.decision();
     entry
 }
 
-fn reborrow<'t, 'a, const W: usize>(s: &'t mut Share<'_, 'a, W>) -> Share<'t, 'a, W> {
+fn reborrow<'t, const W: usize>(s: &'t mut Share<'_, W>) -> Share<'t, W> {
     Share {
-        nodes: s.nodes,
+        boxes: s.boxes,
+        first: s.first,
         kids: s.kids,
         tris: s.tris,
         decisions: s.decisions,
     }
 }
 
-impl BinaryTree for Arena<'_> {
+impl BinaryTree for Arena {
     fn kids(&self, n: u32) -> Option<[u32; 2]> {
-        self.kids[n as usize]
+        let kids = self.kids[n as usize];
+        (kids != NO_KIDS).then_some(kids)
     }
 
     fn tris(&self, n: u32) -> u32 {
@@ -170,24 +185,15 @@ where
     let index = out.len();
     out.push(bytemuck::Zeroable::zeroed());
     let mut rec: WideNode<W> = bytemuck::Zeroable::zeroed();
-    for (k, (c, leaf)) in plan.children(arena, n).into_iter().enumerate() {
-        let node = arena.nodes[c as usize];
-        rec.set_bbox(k, node.bbox());
+    for (k, &(c, leaf)) in plan.children(arena, n).iter().enumerate() {
+        rec.set_bbox(k, &arena.boxes[c as usize]);
         (rec.child[k], rec.kind[k]) = match leaf {
-            true => (first(node), arena.tris[c as usize]),
+            true => (arena.first[c as usize], arena.tris[c as usize]),
             false => (emit(arena, plan, c, d + 1, max_depth, out)?, INNER),
         };
     }
     out[index] = rec;
     Some(index as u32)
-}
-
-/// The first leaf-order position of `node`'s triangles.
-fn first(node: &Node) -> u32 {
-    match node {
-        Node::Leaf { start, .. } => *start,
-        Node::Inner { children, .. } => first(&children[0]),
-    }
 }
 
 /// The W-wide nodes of `root`'s tree by the SAH collapse, in depth-first pre-order (the
@@ -205,14 +211,17 @@ where
         max_leaf: MAX_LEAF_TRIS,
     };
     let len = root.nodes() as usize;
+    // Zeroed, not filled: `fill` writes every slot, each subtree's on its thread.
     let mut arena = Arena {
-        nodes: vec![root; len],
-        kids: vec![None; len],
+        boxes: bytemuck::zeroed_vec(len),
+        first: vec![0; len],
+        kids: vec![NO_KIDS; len],
         tris: vec![0; len],
     };
-    let mut decisions = vec![Decision::NONE; len];
+    let mut decisions = bytemuck::zeroed_vec(len);
     let share = Share {
-        nodes: &mut arena.nodes,
+        boxes: &mut arena.boxes,
+        first: &mut arena.first,
         kids: &mut arena.kids,
         tris: &mut arena.tris,
         decisions: &mut decisions,
@@ -220,7 +229,7 @@ where
     fill(root, 0, share, costs);
     let plan = Plan::<W>::from_decisions(decisions);
     let r = len as u32 - 1;
-    let mut out = Vec::new();
+    let mut out = Vec::with_capacity(len / 2 + 1);
     emit(&arena, &plan, r, 0, max_depth, &mut out)?;
     Some(out)
 }
