@@ -134,11 +134,13 @@ pub fn outputs<R: BenchReport>(page: &Path) -> Vec<PathBuf> {
     out
 }
 
-/// The page's markdown: `command` is the command line that ran the bench, `charts` the
-/// chart files (linked by their names: they lie beside the page).
+/// The page's markdown: `command` is the command line that ran the bench, `lancer` the
+/// version that ran it ([`version`]), `charts` the chart files (linked by their names: they
+/// lie beside the page).
 pub fn markdown<R: BenchReport>(
     report: &R,
     command: &str,
+    lancer: &str,
     time: SystemTime,
     charts: &[PathBuf],
 ) -> String {
@@ -159,7 +161,7 @@ pub fn markdown<R: BenchReport>(
         "- **adapter and driver**: {}\n",
         report.adapter().unwrap_or_else(|| "none (CPU only)".into())
     );
-    page += &format!("- **lancer**: {}\n", version());
+    page += &format!("- **lancer**: {lancer}\n");
     page += &format!("- **command**:\n\n  ```sh\n  {command}\n  ```\n\n");
     page += "## Results\n\n";
     page += &page_body(&report.text());
@@ -197,11 +199,14 @@ pub fn shell_command(args: impl IntoIterator<Item = String>) -> String {
 /// Writes the results page `path` (atomically, replacing it) and, with the `charts`
 /// feature, its charts beside it ([`beside`]).
 pub fn write<R: BenchReport>(path: &Path, report: &R, command: &str) -> Result<()> {
+    // The tree's state before the page's own files are written over (they would count as
+    // uncommitted changes).
+    let lancer = version();
     #[cfg(feature = "charts")]
     let charts = report.draw_charts(&outputs::<R>(path)[1..])?;
     #[cfg(not(feature = "charts"))]
     let charts: Vec<PathBuf> = Vec::new();
-    let text = markdown(report, command, SystemTime::now(), &charts);
+    let text = markdown(report, command, &lancer, SystemTime::now(), &charts);
     crate::output::write_bytes(path, text.as_bytes())
 }
 
