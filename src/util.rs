@@ -1,4 +1,4 @@
-//! Small helpers every module may use: formatting for messages.
+//! Small helpers every module may use: formatting for messages, big zeroed arrays.
 
 /// A size for people: bytes, KiB, MiB or GiB.
 pub fn human_bytes(bytes: u64) -> String {
@@ -8,4 +8,16 @@ pub fn human_bytes(bytes: u64) -> String {
         b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
         b => format!("{b} bytes"),
     }
+}
+
+/// `len` zeroed values, written on all threads: the arrays a flatten fills in full. A
+/// big allocation is mostly memory the process freed before (the builder's), which a
+/// zeroed allocation clears on one thread; here each thread clears its share.
+pub(crate) fn zeroed_on_all_threads<T: bytemuck::Zeroable + Copy + Send + Sync>(
+    len: usize,
+) -> Vec<T> {
+    use rayon::prelude::*;
+    let mut v = Vec::with_capacity(len);
+    v.par_extend(rayon::iter::repeat_n(T::zeroed(), len));
+    v
 }

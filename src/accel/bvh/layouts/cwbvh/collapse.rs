@@ -11,6 +11,7 @@ use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan
 use crate::accel::bvh::Node;
 use crate::geometry::Aabb;
 use crate::geometry::Triangle;
+use crate::util::zeroed_on_all_threads;
 
 use super::{MAX_LEAF_TRIS, WIDTH};
 
@@ -162,15 +163,16 @@ impl<'a> Binary<'a> {
         debug_assert!(end < LEAF, "references beyond the leaf tag");
         // T triangles, T − 1 inner nodes.
         let len = (end - start) as usize - 1;
+        // Every slot is written below, each subtree's on its thread.
         let mut t = Binary {
-            boxes: vec![Aabb::EMPTY; len],
-            kids: vec![[0, 0]; len],
-            tris: vec![0; len],
+            boxes: zeroed_on_all_threads(len),
+            kids: zeroed_on_all_threads(len),
+            tris: zeroed_on_all_threads(len),
             clipped: Vec::new(),
             root: 0,
             leaves: tris,
         };
-        let mut decisions = bytemuck::zeroed_vec::<Decision<WIDTH>>(len);
+        let mut decisions: Vec<Decision<WIDTH>> = zeroed_on_all_threads(len);
         let share = Share {
             base: 0,
             boxes: &mut t.boxes,

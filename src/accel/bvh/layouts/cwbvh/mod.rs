@@ -29,6 +29,7 @@ use glam::Vec3A;
 use crate::accel::bvh::{Bvh, MAX_DEPTH};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
+use crate::util::zeroed_on_all_threads;
 
 use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
@@ -167,8 +168,8 @@ impl Cwbvh {
         };
         let root = tree.root();
         let counts = w.count(root);
-        let mut nodes = vec![bytemuck::Zeroable::zeroed(); 1 + counts.descendants(root) as usize];
-        let mut tris = vec![bytemuck::Zeroable::zeroed(); order.len()];
+        let mut nodes = zeroed_on_all_threads(1 + counts.descendants(root) as usize);
+        let mut tris = zeroed_on_all_threads(order.len());
         let (first, rest) = nodes.split_at_mut(1);
         let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut tris));
         Cwbvh {
@@ -293,7 +294,7 @@ type Part<'p, T> = (u32, &'p mut [T]);
 impl Writer<'_> {
     /// The wide nodes below every wide internal node.
     fn count(&self, root: u32) -> Counts {
-        let mut counts = vec![0; self.tree.inner_len()];
+        let mut counts = zeroed_on_all_threads(self.tree.inner_len());
         self.count_below(root, (0, &mut counts));
         Counts(counts)
     }

@@ -7,6 +7,7 @@
 use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
 use crate::geometry::Aabb;
+use crate::util::zeroed_on_all_threads;
 
 use super::{WideNode, INNER};
 
@@ -211,14 +212,14 @@ where
         max_leaf: MAX_LEAF_TRIS,
     };
     let len = root.nodes() as usize;
-    // Zeroed, not filled: `fill` writes every slot, each subtree's on its thread.
+    // Zeroed on all threads (`fill` writes every slot, each subtree's on its thread).
     let mut arena = Arena {
-        boxes: bytemuck::zeroed_vec(len),
-        first: vec![0; len],
-        kids: vec![NO_KIDS; len],
-        tris: vec![0; len],
+        boxes: zeroed_on_all_threads(len),
+        first: zeroed_on_all_threads(len),
+        kids: zeroed_on_all_threads(len),
+        tris: zeroed_on_all_threads(len),
     };
-    let mut decisions = bytemuck::zeroed_vec(len);
+    let mut decisions: Vec<Decision<W>> = zeroed_on_all_threads(len);
     let share = Share {
         boxes: &mut arena.boxes,
         first: &mut arena.first,
