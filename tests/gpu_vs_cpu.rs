@@ -609,11 +609,11 @@ impl lancer::accel::GpuForm for Moved {
     }
 }
 
-/// The validation runs beside the upload, and its verdict still decides: a layout whose
-/// first triangle was moved out of its boxes is refused in both memories, naming what is
-/// wrong; the same layout unmoved is uploaded.
+/// The upload's validation decides: a layout whose first triangle was moved out of its
+/// boxes is refused in both memories, naming what is wrong; the same layout unmoved is
+/// uploaded.
 #[test]
-fn a_layout_failing_validation_is_refused_though_uploaded_beside_it() {
+fn a_layout_failing_validation_is_refused_in_both_memories() {
     let ctx = common::gpu();
     let mut rng = Rng::new(23);
     let mesh = soup(&mut rng, 300, 0.2);

@@ -164,14 +164,20 @@ impl Cwbvh {
         let w = Writer {
             tree: &tree,
             plan: &plan,
-            leaves: &leaves,
         };
         let root = tree.root();
         let counts = w.count(root);
         let mut nodes = zeroed_on_all_threads(1 + counts.descendants(root) as usize);
-        let mut tris = zeroed_on_all_threads(order.len());
+        // The writer places leaf-order positions; the triangles are then read for them on all
+        // threads (each written once, not zeroed first).
+        let mut places: Vec<u32> = zeroed_on_all_threads(order.len());
         let (first, rest) = nodes.split_at_mut(1);
-        let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut tris));
+        let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut places));
+        let tris = {
+            use rayon::prelude::*;
+            let tri = |&p: &u32| LeafTri::new(leaves.triangle(p).v, leaves.order[p as usize]);
+            places.par_iter().map(tri).collect()
+        };
         Cwbvh {
             nodes,
             tris,
@@ -266,12 +272,11 @@ impl BoxTree for Cwbvh {
 
 /// Writes wide nodes depth first; each node's internal children are contiguous, followed
 /// by the first child's descendants, then the second's, and so on; each node's leaf
-/// triangles come before its children's. The big subtrees are written on all threads, into
-/// the parts of the arrays their sizes (counted first) give them.
+/// triangles' places come before its children's. The big subtrees are written on all
+/// threads, into the parts of the arrays their sizes (counted first) give them.
 struct Writer<'a> {
     tree: &'a Binary<'a>,
     plan: &'a Plan<WIDTH>,
-    leaves: &'a LeafOrder<'a>,
 }
 
 /// Subtrees of at least this many triangles are counted and written on several threads.
@@ -332,8 +337,9 @@ impl Writer<'_> {
     }
 
     /// Writes the wide node made from binary node `n` into `slot` at `depth`, and its
-    /// descendants into `nodes` and its subtree's triangles into `tris`; returns the depth of
-    /// the deepest node written.
+    /// descendants into `nodes` and the leaf-order positions of its subtree's triangles into
+    /// `tris` (where the layout's triangles go); returns the depth of the deepest node
+    /// written.
     fn write(
         &self,
         counts: &Counts,
@@ -341,7 +347,7 @@ impl Writer<'_> {
         depth: usize,
         slot: &mut CwNode,
         nodes: Part<'_, CwNode>,
-        tris: Part<'_, LeafTri>,
+        tris: Part<'_, u32>,
     ) -> usize {
         let children = self.plan.children(self.tree, n);
         let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| self.tree.bbox(c)).collect();
@@ -373,10 +379,7 @@ impl Writer<'_> {
                 self.tree.positions(b, &mut positions);
                 let count = positions.len() as u32;
                 node.child_meta[s] = (((1 << count) - 1) << COUNT_SHIFT | offset) as u8;
-                for (t, &p) in tris.1[offset as usize..].iter_mut().zip(&positions) {
-                    let prim = self.leaves.order[p as usize];
-                    *t = LeafTri::new(self.leaves.triangle(p).v, prim);
-                }
+                tris.1[offset as usize..][..positions.len()].copy_from_slice(&positions);
                 offset += count;
             } else {
                 node.imask |= 1 << s;
@@ -402,10 +405,9 @@ impl Writer<'_> {
             tri_base += self.tree.tris(c);
             (rest, tri_rest) = (more, more_tris);
         }
-        let go =
-            |(c, record, nodes, tris): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, LeafTri>)| {
-                self.write(counts, c, depth + 1, record, nodes, tris)
-            };
+        let go = |(c, record, nodes, tris): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, u32>)| {
+            self.write(counts, c, depth + 1, record, nodes, tris)
+        };
         let deepest = if self.tree.tris(n) >= PARALLEL_TRIS {
             use rayon::prelude::*;
             jobs.into_par_iter().map(go).max()
