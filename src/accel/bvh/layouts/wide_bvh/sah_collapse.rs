@@ -6,6 +6,10 @@
 
 use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use rayon::prelude::*;
+
 use crate::geometry::Aabb;
 use crate::util::zeroed_on_all_threads;
 
@@ -167,34 +171,76 @@ impl BinaryTree for Arena {
     }
 }
 
-/// Appends the wide node of inner node n at depth d (and its subtree) to `out` in
-/// pre-order; None when a node would lie deeper than `max_depth`.
+/// Subtrees of at least this many triangles are counted and written on several threads.
+const PARALLEL_TRIS: u32 = 16384;
+
+/// The wide nodes of the wide subtree made from binary node `n` (a wide inner node), each
+/// such node's count also kept in `counts` (by binary node): where its subtree's part of
+/// the output ends.
+fn count<const W: usize>(arena: &Arena, plan: &Plan<W>, n: u32, counts: &[AtomicU32]) -> u32 {
+    let go = |&(c, leaf): &(u32, bool)| {
+        if leaf {
+            0
+        } else {
+            count(arena, plan, c, counts)
+        }
+    };
+    let children = plan.children(arena, n);
+    let below: u32 = if arena.tris[n as usize] >= PARALLEL_TRIS {
+        children.par_iter().map(go).sum()
+    } else {
+        children.iter().map(go).sum()
+    };
+    counts[n as usize].store(1 + below, Ordering::Relaxed);
+    1 + below
+}
+
+/// Writes the wide node of inner node `n` at depth `d` into `out[0]` and its subtree after
+/// it, in pre-order (`out` is exactly that subtree's part; `index`, the position of
+/// `out[0]` in the whole); None when a node would lie deeper than `max_depth`. The big
+/// subtrees' parts are written on all threads.
+#[allow(clippy::too_many_arguments)] // the tree, its plan and counts, and where to write
 fn emit<const W: usize>(
     arena: &Arena,
     plan: &Plan<W>,
+    counts: &[AtomicU32],
     n: u32,
     d: usize,
     max_depth: usize,
-    out: &mut Vec<WideNode<W>>,
-) -> Option<u32>
+    index: u32,
+    out: &mut [WideNode<W>],
+) -> Option<()>
 where
     WideNode<W>: bytemuck::Pod,
 {
     if d > max_depth {
         return None;
     }
-    let index = out.len();
-    out.push(bytemuck::Zeroable::zeroed());
-    let mut rec: WideNode<W> = bytemuck::Zeroable::zeroed();
+    let (own, mut rest) = out.split_first_mut()?;
+    let mut next = index + 1;
+    let mut jobs = Vec::with_capacity(W);
     for (k, &(c, leaf)) in plan.children(arena, n).iter().enumerate() {
-        rec.set_bbox(k, &arena.boxes[c as usize]);
-        (rec.child[k], rec.kind[k]) = match leaf {
+        own.set_bbox(k, &arena.boxes[c as usize]);
+        (own.child[k], own.kind[k]) = match leaf {
             true => (arena.first[c as usize], arena.tris[c as usize]),
-            false => (emit(arena, plan, c, d + 1, max_depth, out)?, INNER),
+            false => {
+                let size = counts[c as usize].load(Ordering::Relaxed);
+                let (part, more) = std::mem::take(&mut rest).split_at_mut(size as usize);
+                jobs.push((c, next, part));
+                rest = more;
+                next += size;
+                (next - size, INNER)
+            }
         };
     }
-    out[index] = rec;
-    Some(index as u32)
+    let go = |(c, i, part): (u32, u32, &mut [WideNode<W>])| {
+        emit(arena, plan, counts, c, d + 1, max_depth, i, part)
+    };
+    if arena.tris[n as usize] >= PARALLEL_TRIS {
+        jobs.into_par_iter().map(go).collect()
+    } else {
+        jobs.into_iter().map(go).collect()
+    }
 }
 
 /// The W-wide nodes of `root`'s tree by the SAH collapse, in depth-first pre-order (the
@@ -230,7 +276,11 @@ where
     fill(root, 0, share, costs);
     let plan = Plan::<W>::from_decisions(decisions);
     let r = len as u32 - 1;
-    let mut out = Vec::with_capacity(len / 2 + 1);
-    emit(&arena, &plan, r, 0, max_depth, &mut out)?;
+    let counts: Vec<AtomicU32> = (0..len)
+        .into_par_iter()
+        .map(|_| AtomicU32::new(0))
+        .collect();
+    let mut out = zeroed_on_all_threads(count(&arena, &plan, r, &counts) as usize);
+    emit(&arena, &plan, &counts, r, 0, max_depth, 0, &mut out)?;
     Some(out)
 }
