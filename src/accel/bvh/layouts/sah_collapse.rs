@@ -12,12 +12,26 @@
 //! A binary leaf is a wide leaf whatever its size. Every wide internal child is a strict
 //! binary descendant, so the wide tree is never deeper than the binary one.
 
+use std::sync::atomic::{AtomicU32, Ordering};
+
 /// The binary tree the programme runs on: nodes `0..len()`, children before parents.
 pub(crate) trait BinaryTree {
     /// Node n's two children, none for a leaf.
     fn kids(&self, n: u32) -> Option<[u32; 2]>;
     /// Triangles beneath node n.
     fn tris(&self, n: u32) -> u32;
+}
+
+/// Subtrees of at least this many triangles are counted on several threads.
+const PARALLEL_TRIS: u32 = 16384;
+
+/// Zeroed counts for [`Plan::count`], one per binary node, made on all threads.
+pub(crate) fn zeroed_counts(len: usize) -> Vec<AtomicU32> {
+    use rayon::prelude::*;
+    (0..len)
+        .into_par_iter()
+        .map(|_| AtomicU32::new(0))
+        .collect()
 }
 
 /// The programme's costs: of a wide node's visit and of a triangle test, and the most
@@ -128,6 +142,25 @@ impl<const W: usize> Plan<W> {
             }
         }
         out
+    }
+
+    /// The wide nodes of the wide subtree made from binary node `n` (a wide internal node,
+    /// or the root), each such node's count also kept in `counts` by binary node (a node
+    /// beyond it, a one-leaf tree's root, keeps none): where the writers split their output
+    /// among the children. Big subtrees are counted on all threads.
+    pub fn count(&self, tree: &(impl BinaryTree + Sync), n: u32, counts: &[AtomicU32]) -> u32 {
+        use rayon::prelude::*;
+        let go = |&(c, leaf): &(u32, bool)| if leaf { 0 } else { self.count(tree, c, counts) };
+        let children = self.children(tree, n);
+        let below: u32 = if tree.tris(n) >= PARALLEL_TRIS {
+            children.par_iter().map(go).sum()
+        } else {
+            children.iter().map(go).sum()
+        };
+        if let Some(own) = counts.get(n as usize) {
+            own.store(1 + below, Ordering::Relaxed);
+        }
+        1 + below
     }
 
     /// The at most `slots` subtrees that hold `n`'s subtree.

@@ -220,11 +220,6 @@ impl<'a> Binary<'a> {
             }
         }
     }
-
-    /// The inner nodes of `n`'s binary subtree are the indices `first(n)..=n`.
-    pub fn first(&self, n: u32) -> u32 {
-        n + 1 - (self.tris(n) - 1)
-    }
 }
 
 /// Fills `share` with `node`'s subtree (leaf-order positions `span_`): the two halves of a

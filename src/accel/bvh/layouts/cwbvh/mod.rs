@@ -23,6 +23,7 @@ mod slots;
 mod twin;
 
 use std::borrow::Cow;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use glam::Vec3A;
 
@@ -34,7 +35,7 @@ use crate::util::zeroed_on_all_threads;
 use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
-use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan};
+use crate::accel::bvh::layouts::sah_collapse::{zeroed_counts, BinaryTree, Plan};
 use collapse::{Binary, LeafOrder};
 use quantise::{dequantise, step, Frame};
 
@@ -282,14 +283,14 @@ struct Writer<'a> {
 /// Subtrees of at least this many triangles are counted and written on several threads.
 const PARALLEL_TRIS: u32 = 16384;
 
-/// Wide nodes below each binary inner node that becomes a wide internal node (by binary
-/// node).
-struct Counts(Vec<u32>);
+/// Wide nodes below each binary inner node that becomes a wide internal node, by binary
+/// node ([`Plan::count`]: each one's own included).
+struct Counts(Vec<AtomicU32>);
 
 impl Counts {
     /// Wide nodes below the wide node made from `n` (none below a one-leaf tree's root).
     fn descendants(&self, n: u32) -> u32 {
-        self.0.get(n as usize).copied().unwrap_or(0)
+        (self.0.get(n as usize)).map_or(0, |c| c.load(Ordering::Relaxed).saturating_sub(1))
     }
 }
 
@@ -299,46 +300,14 @@ type Part<'p, T> = (u32, &'p mut [T]);
 impl Writer<'_> {
     /// The wide nodes below every wide internal node.
     fn count(&self, root: u32) -> Counts {
-        let mut counts = zeroed_on_all_threads(self.tree.inner_len());
-        self.count_below(root, (0, &mut counts));
+        let counts = zeroed_counts(self.tree.inner_len());
+        self.plan.count(self.tree, root, &counts);
         Counts(counts)
     }
 
-    /// Counts below `n` into `counts`, the part of the array (indexed by binary node) that
-    /// holds `n`'s binary subtree; returns the nodes of `n`'s wide subtree. The binary
-    /// subtree's inner nodes are the indices up to it (children before parents), so the
-    /// children's parts are disjoint and in order.
-    fn count_below(&self, n: u32, counts: Part<'_, u32>) -> u32 {
-        let (base, mut rest) = counts;
-        let mut at = base;
-        let mut jobs = Vec::with_capacity(WIDTH);
-        for &(c, leaf) in self.plan.children(self.tree, n).iter() {
-            if leaf {
-                continue;
-            }
-            let first = self.tree.first(c);
-            let (_, tail) = std::mem::take(&mut rest).split_at_mut((first - at) as usize);
-            let (mine, tail) = tail.split_at_mut((c + 1 - first) as usize);
-            jobs.push((c, (first, mine)));
-            (rest, at) = (tail, c + 1);
-        }
-        let go = |(c, part): (u32, Part<'_, u32>)| 1 + self.count_below(c, part);
-        let below = if self.tree.tris(n) >= PARALLEL_TRIS {
-            use rayon::prelude::*;
-            jobs.into_par_iter().map(go).sum()
-        } else {
-            jobs.into_iter().map(go).sum()
-        };
-        // `n` is the last index of its part, after its children's.
-        if let Some(own) = rest.last_mut() {
-            *own = below;
-        }
-        below
-    }
-
-    /// Writes the wide node made from binary node `n` into `slot` at `depth`, and its
-    /// descendants into `nodes` and the leaf-order positions of its subtree's triangles into
-    /// `tris` (where the layout's triangles go); returns the depth of the deepest node
+    /// Writes the wide node made from binary node `n` into `slot` at `depth`, its
+    /// descendants into `nodes`, and into `places` the leaf-order positions of its subtree's
+    /// triangles where the layout's triangles go; returns the depth of the deepest node
     /// written.
     fn write(
         &self,
@@ -347,7 +316,7 @@ impl Writer<'_> {
         depth: usize,
         slot: &mut CwNode,
         nodes: Part<'_, CwNode>,
-        tris: Part<'_, u32>,
+        places: Part<'_, u32>,
     ) -> usize {
         let children = self.plan.children(self.tree, n);
         let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| self.tree.bbox(c)).collect();
@@ -358,7 +327,7 @@ impl Writer<'_> {
             e: frame.e,
             imask: 0,
             child_base: nodes.0,
-            tri_base: tris.0,
+            tri_base: places.0,
             child_meta: [0; WIDTH],
             q_lo: [[0; WIDTH]; 3],
             q_hi: [[0; WIDTH]; 3],
@@ -379,7 +348,7 @@ impl Writer<'_> {
                 self.tree.positions(b, &mut positions);
                 let count = positions.len() as u32;
                 node.child_meta[s] = (((1 << count) - 1) << COUNT_SHIFT | offset) as u8;
-                tris.1[offset as usize..][..positions.len()].copy_from_slice(&positions);
+                places.1[offset as usize..][..positions.len()].copy_from_slice(&positions);
                 offset += count;
             } else {
                 node.imask |= 1 << s;
@@ -392,22 +361,23 @@ impl Writer<'_> {
         // triangles in turn.
         let (records, mut rest) = nodes.1.split_at_mut(inner.len());
         let mut rest_base = nodes.0 + inner.len() as u32;
-        let (_, mut tri_rest) = tris.1.split_at_mut(offset as usize);
-        let mut tri_base = tris.0 + offset;
+        let (_, mut places_rest) = places.1.split_at_mut(offset as usize);
+        let mut places_base = places.0 + offset;
         let mut jobs = Vec::with_capacity(inner.len());
         for (&c, record) in inner.iter().zip(records) {
             let below = counts.descendants(c) as usize;
             let (mine, more) = std::mem::take(&mut rest).split_at_mut(below);
-            let (my_tris, more_tris) =
-                std::mem::take(&mut tri_rest).split_at_mut(self.tree.tris(c) as usize);
-            jobs.push((c, record, (rest_base, mine), (tri_base, my_tris)));
+            let (my_places, more_places) =
+                std::mem::take(&mut places_rest).split_at_mut(self.tree.tris(c) as usize);
+            jobs.push((c, record, (rest_base, mine), (places_base, my_places)));
             rest_base += below as u32;
-            tri_base += self.tree.tris(c);
-            (rest, tri_rest) = (more, more_tris);
+            places_base += self.tree.tris(c);
+            (rest, places_rest) = (more, more_places);
         }
-        let go = |(c, record, nodes, tris): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, u32>)| {
-            self.write(counts, c, depth + 1, record, nodes, tris)
-        };
+        let go =
+            |(c, record, nodes, places): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, u32>)| {
+                self.write(counts, c, depth + 1, record, nodes, places)
+            };
         let deepest = if self.tree.tris(n) >= PARALLEL_TRIS {
             use rayon::prelude::*;
             jobs.into_par_iter().map(go).max()

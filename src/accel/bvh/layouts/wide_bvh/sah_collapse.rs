@@ -4,12 +4,14 @@
 //! range) or a binary leaf of any size. `collapse` gives up (and the greedy collapse is used)
 //! where the tree would be deeper than the stack holds.
 
-use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
-use crate::accel::bvh::Node;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 use rayon::prelude::*;
 
+use crate::accel::bvh::layouts::sah_collapse::{
+    zeroed_counts, BinaryTree, Decision, Entry, Plan, SahCosts,
+};
+use crate::accel::bvh::Node;
 use crate::geometry::Aabb;
 use crate::util::zeroed_on_all_threads;
 
@@ -171,29 +173,8 @@ impl BinaryTree for Arena {
     }
 }
 
-/// Subtrees of at least this many triangles are counted and written on several threads.
+/// Subtrees of at least this many triangles are written on several threads.
 const PARALLEL_TRIS: u32 = 16384;
-
-/// The wide nodes of the wide subtree made from binary node `n` (a wide inner node), each
-/// such node's count also kept in `counts` (by binary node): where its subtree's part of
-/// the output ends.
-fn count<const W: usize>(arena: &Arena, plan: &Plan<W>, n: u32, counts: &[AtomicU32]) -> u32 {
-    let go = |&(c, leaf): &(u32, bool)| {
-        if leaf {
-            0
-        } else {
-            count(arena, plan, c, counts)
-        }
-    };
-    let children = plan.children(arena, n);
-    let below: u32 = if arena.tris[n as usize] >= PARALLEL_TRIS {
-        children.par_iter().map(go).sum()
-    } else {
-        children.iter().map(go).sum()
-    };
-    counts[n as usize].store(1 + below, Ordering::Relaxed);
-    1 + below
-}
 
 /// Writes the wide node of inner node `n` at depth `d` into `out[0]` and its subtree after
 /// it, in pre-order (`out` is exactly that subtree's part; `index`, the position of
@@ -276,11 +257,8 @@ where
     fill(root, 0, share, costs);
     let plan = Plan::<W>::from_decisions(decisions);
     let r = len as u32 - 1;
-    let counts: Vec<AtomicU32> = (0..len)
-        .into_par_iter()
-        .map(|_| AtomicU32::new(0))
-        .collect();
-    let mut out = zeroed_on_all_threads(count(&arena, &plan, r, &counts) as usize);
+    let counts = zeroed_counts(len);
+    let mut out = zeroed_on_all_threads(plan.count(&arena, r, &counts) as usize);
     emit(&arena, &plan, &counts, r, 0, max_depth, 0, &mut out)?;
     Some(out)
 }
