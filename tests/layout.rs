@@ -64,6 +64,18 @@ fn all_shaders_validate() {
 }
 
 #[test]
+fn the_gpu_lbvh_kernels_validate() {
+    let src = lancer::gpu::lbvh_source();
+    let m = module(&src);
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&m)
+    .unwrap_or_else(|e| panic!("lbvh: {}", e.emit_to_string(&src)));
+}
+
+#[test]
 fn gpu_structs_match_rust() {
     let layout = &layouts()[0];
     let src = shaders::trace_source(layout.as_ref(), &BufferParts::WHOLE);

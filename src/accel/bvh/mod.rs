@@ -1,10 +1,12 @@
 //! Bounding volume hierarchy: the tree, its builders (sweep SAH, binned SAH, median, spatial
-//! splits, PLOC), the reinsertion optimiser and its statistics (SAH, end-point overlap).
+//! splits, PLOC, LBVH), the reinsertion optimiser and its statistics (SAH, end-point overlap).
 //! Flattened layouts for the GPU live in `crate::accel::bvh::layouts`.
 
 mod binned;
+mod cluster_tree;
 mod epo;
 pub mod layouts;
+pub mod lbvh;
 mod median;
 mod options;
 mod ploc;
@@ -80,7 +82,17 @@ fn build_prims(
             Some(tree) => tree,
             None => binned::build(prims, opts),
         },
+        Builder::Lbvh => match lbvh::build(&prims, opts) {
+            Some(tree) => tree,
+            None => binned::build(prims, opts),
+        },
     };
+    finish(root, &local, ids, opts)
+}
+
+/// A builder's tree over positions `local` in `ids` as the BVH over `ids`, optimised when
+/// asked.
+fn finish(root: Node, local: &[u32], ids: &[u32], opts: &BuildOptions) -> Bvh {
     let mut bvh = Bvh {
         root,
         order: local.par_iter().map(|&l| ids[l as usize]).collect(),
@@ -89,4 +101,27 @@ fn build_prims(
         optimize(&mut bvh, opts);
     }
     bvh
+}
+
+/// The BVH of an LBVH radix tree over the mesh's included triangles `ids` (built on the
+/// GPU: `gpu::build_lbvh`), exactly as [`build`] makes it from the CPU's radix tree: the
+/// SAH's leaves, the depth cap (beyond it, the binned builder), the optimiser.
+pub fn build_from_radix_tree(
+    mesh: &Mesh,
+    ids: &[u32],
+    tree: lbvh::RadixTree,
+    opts: &BuildOptions,
+) -> Bvh {
+    if ids.is_empty() {
+        return Bvh {
+            root: leaf(Aabb::EMPTY, 0, 0),
+            order: Vec::new(),
+        };
+    }
+    let prims = Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()));
+    let (root, local) = match lbvh::to_tree(tree, &prims, opts) {
+        Some(tree) => tree,
+        None => binned::build(prims, opts),
+    };
+    finish(root, &local, ids, opts)
 }

@@ -21,16 +21,20 @@ pub enum Builder {
     /// PLOC: parallel locally-ordered clustering along a Morton curve (Meister & Bittner
     /// 2018), leaves where the SAH prefers them.
     Ploc,
+    /// LBVH: a radix tree over a 30-bit Morton curve (Karras 2012), leaves where the SAH
+    /// prefers them. The same algorithm builds on the GPU (`gpu::build_lbvh`), equal to this.
+    Lbvh,
 }
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 5] = [
+    pub const ALL: [Builder; 6] = [
         Builder::Sweep,
         Builder::Binned,
         Builder::Median,
         Builder::Sbvh,
         Builder::Ploc,
+        Builder::Lbvh,
     ];
 
     /// The name the command line, the JSON and the benches use.
@@ -41,6 +45,7 @@ impl Builder {
             Builder::Median => "median",
             Builder::Sbvh => "sbvh",
             Builder::Ploc => "ploc",
+            Builder::Lbvh => "lbvh",
         }
     }
 }

@@ -13,9 +13,10 @@
 
 use rayon::prelude::*;
 
+use super::cluster_tree::{to_node, Clusters};
 use super::prim_ref::{box_area, BoxA};
 use super::prims::{Prims, PARALLEL_MIN};
-use super::tree::{children_order, leaf, Node};
+use super::tree::Node;
 use super::BuildOptions;
 use crate::geometry::Aabb;
 
@@ -51,12 +52,6 @@ fn morton(c: glam::Vec3, cbox: &Aabb) -> u64 {
         (t * scale) as u64
     };
     spread(q(0)) | spread(q(1)) << 1 | spread(q(2)) << 2
-}
-
-/// The clustered binary tree: node `i < n` is primitive `i`'s leaf; later nodes are merges.
-struct Clusters {
-    bbox: Vec<Aabb>,
-    kids: Vec<[u32; 2]>,
 }
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> Option<(Node, Vec<u32>)> {
@@ -98,7 +93,7 @@ pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> Option<(Node, Vec<u32
             return None;
         }
     }
-    to_node(&tree, now.ids[0], n, opts)
+    to_node("PLOC", &tree, now.ids[0], n, opts)
 }
 
 /// The clusters of a round in curve order: their nodes and their boxes (in SIMD lanes, so
@@ -166,67 +161,4 @@ fn round(tree: &mut Clusters, now: &Round, nn: &mut Vec<u32>, next: &mut Round, 
             next.boxes.push(boxes[i]);
         }
     }
-}
-
-/// Depth of the deepest leaf under `root`, without recursion (a clustered tree may be deep).
-fn depth(tree: &Clusters, root: u32, n: usize) -> usize {
-    let mut deepest = 0;
-    let mut stack = vec![(root, 0usize)];
-    while let Some((k, d)) = stack.pop() {
-        deepest = deepest.max(d);
-        if k as usize >= n {
-            for c in tree.kids[k as usize] {
-                stack.push((c, d + 1));
-            }
-        }
-    }
-    deepest
-}
-
-/// The lancer tree: leaves where the SAH prefers them, children ordered low side first;
-/// None when the clustered tree is deeper than the cap.
-fn to_node(tree: &Clusters, root: u32, n: usize, opts: &BuildOptions) -> Option<(Node, Vec<u32>)> {
-    let d = depth(tree, root, n);
-    if d > opts.max_depth.min(super::MAX_DEPTH) {
-        log::warn!(
-            "the PLOC tree is {d} levels deep, more than the stack holds: built with binned SAH"
-        );
-        return None;
-    }
-    let mut order = Vec::with_capacity(n);
-    let (node, _, _) = convert(tree, root, n, opts, &mut order);
-    Some((node, order))
-}
-
-/// Node `k` as a lancer node (appending its primitives to `order`), with its primitive
-/// count and SAH cost relative to its own box.
-fn convert(
-    tree: &Clusters,
-    k: u32,
-    n: usize,
-    opts: &BuildOptions,
-    order: &mut Vec<u32>,
-) -> (Node, usize, f32) {
-    let bbox = tree.bbox[k as usize];
-    let start = order.len();
-    if (k as usize) < n {
-        order.push(k);
-        return (leaf(bbox, start, 1), 1, opts.t_obj);
-    }
-    let [a, b] = tree.kids[k as usize];
-    let (axis, swap) = children_order(&tree.bbox[a as usize], &tree.bbox[b as usize]);
-    let (a, b) = if swap { (b, a) } else { (a, b) };
-    let (l, nl, cl) = convert(tree, a, n, opts, order);
-    let (r, nr, cr) = convert(tree, b, n, opts, order);
-    let count = nl + nr;
-    let area = bbox.area();
-    let cost = if area > 0.0 {
-        2.0 * opts.t_cube + (l.bbox().area() * cl + r.bbox().area() * cr) / area
-    } else {
-        2.0 * opts.t_cube + cl + cr
-    };
-    if opts.prefers_leaf(count, cost) {
-        return (leaf(bbox, start, count), count, count as f32 * opts.t_obj);
-    }
-    (Node::inner(bbox, axis, [l, r]), count, cost)
 }

@@ -1,0 +1,110 @@
+//! The LBVH built on the GPU (lavapipe in CI) equals its CPU twin: the same Morton order,
+//! the same radix tree, the same boxes, hence the same BVH.
+
+mod common;
+
+use common::{gpu, load_model, soup, Rng};
+use glam::Vec3;
+use lancer::accel::bvh::lbvh::{radix_tree, RadixTree, LEAF_BIT};
+use lancer::accel::bvh::{build, BuildOptions, Builder};
+use lancer::geometry::{Aabb, Triangle};
+use lancer::gpu::{build_lbvh, lbvh_radix_tree};
+use lancer::mesh::Mesh;
+
+/// Scenes that stress each step: many tiles of the sort, equal codes (one cell holding many
+/// triangles, and exact copies), a flat scene (one axis of zero width), negative and mixed
+/// coordinates, and triangles at ±0.
+fn scenes() -> Vec<(String, Vec<Triangle>)> {
+    let mut rng = Rng::new(11);
+    let mut v = vec![
+        ("soup".to_string(), soup(&mut rng, 5000, 0.05).triangles),
+        ("two".to_string(), soup(&mut rng, 2, 0.5).triangles),
+    ];
+    let t = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+    let mut copies = vec![t; 700];
+    copies.extend(soup(&mut rng, 300, 1e-4).triangles);
+    v.push(("copies".to_string(), copies));
+    let flat = (0..900)
+        .map(|i| {
+            let o = Vec3::new((i % 30) as f32 - 15.0, (i / 30) as f32 * -0.5, 0.0);
+            Triangle::new(o, o + Vec3::X, o + Vec3::Y)
+        })
+        .collect();
+    v.push(("flat".to_string(), flat));
+    let signed = (0..64)
+        .map(|i| {
+            let s = if i % 2 == 0 { -0.0 } else { 0.0 };
+            let o = Vec3::new(s, i as f32 * 1e-3, s);
+            Triangle::new(o, o + Vec3::new(s, 1.0, 1.0), o + Vec3::new(1.0, s, 1.0))
+        })
+        .collect();
+    v.push(("signed zeros".to_string(), signed));
+    if let Some(m) = load_model("stanford-bunny.obj") {
+        v.push(("bunny".to_string(), m.triangles));
+    }
+    v
+}
+
+/// Panics naming the first place where the trees differ.
+fn same_tree(name: &str, gpu: &RadixTree, cpu: &RadixTree) {
+    fn first<T: PartialEq + std::fmt::Debug>(name: &str, what: &str, g: &[T], c: &[T]) {
+        assert_eq!(g.len(), c.len(), "{name}: {what}: lengths");
+        if let Some(i) = (0..g.len()).find(|&i| g[i] != c[i]) {
+            panic!("{name}: {what} [{i}]: GPU {:?}, CPU {:?}", g[i], c[i]);
+        }
+    }
+    first(name, "Morton order", &gpu.sorted, &cpu.sorted);
+    first(name, "children", &gpu.kids, &cpu.kids);
+    // Boxes equal as numbers (a -0 and a +0 of a min may come out either way).
+    first(name, "node boxes", &gpu.boxes, &cpu.boxes);
+}
+
+#[test]
+fn the_gpu_radix_tree_is_the_cpu_twins() {
+    for (name, tris) in scenes() {
+        let boxes: Vec<Aabb> = tris.iter().map(|t| t.bbox()).collect();
+        let cpu = radix_tree(&boxes, true);
+        let g = lbvh_radix_tree(gpu(), &tris).unwrap_or_else(|e| panic!("{name}: {e}"));
+        same_tree(&name, &g, &cpu);
+        println!("{name}: {} triangles, trees equal", tris.len());
+    }
+}
+
+/// The comparison can fail: a tree that differs in one child, or one box, is told apart.
+#[test]
+fn a_changed_tree_is_told_apart() {
+    let (_, tris) = scenes().swap_remove(0);
+    let boxes: Vec<Aabb> = tris.iter().map(|t| t.bbox()).collect();
+    let cpu = radix_tree(&boxes, false);
+    let mut kids = cpu.clone();
+    kids.kids[3].swap(0, 1);
+    let mut wider = cpu.clone();
+    wider.boxes[5].hi.x = f32::from_bits(wider.boxes[5].hi.x.to_bits() + 1);
+    for changed in [kids, wider] {
+        let caught = std::panic::catch_unwind(|| same_tree("changed", &changed, &cpu));
+        assert!(caught.is_err());
+    }
+    assert!(cpu.kids.iter().flatten().any(|&k| k & LEAF_BIT != 0));
+}
+
+#[test]
+fn the_gpu_lbvh_is_the_cpu_lbvh() {
+    let mut rng = Rng::new(3);
+    let mut mesh = soup(&mut rng, 3000, 0.1);
+    // A degenerate triangle, excluded on both devices.
+    mesh = Mesh::from_triangles({
+        let mut t = mesh.triangles;
+        t.insert(7, Triangle::new(Vec3::ONE, Vec3::ONE, Vec3::ONE));
+        t
+    });
+    for optimize in [false, true] {
+        let opts = BuildOptions {
+            builder: Builder::Lbvh,
+            optimize,
+            ..BuildOptions::default()
+        };
+        let g = build_lbvh(gpu(), &mesh, &opts).expect("GPU build");
+        assert_eq!(g, build(&mesh, &opts), "optimize {optimize}");
+        assert_eq!(g.order.len(), mesh.triangles.len() - 1);
+    }
+}
