@@ -53,6 +53,62 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `--build-on gpu` builds the LBVH on the adapter (lavapipe in CI): the same tree as the
+/// CPU's, saying where; any other builder is refused as a usage error.
+#[test]
+fn build_on_gpu_makes_the_cpus_lbvh_and_refuses_other_builders() {
+    let dir = Scratch::new();
+    let mesh = dir.path("soup.obj");
+    let mut obj = String::new();
+    for i in 0..200 {
+        let (x, y) = ((i % 20) as f32 * 0.7, (i / 20) as f32 * 0.9);
+        obj += &format!(
+            "v {x} {y} {}\nv {} {y} 0.5\nv {x} {} 0\n",
+            i % 3,
+            x + 1.0,
+            y + 1.0
+        );
+        obj += &format!("f {} {} {}\n", 3 * i + 1, 3 * i + 2, 3 * i + 3);
+    }
+    std::fs::write(&mesh, obj).unwrap();
+    let json = |on: &str| {
+        let out = lancer_ok(&[
+            "build",
+            s(&mesh),
+            "--builder",
+            "lbvh",
+            "--build-on",
+            on,
+            "--json",
+        ]);
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (cpu, gpu) = (json("cpu"), json("gpu"));
+    assert!(cpu.get("built_on").is_none());
+    assert!(gpu["built_on"].as_str().is_some_and(|a| !a.is_empty()));
+    for k in [
+        "triangles",
+        "nodes",
+        "leaves",
+        "max_depth",
+        "sah_cost",
+        "bytes",
+    ] {
+        assert_eq!(cpu[k], gpu[k], "{k}");
+    }
+    let out = lancer(&[
+        "build",
+        s(&mesh),
+        "--builder",
+        "binned",
+        "--build-on",
+        "gpu",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--builder lbvh"), "{err}");
+}
+
 #[test]
 fn build_json_has_the_documented_keys() {
     let dir = Scratch::new();

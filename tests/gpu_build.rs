@@ -5,10 +5,11 @@ mod common;
 
 use common::{gpu, load_model, soup, Rng};
 use glam::Vec3;
+use lancer::accel::bvh::layouts::DfsSign;
 use lancer::accel::bvh::lbvh::{radix_tree, RadixTree, LEAF_BIT};
 use lancer::accel::bvh::{build, BuildOptions, Builder};
 use lancer::geometry::{Aabb, Triangle};
-use lancer::gpu::{build_lbvh, lbvh_radix_tree};
+use lancer::gpu::{build_lbvh, lbvh_dfs_sign, lbvh_radix_tree};
 use lancer::mesh::Mesh;
 
 /// Scenes that stress each step: many tiles of the sort, equal codes (one cell holding many
@@ -106,5 +107,31 @@ fn the_gpu_lbvh_is_the_cpu_lbvh() {
         let g = build_lbvh(gpu(), &mesh, &opts).expect("GPU build");
         assert_eq!(g, build(&mesh, &opts), "optimize {optimize}");
         assert_eq!(g.order.len(), mesh.triangles.len() - 1);
+    }
+}
+
+/// Built and flattened on the GPU, the dfs-sign arrays are those the CPU flattens from its
+/// own LBVH: same nodes, same triangles in the same leaf order.
+#[test]
+fn the_gpu_flattens_the_lbvh_into_the_cpus_dfs_sign() {
+    for (name, tris) in scenes() {
+        let mesh = Mesh::from_triangles(tris);
+        for max_leaf in [16, 1, 4] {
+            let opts = BuildOptions {
+                builder: Builder::Lbvh,
+                max_leaf,
+                t_cube: if max_leaf == 4 { 0.3 } else { 1.0 },
+                ..BuildOptions::default()
+            };
+            let g = lbvh_dfs_sign(gpu(), &mesh, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let bvh = build(&mesh, &opts);
+            let c = DfsSign::flatten(&bvh, &mesh);
+            assert!(
+                g == c,
+                "{name}, max leaf {max_leaf}: the GPU's dfs-sign differs"
+            );
+            // The tree the arrays hold is the CPU's.
+            assert!(g.tree() == bvh, "{name}, max leaf {max_leaf}: tree");
+        }
     }
 }

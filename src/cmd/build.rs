@@ -1,8 +1,15 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::accel::bvh::layouts::{build_and_flatten, bvh_file};
-use lancer::Result;
+use std::time::Instant;
+
+use lancer::accel::bvh::layouts::{
+    build_and_flatten, bvh_file, flatten_and_report, BuildReport, LayoutKind,
+};
+use lancer::accel::bvh::Builder;
+use lancer::accel::GpuForm;
+use lancer::gpu::GpuContext;
+use lancer::{Error, Result};
 
 use super::out::{print_json, say, Say};
 use super::BuildArgs;
@@ -21,10 +28,31 @@ pub struct BuildCmd {
     /// Print one JSON object instead of text (keys: the book's JSON page, docs/src/reference/json.md).
     #[arg(long)]
     json: bool,
+    /// Where the tree is built: cpu, or gpu (the LBVH builder only: the same tree, built by
+    /// WGSL kernels on the GPU adapter; flattened there too into dfs-sign, the default
+    /// layout here, else read back and flattened on the CPU).
+    #[arg(long, value_enum, default_value_t = BuildOn::Cpu)]
+    build_on: BuildOn,
+}
+
+/// Where `lancer build` builds the tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BuildOn {
+    /// The CPU builders, on all threads.
+    Cpu,
+    /// The GPU (`--builder lbvh`).
+    Gpu,
 }
 
 impl BuildCmd {
     pub fn run(self) -> Result<()> {
+        let opts = self.build.options();
+        if self.build_on == BuildOn::Gpu && opts.builder != Builder::Lbvh {
+            return Err(Error::Usage(format!(
+                "--build-on gpu builds with --builder lbvh only, not {}",
+                opts.builder.name()
+            )));
+        }
         // A scene that places a mesh many times is built flattened (a BVH file holds one
         // level); the report counts its instances.
         // The flattened mesh as every command flattens it (a placed file is read again).
@@ -37,7 +65,26 @@ impl BuildCmd {
         }
         // No device here: a BVH file is for a GPU kernel (or a twin), so the GPU's default.
         let kind = (self.build.layout).unwrap_or(lancer::trace::defaults::GPU_LAYOUT);
-        let (layout, mut report) = build_and_flatten(&mesh, &self.build.options(), kind)?;
+        let (layout, mut report) = match self.build_on {
+            BuildOn::Cpu => build_and_flatten(&mesh, &opts, kind)?,
+            BuildOn::Gpu => {
+                let ctx = GpuContext::new()?;
+                let started = Instant::now();
+                // dfs-sign is flattened there too; other layouts (and the optimiser) on
+                // the CPU.
+                let (layout, mut report) = if kind == LayoutKind::DfsSign && !opts.optimize {
+                    let flat = lancer::gpu::lbvh_dfs_sign(&ctx, &mesh, &opts)?;
+                    let ms = started.elapsed().as_secs_f64() * 1e3;
+                    let report = BuildReport::new(&flat.tree(), &flat, &opts, ms);
+                    (Box::new(flat) as Box<dyn GpuForm>, report)
+                } else {
+                    let bvh = lancer::gpu::build_lbvh(&ctx, &mesh, &opts)?;
+                    flatten_and_report(&mesh, &bvh, &opts, kind, started)?
+                };
+                report.built_on = Some(ctx.adapter.to_string());
+                (layout, report)
+            }
+        };
         if let Some(out) = &self.out {
             bvh_file::write(out, layout.as_ref(), mesh.len())?;
             report.out = Some(out.display().to_string());

@@ -89,7 +89,9 @@ pub struct BuilderArgs {
     /// SAH over --bins candidate splits per axis: a faster build), median (the object median
     /// of the longest axis: the fastest build, slower traversal), sbvh (the sweep plus spatial
     /// splits that cut long triangles: a slower build, a faster trace where triangles are
-    /// long and thin) or ploc (clustering along a Morton curve, on all threads).
+    /// long and thin), ploc (clustering along a Morton curve, on all threads) or lbvh (a
+    /// radix tree over a Morton curve: the fastest, a poorer tree; `build --build-on gpu`
+    /// builds the same tree on the GPU).
     #[arg(long, value_enum, default_value_t = Builder::Sweep, hide_possible_values = true)]
     builder: Builder,
     /// Bins per axis (binned builder), 2 to 64.

@@ -1,17 +1,21 @@
-//! The LBVH built on the GPU: `accel/bvh/lbvh.wgsl`'s kernels over the triangles, read back
-//! as the same [`RadixTree`] the CPU twin (`accel::bvh::lbvh::radix_tree`) makes, then made
-//! into a [`Bvh`] on the CPU like every builder's tree.
+//! The LBVH built on the GPU: `accel/bvh/lbvh.wgsl`'s kernels over the triangles. Read back
+//! as the [`RadixTree`] the CPU twin (`accel::bvh::lbvh::radix_tree`) makes, or flattened
+//! there into the dfs-sign layout that `DfsSign::flatten` makes of the CPU's LBVH.
+
+use std::time::Instant;
 
 use super::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, storage_entry, uniform_binding, Kernel,
-    Readback,
+    buffer_binding, dynamic_uniform_entry, output_buffer, scoped, storage_entry, uniform_binding,
+    Kernel, Readback,
 };
 use super::shaders::{constants_wgsl, Shared};
 use super::GpuContext;
+use crate::accel::bvh::layouts::{DfsSign, DFS_LEAF_TAG};
 use crate::accel::bvh::lbvh::{radix_tree, RadixTree, CODE_BITS, LEAF_BIT, MAX_PRIMS};
-use crate::accel::bvh::{build_from_radix_tree, BuildOptions, Bvh};
+use crate::accel::bvh::{build_from_radix_tree, BuildOptions, Bvh, MAX_DEPTH};
+use crate::accel::GpuArrays;
 use crate::error::{Error, Result};
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, Triangle};
 use crate::mesh::Mesh;
 
 /// The kernels' source.
@@ -26,6 +30,8 @@ const SORT_PASSES: u32 = (3 * CODE_BITS).div_ceil(RADIX_BITS).next_multiple_of(2
 pub const SORT_TILE: u32 = 256;
 /// Threads per workgroup of every kernel but the scan (`WORKGROUP` in the WGSL).
 const WORKGROUP: u32 = 64;
+/// Storage buffers the widest kernel binds (`emit_tris`).
+const STORAGE_BUFFERS: u32 = 7;
 
 /// The constants the kernels share with Rust.
 fn constants() -> Vec<(&'static str, Shared)> {
@@ -34,6 +40,7 @@ fn constants() -> Vec<(&'static str, Shared)> {
         ("LEAF_BIT", Shared::U32(LEAF_BIT)),   // accel::bvh::lbvh::LEAF_BIT
         ("RADIX_BITS", Shared::U32(RADIX_BITS)), // gpu::lbvh_build::RADIX_BITS
         ("SORT_TILE", Shared::U32(SORT_TILE)), // gpu::lbvh_build::SORT_TILE
+        ("DFS_LEAF_TAG", Shared::U32(DFS_LEAF_TAG)), // layouts::dfs_sign::LEAF_TAG
     ]
 }
 
@@ -47,204 +54,58 @@ pub fn lbvh_source() -> String {
 
 /// Per-dispatch parameters (`Params` in the WGSL).
 #[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct Params {
     n: u32,
     tiles: u32,
     shift: u32,
+    pass: u32,
+    max_leaf: u32,
+    t_cube: f32,
+    t_obj: f32,
     pad: u32,
 }
 
+const PARAMS: u64 = std::mem::size_of::<Params>() as u64;
+
 /// Builds the LBVH of the mesh's included triangles on the GPU and makes it lancer's tree
-/// (with `opts`' leaf rule and depth cap; `opts.builder` is not read). Equal to
-/// [`build`](crate::accel::bvh::build) with [`Builder::Lbvh`](crate::accel::bvh::Builder).
+/// on the CPU (with `opts`' leaf rule, depth cap and optimiser; `opts.builder` is not
+/// read). Equal to [`build`](crate::accel::bvh::build) with
+/// [`Builder::Lbvh`](crate::accel::bvh::Builder).
 pub fn build_lbvh(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Result<Bvh> {
     let ids = mesh.included();
-    let tris: Vec<_> = ids.iter().map(|&i| mesh.triangles[i as usize]).collect();
+    let tris: Vec<Triangle> = ids.iter().map(|&i| mesh.triangles[i as usize]).collect();
     let tree = lbvh_radix_tree(ctx, &tris)?;
     drop(tris);
-    Ok(build_from_radix_tree(mesh, &ids, tree, opts))
+    let t = Instant::now();
+    let bvh = build_from_radix_tree(mesh, &ids, tree, opts);
+    log::info!("GPU LBVH: lancer's tree made on the CPU in {:.0} ms", ms(t));
+    Ok(bvh)
 }
 
 /// The radix tree over these triangles, built on the GPU.
-pub fn lbvh_radix_tree(
-    ctx: &GpuContext,
-    triangles: &[crate::geometry::Triangle],
-) -> Result<RadixTree> {
-    let n = triangles.len();
-    if n < 2 {
+pub fn lbvh_radix_tree(ctx: &GpuContext, triangles: &[Triangle]) -> Result<RadixTree> {
+    if triangles.len() < 2 {
         // No inner node: nothing for the kernels to do.
         let boxes: Vec<Aabb> = triangles.iter().map(|t| t.bbox()).collect();
         return Ok(radix_tree(&boxes, false));
     }
-    if n > MAX_PRIMS {
-        return Err(Error::Gpu(format!(
-            "the GPU LBVH takes at most {MAX_PRIMS} triangles, not {n}; build on the CPU"
-        )));
-    }
-    let tiles = (n as u32).div_ceil(SORT_TILE);
-    let inner = n as u64 - 1;
-    let sizes = [
-        ("the GPU LBVH's vertices", 12 * n as u64),
-        ("the GPU LBVH's sort pairs", 8 * n as u64),
-        ("the GPU LBVH's node boxes", 24 * inner),
-        ("the GPU LBVH's parents", 4 * (inner + n as u64)),
-        (
-            "the GPU LBVH's sort table",
-            4 * (1u64 << RADIX_BITS) * tiles as u64,
-        ),
-    ];
-    for (what, bytes) in sizes {
-        ctx.check_binding(what, bytes)?;
-    }
-    if ctx.limits.max_storage_buffers_per_shader_stage < 5 {
-        return Err(Error::Gpu(
-            "the GPU LBVH binds 5 storage buffers per kernel; the device allows fewer".into(),
-        ));
-    }
-    let storage = wgpu::BufferUsages::STORAGE;
-    let vertex = |k: usize| {
-        let words: Vec<f32> = triangles.iter().flat_map(|t| t.v[k].to_array()).collect();
-        ctx.buffer_with("lbvh vertices", bytemuck::cast_slice(&words), storage)
-    };
-    let v = [vertex(0), vertex(1), vertex(2)];
-    let bounds = output_buffer(ctx, "lbvh centre bounds", 24);
-    let pairs = [
-        output_buffer(ctx, "lbvh pairs", 8 * n as u64),
-        output_buffer(ctx, "lbvh pairs (other)", 8 * n as u64),
-    ];
-    let table = output_buffer(
-        ctx,
-        "lbvh sort table",
-        4 * (1u64 << RADIX_BITS) * tiles as u64,
-    );
-    let kids = output_buffer(ctx, "lbvh kids", 8 * inner);
-    let parents = output_buffer(ctx, "lbvh parents", 4 * (inner + n as u64));
-    let node_boxes = output_buffer(ctx, "lbvh node boxes", 24 * inner);
-
-    // One uniform per dispatch kind: [0] the base, [1 + k] sort pass k.
-    let align = (std::mem::size_of::<Params>() as u32)
-        .next_multiple_of(ctx.limits.min_uniform_buffer_offset_alignment.max(1));
-    let mut uniforms = vec![0u8; ((1 + SORT_PASSES) * align) as usize];
-    for k in 0..=SORT_PASSES {
-        let p = Params {
-            n: n as u32,
-            tiles,
-            shift: k.saturating_sub(1) * RADIX_BITS,
-            pad: 0,
-        };
-        let at = (k * align) as usize;
-        uniforms[at..at + 16].copy_from_slice(bytemuck::bytes_of(&p));
-    }
-    let params = ctx.buffer_with("lbvh params", &uniforms, wgpu::BufferUsages::UNIFORM);
-
-    let source = lbvh_source();
-    // Each kernel's bindings: (binding, read-only) and the buffer bound there.
-    let kernel =
-        |entry: &'static str, slots: &[(u32, bool)]| -> Result<(Kernel, wgpu::ComputePipeline)> {
-            let mut entries = vec![dynamic_uniform_entry(0, 16)];
-            entries.extend(slots.iter().map(|&(b, ro)| storage_entry(b, ro)));
-            let k = Kernel::new(ctx, "lbvh", entry, &source, &entries, false)?;
-            let p = k.pipeline(ctx, &[], false)?;
-            Ok((k, p))
-        };
-    let bind = |k: &Kernel, bufs: &[(u32, &wgpu::Buffer)]| -> Result<wgpu::BindGroup> {
-        let mut entries = vec![uniform_binding(0, &params, 16)];
-        entries.extend(bufs.iter().map(|&(b, buf)| buffer_binding(b, buf)));
-        k.bind(ctx, &entries)
-    };
-    let verts = [(1, true), (2, true), (3, true)];
-    let (kb, pb) = kernel("bounds", &[verts[0], verts[1], verts[2], (4, false)])?;
-    let (kc, pc) = kernel(
-        "codes",
-        &[verts[0], verts[1], verts[2], (4, false), (6, false)],
-    )?;
-    let (kh, ph) = kernel("histogram", &[(5, true), (7, false)])?;
-    let (ks, ps) = kernel("scan", &[(7, false)])?;
-    let (kx, px) = kernel("scatter", &[(5, true), (6, false), (7, false)])?;
-    let (kt, pt) = kernel("hierarchy", &[(5, true), (8, false), (9, false)])?;
-    let (ko, po) = kernel(
-        "boxes",
-        &[verts[0], verts[1], verts[2], (9, false), (10, false)],
-    )?;
-    let vb = [(1, &v[0]), (2, &v[1]), (3, &v[2])];
-    let gb = bind(&kb, &[vb[0], vb[1], vb[2], (4, &bounds)])?;
-    let gc = bind(&kc, &[vb[0], vb[1], vb[2], (4, &bounds), (6, &pairs[0])])?;
-    let gh = [
-        bind(&kh, &[(5, &pairs[0]), (7, &table)])?,
-        bind(&kh, &[(5, &pairs[1]), (7, &table)])?,
-    ];
-    let gs = bind(&ks, &[(7, &table)])?;
-    let gx = [
-        bind(&kx, &[(5, &pairs[0]), (6, &pairs[1]), (7, &table)])?,
-        bind(&kx, &[(5, &pairs[1]), (6, &pairs[0]), (7, &table)])?,
-    ];
-    let gt = bind(&kt, &[(5, &pairs[0]), (8, &kids), (9, &parents)])?;
-    let go = bind(
-        &ko,
-        &[vb[0], vb[1], vb[2], (9, &parents), (10, &node_boxes)],
-    )?;
-
-    let per_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1);
-    let shape = |threads: u32| {
-        let groups = threads.div_ceil(WORKGROUP).max(1);
-        if groups <= per_dim {
-            (groups, 1)
-        } else {
-            (per_dim, groups.div_ceil(per_dim))
-        }
-    };
-    let mut enc = ctx
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("lbvh"),
-        });
-    let mut dispatch = |pipeline: &wgpu::ComputePipeline,
-                        group: &wgpu::BindGroup,
-                        uniform: u32,
-                        (x, y): (u32, u32)| {
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("lbvh"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, group, &[uniform * align]);
-        pass.dispatch_workgroups(x, y, 1);
-    };
-    let n32 = n as u32;
-    dispatch(&pb, &gb, 0, shape(n32));
-    dispatch(&pc, &gc, 0, shape(n32));
-    for k in 0..SORT_PASSES {
-        let from = (k % 2) as usize;
-        dispatch(&ph, &gh[from], 1 + k, shape(tiles));
-        dispatch(&ps, &gs, 1 + k, (1, 1));
-        dispatch(&px, &gx[from], 1 + k, shape(tiles));
-    }
-    dispatch(&pt, &gt, 0, shape(n32 - 1));
-    dispatch(&po, &go, 0, shape(n32));
+    let run = Run::new(ctx, triangles, &[])?;
+    let mut enc = run.encoder();
+    run.record_build(&mut enc)?;
+    let (n, inner) = (run.n as u64, run.n as u64 - 1);
     let readback = Readback::record(
         ctx,
         &mut enc,
         &[
-            (&pairs[0], 8 * n as u64),
-            (&kids, 8 * inner),
-            (&node_boxes, 24 * inner),
+            (&run.pairs[0], 8 * n),
+            (&run.kids, 8 * inner),
+            (&run.node_boxes, 24 * inner),
         ],
     );
-    let done = super::plumbing::scoped(ctx, "building the LBVH on the GPU", || {
-        ctx.queue.submit([enc.finish()]);
-    });
-    done?;
-    let bytes = readback.read(ctx)?;
+    let bytes = run.finish(enc, readback, "building the LBVH on the GPU")?;
     let pairs: &[[u32; 2]] = bytemuck::cast_slice(&bytes[0]);
     let words: &[u32] = bytemuck::cast_slice(&bytes[2]);
-    let unordered = |u: u32| {
-        f32::from_bits(if u & 0x8000_0000 != 0 {
-            u & 0x7fff_ffff
-        } else {
-            !u
-        })
-    };
     let boxes = words
         .chunks_exact(6)
         .map(|w| Aabb {
@@ -257,4 +118,483 @@ pub fn lbvh_radix_tree(
         kids: bytemuck::cast_slice(&bytes[1]).to_vec(),
         boxes,
     })
+}
+
+/// The LBVH of the mesh's included triangles built and flattened into dfs-sign on the GPU,
+/// read back and validated: equal to `DfsSign::flatten` of
+/// [`build`](crate::accel::bvh::build) with `Builder::Lbvh`. Refused with `opts.optimize`
+/// (the optimiser runs on the CPU: [`build_lbvh`] then flatten) or a depth cap below
+/// [`MAX_DEPTH`].
+pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Result<DfsSign> {
+    if opts.optimize || opts.max_depth < MAX_DEPTH {
+        return Err(Error::Usage(
+            "the GPU flattens the LBVH without --optimize and at the full depth only".into(),
+        ));
+    }
+    let ids = mesh.included();
+    if ids.len() < 2 {
+        let bvh = crate::accel::bvh::build(mesh, opts);
+        return Ok(DfsSign::flatten(&bvh, mesh));
+    }
+    let tris: Vec<Triangle> = ids.iter().map(|&i| mesh.triangles[i as usize]).collect();
+    let run = Run::new(ctx, &tris, &ids)?;
+    drop(tris);
+    let (n, inner) = (run.n as u64, run.n as u64 - 1);
+    let place_boxes = output_buffer(ctx, "lbvh place boxes", 24 * n);
+    let info = output_buffer(ctx, "lbvh node info", 16 * inner);
+    let done = output_buffer(ctx, "lbvh node done", 4 * inner);
+    let down = output_buffer(ctx, "lbvh node down", 16 * inner);
+    let level = output_buffer(ctx, "lbvh node level", 4 * inner);
+    let place_down = output_buffer(ctx, "lbvh place down", 8 * n);
+    for (what, bytes) in [
+        ("the GPU LBVH's place boxes", 24 * n),
+        ("the GPU LBVH's node summaries", 16 * inner),
+        ("the GPU LBVH's leaf triangles", 48 * n),
+    ] {
+        ctx.check_binding(what, bytes)?;
+    }
+
+    // 1. The tree and each place's box.
+    let mut enc = run.encoder();
+    run.record_build(&mut enc)?;
+    let (kl, pl) = run.kernel("leaf_boxes", &[(5, true), V0, V1, V2, (12, false)])?;
+    let gl = run.bind(
+        &kl,
+        &run.params,
+        &[
+            (5, &run.pairs[0]),
+            run.vb(0),
+            run.vb(1),
+            run.vb(2),
+            (12, &place_boxes),
+        ],
+    )?;
+    dispatch(&mut enc, &pl, &gl, 0, run.shape(run.n), run.align);
+
+    // 2. Bottom-up: the SAH's leaves, one level a pass, until the root is done (a batch of
+    //    passes at a time; the depth is at most MAX_DEPTH).
+    let flatten_params: Vec<Params> = (1..=MAX_DEPTH as u32 + 1)
+        .map(|pass| Params {
+            n: run.n,
+            pass,
+            max_leaf: opts.max_leaf.clamp(1, u32::MAX as usize) as u32,
+            t_cube: opts.t_cube,
+            t_obj: opts.t_obj,
+            ..Params::default()
+        })
+        .collect();
+    let (params, align) = uniforms(ctx, &flatten_params);
+    let (kc, pc) = run.kernel(
+        "costs",
+        &[
+            (8, false),
+            (10, false),
+            (12, false),
+            (13, false),
+            (14, false),
+        ],
+    )?;
+    let gc = run.bind(
+        &kc,
+        &params,
+        &[
+            (8, &run.kids),
+            (10, &run.node_boxes),
+            (12, &place_boxes),
+            (13, &info),
+            (14, &done),
+        ],
+    )?;
+    let mut passes = 0;
+    let root = loop {
+        for _ in 0..BATCH {
+            dispatch(&mut enc, &pc, &gc, passes, run.shape(run.n - 1), align);
+            passes += 1;
+        }
+        let readback = Readback::record(ctx, &mut enc, &[(&info, 16), (&done, 4)]);
+        let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
+        let root: [u32; 4] = bytemuck::pod_read_unaligned(&bytes[0]);
+        let root_pass: u32 = bytemuck::pod_read_unaligned(&bytes[1]);
+        if root_pass != 0 {
+            // The root's pass is its height + 1: the top-down passes it takes.
+            passes = root_pass;
+            break root;
+        }
+        if passes as usize > MAX_DEPTH {
+            return Err(Error::Gpu(format!(
+                "the GPU LBVH's root was not summed in {passes} passes (a bug: please report it)"
+            )));
+        }
+        enc = run.encoder();
+    };
+    let nodes = root[1] as u64;
+    ctx.check_binding("the GPU LBVH's dfs-sign nodes", 32 * nodes)?;
+
+    // 3. Top-down: indices and leaf-order places; then the records.
+    let out_nodes = output_buffer(ctx, "lbvh dfs-sign nodes", 32 * nodes);
+    let out_tris = output_buffer(ctx, "lbvh leaf triangles", 48 * n);
+    ctx.queue.write_buffer(&level, 0, bytemuck::bytes_of(&1u32));
+    let (kp, pp) = run.kernel(
+        "places",
+        &[
+            (8, false),
+            (13, false),
+            (15, false),
+            (16, false),
+            (17, false),
+        ],
+    )?;
+    let gp = run.bind(
+        &kp,
+        &params,
+        &[
+            (8, &run.kids),
+            (13, &info),
+            (15, &down),
+            (16, &level),
+            (17, &place_down),
+        ],
+    )?;
+    let (kn, pn) = run.kernel(
+        "emit_nodes",
+        &[
+            (8, false),
+            (10, false),
+            (13, false),
+            (15, false),
+            (18, false),
+        ],
+    )?;
+    let gn = run.bind(
+        &kn,
+        &params,
+        &[
+            (8, &run.kids),
+            (10, &run.node_boxes),
+            (13, &info),
+            (15, &down),
+            (18, &out_nodes),
+        ],
+    )?;
+    let (ke, pe) = run.kernel("emit_leaves", &[(12, false), (17, false), (18, false)])?;
+    let ge = run.bind(
+        &ke,
+        &params,
+        &[(12, &place_boxes), (17, &place_down), (18, &out_nodes)],
+    )?;
+    let (kt, pt) = run.kernel(
+        "emit_tris",
+        &[(5, true), V0, V1, V2, (17, false), (19, true), (20, false)],
+    )?;
+    let gt = run.bind(
+        &kt,
+        &params,
+        &[
+            (5, &run.pairs[0]),
+            run.vb(0),
+            run.vb(1),
+            run.vb(2),
+            (17, &place_down),
+            (19, run.ids.as_ref().expect("ids uploaded")),
+            (20, &out_tris),
+        ],
+    )?;
+    let mut enc = run.encoder();
+    for p in 0..passes {
+        dispatch(&mut enc, &pp, &gp, p, run.shape(run.n - 1), align);
+    }
+    dispatch(&mut enc, &pn, &gn, 0, run.shape(run.n - 1), align);
+    dispatch(&mut enc, &pe, &ge, 0, run.shape(run.n), align);
+    dispatch(&mut enc, &pt, &gt, 0, run.shape(run.n), align);
+    let readback = Readback::record(
+        ctx,
+        &mut enc,
+        &[(&out_nodes, 32 * nodes), (&out_tris, 48 * n)],
+    );
+    let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
+    log::info!(
+        "GPU LBVH of {n} triangles flattened into dfs-sign ({nodes} nodes, {passes} passes \
+         each way) and read back in {:.0} ms since the upload",
+        ms(run.started)
+    );
+    DfsSign::from_arrays(GpuArrays {
+        nodes: &bytes[0],
+        tris: &bytes[1],
+    })
+    .map_err(|e| {
+        Error::Gpu(format!(
+            "the GPU's dfs-sign layout is invalid (a bug: please report it): {e}"
+        ))
+    })
+}
+
+/// Bottom-up passes recorded between looks at the root.
+const BATCH: u32 = 8;
+
+/// Vertex bindings of the kernels that read the triangles.
+const V0: (u32, bool) = (1, true);
+const V1: (u32, bool) = (2, true);
+const V2: (u32, bool) = (3, true);
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// A float from its order-preserving encoding (`unordered` in the WGSL).
+fn unordered(u: u32) -> f32 {
+    f32::from_bits(if u & 0x8000_0000 != 0 {
+        u & 0x7fff_ffff
+    } else {
+        !u
+    })
+}
+
+/// A uniform buffer of one `Params` per dispatch kind, each at the device's alignment.
+fn uniforms(ctx: &GpuContext, all: &[Params]) -> (wgpu::Buffer, u32) {
+    let align =
+        (PARAMS as u32).next_multiple_of(ctx.limits.min_uniform_buffer_offset_alignment.max(1));
+    let mut bytes = vec![0u8; all.len() * align as usize];
+    for (k, p) in all.iter().enumerate() {
+        let at = k * align as usize;
+        bytes[at..at + PARAMS as usize].copy_from_slice(bytemuck::bytes_of(p));
+    }
+    let buffer = ctx.buffer_with("lbvh params", &bytes, wgpu::BufferUsages::UNIFORM);
+    (buffer, align)
+}
+
+/// Records one dispatch in a compute pass of its own (the next reads what it wrote).
+fn dispatch(
+    enc: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    uniform: u32,
+    (x, y): (u32, u32),
+    align: u32,
+) {
+    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some("lbvh"),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[uniform * align]);
+    pass.dispatch_workgroups(x, y, 1);
+}
+
+/// The device buffers of one GPU build, and what compiles and binds its kernels.
+struct Run<'c> {
+    ctx: &'c GpuContext,
+    started: Instant,
+    n: u32,
+    tiles: u32,
+    source: String,
+    v: [wgpu::Buffer; 3],
+    ids: Option<wgpu::Buffer>,
+    bounds: wgpu::Buffer,
+    pairs: [wgpu::Buffer; 2],
+    table: wgpu::Buffer,
+    kids: wgpu::Buffer,
+    parents: wgpu::Buffer,
+    node_boxes: wgpu::Buffer,
+    /// The build's uniforms: [0] the base, [1 + k] sort pass k.
+    params: wgpu::Buffer,
+    align: u32,
+}
+
+impl<'c> Run<'c> {
+    /// Checks the sizes against the device, uploads the triangles (and `ids`, the mesh
+    /// index of each, where given) and makes the buffers.
+    fn new(ctx: &'c GpuContext, triangles: &[Triangle], ids: &[u32]) -> Result<Run<'c>> {
+        let started = Instant::now();
+        let n = triangles.len();
+        if n > MAX_PRIMS {
+            return Err(Error::Gpu(format!(
+                "the GPU LBVH takes at most {MAX_PRIMS} triangles, not {n}; build on the CPU"
+            )));
+        }
+        if ctx.limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+            return Err(Error::Gpu(format!(
+                "the GPU LBVH binds {STORAGE_BUFFERS} storage buffers per kernel; {} allows {}",
+                ctx.adapter.name, ctx.limits.max_storage_buffers_per_shader_stage
+            )));
+        }
+        let tiles = (n as u32).div_ceil(SORT_TILE);
+        let (n64, inner) = (n as u64, n as u64 - 1);
+        let radix = 1u64 << RADIX_BITS;
+        for (what, bytes) in [
+            ("the GPU LBVH's vertices", 12 * n64),
+            ("the GPU LBVH's sort pairs", 8 * n64),
+            ("the GPU LBVH's node boxes", 24 * inner),
+            ("the GPU LBVH's parents", 4 * (inner + n64)),
+            ("the GPU LBVH's sort table", 4 * radix * tiles as u64),
+        ] {
+            ctx.check_binding(what, bytes)?;
+        }
+        let storage = wgpu::BufferUsages::STORAGE;
+        let vertex = |k: usize| {
+            let words: Vec<f32> = triangles.iter().flat_map(|t| t.v[k].to_array()).collect();
+            ctx.buffer_with("lbvh vertices", bytemuck::cast_slice(&words), storage)
+        };
+        let v = [vertex(0), vertex(1), vertex(2)];
+        let ids = (!ids.is_empty())
+            .then(|| ctx.buffer_with("lbvh mesh indices", bytemuck::cast_slice(ids), storage));
+        let base = Params {
+            n: n as u32,
+            tiles,
+            ..Params::default()
+        };
+        let all: Vec<Params> = (0..=SORT_PASSES)
+            .map(|k| Params {
+                shift: k.saturating_sub(1) * RADIX_BITS,
+                ..base
+            })
+            .collect();
+        let (params, align) = uniforms(ctx, &all);
+        log::info!(
+            "GPU LBVH of {n} triangles: uploaded in {:.0} ms",
+            ms(started)
+        );
+        Ok(Run {
+            ctx,
+            started,
+            n: n as u32,
+            tiles,
+            source: lbvh_source(),
+            v,
+            ids,
+            bounds: output_buffer(ctx, "lbvh centre bounds", 24),
+            pairs: [
+                output_buffer(ctx, "lbvh pairs", 8 * n64),
+                output_buffer(ctx, "lbvh pairs (other)", 8 * n64),
+            ],
+            table: output_buffer(ctx, "lbvh sort table", 4 * radix * tiles as u64),
+            kids: output_buffer(ctx, "lbvh kids", 8 * inner),
+            parents: output_buffer(ctx, "lbvh parents", 4 * (inner + n64)),
+            node_boxes: output_buffer(ctx, "lbvh node boxes", 24 * inner),
+            params,
+            align,
+        })
+    }
+
+    fn vb(&self, k: usize) -> (u32, &wgpu::Buffer) {
+        (1 + k as u32, &self.v[k])
+    }
+
+    fn encoder(&self) -> wgpu::CommandEncoder {
+        self.ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("lbvh"),
+            })
+    }
+
+    /// The kernel `entry` with storage bindings `slots` (binding, read-only).
+    fn kernel(
+        &self,
+        entry: &'static str,
+        slots: &[(u32, bool)],
+    ) -> Result<(Kernel, wgpu::ComputePipeline)> {
+        let mut entries = vec![dynamic_uniform_entry(0, PARAMS)];
+        entries.extend(slots.iter().map(|&(b, ro)| storage_entry(b, ro)));
+        let k = Kernel::new(self.ctx, "lbvh", entry, &self.source, &entries, false)?;
+        let p = k.pipeline(self.ctx, &[], false)?;
+        Ok((k, p))
+    }
+
+    fn bind(
+        &self,
+        k: &Kernel,
+        params: &wgpu::Buffer,
+        bufs: &[(u32, &wgpu::Buffer)],
+    ) -> Result<wgpu::BindGroup> {
+        let mut entries = vec![uniform_binding(0, params, PARAMS)];
+        entries.extend(bufs.iter().map(|&(b, buf)| buffer_binding(b, buf)));
+        k.bind(self.ctx, &entries)
+    }
+
+    /// Workgroups for `threads` threads, two-dimensional beyond the per-dimension limit.
+    fn shape(&self, threads: u32) -> (u32, u32) {
+        let per_dim = self.ctx.limits.max_compute_workgroups_per_dimension.max(1);
+        let groups = threads.div_ceil(WORKGROUP).max(1);
+        if groups <= per_dim {
+            (groups, 1)
+        } else {
+            (per_dim, groups.div_ceil(per_dim))
+        }
+    }
+
+    /// Records the radix tree's build: bounds, codes, the sort, the tree, the boxes.
+    fn record_build(&self, enc: &mut wgpu::CommandEncoder) -> Result<()> {
+        let t = Instant::now();
+        let (kb, pb) = self.kernel("bounds", &[V0, V1, V2, (4, false)])?;
+        let (kc, pc) = self.kernel("codes", &[V0, V1, V2, (4, false), (6, false)])?;
+        let (kh, ph) = self.kernel("histogram", &[(5, true), (7, false)])?;
+        let (ks, ps) = self.kernel("scan", &[(7, false)])?;
+        let (kx, px) = self.kernel("scatter", &[(5, true), (6, false), (7, false)])?;
+        let (kt, pt) = self.kernel("hierarchy", &[(5, true), (8, false), (9, false)])?;
+        let (ko, po) = self.kernel("boxes", &[V0, V1, V2, (9, false), (10, false)])?;
+        let p = &self.params;
+        let (v0, v1, v2) = (self.vb(0), self.vb(1), self.vb(2));
+        let gb = self.bind(&kb, p, &[v0, v1, v2, (4, &self.bounds)])?;
+        let gc = self.bind(
+            &kc,
+            p,
+            &[v0, v1, v2, (4, &self.bounds), (6, &self.pairs[0])],
+        )?;
+        let gh = [
+            self.bind(&kh, p, &[(5, &self.pairs[0]), (7, &self.table)])?,
+            self.bind(&kh, p, &[(5, &self.pairs[1]), (7, &self.table)])?,
+        ];
+        let gs = self.bind(&ks, p, &[(7, &self.table)])?;
+        let gx = [
+            self.bind(
+                &kx,
+                p,
+                &[(5, &self.pairs[0]), (6, &self.pairs[1]), (7, &self.table)],
+            )?,
+            self.bind(
+                &kx,
+                p,
+                &[(5, &self.pairs[1]), (6, &self.pairs[0]), (7, &self.table)],
+            )?,
+        ];
+        let gt = self.bind(
+            &kt,
+            p,
+            &[(5, &self.pairs[0]), (8, &self.kids), (9, &self.parents)],
+        )?;
+        let go = self.bind(
+            &ko,
+            p,
+            &[v0, v1, v2, (9, &self.parents), (10, &self.node_boxes)],
+        )?;
+        log::info!("GPU LBVH: kernels compiled in {:.0} ms", ms(t));
+        let a = self.align;
+        dispatch(enc, &pb, &gb, 0, self.shape(self.n), a);
+        dispatch(enc, &pc, &gc, 0, self.shape(self.n), a);
+        for k in 0..SORT_PASSES {
+            let from = (k % 2) as usize;
+            dispatch(enc, &ph, &gh[from], 1 + k, self.shape(self.tiles), a);
+            dispatch(enc, &ps, &gs, 1 + k, (1, 1), a);
+            dispatch(enc, &px, &gx[from], 1 + k, self.shape(self.tiles), a);
+        }
+        dispatch(enc, &pt, &gt, 0, self.shape(self.n - 1), a);
+        dispatch(enc, &po, &go, 0, self.shape(self.n), a);
+        Ok(())
+    }
+
+    /// Submits `enc` and returns what `readback` copied.
+    fn finish(
+        &self,
+        enc: wgpu::CommandEncoder,
+        readback: Readback,
+        what: &str,
+    ) -> Result<Vec<Vec<u8>>> {
+        let t = Instant::now();
+        scoped(self.ctx, what, || {
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        let bytes = readback.read(self.ctx)?;
+        log::info!("{what}: {:.0} ms on the device", ms(t));
+        Ok(bytes)
+    }
 }

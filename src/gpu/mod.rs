@@ -18,7 +18,7 @@ pub use buffer_parts::BufferParts;
 pub use bvh_memory::{BvhMemory, GpuBvh, TEXEL_ROW};
 pub use context::{AdapterReport, GpuContext, SubgroupSizes};
 pub use driver::DriverTracer;
-pub use lbvh_build::{build_lbvh, lbvh_radix_tree, lbvh_source};
+pub use lbvh_build::{build_lbvh, lbvh_dfs_sign, lbvh_radix_tree, lbvh_source};
 pub use trace::{GpuTracer, Timings, TraceKernel, TraceParams, INCOMPLETE};
 /// The wgpu crate lancer is built on: create the device you hand to
 /// [`GpuContext::from_wgpu`] with it (or with the same major version, wgpu 30).

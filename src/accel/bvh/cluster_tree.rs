@@ -49,7 +49,8 @@ pub(crate) fn to_node(
 }
 
 /// Node `k` as a lancer node (appending its primitives to `order`), with its primitive
-/// count and SAH cost relative to its own box.
+/// count and its SAH cost times its own area. No division: the GPU's flatten of the LBVH
+/// (`lbvh.wgsl`), where a division rounds more loosely, makes the same choices.
 fn convert(
     tree: &Clusters,
     k: u32,
@@ -58,10 +59,11 @@ fn convert(
     order: &mut Vec<u32>,
 ) -> (Node, usize, f32) {
     let bbox = tree.bbox[k as usize];
+    let area = bbox.area();
     let start = order.len();
     if (k as usize) < n {
         order.push(k);
-        return (leaf(bbox, start, 1), 1, opts.t_obj);
+        return (leaf(bbox, start, 1), 1, opts.t_obj * area);
     }
     let [a, b] = tree.kids[k as usize];
     let (axis, swap) = children_order(&tree.bbox[a as usize], &tree.bbox[b as usize]);
@@ -69,14 +71,11 @@ fn convert(
     let (l, nl, cl) = convert(tree, a, n, opts, order);
     let (r, nr, cr) = convert(tree, b, n, opts, order);
     let count = nl + nr;
-    let area = bbox.area();
-    let cost = if area > 0.0 {
-        2.0 * opts.t_cube + (l.bbox().area() * cl + r.bbox().area() * cr) / area
-    } else {
-        2.0 * opts.t_cube + cl + cr
-    };
-    if opts.prefers_leaf(count, cost) {
-        return (leaf(bbox, start, count), count, count as f32 * opts.t_obj);
+    // T·A = 2·T_cube·A + T_L·A_L + T_R·A_R; a leaf costs N·T_obj·A (`prefers_leaf`, times A).
+    let split = 2.0 * opts.t_cube * area + cl + cr;
+    let as_leaf = count as f32 * opts.t_obj * area;
+    if count <= opts.max_leaf.max(1) && as_leaf <= split {
+        return (leaf(bbox, start, count), count, as_leaf);
     }
-    (Node::inner(bbox, axis, [l, r]), count, cost)
+    (Node::inner(bbox, axis, [l, r]), count, split)
 }

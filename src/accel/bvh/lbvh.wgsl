@@ -9,6 +9,12 @@ struct Params {
     tiles: u32,
     // The sort pass's digit: bits shift .. shift + RADIX_BITS of the code.
     shift: u32,
+    // The flatten's pass (from 1).
+    pass_: u32,
+    // The SAH's leaf rule (BuildOptions).
+    max_leaf: u32,
+    t_cube: f32,
+    t_obj: f32,
     pad: u32,
 }
 
@@ -32,7 +38,28 @@ struct Params {
 // Inner node boxes, ordered-encoded as in centre_bounds, six words a node.
 @group(0) @binding(10) var<storage, read_write> node_boxes: array<atomic<u32>>;
 
+// For the flatten into dfs-sign: the box of the primitive at each place, six floats.
+@group(0) @binding(12) var<storage, read_write> place_boxes: array<f32>;
+// Per inner node, bottom-up: (primitives, nodes of the flattened subtree, SAH cost times
+// area as bits, axis | swap << 2 | leaf << 3).
+@group(0) @binding(13) var<storage, read_write> info: array<vec4<u32>>;
+// The pass that filled a node's `info` (0: not yet).
+@group(0) @binding(14) var<storage, read_write> done: array<atomic<u32>>;
+// Per inner node, top-down: (dfs-sign index, first place in leaf order, hidden: inside a
+// leaf, unused).
+@group(0) @binding(15) var<storage, read_write> down: array<vec4<u32>>;
+// The pass that may read a node's `down` (0: not yet).
+@group(0) @binding(16) var<storage, read_write> level: array<atomic<u32>>;
+// Per place: (position in leaf order, dfs-sign index of its own leaf or NO_NODE).
+@group(0) @binding(17) var<storage, read_write> place_down: array<vec2<u32>>;
+// The dfs-sign arrays: 8 words a node (`DfsNode`), 12 a triangle (`LeafTri`).
+@group(0) @binding(18) var<storage, read_write> out_nodes: array<u32>;
+// Mesh triangle index of each primitive.
+@group(0) @binding(19) var<storage, read> ids: array<u32>;
+@group(0) @binding(20) var<storage, read_write> out_tris: array<u32>;
+
 const WORKGROUP: u32 = 64u;
+const NO_NODE: u32 = 0xffffffffu;
 const RADIX: u32 = 1u << RADIX_BITS;
 const SCAN_THREADS: u32 = 256u;
 
@@ -318,4 +345,226 @@ fn boxes(@builtin(global_invocation_id) gid: vec3<u32>,
         }
         node = parents[node];
     }
+}
+
+// 6. The flatten into dfs-sign, as `cluster_tree::to_node` then `DfsSign::flatten` make it
+//    on the CPU. First each place's box.
+@compute @workgroup_size(WORKGROUP)
+fn leaf_boxes(@builtin(global_invocation_id) gid: vec3<u32>,
+              @builtin(num_workgroups) groups: vec3<u32>) {
+    let s = thread_index(gid, groups);
+    if s >= params.n {
+        return;
+    }
+    let b = triangle_box(pairs_in[s].y);
+    for (var a = 0u; a < 3u; a++) {
+        place_boxes[6u * s + a] = b.lo[a];
+        place_boxes[6u * s + 3u + a] = b.hi[a];
+    }
+}
+
+fn node_box(i: u32) -> Box {
+    var b: Box;
+    for (var a = 0u; a < 3u; a++) {
+        b.lo[a] = unordered(~atomicLoad(&node_boxes[6u * i + a]));
+        b.hi[a] = unordered(atomicLoad(&node_boxes[6u * i + 3u + a]));
+    }
+    return b;
+}
+
+fn place_box(s: u32) -> Box {
+    var b: Box;
+    for (var a = 0u; a < 3u; a++) {
+        b.lo[a] = place_boxes[6u * s + a];
+        b.hi[a] = place_boxes[6u * s + 3u + a];
+    }
+    return b;
+}
+
+// Aabb::area.
+fn area(b: Box) -> f32 {
+    if any(b.lo > b.hi) {
+        return 0.0;
+    }
+    let e = b.hi - b.lo;
+    return 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
+}
+
+// tree::children_order: the axis where the centres lie farthest apart, and whether the
+// second child is the low side there.
+fn children_order(a: Box, b: Box) -> vec2<u32> {
+    let ca = (a.lo + a.hi) * 0.5;
+    let cb = (b.lo + b.hi) * 0.5;
+    let gap = abs(cb - ca);
+    var axis = 2u;
+    if gap.x >= gap.y && gap.x >= gap.z {
+        axis = 0u;
+    } else if gap.y >= gap.z {
+        axis = 1u;
+    }
+    return vec2<u32>(axis, select(0u, 1u, cb[axis] < ca[axis]));
+}
+
+// A child's (primitives, nodes, cost times area) and box; ready unless an inner child has
+// not been filled in an earlier pass.
+struct Summary {
+    ready: bool,
+    count: u32,
+    nodes: u32,
+    cost: f32,
+    b: Box,
+}
+
+fn summary(k: u32) -> Summary {
+    if (k & LEAF_BIT) != 0u {
+        let b = place_box(k & ~LEAF_BIT);
+        return Summary(true, 1u, 1u, params.t_obj * area(b), b);
+    }
+    let d = atomicLoad(&done[k]);
+    if d == 0u || d >= params.pass_ {
+        return Summary(false, 0u, 0u, 0.0, Box(vec3<f32>(), vec3<f32>()));
+    }
+    let f = info[k];
+    return Summary(true, f.x, f.y, bitcast<f32>(f.z), node_box(k));
+}
+
+//    Bottom-up, one level a pass: the SAH's leaves (`convert` in cluster_tree.rs).
+@compute @workgroup_size(WORKGROUP)
+fn costs(@builtin(global_invocation_id) gid: vec3<u32>,
+         @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(gid, groups);
+    if i + 1u >= params.n || atomicLoad(&done[i]) != 0u {
+        return;
+    }
+    let k = kids[i];
+    let a = summary(k.x);
+    let b = summary(k.y);
+    if !a.ready || !b.ready {
+        return;
+    }
+    let order = children_order(a.b, b.b);
+    var l = a;
+    var r = b;
+    if order.y == 1u {
+        l = b;
+        r = a;
+    }
+    let own = area(node_box(i));
+    let count = l.count + r.count;
+    let split = 2.0 * params.t_cube * own + l.cost + r.cost;
+    let as_leaf = f32(count) * params.t_obj * own;
+    let leaf = count <= params.max_leaf && as_leaf <= split;
+    let nodes = select(1u + l.nodes + r.nodes, 1u, leaf);
+    let cost = select(split, as_leaf, leaf);
+    let flags = order.x | (order.y << 2u) | (select(0u, 1u, leaf) << 3u);
+    info[i] = vec4<u32>(count, nodes, bitcast<u32>(cost), flags);
+    atomicStore(&done[i], params.pass_);
+}
+
+// An inner node's children, low side first: (first, second).
+fn ordered_kids(i: u32) -> vec2<u32> {
+    let k = kids[i];
+    if ((info[i].w >> 2u) & 1u) == 1u {
+        return k.yx;
+    }
+    return k;
+}
+
+fn count_and_nodes(k: u32) -> vec2<u32> {
+    if (k & LEAF_BIT) != 0u {
+        return vec2<u32>(1u, 1u);
+    }
+    return info[k].xy;
+}
+
+//    Top-down, one level a pass: each node's dfs-sign index and first place in leaf order
+//    handed to its children (the root's set before the first pass).
+@compute @workgroup_size(WORKGROUP)
+fn places(@builtin(global_invocation_id) gid: vec3<u32>,
+          @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(gid, groups);
+    if i + 1u >= params.n || atomicLoad(&level[i]) != params.pass_ {
+        return;
+    }
+    let me = down[i];
+    let hidden = me.z != 0u || ((info[i].w >> 3u) & 1u) == 1u;
+    let k = ordered_kids(i);
+    let first = count_and_nodes(k.x);
+    let index = vec2<u32>(me.x + 1u, me.x + 1u + first.y);
+    let start = vec2<u32>(me.y, me.y + first.x);
+    for (var side = 0u; side < 2u; side++) {
+        let c = k[side];
+        if (c & LEAF_BIT) != 0u {
+            place_down[c & ~LEAF_BIT] = vec2<u32>(start[side], select(index[side], NO_NODE, hidden));
+        } else {
+            down[c] = vec4<u32>(index[side], start[side], select(0u, 1u, hidden), 0u);
+            atomicStore(&level[c], params.pass_ + 1u);
+        }
+    }
+}
+
+fn write_node(at: u32, b: Box, a: u32, tag: u32) {
+    let w = 8u * at;
+    for (var k = 0u; k < 3u; k++) {
+        out_nodes[w + k] = bitcast<u32>(b.lo[k]);
+        out_nodes[w + 4u + k] = bitcast<u32>(b.hi[k]);
+    }
+    out_nodes[w + 3u] = a;
+    out_nodes[w + 7u] = tag;
+}
+
+//    The inner nodes' records: an inner node (its second child, its axis) or a leaf made of
+//    its subtree (its first place, its count).
+@compute @workgroup_size(WORKGROUP)
+fn emit_nodes(@builtin(global_invocation_id) gid: vec3<u32>,
+              @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(gid, groups);
+    if i + 1u >= params.n {
+        return;
+    }
+    let me = down[i];
+    if me.z != 0u {
+        return;
+    }
+    let f = info[i];
+    if ((f.w >> 3u) & 1u) == 1u {
+        write_node(me.x, node_box(i), me.y, (f.x << 2u) | DFS_LEAF_TAG);
+    } else {
+        let first = count_and_nodes(ordered_kids(i).x);
+        write_node(me.x, node_box(i), me.x + 1u + first.y, f.w & 3u);
+    }
+}
+
+//    The leaves of one primitive.
+@compute @workgroup_size(WORKGROUP)
+fn emit_leaves(@builtin(global_invocation_id) gid: vec3<u32>,
+               @builtin(num_workgroups) groups: vec3<u32>) {
+    let s = thread_index(gid, groups);
+    if s >= params.n {
+        return;
+    }
+    let d = place_down[s];
+    if d.y != NO_NODE {
+        write_node(d.y, place_box(s), d.x, (1u << 2u) | DFS_LEAF_TAG);
+    }
+}
+
+//    The triangles in leaf order (`LeafTri`: each vertex, the mesh index in the first's w).
+@compute @workgroup_size(WORKGROUP)
+fn emit_tris(@builtin(global_invocation_id) gid: vec3<u32>,
+             @builtin(num_workgroups) groups: vec3<u32>) {
+    let s = thread_index(gid, groups);
+    if s >= params.n {
+        return;
+    }
+    let p = pairs_in[s].y;
+    let w = 12u * place_down[s].x;
+    for (var v = 0u; v < 3u; v++) {
+        let x = vertex(v, p);
+        for (var k = 0u; k < 3u; k++) {
+            out_tris[w + 4u * v + k] = bitcast<u32>(x[k]);
+        }
+        out_tris[w + 4u * v + 3u] = 0u;
+    }
+    out_tris[w + 3u] = ids[p];
 }

@@ -6,7 +6,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::{try_flatten, LayoutKind};
-use crate::accel::bvh::{build, BuildOptions, Builder, BvhStats};
+use crate::accel::bvh::{build, BuildOptions, Builder, Bvh, BvhStats};
 use crate::accel::GpuForm;
 use crate::mesh::Mesh;
 use crate::util::human_bytes;
@@ -18,6 +18,9 @@ pub struct BuildReport {
     pub builder: Builder,
     /// The layout's name (`--layout`).
     pub layout: &'static str,
+    /// Where the tree was built when not on the CPU: the GPU adapter (`--build-on gpu`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub built_on: Option<String>,
     /// The tree's shape and SAH cost (triangles: those with NaN, zero area or out of range
     /// are left out).
     #[serde(flatten)]
@@ -50,20 +53,41 @@ pub fn build_and_flatten(
 ) -> crate::Result<(Box<dyn GpuForm>, BuildReport)> {
     let t0 = Instant::now();
     let bvh = build(mesh, options);
-    let flat = try_flatten(layout, &bvh, mesh)?;
-    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let report = BuildReport {
-        builder: options.builder,
-        layout: layout.name(),
-        stats: BvhStats::of(&bvh, options),
-        build_ms,
-        bytes: flat.bytes(),
-        instances: None,
-        instanced_triangles: None,
-        out: None,
-        peak_memory_bytes: None,
-    };
+    flatten_and_report(mesh, &bvh, options, layout, t0)
+}
+
+/// Flattens a BVH built from `started` on (by [`build`] or on a GPU) into `layout`, and
+/// reports the build and flatten time since `started`.
+pub fn flatten_and_report(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    options: &BuildOptions,
+    layout: LayoutKind,
+    started: Instant,
+) -> crate::Result<(Box<dyn GpuForm>, BuildReport)> {
+    let flat = try_flatten(layout, bvh, mesh)?;
+    let build_ms = started.elapsed().as_secs_f64() * 1e3;
+    let report = BuildReport::new(bvh, flat.as_ref(), options, build_ms);
     Ok((flat, report))
+}
+
+impl BuildReport {
+    /// The report of `bvh` flattened into `flat` in `build_ms` (the caller fills in where
+    /// it was built, the scene's instances, the file written and the peak memory).
+    pub fn new(bvh: &Bvh, flat: &dyn GpuForm, options: &BuildOptions, build_ms: f64) -> Self {
+        BuildReport {
+            builder: options.builder,
+            layout: flat.name(),
+            built_on: None,
+            stats: BvhStats::of(bvh, options),
+            build_ms,
+            bytes: flat.bytes(),
+            instances: None,
+            instanced_triangles: None,
+            out: None,
+            peak_memory_bytes: None,
+        }
+    }
 }
 
 impl BuildReport {
@@ -71,7 +95,10 @@ impl BuildReport {
     pub fn text(&self) -> Vec<String> {
         let s = &self.stats;
         let mut lines = vec![
-            format!("builder     {}", self.builder.name()),
+            match &self.built_on {
+                Some(on) => format!("builder     {} (built on {on})", self.builder.name()),
+                None => format!("builder     {}", self.builder.name()),
+            },
             format!("layout      {}", self.layout),
             format!("triangles   {}", s.triangles),
             format!("references  {}", s.references),

@@ -55,7 +55,7 @@ use crate::accel::gpu_form::records;
 use crate::accel::{GpuArrays, GpuForm, LeafTri};
 use crate::mesh::Mesh;
 
-pub use build_report::{build_and_flatten, BuildReport};
+pub use build_report::{build_and_flatten, flatten_and_report, BuildReport};
 pub use bvh2_wide_node::Bvh2WideNode;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;

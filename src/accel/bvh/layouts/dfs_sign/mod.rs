@@ -93,6 +93,24 @@ impl DfsSign {
         }
     }
 
+    /// The binary tree these arrays hold (the inverse of [`DfsSign::flatten`]): for the
+    /// statistics of a layout flattened elsewhere (on the GPU: `gpu::lbvh_dfs_sign`).
+    pub fn tree(&self) -> Bvh {
+        fn node(nodes: &[DfsNode], i: usize) -> Node {
+            let n = &nodes[i];
+            if n.is_leaf() {
+                crate::accel::bvh::tree::leaf(n.bbox(), n.a as usize, n.count() as usize)
+            } else {
+                let children = [node(nodes, i + 1), node(nodes, n.a as usize)];
+                Node::inner(n.bbox(), n.axis(), children)
+            }
+        }
+        Bvh {
+            root: node(&self.nodes, 0),
+            order: self.tris.iter().map(|t| t.prim).collect(),
+        }
+    }
+
     /// A layout from raw arrays (as [`arrays`](super::GpuForm::arrays) gives them), refused
     /// unless they are whole records and pass [`validate`](super::GpuForm::validate).
     pub fn from_arrays(arrays: GpuArrays<'_>) -> Result<DfsSign, String> {
