@@ -482,8 +482,9 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
 
 #[test]
 fn builders_on_the_gpu_give_every_run_a_gpu_speed() {
+    use lancer::accel::bvh::Builder;
     let config = bench::builders::Config {
-        builders: vec![lancer::accel::bvh::Builder::Median],
+        builders: vec![Builder::Median, Builder::Lbvh],
         optimize: true,
         ..builders_config(DeviceChoice::Gpu)
     };
@@ -492,8 +493,19 @@ fn builders_on_the_gpu_give_every_run_a_gpu_speed() {
     assert!(report.runs.iter().all(|r| r.gpu_mrays.unwrap() > 0.0));
     assert!(report.correlations.iter().any(|c| c.device == "GPU"));
     let names: Vec<_> = report.builds.iter().map(|b| b.builder.as_str()).collect();
-    let expected = ["median", "median+reinsert"];
-    assert_eq!(names[..2], expected);
+    let expected = [
+        "median",
+        "median+reinsert",
+        "lbvh",
+        "lbvh+reinsert",
+        "lbvh@gpu",
+    ];
+    assert_eq!(names[..5], expected);
+    // The LBVH built on the GPU is timed beside the CPU's, with the CPU's (equal) tree's
+    // costs; its traversal is the CPU row's, so it has no runs of its own.
+    let (cpu, gpu) = (&report.builds[2], &report.builds[4]);
+    assert!(gpu.build_ms > 0.0 && gpu.sah == cpu.sah && gpu.nodes == cpu.nodes);
+    assert!(report.runs.iter().all(|r| r.builder != "lbvh@gpu"));
     // Reinsertion never raises the SAH.
     let sah: Vec<f64> = report.builds[..2].iter().map(|b| b.sah.unwrap()).collect();
     assert!(sah[1] <= sah[0], "{sah:?}");

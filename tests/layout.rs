@@ -52,27 +52,26 @@ fn all_shaders_validate() {
             .flat_map(|parts| all_kernels(layout.as_ref(), parts))
             .collect();
         for (name, src) in kernels {
-            let m = module(&src);
-            naga::valid::Validator::new(
-                naga::valid::ValidationFlags::all(),
-                naga::valid::Capabilities::all(),
-            )
-            .validate(&m)
-            .unwrap_or_else(|e| panic!("{} {name}: {}", layout.name(), e.emit_to_string(&src)));
+            validated(&src, &format!("{} {name}", layout.name()));
         }
     }
 }
 
-#[test]
-fn the_gpu_lbvh_kernels_validate() {
-    let src = lancer::gpu::lbvh_source();
-    let m = module(&src);
+/// The module of `src`, parsed and validated (panics naming `what` otherwise).
+fn validated(src: &str, what: &str) -> naga::Module {
+    let m = module(src);
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::all(),
     )
     .validate(&m)
-    .unwrap_or_else(|e| panic!("lbvh: {}", e.emit_to_string(&src)));
+    .unwrap_or_else(|e| panic!("{what}: {}", e.emit_to_string(src)));
+    m
+}
+
+#[test]
+fn the_gpu_lbvh_kernels_validate() {
+    validated(&lancer::gpu::lbvh_source(), "lbvh");
 }
 
 #[test]
@@ -254,13 +253,7 @@ fn bindings_are_the_rust_numbers() {
     assert_eq!(seen, traces * (4 + 3) + renders * (4 + 3));
     // The driver's kernel: its acceleration structure and the trace bindings it shares.
     let src = shaders::driver_trace_source();
-    let m = module(&src);
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&m)
-    .unwrap_or_else(|e| panic!("driver trace: {}", e.emit_to_string(&src)));
+    let m = validated(&src, "driver trace");
     let driver: Vec<(String, u32)> = (m.global_variables.iter())
         .filter_map(|(_, g)| Some((g.name.clone()?, g.binding.as_ref()?.binding)))
         .collect();

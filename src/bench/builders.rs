@@ -272,9 +272,10 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         .flat_map(|&b| [(b, false), (b, true)])
         .filter(|&(_, o)| !o || config.optimize)
         .collect();
+    let gpu_builds = gpu_lbvh_builds(config, &device);
     let ticker = Ticker::new(
         progress,
-        (config.meshes.len() * variants.len() * per_builder) as u64,
+        (config.meshes.len() * (variants.len() * per_builder + gpu_builds)) as u64,
     );
     let (mut builds, mut runs) = (Vec::new(), Vec::new());
     let mut embree_version = None;
@@ -356,6 +357,9 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
                 });
             }
         }
+        if let Some(row) = gpu_lbvh_row(config, &device, name, mesh, &builds, &ticker)? {
+            builds.push(row);
+        }
         if let Some(e) = embree {
             let theirs = median(e.times.clone());
             for b in builds.iter_mut().filter(|b| &b.mesh == name) {
@@ -394,6 +398,69 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
         correlations,
         gpu_driver: ctx.map(|c| c.adapter.driver.clone()),
     })
+}
+
+/// The name of the row of the LBVH built on the GPU.
+pub const LBVH_ON_GPU: &str = "lbvh@gpu";
+
+/// Timed GPU builds per mesh: `repeat` where the bench has a GPU and the LBVH among its
+/// builders, else none.
+fn gpu_lbvh_builds(config: &Config, device: &Device) -> usize {
+    match device.gpu_context().is_some() && config.builders.contains(&Builder::Lbvh) {
+        true => config.repeat.max(1),
+        false => 0,
+    }
+}
+
+/// The LBVH built on the GPU (`gpu::build_lbvh`: the tree built there, read back and made
+/// lancer's tree): its median build time beside the CPU's `lbvh` row, whose tree it must
+/// equal (so the CPU row's costs and runs are its own).
+fn gpu_lbvh_row(
+    config: &Config,
+    device: &Device,
+    name: &str,
+    mesh: &Mesh,
+    builds: &[BuildRow],
+    ticker: &Ticker,
+) -> Result<Option<BuildRow>> {
+    let (Some(ctx), true) = (device.gpu_context(), gpu_lbvh_builds(config, device) > 0) else {
+        return Ok(None);
+    };
+    let Some(cpu_row) = builds
+        .iter()
+        .find(|b| b.mesh == name && b.builder == Builder::Lbvh.name())
+    else {
+        return Ok(None);
+    };
+    let opts = BuildOptions {
+        builder: Builder::Lbvh,
+        optimize: false,
+        ..config.build
+    };
+    ticker.say(format!("{name}: {LBVH_ON_GPU}"));
+    let cpu_tree = build(mesh, &opts);
+    let mut times = Vec::new();
+    for _ in 0..config.repeat.max(1) {
+        settle();
+        let start = Instant::now();
+        let tree = crate::gpu::build_lbvh(ctx, mesh, &opts)?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        if tree != cpu_tree {
+            return Err(crate::Error::Gpu(format!(
+                "{name}: the LBVH built on {} differs from the CPU's (a bug: please report it)",
+                ctx.adapter.name
+            )));
+        }
+        ticker.inc(1);
+    }
+    Ok(Some(BuildRow {
+        builder: LBVH_ON_GPU.into(),
+        build_ms: median(times),
+        flatten_ms: None,
+        vs_embree: None,
+        peak_mib: None,
+        ..cpu_row.clone()
+    }))
 }
 
 /// A tree's name in the report: the builder's, `+reinsert` when optimised.

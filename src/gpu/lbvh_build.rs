@@ -598,3 +598,26 @@ impl<'c> Run<'c> {
         Ok(bytes)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{offset_of, size_of};
+
+    use super::*;
+
+    #[test]
+    fn the_wgsl_params_match_the_rust_params() {
+        let fields = [
+            ("n", offset_of!(Params, n)),
+            ("tiles", offset_of!(Params, tiles)),
+            ("shift", offset_of!(Params, shift)),
+            ("pass_", offset_of!(Params, pass)),
+            ("max_leaf", offset_of!(Params, max_leaf)),
+            ("t_cube", offset_of!(Params, t_cube)),
+            ("t_obj", offset_of!(Params, t_obj)),
+            ("pad", offset_of!(Params, pad)),
+        ];
+        super::super::shaders::check_struct(&lbvh_source(), "Params", size_of::<Params>(), &fields)
+            .unwrap();
+    }
+}
