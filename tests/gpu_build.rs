@@ -135,3 +135,47 @@ fn the_gpu_flattens_the_lbvh_into_the_cpus_dfs_sign() {
         }
     }
 }
+
+/// A tracer told to build on the GPU traces the same hits as one built on the CPU, in the
+/// layout built there (dfs-sign) and in one flattened on the CPU (cwbvh); on the CPU device
+/// it builds on the CPU.
+#[test]
+fn a_tracer_built_on_the_gpu_traces_as_one_built_on_the_cpu() {
+    use lancer::trace::BuildOn;
+    use lancer::{Device, LayoutKind, Query, Ray, Tracer, TracerOptions};
+    let mesh = soup(&mut Rng::new(8), 2000, 0.1);
+    let mut rng = Rng::new(9);
+    let rays: Vec<Ray> = (0..500)
+        .map(|_| Ray::new(rng.vec3(-1.5, 1.5), rng.dir(), 0.0, 1e30))
+        .collect();
+    let cpu = Device::cpu();
+    for layout in [LayoutKind::DfsSign, LayoutKind::Cwbvh] {
+        let options = |build_on| TracerOptions {
+            build: BuildOptions {
+                builder: Builder::Lbvh,
+                ..BuildOptions::default()
+            },
+            layout: Some(layout),
+            build_on,
+            ..TracerOptions::default()
+        };
+        let reference = Tracer::new(&cpu, &mesh, &options(BuildOn::Cpu))
+            .unwrap()
+            .trace(&rays, Query::Closest)
+            .unwrap()
+            .hits;
+        for device in [common::gpu_device(), &cpu] {
+            let mut t = Tracer::new(device, &mesh, &options(BuildOn::Gpu)).unwrap();
+            assert_eq!(
+                t.trace(&rays, Query::Closest).unwrap().hits,
+                reference,
+                "{layout:?}"
+            );
+        }
+    }
+    let binned = TracerOptions {
+        build_on: BuildOn::Gpu,
+        ..TracerOptions::default()
+    };
+    assert!(Tracer::new(common::gpu_device(), &mesh, &binned).is_err());
+}

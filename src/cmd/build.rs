@@ -9,6 +9,7 @@ use lancer::accel::bvh::layouts::{
 use lancer::accel::bvh::Builder;
 use lancer::accel::GpuForm;
 use lancer::gpu::GpuContext;
+use lancer::trace::BuildOn;
 use lancer::{Error, Result};
 
 use super::out::{print_json, say, Say};
@@ -33,15 +34,6 @@ pub struct BuildCmd {
     /// layout here, else read back and flattened on the CPU).
     #[arg(long, value_enum, default_value_t = BuildOn::Cpu)]
     build_on: BuildOn,
-}
-
-/// Where `lancer build` builds the tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum BuildOn {
-    /// The CPU builders, on all threads.
-    Cpu,
-    /// The GPU (`--builder lbvh`).
-    Gpu,
 }
 
 impl BuildCmd {

@@ -1,6 +1,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use lancer::accel::bvh::Builder;
 use lancer::mesh::InstanceSet;
 use lancer::trace::files::encode_hits;
 use lancer::trace::stats::{TraceReport, TraceStats};
@@ -58,6 +59,11 @@ pub struct TraceCmd {
     /// levels, a BVH per mesh under one over the instances. Hits are numbered alike.
     #[arg(long)]
     flatten: bool,
+    /// Where the BVH is built: cpu, or gpu (--builder lbvh: the same tree, built by WGSL
+    /// kernels on the GPU device and flattened there into dfs-sign, else read back and
+    /// flattened on the CPU; without a GPU the CPU builds it, with a warning).
+    #[arg(long, value_enum, default_value_t = lancer::trace::BuildOn::Cpu, conflicts_with = "bvh")]
+    build_on: lancer::trace::BuildOn,
 }
 
 impl TraceCmd {
@@ -67,6 +73,13 @@ impl TraceCmd {
             return Err(Error::Usage(
                 "--json and --out - both write to stdout: write the hits to a file".into(),
             ));
+        }
+        let builder = self.build.options().builder;
+        if self.build_on == lancer::trace::BuildOn::Gpu && builder != Builder::Lbvh {
+            return Err(Error::Usage(format!(
+                "--build-on gpu builds with --builder lbvh only, not {}",
+                builder.name()
+            )));
         }
         let say = Say::new(to_stdout || self.json);
         let two_level = matches!(self.accel, AccelKind::Bvh(_)) && self.bvh.is_none();
@@ -151,6 +164,7 @@ impl TraceCmd {
             mode: self.mode,
             refit: false,
             flatten: self.flatten,
+            build_on: self.build_on,
         }
     }
 
