@@ -179,3 +179,31 @@ fn a_tracer_built_on_the_gpu_traces_as_one_built_on_the_cpu() {
     };
     assert!(Tracer::new(common::gpu_device(), &mesh, &binned).is_err());
 }
+
+/// A render whose BVH is built on the GPU is the render of the CPU-built BVH, bit for bit
+/// (the same tree in the same layout), on lavapipe.
+#[test]
+fn a_render_built_on_the_gpu_is_the_render_built_on_the_cpu() {
+    use lancer::render::{render, RenderOptions, RenderScene};
+    use lancer::trace::BuildOn;
+    use lancer::{AccelKind, LayoutKind};
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut scene = RenderScene::from_file(&dir.join("cornell.toml")).unwrap();
+    (scene.camera.width, scene.camera.height) = (32, 24);
+    let image = |build_on| {
+        let options = RenderOptions {
+            spp: Some(2),
+            accel: Some(AccelKind::Bvh(LayoutKind::DfsSign)),
+            build: BuildOptions {
+                builder: Builder::Lbvh,
+                ..BuildOptions::default()
+            },
+            build_on,
+            ..RenderOptions::default()
+        };
+        render(&scene, common::gpu_device(), &options)
+            .unwrap()
+            .image
+    };
+    assert!(image(BuildOn::Gpu) == image(BuildOn::Cpu));
+}

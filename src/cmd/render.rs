@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::ProgressStyle;
+use lancer::accel::bvh::Builder;
 use lancer::render::{
     image_kind, AovSet, Crop, EffectSet, Environment, ImageKind, ImageSize, Progress,
     RenderOptions, RenderStats, Rendered, Renderer, Stop,
@@ -109,6 +110,11 @@ pub struct RenderCmd {
     /// f ÷ FPS seconds).
     #[arg(long, default_value_t = lancer::render::DEFAULT_FRAME_RATE)]
     fps: f32,
+    /// Where a one-level BVH is built: cpu, or gpu (--builder lbvh: the same tree, built by
+    /// WGSL kernels on the GPU device and flattened there into dfs-sign, else read back and
+    /// flattened on the CPU; without a GPU the CPU builds it, with a warning).
+    #[arg(long, value_enum, default_value_t = lancer::trace::BuildOn::Cpu)]
+    build_on: lancer::trace::BuildOn,
 }
 
 /// Most frames one `render --frames` run renders (an animation's last key may lie far
@@ -156,6 +162,13 @@ fn png_bits(s: &str) -> std::result::Result<u8, String> {
 
 impl RenderCmd {
     pub fn run(self) -> Result<()> {
+        let builder = self.build.options().builder;
+        if self.build_on == lancer::trace::BuildOn::Gpu && builder != Builder::Lbvh {
+            return Err(Error::Usage(format!(
+                "--build-on gpu builds with --builder lbvh only, not {}",
+                builder.name()
+            )));
+        }
         let kind = image_kind(&self.out)?;
         let aovs = AovSet {
             depth: self.aov.iter().any(|a| a == "depth"),
@@ -248,6 +261,7 @@ impl RenderCmd {
             aovs: aovs.any(),
             mode: self.mode,
             two_level: None,
+            build_on: self.build_on,
         };
         let frames: Vec<Option<u32>> = match self.frames {
             None => vec![None],

@@ -26,6 +26,8 @@ use crate::device::Device;
 use crate::error::{Error, Result};
 use crate::geometry::Robustness;
 use crate::gpu::BvhMemory;
+use crate::trace::build_on::{gpu_built, GpuBuilt};
+use crate::trace::BuildOn;
 
 /// Where a render stands, for a progress callback.
 #[derive(Clone, Copy, Debug)]
@@ -84,6 +86,9 @@ pub struct RenderOptions {
     /// building only the top level (where the scene's meshes are that structure's and the
     /// layout is the same; else it builds both levels).
     pub two_level: Option<Arc<GpuTwoLevel>>,
+    /// Where a one-level BVH is built (used by [`Renderer::new`]): on the CPU, or (with
+    /// `build.builder` the LBVH) on the GPU device.
+    pub build_on: BuildOn,
 }
 
 /// Why a render stopped.
@@ -220,13 +225,30 @@ impl<'a> Renderer<'a> {
                     )))
                 }
                 (None, AccelKind::Bvh(layout_kind)) => {
-                    let tree = bvh::build(&scene.mesh, &options.build);
-                    let stats_start = Instant::now();
-                    let stats = BvhStats::of(&tree, &options.build);
-                    stats_time = stats_start.elapsed();
-                    let flat: Arc<dyn GpuForm> =
-                        layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
-                    (flat.clone(), Some(flat), Some(stats))
+                    let on_gpu = match options.build_on {
+                        BuildOn::Gpu => {
+                            gpu_built(device, &scene.mesh, &options.build, layout_kind, true)?
+                        }
+                        BuildOn::Cpu => None,
+                    };
+                    match on_gpu {
+                        Some(GpuBuilt { layout, tree }) => {
+                            let stats_start = Instant::now();
+                            let stats = tree.map(|t| BvhStats::of(&t, &options.build));
+                            stats_time = stats_start.elapsed();
+                            (layout.clone(), Some(layout), stats)
+                        }
+                        None => {
+                            let tree = bvh::build(&scene.mesh, &options.build);
+                            let stats_start = Instant::now();
+                            let stats = BvhStats::of(&tree, &options.build);
+                            stats_time = stats_start.elapsed();
+                            // The tree goes into the layout: the two are never held at once.
+                            let flat: Arc<dyn GpuForm> =
+                                layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
+                            (flat.clone(), Some(flat), Some(stats))
+                        }
+                    }
                 }
                 _ if device.is_cpu() => (
                     accel::build(kind, &scene.mesh, &options.build)?.into(),

@@ -1,7 +1,7 @@
 //! Tracing: one [`Tracer`] for the CPU and the GPU, the f64 oracle that judges both, and
 //! the ray and hit file formats.
 
-mod build_on;
+pub(crate) mod build_on;
 pub mod check;
 pub mod compare;
 pub mod defaults;

@@ -127,8 +127,11 @@ impl<'d> Tracer<'d> {
         options: &TracerOptions,
     ) -> Result<Arc<dyn GpuForm>> {
         if options.build_on == BuildOn::Gpu {
-            if let Some(layout) = Self::built_on_gpu(device, mesh, options)? {
-                return Ok(layout);
+            let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
+            if let Some(built) =
+                super::build_on::gpu_built(device, mesh, &options.build, kind, false)?
+            {
+                return Ok(built.layout);
             }
         }
         let start = std::time::Instant::now();
@@ -143,43 +146,6 @@ impl<'d> Tracer<'d> {
             (start.elapsed() - built).as_secs_f64() * 1e3
         );
         Ok(layout)
-    }
-
-    /// The LBVH built on the device's GPU and flattened into the options' layout (there for
-    /// dfs-sign, else on the CPU); None on a device without a GPU, where the CPU builds it.
-    fn built_on_gpu(
-        device: &Device,
-        mesh: &Mesh,
-        options: &TracerOptions,
-    ) -> Result<Option<Arc<dyn GpuForm>>> {
-        let build = &options.build;
-        if build.builder != bvh::Builder::Lbvh {
-            return Err(Error::Usage(format!(
-                "building on the GPU takes the lbvh builder, not {}",
-                build.builder.name()
-            )));
-        }
-        let Some(ctx) = device.gpu_context() else {
-            log::warn!("no GPU device: the LBVH is built on the CPU (the same tree)");
-            return Ok(None);
-        };
-        let start = std::time::Instant::now();
-        let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
-        let there =
-            kind == LayoutKind::DfsSign && !build.optimize && build.max_depth >= bvh::MAX_DEPTH;
-        let layout: Arc<dyn GpuForm> = if there {
-            Arc::new(crate::gpu::lbvh_dfs_sign(ctx, mesh, build)?)
-        } else {
-            let tree = crate::gpu::build_lbvh(ctx, mesh, build)?;
-            layouts::try_flatten_owned(kind, tree, mesh)?.into()
-        };
-        log::info!(
-            "BVH built (lbvh) on {} and flattened into {kind} {} in {:.0} ms",
-            ctx.adapter.name,
-            if there { "there" } else { "on the CPU" },
-            start.elapsed().as_secs_f64() * 1e3
-        );
-        Ok(Some(layout))
     }
 
     /// Builds the structure `kind` over the mesh: on a GPU device its GPU form
