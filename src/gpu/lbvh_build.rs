@@ -173,7 +173,8 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
 
     // 2. Bottom-up: the SAH's leaves, one level a pass, until the root is done (a batch of
     //    passes at a time; the depth is at most MAX_DEPTH).
-    let flatten_params: Vec<Params> = (1..=MAX_DEPTH as u32 + 1)
+    // Room for every batch that may run: the root is done by pass MAX_DEPTH.
+    let flatten_params: Vec<Params> = (1..=MAX_DEPTH as u32 + BATCH)
         .map(|pass| Params {
             n: run.n,
             pass,
@@ -220,7 +221,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
             passes = root_pass;
             break root;
         }
-        if passes as usize > MAX_DEPTH {
+        if passes as usize >= MAX_DEPTH {
             return Err(Error::Gpu(format!(
                 "the GPU LBVH's root was not summed in {passes} passes (a bug: please report it)"
             )));

@@ -201,6 +201,9 @@ impl<'d> Tracer<'d> {
             )?;
             return Self::new(device, &set.flatten(), options);
         }
+        if options.build_on == BuildOn::Gpu {
+            log::warn!("a scene in two levels builds its levels on the CPU (not --build-on gpu)");
+        }
         let start = std::time::Instant::now();
         let kind = (options.layout).unwrap_or_else(|| super::default_layout(device));
         let two = match options.refit {
