@@ -197,80 +197,79 @@ impl<'a> Renderer<'a> {
         let mut stats_time = std::time::Duration::ZERO;
         let placed = scene.placements.as_ref().map(|p| p.set());
         let mut two_level = None;
-        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) = match (
-            placed, kind,
-        ) {
-            // Placements: two levels, a bottom level per object and a top level over its
-            // copies (accel::instances); at another frame, the same bottom levels.
-            (Some(set), AccelKind::Bvh(layout_kind)) => {
-                if options.build_on == BuildOn::Gpu {
-                    log::warn!(
+        let (accel, gpu_form, stats): (Arc<dyn Accel>, Option<Arc<dyn GpuForm>>, _) =
+            match (placed, kind) {
+                // Placements: two levels, a bottom level per object and a top level over its
+                // copies (accel::instances); at another frame, the same bottom levels.
+                (Some(set), AccelKind::Bvh(layout_kind)) => {
+                    if options.build_on == BuildOn::Gpu {
+                        log::warn!(
                         "a scene in two levels builds its levels on the CPU (not --build-on gpu)"
                     );
+                    }
+                    let reuse = (options.two_level.as_ref())
+                        .filter(|t| t.name() == layout_kind.name() && t.places(set));
+                    let two = Arc::new(match reuse {
+                        Some(t) => {
+                            let maps: Vec<_> = set.instances.iter().map(|i| i.to_world).collect();
+                            t.moved(&maps, &options.build)?
+                        }
+                        None => GpuTwoLevel::build(layout_kind, set, &options.build)?,
+                    });
+                    two_level = Some(two.clone());
+                    (two.clone(), Some(two as Arc<dyn GpuForm>), None)
                 }
-                let reuse = (options.two_level.as_ref())
-                    .filter(|t| t.name() == layout_kind.name() && t.places(set));
-                let two = Arc::new(match reuse {
-                    Some(t) => {
-                        let maps: Vec<_> = set.instances.iter().map(|i| i.to_world).collect();
-                        t.moved(&maps, &options.build)?
-                    }
-                    None => GpuTwoLevel::build(layout_kind, set, &options.build)?,
-                });
-                two_level = Some(two.clone());
-                (two.clone(), Some(two as Arc<dyn GpuForm>), None)
-            }
-            (Some(set), _) if device.is_cpu() => {
-                let two = TwoLevel::build(kind, set, &options.build)?;
-                (Arc::new(two), None, None)
-            }
-            (Some(_), _) => {
-                return Err(Error::Usage(format!(
-                    "a scene with copies renders on the GPU through a BVH, not the {kind}: \
-                     use a BVH, or render it flattened (--flatten)"
-                )))
-            }
-            (None, AccelKind::Bvh(layout_kind)) => {
-                let on_gpu = match options.build_on {
-                    BuildOn::Gpu => {
-                        gpu_built(device, &scene.mesh, &options.build, layout_kind, true)?
-                    }
-                    BuildOn::Cpu => None,
-                };
-                match on_gpu {
-                    Some(GpuBuilt { layout, tree }) => {
-                        let stats_start = Instant::now();
-                        let stats = tree.map(|t| BvhStats::of(&t, &options.build));
-                        stats_time = stats_start.elapsed();
-                        (layout.clone(), Some(layout), stats)
-                    }
-                    None => {
-                        let tree = bvh::build(&scene.mesh, &options.build);
-                        let stats_start = Instant::now();
-                        let stats = BvhStats::of(&tree, &options.build);
-                        stats_time = stats_start.elapsed();
-                        // The tree goes into the layout: the two are never held at once.
-                        let flat: Arc<dyn GpuForm> =
-                            layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
-                        (flat.clone(), Some(flat), Some(stats))
-                    }
+                (Some(set), _) if device.is_cpu() => {
+                    let two = TwoLevel::build(kind, set, &options.build)?;
+                    (Arc::new(two), None, None)
                 }
-            }
-            _ if device.is_cpu() => (
-                accel::build(kind, &scene.mesh, &options.build)?.into(),
-                None,
-                None,
-            ),
-            _ => match accel::build_gpu(kind, &scene.mesh, &options.build)? {
-                Some(flat) => (flat.clone(), Some(flat), None),
-                None => {
+                (Some(_), _) => {
                     return Err(Error::Usage(format!(
-                        "the {kind} structure runs on the CPU only (only the BVH, the kd-tree \
-                         and the BIH have GPU kernels): use --device cpu"
+                        "a scene with copies renders on the GPU through a BVH, not the {kind}: \
+                     use a BVH, or render it flattened (--flatten)"
                     )))
                 }
-            },
-        };
+                (None, AccelKind::Bvh(layout_kind)) => {
+                    let on_gpu = match options.build_on {
+                        BuildOn::Gpu => {
+                            gpu_built(device, &scene.mesh, &options.build, layout_kind, true)?
+                        }
+                        BuildOn::Cpu => None,
+                    };
+                    match on_gpu {
+                        Some(GpuBuilt { layout, tree }) => {
+                            let stats_start = Instant::now();
+                            let stats = tree.map(|t| BvhStats::of(&t, &options.build));
+                            stats_time = stats_start.elapsed();
+                            (layout.clone(), Some(layout), stats)
+                        }
+                        None => {
+                            let tree = bvh::build(&scene.mesh, &options.build);
+                            let stats_start = Instant::now();
+                            let stats = BvhStats::of(&tree, &options.build);
+                            stats_time = stats_start.elapsed();
+                            // The tree goes into the layout: the two are never held at once.
+                            let flat: Arc<dyn GpuForm> =
+                                layouts::try_flatten_owned(layout_kind, tree, &scene.mesh)?.into();
+                            (flat.clone(), Some(flat), Some(stats))
+                        }
+                    }
+                }
+                _ if device.is_cpu() => (
+                    accel::build(kind, &scene.mesh, &options.build)?.into(),
+                    None,
+                    None,
+                ),
+                _ => match accel::build_gpu(kind, &scene.mesh, &options.build)? {
+                    Some(flat) => (flat.clone(), Some(flat), None),
+                    None => {
+                        return Err(Error::Usage(format!(
+                            "the {kind} structure runs on the CPU only (only the BVH, the kd-tree \
+                         and the BIH have GPU kernels): use --device cpu"
+                        )))
+                    }
+                },
+            };
         let build_ms = (start.elapsed() - stats_time).as_secs_f64() * 1e3;
         let start = Instant::now();
         let gpu = match (device.gpu_context(), &gpu_form) {
