@@ -74,9 +74,7 @@ const PARAMS: u64 = std::mem::size_of::<Params>() as u64;
 /// [`Builder::Lbvh`](crate::accel::bvh::Builder).
 pub fn build_lbvh(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Result<Bvh> {
     let ids = mesh.included();
-    let tris: Vec<Triangle> = ids.iter().map(|&i| mesh.triangles[i as usize]).collect();
-    let tree = lbvh_radix_tree(ctx, &tris)?;
-    drop(tris);
+    let tree = radix_tree_of(ctx, ids.len(), &|i| mesh.triangles[ids[i] as usize])?;
     let t = Instant::now();
     let bvh = build_from_radix_tree(mesh, &ids, tree, opts);
     log::info!("GPU LBVH: lancer's tree made on the CPU in {:.0} ms", ms(t));
@@ -85,12 +83,21 @@ pub fn build_lbvh(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Result<
 
 /// The radix tree over these triangles, built on the GPU.
 pub fn lbvh_radix_tree(ctx: &GpuContext, triangles: &[Triangle]) -> Result<RadixTree> {
-    if triangles.len() < 2 {
+    radix_tree_of(ctx, triangles.len(), &|i| triangles[i])
+}
+
+/// The radix tree over `n` triangles, `triangle(i)` each, built on the GPU.
+fn radix_tree_of(
+    ctx: &GpuContext,
+    n: usize,
+    triangle: &(dyn Fn(usize) -> Triangle + Sync),
+) -> Result<RadixTree> {
+    if n < 2 {
         // No inner node: nothing for the kernels to do.
-        let boxes: Vec<Aabb> = triangles.iter().map(|t| t.bbox()).collect();
+        let boxes: Vec<Aabb> = (0..n).map(|i| triangle(i).bbox()).collect();
         return Ok(radix_tree(&boxes, false));
     }
-    let run = Run::new(ctx, triangles, &[])?;
+    let run = Run::new(ctx, n, triangle)?;
     let mut enc = run.encoder();
     run.record_build(&mut enc)?;
     let (n, inner) = (run.n as u64, run.n as u64 - 1);
@@ -136,9 +143,9 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         let bvh = crate::accel::bvh::build(mesh, opts);
         return Ok(DfsSign::flatten(&bvh, mesh));
     }
-    let tris: Vec<Triangle> = ids.iter().map(|&i| mesh.triangles[i as usize]).collect();
-    let run = Run::new(ctx, &tris, &ids)?;
-    drop(tris);
+    let run = Run::new(ctx, ids.len(), &|i| mesh.triangles[ids[i] as usize])?;
+    let storage = wgpu::BufferUsages::STORAGE;
+    let mesh_ids = ctx.buffer_with("lbvh mesh indices", bytemuck::cast_slice(&ids), storage);
     let (n, inner) = (run.n as u64, run.n as u64 - 1);
     let place_boxes = output_buffer(ctx, "lbvh place boxes", 24 * n);
     let info = output_buffer(ctx, "lbvh node info", 16 * inner);
@@ -296,7 +303,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
             run.vb(1),
             run.vb(2),
             (17, &place_down),
-            (19, run.ids.as_ref().expect("ids uploaded")),
+            (19, &mesh_ids),
             (20, &out_tris),
         ],
     )?;
@@ -389,7 +396,6 @@ struct Run<'c> {
     tiles: u32,
     source: String,
     v: [wgpu::Buffer; 3],
-    ids: Option<wgpu::Buffer>,
     bounds: wgpu::Buffer,
     pairs: [wgpu::Buffer; 2],
     table: wgpu::Buffer,
@@ -402,11 +408,14 @@ struct Run<'c> {
 }
 
 impl<'c> Run<'c> {
-    /// Checks the sizes against the device, uploads the triangles (and `ids`, the mesh
-    /// index of each, where given) and makes the buffers.
-    fn new(ctx: &'c GpuContext, triangles: &[Triangle], ids: &[u32]) -> Result<Run<'c>> {
+    /// Checks the sizes against the device, uploads the `n` triangles (`triangle(i)` each)
+    /// and makes the buffers.
+    fn new(
+        ctx: &'c GpuContext,
+        n: usize,
+        triangle: &(dyn Fn(usize) -> Triangle + Sync),
+    ) -> Result<Run<'c>> {
         let started = Instant::now();
-        let n = triangles.len();
         if n > MAX_PRIMS {
             return Err(Error::Gpu(format!(
                 "the GPU LBVH takes at most {MAX_PRIMS} triangles, not {n}; build on the CPU"
@@ -432,12 +441,10 @@ impl<'c> Run<'c> {
         }
         let storage = wgpu::BufferUsages::STORAGE;
         let vertex = |k: usize| {
-            let words: Vec<f32> = triangles.iter().flat_map(|t| t.v[k].to_array()).collect();
+            let words: Vec<f32> = (0..n).flat_map(|i| triangle(i).v[k].to_array()).collect();
             ctx.buffer_with("lbvh vertices", bytemuck::cast_slice(&words), storage)
         };
         let v = [vertex(0), vertex(1), vertex(2)];
-        let ids = (!ids.is_empty())
-            .then(|| ctx.buffer_with("lbvh mesh indices", bytemuck::cast_slice(ids), storage));
         let base = Params {
             n: n as u32,
             tiles,
@@ -461,7 +468,6 @@ impl<'c> Run<'c> {
             tiles,
             source: lbvh_source(),
             v,
-            ids,
             bounds: output_buffer(ctx, "lbvh centre bounds", 24),
             pairs: [
                 output_buffer(ctx, "lbvh pairs", 8 * n64),
