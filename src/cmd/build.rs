@@ -1,16 +1,15 @@
 use std::path::PathBuf;
 
-use clap::Args;
-use std::time::Instant;
+use std::sync::Arc;
 
-use lancer::accel::bvh::layouts::{
-    build_and_flatten, bvh_file, flatten_and_report, BuildReport, LayoutKind,
-};
+use clap::Args;
+
+use lancer::accel::bvh::layouts::{build_and_flatten, bvh_file, BuildReport};
 use lancer::accel::bvh::Builder;
 use lancer::accel::GpuForm;
 use lancer::gpu::GpuContext;
-use lancer::trace::BuildOn;
-use lancer::{Error, Result};
+use lancer::trace::{gpu_built, BuildOn};
+use lancer::{Device, Error, Result};
 
 use super::out::{print_json, say, Say};
 use super::BuildArgs;
@@ -58,23 +57,22 @@ impl BuildCmd {
         // No device here: a BVH file is for a GPU kernel (or a twin), so the GPU's default.
         let kind = (self.build.layout).unwrap_or(lancer::trace::defaults::GPU_LAYOUT);
         let (layout, mut report) = match self.build_on {
-            BuildOn::Cpu => build_and_flatten(&mesh, &opts, kind)?,
+            BuildOn::Cpu => {
+                let (layout, report) = build_and_flatten(&mesh, &opts, kind)?;
+                (Arc::<dyn GpuForm>::from(layout), report)
+            }
             BuildOn::Gpu => {
-                let ctx = GpuContext::new()?;
-                let started = Instant::now();
-                // dfs-sign is flattened there too; other layouts (and the optimiser) on
-                // the CPU.
-                let (layout, mut report) = if kind == LayoutKind::DfsSign && !opts.optimize {
-                    let flat = lancer::gpu::lbvh_dfs_sign(&ctx, &mesh, &opts)?;
-                    let ms = started.elapsed().as_secs_f64() * 1e3;
-                    let report = BuildReport::new(&flat.tree(), &flat, &opts, ms);
-                    (Box::new(flat) as Box<dyn GpuForm>, report)
-                } else {
-                    let bvh = lancer::gpu::build_lbvh(&ctx, &mesh, &opts)?;
-                    flatten_and_report(&mesh, &bvh, &opts, kind, started)?
+                let device = Device::gpu(GpuContext::new()?);
+                let Some(built) = gpu_built(&device, &mesh, &opts, kind, true)? else {
+                    return Err(Error::Gpu("no GPU device to build on".into()));
                 };
-                report.built_on = Some(ctx.adapter.to_string());
-                (layout, report)
+                // Asked for, the tree is always there.
+                let Some(tree) = &built.tree else {
+                    return Err(Error::Gpu("the GPU build returned no tree".into()));
+                };
+                let mut report = BuildReport::new(tree, built.layout.as_ref(), &opts, built.ms);
+                report.built_on = device.gpu_context().map(|c| c.adapter.to_string());
+                (built.layout, report)
             }
         };
         if let Some(out) = &self.out {

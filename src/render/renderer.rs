@@ -237,7 +237,7 @@ impl<'a> Renderer<'a> {
                         BuildOn::Cpu => None,
                     };
                     match on_gpu {
-                        Some(GpuBuilt { layout, tree }) => {
+                        Some(GpuBuilt { layout, tree, .. }) => {
                             let stats_start = Instant::now();
                             let stats = tree.map(|t| BvhStats::of(&t, &options.build));
                             stats_time = stats_start.elapsed();

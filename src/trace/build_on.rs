@@ -26,18 +26,20 @@ pub enum BuildOn {
 }
 
 /// A layout built on the GPU ([`gpu_built`]), with its tree where asked for.
-pub(crate) struct GpuBuilt {
+pub struct GpuBuilt {
     /// The flattened layout.
     pub layout: Arc<dyn GpuForm>,
     /// The tree it holds (for its statistics).
     pub tree: Option<Bvh>,
+    /// Wall time to build and flatten, ms (the tree for the statistics not included).
+    pub ms: f64,
 }
 
 /// The LBVH over `mesh` built on the device's GPU and flattened into `kind` (there for
 /// dfs-sign without the optimiser, else read back and flattened on the CPU), with its tree
 /// when `want_tree`; None on a device without a GPU, where the caller builds on the CPU
 /// (the same tree). Any builder but the LBVH is a usage error.
-pub(crate) fn gpu_built(
+pub fn gpu_built(
     device: &Device,
     mesh: &Mesh,
     build: &BuildOptions,
@@ -56,21 +58,26 @@ pub(crate) fn gpu_built(
     };
     let start = std::time::Instant::now();
     let there = kind == LayoutKind::DfsSign && !build.optimize && build.max_depth >= bvh::MAX_DEPTH;
+    let ms = || start.elapsed().as_secs_f64() * 1e3;
     let built = if there {
         let flat = crate::gpu::lbvh_dfs_sign(ctx, mesh, build)?;
+        let ms = ms();
         GpuBuilt {
             tree: want_tree.then(|| flat.tree()),
             layout: Arc::new(flat),
+            ms,
         }
     } else {
         let tree = crate::gpu::build_lbvh(ctx, mesh, build)?;
         match want_tree {
             true => GpuBuilt {
                 layout: layouts::try_flatten(kind, &tree, mesh)?.into(),
+                ms: ms(),
                 tree: Some(tree),
             },
             false => GpuBuilt {
                 layout: layouts::try_flatten_owned(kind, tree, mesh)?.into(),
+                ms: ms(),
                 tree: None,
             },
         }
@@ -79,7 +86,7 @@ pub(crate) fn gpu_built(
         "BVH built (lbvh) on {} and flattened into {kind} {} in {:.0} ms",
         ctx.adapter.name,
         if there { "there" } else { "on the CPU" },
-        start.elapsed().as_secs_f64() * 1e3
+        built.ms
     );
     Ok(Some(built))
 }

@@ -1,7 +1,7 @@
 //! Tracing: one [`Tracer`] for the CPU and the GPU, the f64 oracle that judges both, and
 //! the ray and hit file formats.
 
-pub(crate) mod build_on;
+pub mod build_on;
 pub mod check;
 pub mod compare;
 pub mod defaults;
@@ -10,6 +10,6 @@ pub mod oracle;
 pub mod stats;
 mod tracer;
 
-pub use build_on::BuildOn;
+pub use build_on::{gpu_built, BuildOn, GpuBuilt};
 pub use defaults::default_layout;
 pub use tracer::{TraceResult, Tracer, TracerOptions};
