@@ -136,6 +136,41 @@ fn the_gpu_flattens_the_lbvh_into_the_cpus_dfs_sign() {
     }
 }
 
+/// Arrays bigger than one storage binding are bound in parts: on a device whose recorded
+/// binding limit is shrunk to 16 KiB, every array of 3,000 triangles but the mesh indices
+/// spans several parts (the leaf triangles nine), and the radix tree and the dfs-sign
+/// arrays are still the CPU's (the checked module reads a word from a wrong part as zero).
+/// Too many parts for the device's storage buffers a stage are refused, naming the limit.
+#[test]
+fn arrays_beyond_one_binding_are_bound_in_parts() {
+    common::gpu_device(); // fails with the install hint when there is no adapter
+    let mut small = lancer::gpu::GpuContext::new().unwrap();
+    small.limits.max_storage_buffer_binding_size = 16 << 10;
+    let mesh = soup(&mut Rng::new(21), 3000, 0.1);
+    let boxes: Vec<Aabb> = mesh.triangles.iter().map(|t| t.bbox()).collect();
+    let tree = lbvh_radix_tree(&small, &mesh.triangles).unwrap();
+    same_tree("parts", &tree, &radix_tree(&boxes, false));
+    let opts = BuildOptions {
+        builder: Builder::Lbvh,
+        ..BuildOptions::default()
+    };
+    let g = lbvh_dfs_sign(&small, &mesh, &opts).unwrap();
+    assert!(
+        g == DfsSign::flatten(&build(&mesh, &opts), &mesh),
+        "dfs-sign in parts"
+    );
+
+    small.limits.max_storage_buffers_per_shader_stage = 20;
+    let Err(e) = lbvh_dfs_sign(&small, &mesh, &opts) else {
+        panic!("more parts than storage buffers were bound");
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("emit_tris kernel would bind 23 storage buffers") && e.contains("allows 20"),
+        "{e}"
+    );
+}
+
 /// A tracer told to build on the GPU traces the same hits as one built on the CPU, in the
 /// layout built there (dfs-sign) and in one flattened on the CPU (cwbvh); on the CPU device
 /// it builds on the CPU.

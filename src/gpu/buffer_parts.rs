@@ -177,7 +177,12 @@ fn reader(array: &Array, parts: u32, shift: u32) -> String {
 /// A function body doing `step(part's variable, index within it)` on word i of `var`, bound
 /// in `parts` parts of 2^`shift` words: straight where there is one part, else in the part
 /// the index's high bits name.
-fn by_part(var: &str, parts: u32, shift: u32, step: impl Fn(&str, &str) -> String) -> String {
+pub(super) fn by_part(
+    var: &str,
+    parts: u32,
+    shift: u32,
+    step: impl Fn(&str, &str) -> String,
+) -> String {
     if parts <= 1 {
         return format!("    {}\n", step(var, "i"));
     }

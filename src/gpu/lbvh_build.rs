@@ -4,9 +4,9 @@
 
 use std::time::Instant;
 
+use super::parted_array::{self, Access, PartedArray};
 use super::plumbing::{
-    buffer_binding, dynamic_uniform_entry, output_buffer, scoped, storage_entry, uniform_binding,
-    Kernel, Readback,
+    dynamic_uniform_entry, output_buffer, scoped, uniform_binding, Kernel, Readback,
 };
 use super::shaders::{constants_wgsl, Shared};
 use super::GpuContext;
@@ -17,6 +17,7 @@ use crate::accel::GpuArrays;
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Triangle};
 use crate::mesh::Mesh;
+use crate::util::human_bytes;
 
 /// The kernels' source.
 const SOURCE: &str = include_str!("../accel/bvh/lbvh.wgsl");
@@ -30,8 +31,79 @@ const SORT_PASSES: u32 = (3 * CODE_BITS).div_ceil(RADIX_BITS).next_multiple_of(2
 pub const SORT_TILE: u32 = 256;
 /// Threads per workgroup of every kernel but the scan (`WORKGROUP` in the WGSL).
 const WORKGROUP: u32 = 64;
-/// Storage buffers the widest kernel binds (`emit_tris`).
+/// Storage buffers the widest kernel binds (`emit_tris`), each array in one part.
 const STORAGE_BUFFERS: u32 = 7;
+
+/// A storage array of the kernels (declared, with its accessors, in front of the WGSL).
+const fn array(name: &'static str, ty: &'static str, access: Access, binding: u32) -> PartedArray {
+    PartedArray {
+        name,
+        ty,
+        access,
+        binding,
+    }
+}
+
+// The triangles' vertices, three floats each: v0[3i..3i+3] is triangle i's first.
+const V0: PartedArray = array("v0", "f32", Access::Read, 1);
+const V1: PartedArray = array("v1", "f32", Access::Read, 2);
+const V2: PartedArray = array("v2", "f32", Access::Read, 3);
+/// Bounds of the doubled centroids, ordered-encoded: [0..3) the low corner's complement,
+/// [3..6) the high corner (both only ever raised, from zero).
+const CENTRE_BOUNDS: PartedArray = array("centre_bounds", "u32", Access::Atomic, 4);
+/// (code, primitive) pairs: a sort pass reads one array and writes the other.
+const PAIRS_IN: PartedArray = array("pairs_in", "vec2<u32>", Access::Read, 5);
+const PAIRS_OUT: PartedArray = array("pairs_out", "vec2<u32>", Access::ReadWrite, 6);
+/// Digit counts of every tile, digit-major, then their exclusive prefix sums.
+const TABLE: PartedArray = array("table", "u32", Access::ReadWrite, 7);
+/// Children of each inner node (LEAF_BIT | place for a leaf).
+const KIDS: PartedArray = array("kids", "vec2<u32>", Access::ReadWrite, 8);
+/// Parent of inner node i at i, of primitive p at n - 1 + p.
+const PARENTS: PartedArray = array("parents", "u32", Access::ReadWrite, 9);
+/// Inner node boxes, ordered-encoded as in CENTRE_BOUNDS, six words a node.
+const NODE_BOXES: PartedArray = array("node_boxes", "u32", Access::Atomic, 10);
+/// For the flatten into dfs-sign: the box of the primitive at each place, six floats.
+const PLACE_BOXES: PartedArray = array("place_boxes", "f32", Access::ReadWrite, 12);
+/// Per inner node, bottom-up: (primitives, nodes of the flattened subtree, SAH cost times
+/// area as bits, axis | swap << 2 | leaf << 3).
+const INFO: PartedArray = array("info", "vec4<u32>", Access::ReadWrite, 13);
+/// The pass that filled a node's `info` (0: not yet).
+const DONE: PartedArray = array("done", "u32", Access::Atomic, 14);
+/// Per inner node, top-down: (dfs-sign index, first place in leaf order, hidden: inside a
+/// leaf, unused).
+const DOWN: PartedArray = array("down", "vec4<u32>", Access::ReadWrite, 15);
+/// The pass that may read a node's `down` (0: not yet).
+const LEVEL: PartedArray = array("level", "u32", Access::Atomic, 16);
+/// Per place: (position in leaf order, dfs-sign index of its own leaf or NO_NODE).
+const PLACE_DOWN: PartedArray = array("place_down", "vec2<u32>", Access::ReadWrite, 17);
+/// The dfs-sign arrays: 8 words a node (`DfsNode`), 12 a triangle (`LeafTri`).
+const OUT_NODES: PartedArray = array("out_nodes", "u32", Access::ReadWrite, 18);
+/// Mesh triangle index of each primitive.
+const IDS: PartedArray = array("ids", "u32", Access::Read, 19);
+const OUT_TRIS: PartedArray = array("out_tris", "u32", Access::ReadWrite, 20);
+
+/// Every storage array the kernels declare.
+const ARRAYS: [&PartedArray; 19] = [
+    &V0,
+    &V1,
+    &V2,
+    &CENTRE_BOUNDS,
+    &PAIRS_IN,
+    &PAIRS_OUT,
+    &TABLE,
+    &KIDS,
+    &PARENTS,
+    &NODE_BOXES,
+    &PLACE_BOXES,
+    &INFO,
+    &DONE,
+    &DOWN,
+    &LEVEL,
+    &PLACE_DOWN,
+    &OUT_NODES,
+    &IDS,
+    &OUT_TRIS,
+];
 
 /// The constants the kernels share with Rust.
 fn constants() -> Vec<(&'static str, Shared)> {
@@ -44,13 +116,22 @@ fn constants() -> Vec<(&'static str, Shared)> {
     ]
 }
 
-/// The full WGSL module (for naga checks).
+/// The full WGSL module, every array in one binding (for naga checks).
 pub fn lbvh_source() -> String {
-    format!(
-        "{}\n{SOURCE}",
-        constants_wgsl("gpu::lbvh_build::constants", &constants())
-    )
+    source_with(&|_| 1, 31)
 }
+
+/// The WGSL module with each array in `parts(array)` parts of 2^`byte_shift` bytes.
+fn source_with(parts: &dyn Fn(&PartedArray) -> u32, byte_shift: u32) -> String {
+    let mut s = constants_wgsl("gpu::lbvh_build::constants", &constants());
+    for a in ARRAYS {
+        s += &a.wgsl(parts(a), byte_shift);
+    }
+    s + "\n" + SOURCE
+}
+
+/// An array of the kernels and the buffer it is bound to.
+type Bound<'b> = (&'static PartedArray, &'b wgpu::Buffer);
 
 /// Per-dispatch parameters (`Params` in the WGSL).
 #[repr(C)]
@@ -143,38 +224,43 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         let bvh = crate::accel::bvh::build(mesh, opts);
         return Ok(DfsSign::flatten(&bvh, mesh));
     }
+    let (n, inner) = (ids.len() as u64, ids.len() as u64 - 1);
+    for (array, what, bytes) in [
+        (&PLACE_BOXES, "the GPU LBVH's place boxes", 24 * n),
+        (&INFO, "the GPU LBVH's node summaries", 16 * inner),
+        (&OUT_TRIS, "the GPU LBVH's leaf triangles", 48 * n),
+    ] {
+        array.check(ctx, what, bytes)?;
+    }
     let run = Run::new(ctx, ids.len(), &|i| mesh.triangles[ids[i] as usize])?;
     let storage = wgpu::BufferUsages::STORAGE;
     let mesh_ids = ctx.buffer_with("lbvh mesh indices", bytemuck::cast_slice(&ids), storage);
-    let (n, inner) = (run.n as u64, run.n as u64 - 1);
     let place_boxes = output_buffer(ctx, "lbvh place boxes", 24 * n);
     let info = output_buffer(ctx, "lbvh node info", 16 * inner);
     let done = output_buffer(ctx, "lbvh node done", 4 * inner);
     let down = output_buffer(ctx, "lbvh node down", 16 * inner);
     let level = output_buffer(ctx, "lbvh node level", 4 * inner);
     let place_down = output_buffer(ctx, "lbvh place down", 8 * n);
-    for (what, bytes) in [
-        ("the GPU LBVH's place boxes", 24 * n),
-        ("the GPU LBVH's node summaries", 16 * inner),
-        ("the GPU LBVH's leaf triangles", 48 * n),
-    ] {
-        ctx.check_binding(what, bytes)?;
-    }
+    let (v0, v1, v2) = run.vertices();
+    let sorted = (&PAIRS_IN, &run.pairs[0]);
+    let kids = (&KIDS, &run.kids);
+    let node_boxes = (&NODE_BOXES, &run.node_boxes);
+    let (place_boxes, info, done, down, level, place_down) = (
+        (&PLACE_BOXES, &place_boxes),
+        (&INFO, &info),
+        (&DONE, &done),
+        (&DOWN, &down),
+        (&LEVEL, &level),
+        (&PLACE_DOWN, &place_down),
+    );
 
     // 1. The tree and each place's box.
     let mut enc = run.encoder();
     run.record_build(&mut enc)?;
-    let (kl, pl) = run.kernel("leaf_boxes", &[(5, true), V0, V1, V2, (12, false)])?;
-    let gl = run.bind(
-        &kl,
+    let (pl, gl) = run.bound_kernel(
+        "leaf_boxes",
         &run.params,
-        &[
-            (5, &run.pairs[0]),
-            run.vb(0),
-            run.vb(1),
-            run.vb(2),
-            (12, &place_boxes),
-        ],
+        &[sorted, v0, v1, v2, place_boxes],
     )?;
     dispatch(&mut enc, &pl, &gl, 0, run.shape(run.n), run.align);
 
@@ -192,26 +278,10 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         })
         .collect();
     let (params, align) = uniforms(ctx, &flatten_params);
-    let (kc, pc) = run.kernel(
+    let (pc, gc) = run.bound_kernel(
         "costs",
-        &[
-            (8, false),
-            (10, false),
-            (12, false),
-            (13, false),
-            (14, false),
-        ],
-    )?;
-    let gc = run.bind(
-        &kc,
         &params,
-        &[
-            (8, &run.kids),
-            (10, &run.node_boxes),
-            (12, &place_boxes),
-            (13, &info),
-            (14, &done),
-        ],
+        &[kids, node_boxes, place_boxes, info, done],
     )?;
     let mut passes = 0;
     let root = loop {
@@ -219,7 +289,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
             dispatch(&mut enc, &pc, &gc, passes, run.shape(run.n - 1), align);
             passes += 1;
         }
-        let readback = Readback::record(ctx, &mut enc, &[(&info, 16), (&done, 4)]);
+        let readback = Readback::record(ctx, &mut enc, &[(info.1, 16), (done.1, 4)]);
         let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
         let root: [u32; 4] = bytemuck::pod_read_unaligned(&bytes[0]);
         let root_pass: u32 = bytemuck::pod_read_unaligned(&bytes[1]);
@@ -236,76 +306,29 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         enc = run.encoder();
     };
     let nodes = root[1] as u64;
-    ctx.check_binding("the GPU LBVH's dfs-sign nodes", 32 * nodes)?;
+    OUT_NODES.check(ctx, "the GPU LBVH's dfs-sign nodes", 32 * nodes)?;
 
     // 3. Top-down: indices and leaf-order places; then the records.
     let out_nodes = output_buffer(ctx, "lbvh dfs-sign nodes", 32 * nodes);
     let out_tris = output_buffer(ctx, "lbvh leaf triangles", 48 * n);
-    ctx.queue.write_buffer(&level, 0, bytemuck::bytes_of(&1u32));
-    let (kp, pp) = run.kernel(
-        "places",
-        &[
-            (8, false),
-            (13, false),
-            (15, false),
-            (16, false),
-            (17, false),
-        ],
-    )?;
-    let gp = run.bind(
-        &kp,
-        &params,
-        &[
-            (8, &run.kids),
-            (13, &info),
-            (15, &down),
-            (16, &level),
-            (17, &place_down),
-        ],
-    )?;
-    let (kn, pn) = run.kernel(
+    ctx.queue
+        .write_buffer(level.1, 0, bytemuck::bytes_of(&1u32));
+    let (nodes_out, tris_out) = ((&OUT_NODES, &out_nodes), (&OUT_TRIS, &out_tris));
+    let (pp, gp) = run.bound_kernel("places", &params, &[kids, info, down, level, place_down])?;
+    let (pn, gn) = run.bound_kernel(
         "emit_nodes",
-        &[
-            (8, false),
-            (10, false),
-            (13, false),
-            (15, false),
-            (18, false),
-        ],
-    )?;
-    let gn = run.bind(
-        &kn,
         &params,
-        &[
-            (8, &run.kids),
-            (10, &run.node_boxes),
-            (13, &info),
-            (15, &down),
-            (18, &out_nodes),
-        ],
+        &[kids, node_boxes, info, down, nodes_out],
     )?;
-    let (ke, pe) = run.kernel("emit_leaves", &[(12, false), (17, false), (18, false)])?;
-    let ge = run.bind(
-        &ke,
+    let (pe, ge) = run.bound_kernel(
+        "emit_leaves",
         &params,
-        &[(12, &place_boxes), (17, &place_down), (18, &out_nodes)],
+        &[place_boxes, place_down, nodes_out],
     )?;
-    let (kt, pt) = run.kernel(
+    let (pt, gt) = run.bound_kernel(
         "emit_tris",
-        &[(5, true), V0, V1, V2, (17, false), (19, true), (20, false)],
-    )?;
-    let gt = run.bind(
-        &kt,
         &params,
-        &[
-            (5, &run.pairs[0]),
-            run.vb(0),
-            run.vb(1),
-            run.vb(2),
-            (17, &place_down),
-            (19, &mesh_ids),
-            (20, &out_tris),
-        ],
+        &[sorted, v0, v1, v2, place_down, (&IDS, &mesh_ids), tris_out],
     )?;
     let mut enc = run.encoder();
     for p in 0..passes {
@@ -338,11 +361,6 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
 
 /// Bottom-up passes recorded between looks at the root.
 const BATCH: u32 = 8;
-
-/// Vertex bindings of the kernels that read the triangles.
-const V0: (u32, bool) = (1, true);
-const V1: (u32, bool) = (2, true);
-const V2: (u32, bool) = (3, true);
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
@@ -394,7 +412,6 @@ struct Run<'c> {
     started: Instant,
     n: u32,
     tiles: u32,
-    source: String,
     v: [wgpu::Buffer; 3],
     bounds: wgpu::Buffer,
     pairs: [wgpu::Buffer; 2],
@@ -430,14 +447,18 @@ impl<'c> Run<'c> {
         let tiles = (n as u32).div_ceil(SORT_TILE);
         let (n64, inner) = (n as u64, n as u64 - 1);
         let radix = 1u64 << RADIX_BITS;
-        for (what, bytes) in [
-            ("the GPU LBVH's vertices", 12 * n64),
-            ("the GPU LBVH's sort pairs", 8 * n64),
-            ("the GPU LBVH's node boxes", 24 * inner),
-            ("the GPU LBVH's parents", 4 * (inner + n64)),
-            ("the GPU LBVH's sort table", 4 * radix * tiles as u64),
+        for (array, what, bytes) in [
+            (&V0, "the GPU LBVH's vertices", 12 * n64),
+            (&PAIRS_IN, "the GPU LBVH's sort pairs", 8 * n64),
+            (&NODE_BOXES, "the GPU LBVH's node boxes", 24 * inner),
+            (&PARENTS, "the GPU LBVH's parents", 4 * (inner + n64)),
+            (
+                &TABLE,
+                "the GPU LBVH's sort table",
+                4 * radix * tiles as u64,
+            ),
         ] {
-            ctx.check_binding(what, bytes)?;
+            array.check(ctx, what, bytes)?;
         }
         let storage = wgpu::BufferUsages::STORAGE;
         let vertex = |k: usize| {
@@ -466,7 +487,6 @@ impl<'c> Run<'c> {
             started,
             n: n as u32,
             tiles,
-            source: lbvh_source(),
             v,
             bounds: output_buffer(ctx, "lbvh centre bounds", 24),
             pairs: [
@@ -482,8 +502,9 @@ impl<'c> Run<'c> {
         })
     }
 
-    fn vb(&self, k: usize) -> (u32, &wgpu::Buffer) {
-        (1 + k as u32, &self.v[k])
+    /// The vertex arrays, bound.
+    fn vertices(&self) -> (Bound<'_>, Bound<'_>, Bound<'_>) {
+        ((&V0, &self.v[0]), (&V1, &self.v[1]), (&V2, &self.v[2]))
     }
 
     fn encoder(&self) -> wgpu::CommandEncoder {
@@ -494,28 +515,61 @@ impl<'c> Run<'c> {
             })
     }
 
-    /// The kernel `entry` with storage bindings `slots` (binding, read-only).
+    /// The kernel `entry` over these arrays (each in as many parts as its buffer needs);
+    /// refused where the parts outnumber the storage buffers the device allows a stage.
     fn kernel(
         &self,
         entry: &'static str,
-        slots: &[(u32, bool)],
+        bound: &[Bound],
     ) -> Result<(Kernel, wgpu::ComputePipeline)> {
+        let ctx = self.ctx;
+        let parts = |a: &PartedArray| {
+            bound
+                .iter()
+                .find(|(b, _)| b.binding == a.binding)
+                .map_or(1, |(_, buf)| parted_array::parts(ctx, buf.size()))
+        };
+        let source = source_with(&parts, parted_array::byte_shift(ctx));
         let mut entries = vec![dynamic_uniform_entry(0, PARAMS)];
-        entries.extend(slots.iter().map(|&(b, ro)| storage_entry(b, ro)));
-        let k = Kernel::new(self.ctx, "lbvh", entry, &self.source, &entries, false)?;
-        let p = k.pipeline(self.ctx, &[], false)?;
+        for (a, buf) in bound {
+            entries.extend(a.layout_entries(ctx, buf.size()));
+        }
+        let (need, max) = (
+            entries.len() as u32 - 1,
+            ctx.limits.max_storage_buffers_per_shader_stage,
+        );
+        if need > max {
+            return Err(Error::Gpu(format!(
+                "the GPU LBVH's {entry} kernel would bind {need} storage buffers (arrays bigger \
+                 than one binding of {} are bound in parts), but {} allows {max} a shader \
+                 stage (max_storage_buffers_per_shader_stage); build on the CPU",
+                human_bytes(1 << parted_array::byte_shift(ctx)),
+                ctx.adapter.name
+            )));
+        }
+        let k = Kernel::new(ctx, "lbvh", entry, &source, &entries, false)?;
+        let p = k.pipeline(ctx, &[], false)?;
         Ok((k, p))
     }
 
-    fn bind(
-        &self,
-        k: &Kernel,
-        params: &wgpu::Buffer,
-        bufs: &[(u32, &wgpu::Buffer)],
-    ) -> Result<wgpu::BindGroup> {
+    /// A bind group of `k` over these arrays (the buffers' sizes as when `k` was made).
+    fn bind(&self, k: &Kernel, params: &wgpu::Buffer, bound: &[Bound]) -> Result<wgpu::BindGroup> {
         let mut entries = vec![uniform_binding(0, params, PARAMS)];
-        entries.extend(bufs.iter().map(|&(b, buf)| buffer_binding(b, buf)));
+        for (a, buf) in bound {
+            entries.extend(a.bind_entries(self.ctx, buf));
+        }
         k.bind(self.ctx, &entries)
+    }
+
+    /// The kernel `entry` over these arrays and its one bind group.
+    fn bound_kernel(
+        &self,
+        entry: &'static str,
+        params: &wgpu::Buffer,
+        bound: &[Bound],
+    ) -> Result<(wgpu::ComputePipeline, wgpu::BindGroup)> {
+        let (k, p) = self.kernel(entry, bound)?;
+        Ok((p, self.bind(&k, params, bound)?))
     }
 
     /// Workgroups for `threads` threads, two-dimensional beyond the per-dimension limit.
@@ -532,57 +586,55 @@ impl<'c> Run<'c> {
     /// Records the radix tree's build: bounds, codes, the sort, the tree, the boxes.
     fn record_build(&self, enc: &mut wgpu::CommandEncoder) -> Result<()> {
         let t = Instant::now();
-        let (kb, pb) = self.kernel("bounds", &[V0, V1, V2, (4, false)])?;
-        let (kc, pc) = self.kernel("codes", &[V0, V1, V2, (4, false), (6, false)])?;
-        let (kh, ph) = self.kernel("histogram", &[(5, true), (7, false)])?;
-        let (ks, ps) = self.kernel("scan", &[(7, false)])?;
-        let (kx, px) = self.kernel("scatter", &[(5, true), (6, false), (7, false)])?;
-        let (kt, pt) = self.kernel("hierarchy", &[(5, true), (8, false), (9, false)])?;
-        let (ko, po) = self.kernel("boxes", &[V0, V1, V2, (9, false), (10, false)])?;
         let p = &self.params;
-        let (v0, v1, v2) = (self.vb(0), self.vb(1), self.vb(2));
-        let gb = self.bind(&kb, p, &[v0, v1, v2, (4, &self.bounds)])?;
-        let gc = self.bind(
-            &kc,
+        let (v0, v1, v2) = self.vertices();
+        let bounds = (&CENTRE_BOUNDS, &self.bounds);
+        let table = (&TABLE, &self.table);
+        let (pb, gb) = self.bound_kernel("bounds", p, &[v0, v1, v2, bounds])?;
+        let (pc, gc) = self.bound_kernel(
+            "codes",
             p,
-            &[v0, v1, v2, (4, &self.bounds), (6, &self.pairs[0])],
+            &[v0, v1, v2, bounds, (&PAIRS_OUT, &self.pairs[0])],
         )?;
+        // The sort's passes read one pair array and write the other, in turn.
+        let from = |k: usize| (&PAIRS_IN, &self.pairs[k]);
+        let to = |k: usize| (&PAIRS_OUT, &self.pairs[1 - k]);
+        let (kh, ph) = self.kernel("histogram", &[from(0), table])?;
         let gh = [
-            self.bind(&kh, p, &[(5, &self.pairs[0]), (7, &self.table)])?,
-            self.bind(&kh, p, &[(5, &self.pairs[1]), (7, &self.table)])?,
+            self.bind(&kh, p, &[from(0), table])?,
+            self.bind(&kh, p, &[from(1), table])?,
         ];
-        let gs = self.bind(&ks, p, &[(7, &self.table)])?;
+        let (ps, gs) = self.bound_kernel("scan", p, &[table])?;
+        let (kx, px) = self.kernel("scatter", &[from(0), to(0), table])?;
         let gx = [
-            self.bind(
-                &kx,
-                p,
-                &[(5, &self.pairs[0]), (6, &self.pairs[1]), (7, &self.table)],
-            )?,
-            self.bind(
-                &kx,
-                p,
-                &[(5, &self.pairs[1]), (6, &self.pairs[0]), (7, &self.table)],
-            )?,
+            self.bind(&kx, p, &[from(0), to(0), table])?,
+            self.bind(&kx, p, &[from(1), to(1), table])?,
         ];
-        let gt = self.bind(
-            &kt,
+        let (pt, gt) = self.bound_kernel(
+            "hierarchy",
             p,
-            &[(5, &self.pairs[0]), (8, &self.kids), (9, &self.parents)],
+            &[from(0), (&KIDS, &self.kids), (&PARENTS, &self.parents)],
         )?;
-        let go = self.bind(
-            &ko,
+        let (po, go) = self.bound_kernel(
+            "boxes",
             p,
-            &[v0, v1, v2, (9, &self.parents), (10, &self.node_boxes)],
+            &[
+                v0,
+                v1,
+                v2,
+                (&PARENTS, &self.parents),
+                (&NODE_BOXES, &self.node_boxes),
+            ],
         )?;
         log::info!("GPU LBVH: kernels compiled in {:.0} ms", ms(t));
         let a = self.align;
         dispatch(enc, &pb, &gb, 0, self.shape(self.n), a);
         dispatch(enc, &pc, &gc, 0, self.shape(self.n), a);
         for k in 0..SORT_PASSES {
-            let from = (k % 2) as usize;
-            dispatch(enc, &ph, &gh[from], 1 + k, self.shape(self.tiles), a);
+            let read = (k % 2) as usize;
+            dispatch(enc, &ph, &gh[read], 1 + k, self.shape(self.tiles), a);
             dispatch(enc, &ps, &gs, 1 + k, (1, 1), a);
-            dispatch(enc, &px, &gx[from], 1 + k, self.shape(self.tiles), a);
+            dispatch(enc, &px, &gx[read], 1 + k, self.shape(self.tiles), a);
         }
         dispatch(enc, &pt, &gt, 0, self.shape(self.n - 1), a);
         dispatch(enc, &po, &go, 0, self.shape(self.n), a);

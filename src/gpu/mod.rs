@@ -8,6 +8,7 @@ mod bvh_memory;
 mod context;
 mod driver;
 mod lbvh_build;
+mod parted_array;
 pub mod plumbing;
 pub mod shaders;
 mod trace;

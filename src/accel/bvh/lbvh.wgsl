@@ -19,44 +19,9 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-// The triangles' vertices, three floats each: v0[3i..3i+3] is triangle i's first.
-@group(0) @binding(1) var<storage, read> v0: array<f32>;
-@group(0) @binding(2) var<storage, read> v1: array<f32>;
-@group(0) @binding(3) var<storage, read> v2: array<f32>;
-// Bounds of the doubled centroids, ordered-encoded: [0..3) the low corner's complement,
-// [3..6) the high corner (both only ever raised, from zero).
-@group(0) @binding(4) var<storage, read_write> centre_bounds: array<atomic<u32>, 6>;
-// (code, primitive) pairs: a sort pass reads one array and writes the other.
-@group(0) @binding(5) var<storage, read> pairs_in: array<vec2<u32>>;
-@group(0) @binding(6) var<storage, read_write> pairs_out: array<vec2<u32>>;
-// Digit counts of every tile, digit-major, then their exclusive prefix sums.
-@group(0) @binding(7) var<storage, read_write> table: array<u32>;
-// Children of each inner node (LEAF_BIT | place for a leaf).
-@group(0) @binding(8) var<storage, read_write> kids: array<vec2<u32>>;
-// Parent of inner node i at i, of primitive p at n - 1 + p.
-@group(0) @binding(9) var<storage, read_write> parents: array<u32>;
-// Inner node boxes, ordered-encoded as in centre_bounds, six words a node.
-@group(0) @binding(10) var<storage, read_write> node_boxes: array<atomic<u32>>;
-
-// For the flatten into dfs-sign: the box of the primitive at each place, six floats.
-@group(0) @binding(12) var<storage, read_write> place_boxes: array<f32>;
-// Per inner node, bottom-up: (primitives, nodes of the flattened subtree, SAH cost times
-// area as bits, axis | swap << 2 | leaf << 3).
-@group(0) @binding(13) var<storage, read_write> info: array<vec4<u32>>;
-// The pass that filled a node's `info` (0: not yet).
-@group(0) @binding(14) var<storage, read_write> done: array<atomic<u32>>;
-// Per inner node, top-down: (dfs-sign index, first place in leaf order, hidden: inside a
-// leaf, unused).
-@group(0) @binding(15) var<storage, read_write> down: array<vec4<u32>>;
-// The pass that may read a node's `down` (0: not yet).
-@group(0) @binding(16) var<storage, read_write> level: array<atomic<u32>>;
-// Per place: (position in leaf order, dfs-sign index of its own leaf or NO_NODE).
-@group(0) @binding(17) var<storage, read_write> place_down: array<vec2<u32>>;
-// The dfs-sign arrays: 8 words a node (`DfsNode`), 12 a triangle (`LeafTri`).
-@group(0) @binding(18) var<storage, read_write> out_nodes: array<u32>;
-// Mesh triangle index of each primitive.
-@group(0) @binding(19) var<storage, read> ids: array<u32>;
-@group(0) @binding(20) var<storage, read_write> out_tris: array<u32>;
+// The storage arrays are declared in front of this file with their accessors (NAME_at,
+// NAME_set; NAME_load, NAME_store, NAME_max for atomics), each bound in as many parts as
+// its size needs (gpu::parted_array); `gpu::lbvh_build::ARRAYS` says what each holds.
 
 const WORKGROUP: u32 = 64u;
 const NO_NODE: u32 = 0xffffffffu;
@@ -82,12 +47,12 @@ fn thread_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
 fn vertex(a: u32, i: u32) -> vec3<f32> {
     let k = 3u * i;
     if a == 0u {
-        return vec3<f32>(v0[k], v0[k + 1u], v0[k + 2u]);
+        return vec3<f32>(v0_at(k), v0_at(k + 1u), v0_at(k + 2u));
     }
     if a == 1u {
-        return vec3<f32>(v1[k], v1[k + 1u], v1[k + 2u]);
+        return vec3<f32>(v1_at(k), v1_at(k + 1u), v1_at(k + 2u));
     }
-    return vec3<f32>(v2[k], v2[k + 1u], v2[k + 2u]);
+    return vec3<f32>(v2_at(k), v2_at(k + 1u), v2_at(k + 2u));
 }
 
 struct Box {
@@ -132,7 +97,7 @@ fn bounds(@builtin(global_invocation_id) gid: vec3<u32>,
     }
     if t == 0u {
         for (var k = 0u; k < 6u; k++) {
-            atomicMax(&centre_bounds[k], reduce[0][k]);
+            centre_bounds_max(k, reduce[0][k]);
         }
     }
 }
@@ -161,8 +126,8 @@ fn codes(@builtin(global_invocation_id) gid: vec3<u32>,
     var lo: vec3<f32>;
     var hi: vec3<f32>;
     for (var a = 0u; a < 3u; a++) {
-        lo[a] = unordered(~atomicLoad(&centre_bounds[a]));
-        hi[a] = unordered(atomicLoad(&centre_bounds[a + 3u]));
+        lo[a] = unordered(~centre_bounds_load(a));
+        hi[a] = unordered(centre_bounds_load(a + 3u));
     }
     let e = hi - lo;
     let side = max(e.x, max(e.y, e.z));
@@ -181,7 +146,7 @@ fn codes(@builtin(global_invocation_id) gid: vec3<u32>,
         let q = ((c2[a] - lo[a]) * s1) * s2;
         code |= spread(min(u32(q), (1u << CODE_BITS) - 1u)) << a;
     }
-    pairs_out[i] = vec2<u32>(code, i);
+    pairs_out_set(i, vec2<u32>(code, i));
 }
 
 // 3. One pass of the stable radix sort (RADIX_BITS a pass, SORT_PASSES passes from the low
@@ -197,10 +162,10 @@ fn histogram(@builtin(global_invocation_id) gid: vec3<u32>,
     var count: array<u32, RADIX>;
     let end = min(params.n, (tile + 1u) * SORT_TILE);
     for (var e = tile * SORT_TILE; e < end; e++) {
-        count[(pairs_in[e].x >> params.shift) & (RADIX - 1u)] += 1u;
+        count[(pairs_in_at(e).x >> params.shift) & (RADIX - 1u)] += 1u;
     }
     for (var d = 0u; d < RADIX; d++) {
-        table[d * params.tiles + tile] = count[d];
+        table_set(d * params.tiles + tile, count[d]);
     }
 }
 
@@ -214,7 +179,7 @@ fn scan(@builtin(local_invocation_index) t: u32) {
     let last = min(first + chunk, m);
     var sum = 0u;
     for (var k = first; k < last; k++) {
-        sum += table[k];
+        sum += table_at(k);
     }
     partial[t] = sum;
     workgroupBarrier();
@@ -226,8 +191,8 @@ fn scan(@builtin(local_invocation_index) t: u32) {
     }
     var run = partial[t] - sum;
     for (var k = first; k < last; k++) {
-        let c = table[k];
-        table[k] = run;
+        let c = table_at(k);
+        table_set(k, run);
         run += c;
     }
 }
@@ -241,13 +206,13 @@ fn scatter(@builtin(global_invocation_id) gid: vec3<u32>,
     }
     var at: array<u32, RADIX>;
     for (var d = 0u; d < RADIX; d++) {
-        at[d] = table[d * params.tiles + tile];
+        at[d] = table_at(d * params.tiles + tile);
     }
     let end = min(params.n, (tile + 1u) * SORT_TILE);
     for (var e = tile * SORT_TILE; e < end; e++) {
-        let p = pairs_in[e];
+        let p = pairs_in_at(e);
         let d = (p.x >> params.shift) & (RADIX - 1u);
-        pairs_out[at[d]] = p;
+        pairs_out_set(at[d], p);
         at[d] += 1u;
     }
 }
@@ -257,8 +222,8 @@ fn delta(i: i32, j: i32) -> i32 {
     if j < 0 || j >= i32(params.n) {
         return -1;
     }
-    let a = pairs_in[u32(i)].x;
-    let b = pairs_in[u32(j)].x;
+    let a = pairs_in_at(u32(i)).x;
+    let b = pairs_in_at(u32(j)).x;
     if a != b {
         return i32(countLeadingZeros(a ^ b));
     }
@@ -307,13 +272,13 @@ fn hierarchy(@builtin(global_invocation_id) gid: vec3<u32>,
         let place = split + side;
         if place == ends[side] {
             pair[side] = LEAF_BIT | u32(place);
-            parents[params.n - 1u + pairs_in[u32(place)].y] = node;
+            parents_set(params.n - 1u + pairs_in_at(u32(place)).y, node);
         } else {
             pair[side] = u32(place);
-            parents[u32(place)] = node;
+            parents_set(u32(place), node);
         }
     }
-    kids[node] = pair;
+    kids_set(node, pair);
 }
 
 // 5. Boxes: each primitive raises its box into its ancestors' words, going up while it
@@ -332,18 +297,18 @@ fn boxes(@builtin(global_invocation_id) gid: vec3<u32>,
         words[a] = ~ordered(b.lo[a]);
         words[a + 3u] = ordered(b.hi[a]);
     }
-    var node = parents[params.n - 1u + p];
+    var node = parents_at(params.n - 1u + p);
     loop {
         var raised = false;
         for (var k = 0u; k < 6u; k++) {
             // Every word is raised, whatever the ones before did.
-            let old = atomicMax(&node_boxes[6u * node + k], words[k]);
+            let old = node_boxes_max(6u * node + k, words[k]);
             raised = raised || old < words[k];
         }
         if !raised || node == 0u {
             break;
         }
-        node = parents[node];
+        node = parents_at(node);
     }
 }
 
@@ -356,18 +321,18 @@ fn leaf_boxes(@builtin(global_invocation_id) gid: vec3<u32>,
     if s >= params.n {
         return;
     }
-    let b = triangle_box(pairs_in[s].y);
+    let b = triangle_box(pairs_in_at(s).y);
     for (var a = 0u; a < 3u; a++) {
-        place_boxes[6u * s + a] = b.lo[a];
-        place_boxes[6u * s + 3u + a] = b.hi[a];
+        place_boxes_set(6u * s + a, b.lo[a]);
+        place_boxes_set(6u * s + 3u + a, b.hi[a]);
     }
 }
 
 fn node_box(i: u32) -> Box {
     var b: Box;
     for (var a = 0u; a < 3u; a++) {
-        b.lo[a] = unordered(~atomicLoad(&node_boxes[6u * i + a]));
-        b.hi[a] = unordered(atomicLoad(&node_boxes[6u * i + 3u + a]));
+        b.lo[a] = unordered(~node_boxes_load(6u * i + a));
+        b.hi[a] = unordered(node_boxes_load(6u * i + 3u + a));
     }
     return b;
 }
@@ -375,8 +340,8 @@ fn node_box(i: u32) -> Box {
 fn place_box(s: u32) -> Box {
     var b: Box;
     for (var a = 0u; a < 3u; a++) {
-        b.lo[a] = place_boxes[6u * s + a];
-        b.hi[a] = place_boxes[6u * s + 3u + a];
+        b.lo[a] = place_boxes_at(6u * s + a);
+        b.hi[a] = place_boxes_at(6u * s + 3u + a);
     }
     return b;
 }
@@ -420,11 +385,11 @@ fn summary(k: u32) -> Summary {
         let b = place_box(k & ~LEAF_BIT);
         return Summary(true, 1u, 1u, params.t_obj * area(b), b);
     }
-    let d = atomicLoad(&done[k]);
+    let d = done_load(k);
     if d == 0u || d >= params.pass_ {
         return Summary(false, 0u, 0u, 0.0, Box(vec3<f32>(), vec3<f32>()));
     }
-    let f = info[k];
+    let f = info_at(k);
     return Summary(true, f.x, f.y, bitcast<f32>(f.z), node_box(k));
 }
 
@@ -433,10 +398,10 @@ fn summary(k: u32) -> Summary {
 fn costs(@builtin(global_invocation_id) gid: vec3<u32>,
          @builtin(num_workgroups) groups: vec3<u32>) {
     let i = thread_index(gid, groups);
-    if i + 1u >= params.n || atomicLoad(&done[i]) != 0u {
+    if i + 1u >= params.n || done_load(i) != 0u {
         return;
     }
-    let k = kids[i];
+    let k = kids_at(i);
     let a = summary(k.x);
     let b = summary(k.y);
     if !a.ready || !b.ready {
@@ -457,14 +422,14 @@ fn costs(@builtin(global_invocation_id) gid: vec3<u32>,
     let nodes = select(1u + l.nodes + r.nodes, 1u, leaf);
     let cost = select(split, as_leaf, leaf);
     let flags = order.x | (order.y << 2u) | (select(0u, 1u, leaf) << 3u);
-    info[i] = vec4<u32>(count, nodes, bitcast<u32>(cost), flags);
-    atomicStore(&done[i], params.pass_);
+    info_set(i, vec4<u32>(count, nodes, bitcast<u32>(cost), flags));
+    done_store(i, params.pass_);
 }
 
 // An inner node's children, low side first: (first, second).
 fn ordered_kids(i: u32) -> vec2<u32> {
-    let k = kids[i];
-    if ((info[i].w >> 2u) & 1u) == 1u {
+    let k = kids_at(i);
+    if ((info_at(i).w >> 2u) & 1u) == 1u {
         return k.yx;
     }
     return k;
@@ -474,7 +439,7 @@ fn count_and_nodes(k: u32) -> vec2<u32> {
     if (k & LEAF_BIT) != 0u {
         return vec2<u32>(1u, 1u);
     }
-    return info[k].xy;
+    return info_at(k).xy;
 }
 
 //    Top-down, one level a pass: each node's dfs-sign index and first place in leaf order
@@ -483,11 +448,11 @@ fn count_and_nodes(k: u32) -> vec2<u32> {
 fn places(@builtin(global_invocation_id) gid: vec3<u32>,
           @builtin(num_workgroups) groups: vec3<u32>) {
     let i = thread_index(gid, groups);
-    if i + 1u >= params.n || atomicLoad(&level[i]) != params.pass_ {
+    if i + 1u >= params.n || level_load(i) != params.pass_ {
         return;
     }
-    let me = down[i];
-    let hidden = me.z != 0u || ((info[i].w >> 3u) & 1u) == 1u;
+    let me = down_at(i);
+    let hidden = me.z != 0u || ((info_at(i).w >> 3u) & 1u) == 1u;
     let k = ordered_kids(i);
     let first = count_and_nodes(k.x);
     let index = vec2<u32>(me.x + 1u, me.x + 1u + first.y);
@@ -495,10 +460,10 @@ fn places(@builtin(global_invocation_id) gid: vec3<u32>,
     for (var side = 0u; side < 2u; side++) {
         let c = k[side];
         if (c & LEAF_BIT) != 0u {
-            place_down[c & ~LEAF_BIT] = vec2<u32>(start[side], select(index[side], NO_NODE, hidden));
+            place_down_set(c & ~LEAF_BIT, vec2<u32>(start[side], select(index[side], NO_NODE, hidden)));
         } else {
-            down[c] = vec4<u32>(index[side], start[side], select(0u, 1u, hidden), 0u);
-            atomicStore(&level[c], params.pass_ + 1u);
+            down_set(c, vec4<u32>(index[side], start[side], select(0u, 1u, hidden), 0u));
+            level_store(c, params.pass_ + 1u);
         }
     }
 }
@@ -506,11 +471,11 @@ fn places(@builtin(global_invocation_id) gid: vec3<u32>,
 fn write_node(at: u32, b: Box, a: u32, tag: u32) {
     let w = 8u * at;
     for (var k = 0u; k < 3u; k++) {
-        out_nodes[w + k] = bitcast<u32>(b.lo[k]);
-        out_nodes[w + 4u + k] = bitcast<u32>(b.hi[k]);
+        out_nodes_set(w + k, bitcast<u32>(b.lo[k]));
+        out_nodes_set(w + 4u + k, bitcast<u32>(b.hi[k]));
     }
-    out_nodes[w + 3u] = a;
-    out_nodes[w + 7u] = tag;
+    out_nodes_set(w + 3u, a);
+    out_nodes_set(w + 7u, tag);
 }
 
 //    The inner nodes' records: an inner node (its second child, its axis) or a leaf made of
@@ -522,11 +487,11 @@ fn emit_nodes(@builtin(global_invocation_id) gid: vec3<u32>,
     if i + 1u >= params.n {
         return;
     }
-    let me = down[i];
+    let me = down_at(i);
     if me.z != 0u {
         return;
     }
-    let f = info[i];
+    let f = info_at(i);
     if ((f.w >> 3u) & 1u) == 1u {
         write_node(me.x, node_box(i), me.y, (f.x << 2u) | DFS_LEAF_TAG);
     } else {
@@ -543,7 +508,7 @@ fn emit_leaves(@builtin(global_invocation_id) gid: vec3<u32>,
     if s >= params.n {
         return;
     }
-    let d = place_down[s];
+    let d = place_down_at(s);
     if d.y != NO_NODE {
         write_node(d.y, place_box(s), d.x, (1u << 2u) | DFS_LEAF_TAG);
     }
@@ -557,14 +522,14 @@ fn emit_tris(@builtin(global_invocation_id) gid: vec3<u32>,
     if s >= params.n {
         return;
     }
-    let p = pairs_in[s].y;
-    let w = 12u * place_down[s].x;
+    let p = pairs_in_at(s).y;
+    let w = 12u * place_down_at(s).x;
     for (var v = 0u; v < 3u; v++) {
         let x = vertex(v, p);
         for (var k = 0u; k < 3u; k++) {
-            out_tris[w + 4u * v + k] = bitcast<u32>(x[k]);
+            out_tris_set(w + 4u * v + k, bitcast<u32>(x[k]));
         }
-        out_tris[w + 4u * v + 3u] = 0u;
+        out_tris_set(w + 4u * v + 3u, 0u);
     }
-    out_tris[w + 3u] = ids[p];
+    out_tris_set(w + 3u, ids_at(p));
 }
