@@ -67,13 +67,15 @@ const PLACE_BOXES: PartedArray = array("place_boxes", "f32", Access::ReadWrite, 
 /// Per inner node, bottom-up: (primitives, nodes of the flattened subtree, SAH cost times
 /// area as bits, axis | swap << 2 | leaf << 3).
 const INFO: PartedArray = array("info", "vec4<u32>", Access::ReadWrite, 13);
-/// The pass that filled a node's `info` (0: not yet).
-const DONE: PartedArray = array("done", "u32", Access::Atomic, 14);
+/// Each inner node's height (a node of two leaves: 1).
+const HEIGHTS: PartedArray = array("node_height", "u32", Access::Atomic, 14);
 /// Per inner node, top-down: (dfs-sign index, first place in leaf order, hidden: inside a
 /// leaf, unused).
 const DOWN: PartedArray = array("down", "vec4<u32>", Access::ReadWrite, 15);
-/// The pass that may read a node's `down` (0: not yet).
-const LEVEL: PartedArray = array("level", "u32", Access::Atomic, 16);
+/// The inner nodes grouped by height, lowest first.
+const BY_HEIGHT: PartedArray = array("by_height", "u32", Access::ReadWrite, 16);
+/// Inner nodes of each height, then where the next of each height goes in BY_HEIGHT.
+const CURSOR: PartedArray = array("cursor", "u32", Access::Atomic, 11);
 /// Per place: (position in leaf order, dfs-sign index of its own leaf or NO_NODE).
 const PLACE_DOWN: PartedArray = array("place_down", "vec2<u32>", Access::ReadWrite, 17);
 /// The dfs-sign arrays: 8 words a node (`DfsNode`), 12 a triangle (`LeafTri`).
@@ -83,7 +85,7 @@ const IDS: PartedArray = array("ids", "u32", Access::Read, 19);
 const OUT_TRIS: PartedArray = array("out_tris", "u32", Access::ReadWrite, 20);
 
 /// Every storage array the kernels declare.
-const ARRAYS: [&PartedArray; 19] = [
+const ARRAYS: [&PartedArray; 20] = [
     &V0,
     &V1,
     &V2,
@@ -96,9 +98,10 @@ const ARRAYS: [&PartedArray; 19] = [
     &NODE_BOXES,
     &PLACE_BOXES,
     &INFO,
-    &DONE,
+    &HEIGHTS,
     &DOWN,
-    &LEVEL,
+    &BY_HEIGHT,
+    &CURSOR,
     &PLACE_DOWN,
     &OUT_NODES,
     &IDS,
@@ -113,6 +116,7 @@ fn constants() -> Vec<(&'static str, Shared)> {
         ("RADIX_BITS", Shared::U32(RADIX_BITS)), // gpu::lbvh_build::RADIX_BITS
         ("SORT_TILE", Shared::U32(SORT_TILE)), // gpu::lbvh_build::SORT_TILE
         ("DFS_LEAF_TAG", Shared::U32(DFS_LEAF_TAG)), // layouts::dfs_sign::LEAF_TAG
+        ("HEIGHTS", Shared::U32(HEIGHT_LIMIT)), // gpu::lbvh_build::HEIGHT_LIMIT
     ]
 }
 
@@ -140,11 +144,12 @@ struct Params {
     n: u32,
     tiles: u32,
     shift: u32,
-    pass: u32,
     max_leaf: u32,
     t_cube: f32,
     t_obj: f32,
-    pad: u32,
+    first: u32,
+    count: u32,
+    pad: [u32; 3],
 }
 
 const PARAMS: u64 = std::mem::size_of::<Params>() as u64;
@@ -237,106 +242,113 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     let mesh_ids = ctx.buffer_with("lbvh mesh indices", bytemuck::cast_slice(&ids), storage);
     let place_boxes = output_buffer(ctx, "lbvh place boxes", 24 * n);
     let info = output_buffer(ctx, "lbvh node info", 16 * inner);
-    let done = output_buffer(ctx, "lbvh node done", 4 * inner);
+    let heights = output_buffer(ctx, "lbvh node heights", 4 * inner);
+    let by_height = output_buffer(ctx, "lbvh nodes by height", 4 * inner);
+    let cursor = output_buffer(ctx, "lbvh height cursor", 4 * HEIGHT_LIMIT as u64);
     let down = output_buffer(ctx, "lbvh node down", 16 * inner);
-    let level = output_buffer(ctx, "lbvh node level", 4 * inner);
     let place_down = output_buffer(ctx, "lbvh place down", 8 * n);
     let (v0, v1, v2) = run.vertices();
     let sorted = (&PAIRS_IN, &run.pairs[0]);
     let kids = (&KIDS, &run.kids);
     let node_boxes = (&NODE_BOXES, &run.node_boxes);
-    let (place_boxes, info, done, down, level, place_down) = (
+    let (place_boxes, info, down, place_down) = (
         (&PLACE_BOXES, &place_boxes),
         (&INFO, &info),
-        (&DONE, &done),
         (&DOWN, &down),
-        (&LEVEL, &level),
         (&PLACE_DOWN, &place_down),
     );
+    let (heights, by_height, cursor) = (
+        (&HEIGHTS, &heights),
+        (&BY_HEIGHT, &by_height),
+        (&CURSOR, &cursor),
+    );
+    let base = Params {
+        n: run.n,
+        max_leaf: opts.max_leaf.clamp(1, u32::MAX as usize) as u32,
+        t_cube: opts.t_cube,
+        t_obj: opts.t_obj,
+        ..Params::default()
+    };
+    let (base_params, _) = uniforms(ctx, &[base]);
+    let bound = |entry, bound: &[Bound]| run.bound_kernel(entry, &base_params, bound);
 
-    // 1. The tree and each place's box.
+    // 1. The tree, each place's box, each inner node's height and how many have each.
     let mut enc = run.encoder();
     run.record_build(&mut enc)?;
-    let (pl, gl) = run.bound_kernel(
-        "leaf_boxes",
-        &run.params,
-        &[sorted, v0, v1, v2, place_boxes],
-    )?;
-    dispatch(&mut enc, &pl, &gl, 0, run.shape(run.n), run.align);
+    let all = run.shape(run.n);
+    let (pl, gl) = bound("leaf_boxes", &[sorted, v0, v1, v2, place_boxes])?;
+    dispatch(&mut enc, &pl, &gl, 0, all, 0);
+    let (ph, gh) = bound("heights", &[heights, (&PARENTS, &run.parents)])?;
+    dispatch(&mut enc, &ph, &gh, 0, all, 0);
+    let (pk, gk) = bound("count_heights", &[heights, cursor])?;
+    dispatch(&mut enc, &pk, &gk, 0, run.shape(run.n - 1), 0);
+    let readback = Readback::record(ctx, &mut enc, &[(cursor.1, 4 * HEIGHT_LIMIT as u64)]);
+    let bytes = run.finish(enc, readback, "building the LBVH on the GPU")?;
+    let counts: &[u32] = bytemuck::cast_slice(&bytes[0]);
+    // The root is the one node of the greatest height.
+    let top = counts.iter().rposition(|&c| c > 0).unwrap_or(0);
+    if top > MAX_DEPTH {
+        return Err(Error::Gpu(format!(
+            "the GPU LBVH's tree is {top} levels deep, more than the trace stack holds \
+             ({MAX_DEPTH}); build on the CPU (it builds such a tree with binned SAH)"
+        )));
+    }
+    // Where each height's nodes start; the uniforms of each height's pass.
+    let mut starts = vec![0u32; HEIGHT_LIMIT as usize];
+    for h in 1..HEIGHT_LIMIT as usize {
+        starts[h] = starts[h - 1] + counts[h - 1];
+    }
+    ctx.queue
+        .write_buffer(cursor.1, 0, bytemuck::cast_slice(&starts));
+    let mut all_params = vec![base];
+    all_params.extend((1..=top).map(|h| Params {
+        first: starts[h],
+        count: counts[h],
+        ..base
+    }));
+    let (params, align) = uniforms(ctx, &all_params);
 
-    // 2. Bottom-up: the SAH's leaves, one level a pass, until the root is done (a batch of
-    //    passes at a time; the depth is at most MAX_DEPTH).
-    // Room for every batch that may run: the root is done by pass MAX_DEPTH.
-    let flatten_params: Vec<Params> = (1..=MAX_DEPTH as u32 + BATCH)
-        .map(|pass| Params {
-            n: run.n,
-            pass,
-            max_leaf: opts.max_leaf.clamp(1, u32::MAX as usize) as u32,
-            t_cube: opts.t_cube,
-            t_obj: opts.t_obj,
-            ..Params::default()
-        })
-        .collect();
-    let (params, align) = uniforms(ctx, &flatten_params);
+    // 2. The nodes by height; bottom-up, one height a pass, the SAH's leaves.
+    let mut enc = run.encoder();
+    let (pb, gb) = bound("by_heights", &[heights, cursor, by_height])?;
+    dispatch(&mut enc, &pb, &gb, 0, run.shape(run.n - 1), 0);
     let (pc, gc) = run.bound_kernel(
         "costs",
         &params,
-        &[kids, node_boxes, place_boxes, info, done],
+        &[by_height, kids, node_boxes, place_boxes, info],
     )?;
-    let mut passes = 0;
-    let root = loop {
-        for _ in 0..BATCH {
-            dispatch(&mut enc, &pc, &gc, passes, run.shape(run.n - 1), align);
-            passes += 1;
-        }
-        let readback = Readback::record(ctx, &mut enc, &[(info.1, 16), (done.1, 4)]);
-        let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
-        let root: [u32; 4] = bytemuck::pod_read_unaligned(&bytes[0]);
-        let root_pass: u32 = bytemuck::pod_read_unaligned(&bytes[1]);
-        if root_pass != 0 {
-            // The root's pass is its height + 1: the top-down passes it takes.
-            passes = root_pass;
-            break root;
-        }
-        if passes as usize >= MAX_DEPTH {
-            return Err(Error::Gpu(format!(
-                "the GPU LBVH's root was not summed in {passes} passes (a bug: please report it)"
-            )));
-        }
-        enc = run.encoder();
-    };
+    // Pass h reads uniform h (its height's nodes).
+    for (h, &count) in counts.iter().enumerate().take(top + 1).skip(1) {
+        dispatch(&mut enc, &pc, &gc, h as u32, run.shape(count), align);
+    }
+    let readback = Readback::record(ctx, &mut enc, &[(info.1, 16)]);
+    let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
+    let root: [u32; 4] = bytemuck::pod_read_unaligned(&bytes[0]);
     let nodes = root[1] as u64;
     OUT_NODES.check(ctx, "the GPU LBVH's dfs-sign nodes", 32 * nodes)?;
 
-    // 3. Top-down: indices and leaf-order places; then the records.
+    // 3. Top-down from the root's height: indices and leaf-order places; then the records.
     let out_nodes = output_buffer(ctx, "lbvh dfs-sign nodes", 32 * nodes);
     let out_tris = output_buffer(ctx, "lbvh leaf triangles", 48 * n);
-    ctx.queue
-        .write_buffer(level.1, 0, bytemuck::bytes_of(&1u32));
     let (nodes_out, tris_out) = ((&OUT_NODES, &out_nodes), (&OUT_TRIS, &out_tris));
-    let (pp, gp) = run.bound_kernel("places", &params, &[kids, info, down, level, place_down])?;
-    let (pn, gn) = run.bound_kernel(
-        "emit_nodes",
+    let (pp, gp) = run.bound_kernel(
+        "places",
         &params,
-        &[kids, node_boxes, info, down, nodes_out],
+        &[by_height, kids, info, down, place_down],
     )?;
-    let (pe, ge) = run.bound_kernel(
-        "emit_leaves",
-        &params,
-        &[place_boxes, place_down, nodes_out],
-    )?;
-    let (pt, gt) = run.bound_kernel(
+    let (pn, gn) = bound("emit_nodes", &[kids, node_boxes, info, down, nodes_out])?;
+    let (pe, ge) = bound("emit_leaves", &[place_boxes, place_down, nodes_out])?;
+    let (pt, gt) = bound(
         "emit_tris",
-        &params,
         &[sorted, v0, v1, v2, place_down, (&IDS, &mesh_ids), tris_out],
     )?;
     let mut enc = run.encoder();
-    for p in 0..passes {
-        dispatch(&mut enc, &pp, &gp, p, run.shape(run.n - 1), align);
+    for (h, &count) in counts.iter().enumerate().take(top + 1).skip(1).rev() {
+        dispatch(&mut enc, &pp, &gp, h as u32, run.shape(count), align);
     }
-    dispatch(&mut enc, &pn, &gn, 0, run.shape(run.n - 1), align);
-    dispatch(&mut enc, &pe, &ge, 0, run.shape(run.n), align);
-    dispatch(&mut enc, &pt, &gt, 0, run.shape(run.n), align);
+    dispatch(&mut enc, &pn, &gn, 0, run.shape(run.n - 1), 0);
+    dispatch(&mut enc, &pe, &ge, 0, all, 0);
+    dispatch(&mut enc, &pt, &gt, 0, all, 0);
     let readback = Readback::record(
         ctx,
         &mut enc,
@@ -344,7 +356,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     );
     let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
     log::info!(
-        "GPU LBVH of {n} triangles flattened into dfs-sign ({nodes} nodes, {passes} passes \
+        "GPU LBVH of {n} triangles flattened into dfs-sign ({nodes} nodes, {top} passes \
          each way) and read back in {:.0} ms since the upload",
         ms(run.started)
     );
@@ -359,8 +371,9 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     })
 }
 
-/// Bottom-up passes recorded between looks at the root.
-const BATCH: u32 = 8;
+/// Heights the flatten counts nodes of (`HEIGHTS` in the WGSL): a radix tree over
+/// distinct 62-bit keys (code, place) is at most 62 levels deep.
+pub const HEIGHT_LIMIT: u32 = 64;
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
@@ -670,11 +683,14 @@ mod tests {
             ("n", offset_of!(Params, n)),
             ("tiles", offset_of!(Params, tiles)),
             ("shift", offset_of!(Params, shift)),
-            ("pass_", offset_of!(Params, pass)),
             ("max_leaf", offset_of!(Params, max_leaf)),
             ("t_cube", offset_of!(Params, t_cube)),
             ("t_obj", offset_of!(Params, t_obj)),
-            ("pad", offset_of!(Params, pad)),
+            ("first", offset_of!(Params, first)),
+            ("count", offset_of!(Params, count)),
+            ("pad0", offset_of!(Params, pad)),
+            ("pad1", offset_of!(Params, pad) + 4),
+            ("pad2", offset_of!(Params, pad) + 8),
         ];
         super::super::shaders::check_struct(&lbvh_source(), "Params", size_of::<Params>(), &fields)
             .unwrap();

@@ -5,8 +5,8 @@
 //! pick the part by the element index's high bits:
 //!
 //! - `NAME_at(i)` reads element i; `NAME_set(i, v)` writes it (a read-write array);
-//! - `NAME_load(i)`, `NAME_store(i, v)` and `NAME_max(i, v)` (returning the old value) for an
-//!   array of `atomic<u32>`.
+//! - `NAME_load(i)`, `NAME_store(i, v)`, `NAME_max(i, v)` and `NAME_add(i, v)` (the last two
+//!   returning the old value) for an array of `atomic<u32>`.
 //!
 //! The word arrays of the trace and render kernels have their own readers
 //! ([`BufferParts`](super::BufferParts)); these serve kernels whose arrays hold other
@@ -27,7 +27,7 @@ pub(crate) enum Access {
     Read,
     /// `NAME_at` and `NAME_set`.
     ReadWrite,
-    /// `atomic<u32>` elements: `NAME_load`, `NAME_store`, `NAME_max`.
+    /// `atomic<u32>` elements: `NAME_load`, `NAME_store`, `NAME_max`, `NAME_add`.
     Atomic,
 }
 
@@ -113,6 +113,9 @@ impl PartedArray {
                 });
                 function(format!("max(i: u32, value: {ty}) -> {ty}"), &|v, j| {
                     format!("return atomicMax(&{v}[{j}], value);")
+                });
+                function(format!("add(i: u32, value: {ty}) -> {ty}"), &|v, j| {
+                    format!("return atomicAdd(&{v}[{j}], value);")
                 });
             }
         }

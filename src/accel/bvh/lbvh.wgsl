@@ -9,18 +9,21 @@ struct Params {
     tiles: u32,
     // The sort pass's digit: bits shift .. shift + RADIX_BITS of the code.
     shift: u32,
-    // The flatten's pass (from 1).
-    pass_: u32,
     // The SAH's leaf rule (BuildOptions).
     max_leaf: u32,
     t_cube: f32,
     t_obj: f32,
-    pad: u32,
+    // The flatten's pass: the inner nodes of one height, at by_height[first .. first + count].
+    first: u32,
+    count: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
 // The storage arrays are declared in front of this file with their accessors (NAME_at,
-// NAME_set; NAME_load, NAME_store, NAME_max for atomics), each bound in as many parts as
+// NAME_set; NAME_load, NAME_store, NAME_max, NAME_add for atomics), each bound in as many parts as
 // its size needs (gpu::parted_array); `gpu::lbvh_build::ARRAYS` says what each holds.
 
 const WORKGROUP: u32 = 64u;
@@ -313,7 +316,7 @@ fn boxes(@builtin(global_invocation_id) gid: vec3<u32>,
 }
 
 // 6. The flatten into dfs-sign, as `cluster_tree::to_node` then `DfsSign::flatten` make it
-//    on the CPU. First each place's box.
+//    on the CPU, one height of inner nodes a pass, up then down. First each place's box.
 @compute @workgroup_size(WORKGROUP)
 fn leaf_boxes(@builtin(global_invocation_id) gid: vec3<u32>,
               @builtin(num_workgroups) groups: vec3<u32>) {
@@ -326,6 +329,56 @@ fn leaf_boxes(@builtin(global_invocation_id) gid: vec3<u32>,
         place_boxes_set(6u * s + a, b.lo[a]);
         place_boxes_set(6u * s + 3u + a, b.hi[a]);
     }
+}
+
+// Each inner node's height (a node of two leaves: 1): each primitive raises its ancestors'
+// heights, going up while it raised one, as `boxes` does with the boxes.
+@compute @workgroup_size(WORKGROUP)
+fn heights(@builtin(global_invocation_id) gid: vec3<u32>,
+           @builtin(num_workgroups) groups: vec3<u32>) {
+    let p = thread_index(gid, groups);
+    if p >= params.n {
+        return;
+    }
+    var node = parents_at(params.n - 1u + p);
+    var h = 1u;
+    loop {
+        if node_height_max(node, h) >= h || node == 0u {
+            break;
+        }
+        node = parents_at(node);
+        h += 1u;
+    }
+}
+
+// The inner nodes of each height (a radix tree over distinct 62-bit keys is at most 62
+// levels deep: heights stay below HEIGHTS).
+@compute @workgroup_size(WORKGROUP)
+fn count_heights(@builtin(global_invocation_id) gid: vec3<u32>,
+                 @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(gid, groups);
+    if i + 1u < params.n {
+        cursor_add(min(node_height_load(i), HEIGHTS - 1u), 1u);
+    }
+}
+
+// The inner nodes grouped by height (the cursor set to each height's first place); the
+// order within a height is any: each node's work depends on its own data only.
+@compute @workgroup_size(WORKGROUP)
+fn by_heights(@builtin(global_invocation_id) gid: vec3<u32>,
+              @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(gid, groups);
+    if i + 1u < params.n {
+        by_height_set(cursor_add(min(node_height_load(i), HEIGHTS - 1u), 1u), i);
+    }
+}
+
+// The inner node of this pass's height that thread `t` takes (NO_NODE: none).
+fn pass_node(t: u32) -> u32 {
+    if t >= params.count {
+        return NO_NODE;
+    }
+    return by_height_at(params.first + t);
 }
 
 fn node_box(i: u32) -> Box {
@@ -370,10 +423,9 @@ fn children_order(a: Box, b: Box) -> vec2<u32> {
     return vec2<u32>(axis, select(0u, 1u, cb[axis] < ca[axis]));
 }
 
-// A child's (primitives, nodes, cost times area) and box; ready unless an inner child has
-// not been filled in an earlier pass.
+// A child's (primitives, nodes, cost times area) and box (an inner child's was filled in
+// an earlier pass: its height is lower).
 struct Summary {
-    ready: bool,
     count: u32,
     nodes: u32,
     cost: f32,
@@ -383,30 +435,23 @@ struct Summary {
 fn summary(k: u32) -> Summary {
     if (k & LEAF_BIT) != 0u {
         let b = place_box(k & ~LEAF_BIT);
-        return Summary(true, 1u, 1u, params.t_obj * area(b), b);
-    }
-    let d = done_load(k);
-    if d == 0u || d >= params.pass_ {
-        return Summary(false, 0u, 0u, 0.0, Box(vec3<f32>(), vec3<f32>()));
+        return Summary(1u, 1u, params.t_obj * area(b), b);
     }
     let f = info_at(k);
-    return Summary(true, f.x, f.y, bitcast<f32>(f.z), node_box(k));
+    return Summary(f.x, f.y, bitcast<f32>(f.z), node_box(k));
 }
 
-//    Bottom-up, one level a pass: the SAH's leaves (`convert` in cluster_tree.rs).
+//    Bottom-up, one height a pass: the SAH's leaves (`convert` in cluster_tree.rs).
 @compute @workgroup_size(WORKGROUP)
 fn costs(@builtin(global_invocation_id) gid: vec3<u32>,
          @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = thread_index(gid, groups);
-    if i + 1u >= params.n || done_load(i) != 0u {
+    let i = pass_node(thread_index(gid, groups));
+    if i == NO_NODE {
         return;
     }
     let k = kids_at(i);
     let a = summary(k.x);
     let b = summary(k.y);
-    if !a.ready || !b.ready {
-        return;
-    }
     let order = children_order(a.b, b.b);
     var l = a;
     var r = b;
@@ -423,7 +468,6 @@ fn costs(@builtin(global_invocation_id) gid: vec3<u32>,
     let cost = select(split, as_leaf, leaf);
     let flags = order.x | (order.y << 2u) | (select(0u, 1u, leaf) << 3u);
     info_set(i, vec4<u32>(count, nodes, bitcast<u32>(cost), flags));
-    done_store(i, params.pass_);
 }
 
 // An inner node's children, low side first: (first, second).
@@ -442,13 +486,13 @@ fn count_and_nodes(k: u32) -> vec2<u32> {
     return info_at(k).xy;
 }
 
-//    Top-down, one level a pass: each node's dfs-sign index and first place in leaf order
-//    handed to its children (the root's set before the first pass).
+//    Top-down, one height a pass from the root's: each node's dfs-sign index and first
+//    place in leaf order handed to its children (the root's are zero).
 @compute @workgroup_size(WORKGROUP)
 fn places(@builtin(global_invocation_id) gid: vec3<u32>,
           @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = thread_index(gid, groups);
-    if i + 1u >= params.n || level_load(i) != params.pass_ {
+    let i = pass_node(thread_index(gid, groups));
+    if i == NO_NODE {
         return;
     }
     let me = down_at(i);
@@ -463,7 +507,6 @@ fn places(@builtin(global_invocation_id) gid: vec3<u32>,
             place_down_set(c & ~LEAF_BIT, vec2<u32>(start[side], select(index[side], NO_NODE, hidden)));
         } else {
             down_set(c, vec4<u32>(index[side], start[side], select(0u, 1u, hidden), 0u));
-            level_store(c, params.pass_ + 1u);
         }
     }
 }
