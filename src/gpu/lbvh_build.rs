@@ -196,20 +196,20 @@ fn radix_tree_of(
             (&run.node_boxes, 24 * inner),
         ],
     );
-    let bytes = run.finish(enc, readback, "building the LBVH on the GPU")?;
-    let pairs: &[[u32; 2]] = bytemuck::cast_slice(&bytes[0]);
-    let words: &[u32] = bytemuck::cast_slice(&bytes[2]);
-    let boxes = words
-        .chunks_exact(6)
-        .map(|w| Aabb {
-            lo: glam::Vec3::new(unordered(!w[0]), unordered(!w[1]), unordered(!w[2])),
-            hi: glam::Vec3::new(unordered(w[3]), unordered(w[4]), unordered(w[5])),
-        })
-        .collect();
-    Ok(RadixTree {
-        sorted: pairs.iter().map(|p| p[1]).collect(),
-        kids: bytemuck::cast_slice(&bytes[1]).to_vec(),
-        boxes,
+    run.finish_with(enc, readback, "building the LBVH on the GPU", |b| {
+        let pairs: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(b[0]);
+        let words: Vec<[u32; 6]> = bytemuck::pod_collect_to_vec(b[2]);
+        RadixTree {
+            sorted: pairs.iter().map(|p| p[1]).collect(),
+            kids: bytemuck::pod_collect_to_vec(b[1]),
+            boxes: words
+                .iter()
+                .map(|w| Aabb {
+                    lo: glam::Vec3::new(unordered(!w[0]), unordered(!w[1]), unordered(!w[2])),
+                    hi: glam::Vec3::new(unordered(w[3]), unordered(w[4]), unordered(w[5])),
+                })
+                .collect(),
+        }
     })
 }
 
@@ -354,17 +354,18 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         &mut enc,
         &[(&out_nodes, 32 * nodes), (&out_tris, 48 * n)],
     );
-    let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
+    let arrays = run.finish_with(enc, readback, "flattening the LBVH on the GPU", |b| {
+        DfsSign::from_arrays(GpuArrays {
+            nodes: b[0],
+            tris: b[1],
+        })
+    })?;
     log::info!(
         "GPU LBVH of {n} triangles flattened into dfs-sign ({nodes} nodes, {top} passes \
          each way) and read back in {:.0} ms since the upload",
         ms(run.started)
     );
-    DfsSign::from_arrays(GpuArrays {
-        nodes: &bytes[0],
-        tris: &bytes[1],
-    })
-    .map_err(|e| {
+    arrays.map_err(|e| {
         Error::Gpu(format!(
             "the GPU's dfs-sign layout is invalid (a bug: please report it): {e}"
         ))
@@ -661,13 +662,26 @@ impl<'c> Run<'c> {
         readback: Readback,
         what: &str,
     ) -> Result<Vec<Vec<u8>>> {
+        self.finish_with(enc, readback, what, |views| {
+            views.iter().map(|v| v.to_vec()).collect()
+        })
+    }
+
+    /// Submits `enc` and hands `f` what `readback` copied, in the mapped memory.
+    fn finish_with<T>(
+        &self,
+        enc: wgpu::CommandEncoder,
+        readback: Readback,
+        what: &str,
+        f: impl FnOnce(&[&[u8]]) -> T,
+    ) -> Result<T> {
         let t = Instant::now();
         scoped(self.ctx, what, || {
             self.ctx.queue.submit([enc.finish()]);
         })?;
-        let bytes = readback.read(self.ctx)?;
+        let value = readback.read_with(self.ctx, f)?;
         log::info!("{what}: {:.0} ms on the device", ms(t));
-        Ok(bytes)
+        Ok(value)
     }
 }
 

@@ -351,6 +351,12 @@ impl Readback {
 
     /// Waits for the device and returns each buffer's bytes, in the order recorded.
     pub fn read(self, ctx: &GpuContext) -> Result<Vec<Vec<u8>>> {
+        self.read_with(ctx, |views| views.iter().map(|v| v.to_vec()).collect())
+    }
+
+    /// Waits for the device and hands `f` each buffer's bytes, in the order recorded,
+    /// straight from the mapped memory (no copy of its own: what `f` keeps, it copies).
+    pub fn read_with<T>(self, ctx: &GpuContext, f: impl FnOnce(&[&[u8]]) -> T) -> Result<T> {
         for (b, _) in &self.parts {
             b.slice(..).map_async(wgpu::MapMode::Read, |r| {
                 if let Err(e) = r {
@@ -359,15 +365,20 @@ impl Readback {
             });
         }
         wait(ctx)?;
-        self.parts
+        let views = self
+            .parts
             .iter()
-            .map(|(b, size)| {
-                let view = b
-                    .get_mapped_range(..)
-                    .map_err(|e| Error::Gpu(format!("GPU readback failed: {e}")))?;
-                Ok(view[..*size as usize].to_vec())
+            .map(|(b, _)| {
+                b.get_mapped_range(..)
+                    .map_err(|e| Error::Gpu(format!("GPU readback failed: {e}")))
             })
-            .collect()
+            .collect::<Result<Vec<_>>>()?;
+        let bytes: Vec<&[u8]> = views
+            .iter()
+            .zip(&self.parts)
+            .map(|(v, (_, size))| &v[..*size as usize])
+            .collect();
+        Ok(f(&bytes))
     }
 }
 
