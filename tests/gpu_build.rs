@@ -171,6 +171,62 @@ fn arrays_beyond_one_binding_are_bound_in_parts() {
     );
 }
 
+/// Dispatches beyond the device's workgroups per dimension run in two dimensions: on a
+/// device whose recorded limit is shrunk to 7 workgroups, the radix tree and the dfs-sign
+/// arrays are still the CPU's.
+#[test]
+fn dispatches_beyond_the_workgroup_limit_run_in_two_dimensions() {
+    common::gpu_device(); // fails with the install hint when there is no adapter
+    let mut small = lancer::gpu::GpuContext::new().unwrap();
+    small.limits.max_compute_workgroups_per_dimension = 7;
+    let mesh = soup(&mut Rng::new(23), 3000, 0.1);
+    let boxes: Vec<Aabb> = mesh.triangles.iter().map(|t| t.bbox()).collect();
+    let tree = lbvh_radix_tree(&small, &mesh.triangles).unwrap();
+    same_tree("2D", &tree, &radix_tree(&boxes, false));
+    let opts = BuildOptions {
+        builder: Builder::Lbvh,
+        ..BuildOptions::default()
+    };
+    let g = lbvh_dfs_sign(&small, &mesh, &opts).unwrap();
+    assert!(
+        g == DfsSign::flatten(&build(&mesh, &opts), &mesh),
+        "dfs-sign in 2D"
+    );
+}
+
+/// Both devices decide an exact SAH tie alike: two triangles whose leaf and split cost the
+/// same, to the bit, with a t_cube chosen for it (found by search), where a product fused
+/// into an fma — as lavapipe fuses `a * b + c` unless told not to — breaks the tie the
+/// other way. The CPU makes one leaf; so must the GPU.
+#[test]
+fn an_exact_sah_tie_is_decided_as_on_the_cpu() {
+    let v = |w: [u32; 3]| Vec3::from_array(w.map(f32::from_bits));
+    let mesh = Mesh::from_triangles(vec![
+        Triangle::new(
+            v([1033531924, 1028614334, 1056521644]),
+            v([1064634576, 1060047150, 1061320145]),
+            v([1056909321, 1064285970, 1051157816]),
+        ),
+        Triangle::new(
+            v([1043503799, 1023017781, 1063190055]),
+            v([1064514648, 1062508180, 1064235247]),
+            v([1065308739, 1053749889, 1056559922]),
+        ),
+    ]);
+    let opts = BuildOptions {
+        builder: Builder::Lbvh,
+        t_cube: f32::from_bits(1048377228),
+        ..BuildOptions::default()
+    };
+    let cpu = build(&mesh, &opts);
+    assert_eq!(cpu.root.nodes(), 1, "the CPU's tie is a leaf");
+    let g = lbvh_dfs_sign(gpu(), &mesh, &opts).unwrap();
+    assert!(
+        g == DfsSign::flatten(&cpu, &mesh),
+        "the GPU decided the tie otherwise"
+    );
+}
+
 /// A tracer told to build on the GPU traces the same hits as one built on the CPU, in the
 /// layout built there (dfs-sign) and in one flattened on the CPU (cwbvh); on the CPU device
 /// it builds on the CPU.

@@ -149,7 +149,9 @@ struct Params {
     t_obj: f32,
     first: u32,
     count: u32,
-    pad: [u32; 3],
+    /// Always 0 (`rounded` in the WGSL).
+    zero: u32,
+    pad: [u32; 2],
 }
 
 const PARAMS: u64 = std::mem::size_of::<Params>() as u64;
@@ -702,9 +704,9 @@ mod tests {
             ("t_obj", offset_of!(Params, t_obj)),
             ("first", offset_of!(Params, first)),
             ("count", offset_of!(Params, count)),
-            ("pad0", offset_of!(Params, pad)),
-            ("pad1", offset_of!(Params, pad) + 4),
-            ("pad2", offset_of!(Params, pad) + 8),
+            ("zero", offset_of!(Params, zero)),
+            ("pad1", offset_of!(Params, pad)),
+            ("pad2", offset_of!(Params, pad) + 4),
         ];
         super::super::shaders::check_struct(&lbvh_source(), "Params", size_of::<Params>(), &fields)
             .unwrap();

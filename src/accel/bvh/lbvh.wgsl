@@ -16,7 +16,8 @@ struct Params {
     // The flatten's pass: the inner nodes of one height, at by_height[first .. first + count].
     first: u32,
     count: u32,
-    pad0: u32,
+    // Always 0, unknown to the compiler (see `rounded`).
+    zero: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -399,13 +400,22 @@ fn place_box(s: u32) -> Box {
     return b;
 }
 
+// A product rounded to f32 before it is added, as on the CPU. Without SPIR-V's NoContraction
+// (which WGSL cannot ask for) a driver may fuse a * b + c into one fma, rounding once where
+// the CPU rounds twice (lavapipe does: one ulp turned an exact SAH tie at 10M triangles);
+// passing the product through an integer operation the compiler cannot see through keeps it
+// a product of its own.
+fn rounded(x: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(x) ^ params.zero);
+}
+
 // Aabb::area.
 fn area(b: Box) -> f32 {
     if any(b.lo > b.hi) {
         return 0.0;
     }
     let e = b.hi - b.lo;
-    return 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
+    return 2.0 * (rounded(e.x * e.y) + rounded(e.y * e.z) + rounded(e.z * e.x));
 }
 
 // tree::children_order: the axis where the centres lie farthest apart, and whether the
@@ -461,7 +471,7 @@ fn costs(@builtin(global_invocation_id) gid: vec3<u32>,
     }
     let own = area(node_box(i));
     let count = l.count + r.count;
-    let split = 2.0 * params.t_cube * own + l.cost + r.cost;
+    let split = rounded(2.0 * params.t_cube * own) + l.cost + r.cost;
     let as_leaf = f32(count) * params.t_obj * own;
     let leaf = count <= params.max_leaf && as_leaf <= split;
     let nodes = select(1u + l.nodes + r.nodes, 1u, leaf);
