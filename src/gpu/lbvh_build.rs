@@ -31,6 +31,8 @@ const SORT_PASSES: u32 = (3 * CODE_BITS).div_ceil(RADIX_BITS).next_multiple_of(2
 pub const SORT_TILE: u32 = 256;
 /// Threads per workgroup of every kernel but the scan (`WORKGROUP` in the WGSL).
 const WORKGROUP: u32 = 64;
+/// Most workgroups of the bounds kernel (each thread folds every 65,536th triangle).
+const BOUNDS_GROUPS: u32 = 1024;
 /// Storage buffers the widest kernel binds (`emit_tris`), each array in one part.
 const STORAGE_BUFFERS: u32 = 7;
 
@@ -244,7 +246,6 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     let mesh_ids = ctx.buffer_with("lbvh mesh indices", bytemuck::cast_slice(&ids), storage);
     let place_boxes = output_buffer(ctx, "lbvh place boxes", 24 * n);
     let info = output_buffer(ctx, "lbvh node info", 16 * inner);
-    let heights = output_buffer(ctx, "lbvh node heights", 4 * inner);
     let by_height = output_buffer(ctx, "lbvh nodes by height", 4 * inner);
     let cursor = output_buffer(ctx, "lbvh height cursor", 4 * HEIGHT_LIMIT as u64);
     let down = output_buffer(ctx, "lbvh node down", 16 * inner);
@@ -260,7 +261,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         (&PLACE_DOWN, &place_down),
     );
     let (heights, by_height, cursor) = (
-        (&HEIGHTS, &heights),
+        (&HEIGHTS, &run.heights),
         (&BY_HEIGHT, &by_height),
         (&CURSOR, &cursor),
     );
@@ -274,14 +275,13 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     let (base_params, _) = uniforms(ctx, &[base]);
     let bound = |entry, bound: &[Bound]| run.bound_kernel(entry, &base_params, bound);
 
-    // 1. The tree, each place's box, each inner node's height and how many have each.
+    // 1. The tree (with each inner node's height), each place's box, how many nodes have
+    //    each height.
     let mut enc = run.encoder();
     run.record_build(&mut enc)?;
     let all = run.shape(run.n);
     let (pl, gl) = bound("leaf_boxes", &[sorted, v0, v1, v2, place_boxes])?;
     dispatch(&mut enc, &pl, &gl, 0, all, 0);
-    let (ph, gh) = bound("heights", &[heights, (&PARENTS, &run.parents)])?;
-    dispatch(&mut enc, &ph, &gh, 0, all, 0);
     let (pk, gk) = bound("count_heights", &[heights, cursor])?;
     dispatch(&mut enc, &pk, &gk, 0, run.shape(run.n - 1), 0);
     let readback = Readback::record(ctx, &mut enc, &[(cursor.1, 4 * HEIGHT_LIMIT as u64)]);
@@ -435,6 +435,7 @@ struct Run<'c> {
     kids: wgpu::Buffer,
     parents: wgpu::Buffer,
     node_boxes: wgpu::Buffer,
+    heights: wgpu::Buffer,
     /// The build's uniforms: [0] the base, [1 + k] sort pass k.
     params: wgpu::Buffer,
     align: u32,
@@ -513,6 +514,7 @@ impl<'c> Run<'c> {
             kids: output_buffer(ctx, "lbvh kids", 8 * inner),
             parents: output_buffer(ctx, "lbvh parents", 4 * (inner + n64)),
             node_boxes: output_buffer(ctx, "lbvh node boxes", 24 * inner),
+            heights: output_buffer(ctx, "lbvh node heights", 4 * inner),
             params,
             align,
         })
@@ -640,11 +642,14 @@ impl<'c> Run<'c> {
                 v2,
                 (&PARENTS, &self.parents),
                 (&NODE_BOXES, &self.node_boxes),
+                (&HEIGHTS, &self.heights),
             ],
         )?;
         log::info!("GPU LBVH: kernels compiled in {:.0} ms", ms(t));
         let a = self.align;
-        dispatch(enc, &pb, &gb, 0, self.shape(self.n), a);
+        let per_dim = self.ctx.limits.max_compute_workgroups_per_dimension.max(1);
+        let bound_groups = self.n.div_ceil(WORKGROUP).min(BOUNDS_GROUPS).min(per_dim);
+        dispatch(enc, &pb, &gb, 0, (bound_groups, 1), a);
         dispatch(enc, &pc, &gc, 0, self.shape(self.n), a);
         for k in 0..SORT_PASSES {
             let read = (k % 2) as usize;

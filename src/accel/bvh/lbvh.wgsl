@@ -71,37 +71,43 @@ fn triangle_box(i: u32) -> Box {
     return Box(min(min(a, b), c), max(max(a, b), c));
 }
 
-var<workgroup> reduce: array<array<u32, 6>, WORKGROUP>;
+fn ordered3(f: vec3<f32>) -> vec3<u32> {
+    return vec3<u32>(ordered(f.x), ordered(f.y), ordered(f.z));
+}
 
-// 1. Bounds of the doubled centroids: each workgroup reduces its own, then raises the
-//    global words once.
+var<workgroup> reduce_lo: array<vec3<u32>, WORKGROUP>;
+var<workgroup> reduce_hi: array<vec3<u32>, WORKGROUP>;
+
+// 1. Bounds of the doubled centroids: each thread folds every threads-th triangle (at most
+//    BOUNDS_GROUPS workgroups, one dimension: few barriers and atomics), each workgroup
+//    reduces its threads', then raises the global words once.
 @compute @workgroup_size(WORKGROUP)
 fn bounds(@builtin(global_invocation_id) gid: vec3<u32>,
           @builtin(num_workgroups) groups: vec3<u32>,
           @builtin(local_invocation_index) t: u32) {
-    let i = thread_index(gid, groups);
-    var mine = array<u32, 6>(0u, 0u, 0u, 0u, 0u, 0u);
-    if i < params.n {
+    let threads = groups.x * WORKGROUP;
+    var lo = vec3<u32>(0u);
+    var hi = vec3<u32>(0u);
+    for (var i = gid.x; i < params.n; i += threads) {
         let b = triangle_box(i);
-        let c2 = b.lo + b.hi;
-        for (var a = 0u; a < 3u; a++) {
-            mine[a] = ~ordered(c2[a]);
-            mine[a + 3u] = ordered(c2[a]);
-        }
+        let c2 = ordered3(b.lo + b.hi);
+        lo = max(lo, ~c2);
+        hi = max(hi, c2);
     }
-    reduce[t] = mine;
+    reduce_lo[t] = lo;
+    reduce_hi[t] = hi;
     workgroupBarrier();
     for (var half = WORKGROUP / 2u; half > 0u; half /= 2u) {
         if t < half {
-            for (var k = 0u; k < 6u; k++) {
-                reduce[t][k] = max(reduce[t][k], reduce[t + half][k]);
-            }
+            reduce_lo[t] = max(reduce_lo[t], reduce_lo[t + half]);
+            reduce_hi[t] = max(reduce_hi[t], reduce_hi[t + half]);
         }
         workgroupBarrier();
     }
     if t == 0u {
-        for (var k = 0u; k < 6u; k++) {
-            centre_bounds_max(k, reduce[0][k]);
+        for (var a = 0u; a < 3u; a++) {
+            centre_bounds_max(a, reduce_lo[0][a]);
+            centre_bounds_max(a + 3u, reduce_hi[0][a]);
         }
     }
 }
@@ -285,9 +291,10 @@ fn hierarchy(@builtin(global_invocation_id) gid: vec3<u32>,
     kids_set(node, pair);
 }
 
-// 5. Boxes: each primitive raises its box into its ancestors' words, going up while it
-//    raised any. The first to raise a word to its final value goes on, so every node ends
-//    with its subtree's bounds, whatever the order (each word's raises are atomic).
+// 5. Boxes and heights (a node of two leaves: 1): each primitive raises its box and its
+//    distance into its ancestors' words, going up while it raised any. The first to raise a
+//    word to its final value goes on, so every node ends with its subtree's bounds and
+//    height, whatever the order (each word's raises are atomic).
 @compute @workgroup_size(WORKGROUP)
 fn boxes(@builtin(global_invocation_id) gid: vec3<u32>,
          @builtin(num_workgroups) groups: vec3<u32>) {
@@ -302,10 +309,11 @@ fn boxes(@builtin(global_invocation_id) gid: vec3<u32>,
         words[a + 3u] = ordered(b.hi[a]);
     }
     var node = parents_at(params.n - 1u + p);
+    var h = 1u;
     loop {
-        var raised = false;
+        // Every word is raised, whatever the ones before did.
+        var raised = node_height_max(node, h) < h;
         for (var k = 0u; k < 6u; k++) {
-            // Every word is raised, whatever the ones before did.
             let old = node_boxes_max(6u * node + k, words[k]);
             raised = raised || old < words[k];
         }
@@ -313,6 +321,7 @@ fn boxes(@builtin(global_invocation_id) gid: vec3<u32>,
             break;
         }
         node = parents_at(node);
+        h += 1u;
     }
 }
 
@@ -329,26 +338,6 @@ fn leaf_boxes(@builtin(global_invocation_id) gid: vec3<u32>,
     for (var a = 0u; a < 3u; a++) {
         place_boxes_set(6u * s + a, b.lo[a]);
         place_boxes_set(6u * s + 3u + a, b.hi[a]);
-    }
-}
-
-// Each inner node's height (a node of two leaves: 1): each primitive raises its ancestors'
-// heights, going up while it raised one, as `boxes` does with the boxes.
-@compute @workgroup_size(WORKGROUP)
-fn heights(@builtin(global_invocation_id) gid: vec3<u32>,
-           @builtin(num_workgroups) groups: vec3<u32>) {
-    let p = thread_index(gid, groups);
-    if p >= params.n {
-        return;
-    }
-    var node = parents_at(params.n - 1u + p);
-    var h = 1u;
-    loop {
-        if node_height_max(node, h) >= h || node == 0u {
-            break;
-        }
-        node = parents_at(node);
-        h += 1u;
     }
 }
 
