@@ -136,30 +136,39 @@ fn the_gpu_flattens_the_lbvh_into_the_cpus_dfs_sign() {
     }
 }
 
-/// Arrays bigger than one storage binding are bound in parts: on a device whose recorded
-/// binding limit is shrunk to 16 KiB, every array of 3,000 triangles but the mesh indices
-/// spans several parts (the leaf triangles nine), and the radix tree and the dfs-sign
-/// arrays are still the CPU's (the checked module reads a word from a wrong part as zero).
-/// Too many parts for the device's storage buffers a stage are refused, naming the limit.
-#[test]
-fn arrays_beyond_one_binding_are_bound_in_parts() {
+/// A device of its own whose recorded limits `shrink` changes (the driver's stay as they
+/// are), and 3,000 triangles: the GPU's radix tree and dfs-sign arrays are the CPU's there.
+fn same_on_a_shrunk_device(
+    name: &str,
+    shrink: impl Fn(&mut lancer::gpu::GpuContext),
+) -> (lancer::gpu::GpuContext, Mesh, BuildOptions) {
     common::gpu_device(); // fails with the install hint when there is no adapter
     let mut small = lancer::gpu::GpuContext::new().unwrap();
-    small.limits.max_storage_buffer_binding_size = 16 << 10;
+    shrink(&mut small);
     let mesh = soup(&mut Rng::new(21), 3000, 0.1);
     let boxes: Vec<Aabb> = mesh.triangles.iter().map(|t| t.bbox()).collect();
     let tree = lbvh_radix_tree(&small, &mesh.triangles).unwrap();
-    same_tree("parts", &tree, &radix_tree(&boxes, false));
+    same_tree(name, &tree, &radix_tree(&boxes, false));
     let opts = BuildOptions {
         builder: Builder::Lbvh,
         ..BuildOptions::default()
     };
     let g = lbvh_dfs_sign(&small, &mesh, &opts).unwrap();
-    assert!(
-        g == DfsSign::flatten(&build(&mesh, &opts), &mesh),
-        "dfs-sign in parts"
-    );
+    let cpu = DfsSign::flatten(&build(&mesh, &opts), &mesh);
+    assert!(g == cpu, "{name}: the dfs-sign arrays differ");
+    (small, mesh, opts)
+}
 
+/// Arrays bigger than one storage binding are bound in parts: with the binding limit shrunk
+/// to 16 KiB, every array of the 3,000 triangles but the mesh indices spans several parts
+/// (the leaf triangles nine), and the trees are still the CPU's (the checked module reads a
+/// word from a wrong part as zero). Too many parts for the device's storage buffers a stage
+/// are refused, naming the limit.
+#[test]
+fn arrays_beyond_one_binding_are_bound_in_parts() {
+    let (mut small, mesh, opts) = same_on_a_shrunk_device("parts", |ctx| {
+        ctx.limits.max_storage_buffer_binding_size = 16 << 10;
+    });
     small.limits.max_storage_buffers_per_shader_stage = 20;
     let Err(e) = lbvh_dfs_sign(&small, &mesh, &opts) else {
         panic!("more parts than storage buffers were bound");
@@ -171,27 +180,13 @@ fn arrays_beyond_one_binding_are_bound_in_parts() {
     );
 }
 
-/// Dispatches beyond the device's workgroups per dimension run in two dimensions: on a
-/// device whose recorded limit is shrunk to 7 workgroups, the radix tree and the dfs-sign
-/// arrays are still the CPU's.
+/// Dispatches beyond the device's workgroups per dimension run in two dimensions: with the
+/// limit shrunk to 7 workgroups, the trees are still the CPU's.
 #[test]
 fn dispatches_beyond_the_workgroup_limit_run_in_two_dimensions() {
-    common::gpu_device(); // fails with the install hint when there is no adapter
-    let mut small = lancer::gpu::GpuContext::new().unwrap();
-    small.limits.max_compute_workgroups_per_dimension = 7;
-    let mesh = soup(&mut Rng::new(23), 3000, 0.1);
-    let boxes: Vec<Aabb> = mesh.triangles.iter().map(|t| t.bbox()).collect();
-    let tree = lbvh_radix_tree(&small, &mesh.triangles).unwrap();
-    same_tree("2D", &tree, &radix_tree(&boxes, false));
-    let opts = BuildOptions {
-        builder: Builder::Lbvh,
-        ..BuildOptions::default()
-    };
-    let g = lbvh_dfs_sign(&small, &mesh, &opts).unwrap();
-    assert!(
-        g == DfsSign::flatten(&build(&mesh, &opts), &mesh),
-        "dfs-sign in 2D"
-    );
+    same_on_a_shrunk_device("2D", |ctx| {
+        ctx.limits.max_compute_workgroups_per_dimension = 7;
+    });
 }
 
 /// Both devices decide an exact SAH tie alike: two triangles whose leaf and split cost the
