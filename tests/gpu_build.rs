@@ -160,8 +160,8 @@ fn same_on_a_shrunk_device(
 }
 
 /// Arrays bigger than one storage binding are bound in parts: with the binding limit shrunk
-/// to 16 KiB, every array of the 3,000 triangles but the mesh indices spans several parts
-/// (the leaf triangles nine), and the trees are still the CPU's (the checked module reads a
+/// to 16 KiB, every array of the 3,000 triangles bigger than that spans several parts (the
+/// leaf triangles nine, the boxes five), and the trees are still the CPU's (the checked module reads a
 /// word from a wrong part as zero). Too many parts for the device's storage buffers a stage
 /// are refused, naming the limit.
 #[test]

@@ -174,6 +174,14 @@ fn reader(array: &Array, parts: u32, shift: u32) -> String {
     s
 }
 
+/// The WGSL variable of part `k` of the array `name`.
+pub(super) fn part_var(name: &str, k: u32) -> String {
+    match k {
+        0 => name.to_string(),
+        k => format!("{name}_{k}"),
+    }
+}
+
 /// A function body doing `step(part's variable, index within it)` on word i of `var`, bound
 /// in `parts` parts of 2^`shift` words: straight where there is one part, else in the part
 /// the index's high bits name.
@@ -189,10 +197,7 @@ pub(super) fn by_part(
     let mask = (1u64 << shift) - 1;
     let mut s = format!("    let j = i & {mask}u;\n    switch i >> {shift}u {{\n");
     for k in 0..parts {
-        let v = match k {
-            0 => var.to_string(),
-            k => format!("{var}_{k}"),
-        };
+        let v = part_var(var, k);
         let case = match k == parts - 1 {
             true => "default".to_string(),
             false => format!("case {k}u"),

@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use super::parted_array::{self, Access, PartedArray};
+use super::parted_array::{self, Access, PartedArray, MAX_PARTS, PART_BINDINGS};
 use super::plumbing::{
     dynamic_uniform_entry, output_buffer, scoped, uniform_binding, Kernel, Readback,
 };
@@ -118,7 +118,7 @@ fn constants() -> Vec<(&'static str, Shared)> {
         ("RADIX_BITS", Shared::U32(RADIX_BITS)), // gpu::lbvh_build::RADIX_BITS
         ("SORT_TILE", Shared::U32(SORT_TILE)), // gpu::lbvh_build::SORT_TILE
         ("DFS_LEAF_TAG", Shared::U32(DFS_LEAF_TAG)), // layouts::dfs_sign::LEAF_TAG
-        ("HEIGHTS", Shared::U32(HEIGHT_LIMIT)), // gpu::lbvh_build::HEIGHT_LIMIT
+        ("HEIGHT_LIMIT", Shared::U32(HEIGHT_LIMIT)), // gpu::lbvh_build::HEIGHT_LIMIT
     ]
 }
 
@@ -135,6 +135,23 @@ fn source_with(parts: &dyn Fn(&PartedArray) -> u32, byte_shift: u32) -> String {
     }
     s + "\n" + SOURCE
 }
+
+// Every array's bindings distinct, part 0's below the parts', the last part's below wgpu's
+// 1,000 bindings a group.
+const _: () = {
+    let mut i = 0;
+    while i < ARRAYS.len() {
+        let a = ARRAYS[i];
+        assert!(a.binding > 0 && a.binding < PART_BINDINGS);
+        assert!(a.part_binding(MAX_PARTS - 1) < 1000);
+        let mut j = i + 1;
+        while j < ARRAYS.len() {
+            assert!(ARRAYS[j].binding != a.binding);
+            j += 1;
+        }
+        i += 1;
+    }
+};
 
 /// An array of the kernels and the buffer it is bound to.
 type Bound<'b> = (&'static PartedArray, &'b wgpu::Buffer);
@@ -285,14 +302,18 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     let (pk, gk) = bound("count_heights", &[heights, cursor])?;
     dispatch(&mut enc, &pk, &gk, 0, run.shape(run.n - 1), 0);
     let readback = Readback::record(ctx, &mut enc, &[(cursor.1, 4 * HEIGHT_LIMIT as u64)]);
-    let bytes = run.finish(enc, readback, "building the LBVH on the GPU")?;
-    let counts: &[u32] = bytemuck::cast_slice(&bytes[0]);
-    // The root is the one node of the greatest height.
+    let counts: Vec<u32> = run.finish_with(enc, readback, "building the LBVH on the GPU", |b| {
+        bytemuck::pod_collect_to_vec(b[0])
+    })?;
+    // The root is the one node of the greatest height; a radix tree over distinct 62-bit
+    // keys is at most 62 levels deep, so no height reaches the last bucket (which the
+    // kernels clamp to), and none is 0 (a leaf's).
     let top = counts.iter().rposition(|&c| c > 0).unwrap_or(0);
-    if top > MAX_DEPTH {
+    let bad = counts.len() != HEIGHT_LIMIT as usize || counts[0] != 0 || counts[top] != 1;
+    if bad || top + 1 >= counts.len() || top > MAX_DEPTH {
         return Err(Error::Gpu(format!(
-            "the GPU LBVH's tree is {top} levels deep, more than the trace stack holds \
-             ({MAX_DEPTH}); build on the CPU (it builds such a tree with binned SAH)"
+            "the GPU LBVH's node heights are inconsistent (root height {top}; a bug: please \
+             report it); build on the CPU"
         )));
     }
     // Where each height's nodes start; the uniforms of each height's pass.
@@ -324,9 +345,11 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         dispatch(&mut enc, &pc, &gc, h as u32, run.shape(count), align);
     }
     let readback = Readback::record(ctx, &mut enc, &[(info.1, 16)]);
-    let bytes = run.finish(enc, readback, "flattening the LBVH on the GPU")?;
-    let root: [u32; 4] = bytemuck::pod_read_unaligned(&bytes[0]);
-    let nodes = root[1] as u64;
+    // The root's summary: (primitives, nodes of the flattened tree, …).
+    let root: Vec<u32> = run.finish_with(enc, readback, "flattening the LBVH on the GPU", |b| {
+        bytemuck::pod_collect_to_vec(b[0])
+    })?;
+    let nodes = root.get(1).copied().unwrap_or(0) as u64;
     OUT_NODES.check(ctx, "the GPU LBVH's dfs-sign nodes", 32 * nodes)?;
 
     // 3. Top-down from the root's height: indices and leaf-order places; then the records.
@@ -374,7 +397,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
     })
 }
 
-/// Heights the flatten counts nodes of (`HEIGHTS` in the WGSL): a radix tree over
+/// Heights the flatten counts nodes of (`HEIGHT_LIMIT` in the WGSL): a radix tree over
 /// distinct 62-bit keys (code, place) is at most 62 levels deep.
 pub const HEIGHT_LIMIT: u32 = 64;
 
@@ -660,18 +683,6 @@ impl<'c> Run<'c> {
         dispatch(enc, &pt, &gt, 0, self.shape(self.n - 1), a);
         dispatch(enc, &po, &go, 0, self.shape(self.n), a);
         Ok(())
-    }
-
-    /// Submits `enc` and returns what `readback` copied.
-    fn finish(
-        &self,
-        enc: wgpu::CommandEncoder,
-        readback: Readback,
-        what: &str,
-    ) -> Result<Vec<Vec<u8>>> {
-        self.finish_with(enc, readback, what, |views| {
-            views.iter().map(|v| v.to_vec()).collect()
-        })
     }
 
     /// Submits `enc` and hands `f` what `readback` copied, in the mapped memory.

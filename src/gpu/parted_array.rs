@@ -14,7 +14,7 @@
 
 use std::fmt::Write;
 
-use super::buffer_parts::by_part;
+use super::buffer_parts::{by_part, part_var};
 use super::plumbing::storage_entry;
 use super::GpuContext;
 use crate::error::{Error, Result};
@@ -42,13 +42,13 @@ pub(crate) struct PartedArray {
     /// `u32`, `f32`, `vec2<u32>` or `vec4<u32>` (`u32` for an atomic array).
     pub ty: &'static str,
     pub access: Access,
-    /// Part 0's binding, below [`PART_BINDINGS`] / [`MAX_PARTS`].
+    /// Part 0's binding (see [`PartedArray::part_binding`]).
     pub binding: u32,
 }
 
 /// Bindings of parts k ≥ 1 start here: part k of the array at binding b is at
-/// `PART_BINDINGS + MAX_PARTS·b + k` (below wgpu's 1,000 bindings a group for b < 27).
-const PART_BINDINGS: u32 = 100;
+/// `PART_BINDINGS + MAX_PARTS·b + k` (below wgpu's 1,000 bindings a group for b ≤ 27).
+pub(crate) const PART_BINDINGS: u32 = 100;
 
 impl PartedArray {
     /// Bytes of one element.
@@ -61,7 +61,7 @@ impl PartedArray {
     }
 
     /// The binding of part `k`.
-    pub fn part_binding(&self, k: u32) -> u32 {
+    pub const fn part_binding(&self, k: u32) -> u32 {
         match k {
             0 => self.binding,
             k => PART_BINDINGS + MAX_PARTS * self.binding + k,
@@ -173,14 +173,6 @@ impl PartedArray {
             )));
         }
         Ok(())
-    }
-}
-
-/// The WGSL variable of part `k`.
-fn part_var(name: &str, k: u32) -> String {
-    match k {
-        0 => name.to_string(),
-        k => format!("{name}_{k}"),
     }
 }
 

@@ -342,13 +342,13 @@ fn leaf_boxes(@builtin(global_invocation_id) gid: vec3<u32>,
 }
 
 // The inner nodes of each height (a radix tree over distinct 62-bit keys is at most 62
-// levels deep: heights stay below HEIGHTS).
+// levels deep: heights stay below HEIGHT_LIMIT).
 @compute @workgroup_size(WORKGROUP)
 fn count_heights(@builtin(global_invocation_id) gid: vec3<u32>,
                  @builtin(num_workgroups) groups: vec3<u32>) {
     let i = thread_index(gid, groups);
     if i + 1u < params.n {
-        cursor_add(min(node_height_load(i), HEIGHTS - 1u), 1u);
+        cursor_add(min(node_height_load(i), HEIGHT_LIMIT - 1u), 1u);
     }
 }
 
@@ -359,7 +359,7 @@ fn by_heights(@builtin(global_invocation_id) gid: vec3<u32>,
               @builtin(num_workgroups) groups: vec3<u32>) {
     let i = thread_index(gid, groups);
     if i + 1u < params.n {
-        by_height_set(cursor_add(min(node_height_load(i), HEIGHTS - 1u), 1u), i);
+        by_height_set(cursor_add(min(node_height_load(i), HEIGHT_LIMIT - 1u), 1u), i);
     }
 }
 
@@ -434,7 +434,7 @@ struct Summary {
 fn summary(k: u32) -> Summary {
     if (k & LEAF_BIT) != 0u {
         let b = place_box(k & ~LEAF_BIT);
-        return Summary(1u, 1u, params.t_obj * area(b), b);
+        return Summary(1u, 1u, rounded(params.t_obj * area(b)), b);
     }
     let f = info_at(k);
     return Summary(f.x, f.y, bitcast<f32>(f.z), node_box(k));
