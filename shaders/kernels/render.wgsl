@@ -270,14 +270,6 @@ fn next_f32() -> f32 {
     return f32(rng_state >> 8u) * (1.0 / 16777216.0);
 }
 
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-
-fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
-}
-
 fn normalize3(v: vec3<f32>) -> vec3<f32> {
     let l = sqrt(dot3(v, v));
     return vec3<f32>(v.x / l, v.y / l, v.z / l);

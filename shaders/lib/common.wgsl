@@ -27,6 +27,17 @@ override ROBUST_SLAB: bool = true;       // SlabTest::Robust: far plane widened 
 override RAY_OFFSET: u32 = 0u;           // RayOffset::code (render kernel)
 override REJECT_NEAR_HITS: bool = true;  // Robustness::rejects_near_hits
 
+// glam's Vec3::dot and Vec3::cross, operation for operation. WGSL's dot() and cross() are
+// the driver's own: a hardware driver computes them with fused multiply-adds, whatever the
+// NoContraction on every other operation (gpu::exact_spirv), so no kernel calls them.
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+
 // Finite test on bits: NaN/Inf comparisons are not reliable in WGSL.
 fn is_finite_bits(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7fffffffu) < 0x7f800000u;
@@ -260,23 +271,23 @@ fn intersect_moller_trumbore(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, r: Ray
     var res = TriHit(false, 0.0, 0.0, 0.0, 0.0, 1.0);
     let e1 = v1 - v0;
     let e2 = v2 - v0;
-    let p = cross(r.dir, e2);
-    let det = dot(e1, p);
+    let p = cross3(r.dir, e2);
+    let det = dot3(e1, p);
     if det == 0.0 {
         return res;
     }
     let inv = 1.0 / det;
     let s = r.origin - v0;
-    let u = dot(s, p) * inv;
+    let u = dot3(s, p) * inv;
     if !(u >= 0.0 && u <= 1.0) {
         return res;
     }
-    let q = cross(s, e1);
-    let v = dot(r.dir, q) * inv;
+    let q = cross3(s, e1);
+    let v = dot3(r.dir, q) * inv;
     if v < 0.0 || u + v > 1.0 {
         return res;
     }
-    let t = dot(e2, q) * inv;
+    let t = dot3(e2, q) * inv;
     if t >= tmin && t <= tmax {
         res = TriHit(true, t, u, v, 0.0, 1.0);
     }

@@ -55,6 +55,15 @@ pub struct GpuContext {
     ///
     /// [`DriverTracer`]: super::DriverTracer
     pub ray_query: bool,
+    /// Kernels are compiled by lancer into SPIR-V the driver may not round differently from
+    /// the CPU (every float operation `NoContraction`; see `gpu::exact_spirv`): a Vulkan
+    /// device with wgpu's `Features::PASSTHROUGH_SHADERS`. Elsewhere wgpu translates the
+    /// WGSL and a driver may fuse a multiply-add, so answers can differ from the CPU's by
+    /// a few ulps (`lancer check` shows where).
+    pub exact_spirv: bool,
+    /// With [`exact_spirv`](Self::exact_spirv), f32 division and square root are taken
+    /// through f64 (the device has `Features::SHADER_F64`): correctly rounded, as on the CPU.
+    pub exact_division: bool,
     /// Errors the device reported outside an error scope since the last [`wait`], which
     /// returns the first of them (so no GPU error passes silently).
     ///
@@ -157,6 +166,9 @@ impl GpuContext {
                     max: info.subgroup_max_size,
                 }),
             ray_query: features.contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY),
+            exact_spirv: exact_spirv(info.backend, features),
+            exact_division: exact_spirv(info.backend, features)
+                && features.contains(wgpu::Features::SHADER_F64),
             device,
             queue,
             adapter: report,
@@ -211,6 +223,13 @@ impl GpuContext {
             // f64 oracle (`lancer check`, tests/driver.rs).
             experimental_features = unsafe { wgpu::ExperimentalFeatures::enabled() };
         }
+        // lancer's own SPIR-V (gpu::exact_spirv) where the adapter takes it: the kernels
+        // then round as the CPU does; f64 for exact division where the adapter has it.
+        if exact_spirv(info.backend, adapter.features()) {
+            features |= wgpu::Features::PASSTHROUGH_SHADERS;
+            features |= adapter.features() & wgpu::Features::SHADER_F64;
+        }
+        let exact_division = features.contains(wgpu::Features::SHADER_F64);
         let limits = adapter.limits();
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
@@ -230,6 +249,8 @@ impl GpuContext {
             timestamps,
             subgroups,
             ray_query,
+            exact_spirv: features.contains(wgpu::Features::PASSTHROUGH_SHADERS),
+            exact_division,
             uncaptured: Arc::new(Mutex::new(Vec::new())),
         };
         // Errors outside an error scope (gpu::plumbing::scoped) are logged and kept for the
@@ -326,6 +347,15 @@ impl GpuContext {
         }
         Ok(())
     }
+}
+
+/// Whether lancer compiles its kernels to SPIR-V itself (gpu::exact_spirv) on a device of
+/// `backend` with `features`: Vulkan with passthrough shaders, unless `LANCER_WGSL=1` asks
+/// for wgpu's own translation (to measure or compare it).
+fn exact_spirv(backend: wgpu::Backend, features: wgpu::Features) -> bool {
+    backend == wgpu::Backend::Vulkan
+        && features.contains(wgpu::Features::PASSTHROUGH_SHADERS)
+        && std::env::var_os("LANCER_WGSL").is_none_or(|v| v != "1")
 }
 
 /// The adapter `WGPU_ADAPTER_NAME` names, else the one wgpu prefers under `WGPU_POWER_PREF`.

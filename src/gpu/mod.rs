@@ -7,6 +7,7 @@ mod buffer_parts;
 mod bvh_memory;
 mod context;
 mod driver;
+pub mod exact_spirv;
 mod lbvh_build;
 mod parted_array;
 pub mod plumbing;

@@ -2,6 +2,7 @@
 //! (validation errors caught and returned), bind-group entries, chunked dispatch with
 //! optional timestamp queries, and readback.
 
+use super::exact_spirv::ExactModule;
 use super::GpuContext;
 use crate::error::{Error, Result};
 
@@ -82,16 +83,31 @@ pub fn uniform_binding(binding: u32, buffer: &wgpu::Buffer, size: u64) -> wgpu::
     }
 }
 
-/// A compute kernel: one WGSL source, its bind-group layout, and its shader modules
-/// (checked, and trusted when asked for), with pipelines made per set of override constants.
+/// A compute kernel: one WGSL source, its bind-group layout, and its shader modules, with
+/// pipelines made per set of override constants: on a device with
+/// [`exact_spirv`](GpuContext::exact_spirv), from lancer's own SPIR-V of the source (which
+/// the driver may not round differently from the CPU); elsewhere from wgpu's modules
+/// (checked, and trusted when asked for).
 pub struct Kernel {
     label: &'static str,
     entry: &'static str,
     /// The bind-group layout of group 0.
     pub layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
-    checked: wgpu::ShaderModule,
-    trusted: Option<wgpu::ShaderModule>,
+    modules: Modules,
+    /// Group 0's binding numbers.
+    bindings: Vec<u32>,
+}
+
+/// Where a kernel's pipelines come from.
+enum Modules {
+    /// lancer's SPIR-V, specialised per pipeline.
+    Exact(Box<ExactModule>),
+    /// wgpu's translation: checked, and trusted when asked for.
+    Wgsl {
+        checked: wgpu::ShaderModule,
+        trusted: Option<wgpu::ShaderModule>,
+    },
 }
 
 impl Kernel {
@@ -106,6 +122,10 @@ impl Kernel {
         entries: &[wgpu::BindGroupLayoutEntry],
         trusted: bool,
     ) -> Result<Kernel> {
+        let exact = match ctx.exact_spirv {
+            true => Some(ExactModule::new(label, source)?),
+            false => None,
+        };
         scoped(ctx, &format!("compiling the {label} kernel"), || {
             let dev = &ctx.device;
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -121,18 +141,27 @@ impl Kernel {
                 label: Some(label),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             };
-            let checked = dev.create_shader_module(desc());
-            // SAFETY: see the doc comment; callers pass `trusted` only for validated data.
-            let trusted = trusted.then(|| unsafe {
-                dev.create_shader_module_trusted(desc(), wgpu::ShaderRuntimeChecks::unchecked())
-            });
+            let modules = match exact {
+                Some(m) => Modules::Exact(Box::new(m)),
+                None => Modules::Wgsl {
+                    checked: dev.create_shader_module(desc()),
+                    // SAFETY: see the doc comment; callers pass `trusted` only for
+                    // validated data.
+                    trusted: trusted.then(|| unsafe {
+                        dev.create_shader_module_trusted(
+                            desc(),
+                            wgpu::ShaderRuntimeChecks::unchecked(),
+                        )
+                    }),
+                },
+            };
             Kernel {
                 label,
                 entry,
                 layout,
                 pipeline_layout,
-                checked,
-                trusted,
+                modules,
+                bindings: entries.iter().map(|e| e.binding).collect(),
             }
         })
     }
@@ -145,28 +174,57 @@ impl Kernel {
         constants: &[(&str, f64)],
         trusted: bool,
     ) -> Result<wgpu::ComputePipeline> {
-        let module = match (&self.trusted, trusted) {
-            (Some(m), true) => m,
-            _ => &self.checked,
-        };
-        scoped(
-            ctx,
-            &format!("specialising the {} kernel", self.label),
-            || {
-                ctx.device
-                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some(self.label),
-                        layout: Some(&self.pipeline_layout),
-                        module,
-                        entry_point: Some(self.entry),
-                        compilation_options: wgpu::PipelineCompilationOptions {
-                            constants,
-                            ..Default::default()
+        let what = format!("specialising the {} kernel", self.label);
+        let exact;
+        let (module, constants) = match &self.modules {
+            Modules::Exact(m) => {
+                let spirv = m.spirv(
+                    self.entry,
+                    constants,
+                    &self.bindings,
+                    trusted,
+                    ctx.exact_division,
+                )?;
+                let desc = wgpu::ShaderModuleDescriptorPassthrough {
+                    label: Some(self.label),
+                    entry_points: std::borrow::Cow::Owned(vec![
+                        wgpu::PassthroughShaderEntryPoint {
+                            name: self.entry.into(),
+                            workgroup_size: (0, 0, 0),
                         },
-                        cache: None,
-                    })
+                    ]),
+                    spirv: Some(std::borrow::Cow::Owned(spirv)),
+                    ..Default::default()
+                };
+                // SAFETY: the SPIR-V is naga's translation of a module naga validated, with
+                // only decorations and f64 conversions added (gpu::exact_spirv).
+                exact = scoped(ctx, &what, || unsafe {
+                    ctx.device.create_shader_module_passthrough(desc)
+                })?;
+                (&exact, &[][..])
+            }
+            Modules::Wgsl {
+                checked,
+                trusted: t,
+            } => match (t, trusted) {
+                (Some(m), true) => (m, constants),
+                _ => (checked, constants),
             },
-        )
+        };
+        scoped(ctx, &what, || {
+            ctx.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(self.label),
+                    layout: Some(&self.pipeline_layout),
+                    module,
+                    entry_point: Some(self.entry),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants,
+                        ..Default::default()
+                    },
+                    cache: None,
+                })
+        })
     }
 
     /// A bind group of group 0.

@@ -390,10 +390,11 @@ fn place_box(s: u32) -> Box {
 }
 
 // A product rounded to f32 before it is added, as on the CPU. Without SPIR-V's NoContraction
-// (which WGSL cannot ask for) a driver may fuse a * b + c into one fma, rounding once where
-// the CPU rounds twice (lavapipe does: one ulp turned an exact SAH tie at 10M triangles);
-// passing the product through an integer operation the compiler cannot see through keeps it
-// a product of its own.
+// (which WGSL cannot ask for; on Vulkan lancer adds it itself, gpu::exact_spirv, but not on
+// other backends) a driver may fuse a * b + c into one fma, rounding once where the CPU
+// rounds twice (lavapipe does: one ulp turned an exact SAH tie at 10M triangles); passing
+// the product through an integer operation the compiler cannot see through keeps it a
+// product of its own.
 fn rounded(x: f32) -> f32 {
     return bitcast<f32>(bitcast<u32>(x) ^ params.zero);
 }

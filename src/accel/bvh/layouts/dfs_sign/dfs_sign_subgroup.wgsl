@@ -117,7 +117,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             // One vote: lanes entering each child (bytes 0, 1), and of the lanes entering
             // either, those meeting the second child's centre first (byte 2) and all (byte 3);
             // a subgroup has at most 128 lanes, so each count fits its byte.
-            let second = dot((n1.lo + n1.hi) - (n0.lo + n0.hi), r.dir) < 0.0;
+            let second = dot3((n1.lo + n1.hi) - (n0.lo + n0.hi), r.dir) < 0.0;
             let either = h0 || h1;
             let votes = subgroupAdd(select(0u, 1u, h0) + select(0u, 0x100u, h1)
                 + select(0u, 0x10000u, either && second) + select(0u, 0x1000000u, either));
