@@ -46,6 +46,11 @@ impl AdaptersCmd {
                 yes(a.shader_f64),
                 yes(a.ray_query)
             );
+            let arithmetic = match a.exact_arithmetic {
+                true => "as the CPU's (lancer's own SPIR-V: nothing fused, f64 division)",
+                false => "may differ from the CPU's by an ulp (wgpu's translation)",
+            };
+            say!(say, "   arithmetic        {arithmetic}");
             if a.device_type == "Cpu" {
                 say!(say, "   (a software driver: it runs on the CPU)");
             }

@@ -27,8 +27,12 @@ pub struct AdapterSummary {
     /// The driver's own ray queries (wgpu's experimental feature): the `driver` reference
     /// row of `bench layouts` and `check`.
     pub ray_query: bool,
-    /// f64 in shaders (lancer's kernels do not use it; reported for comparison).
+    /// f64 in shaders (lancer's SPIR-V divides and takes square roots through it).
     pub shader_f64: bool,
+    /// lancer's kernels round as the CPU does here: it compiles them to its own SPIR-V
+    /// (Vulkan with passthrough shaders and f64; see `gpu::exact_spirv`). Elsewhere wgpu
+    /// translates them and a driver may fuse a multiply-add or divide to within a few ulps.
+    pub exact_arithmetic: bool,
 }
 
 /// Every adapter of the instance lancer opens (`WGPU_BACKEND` honoured), in wgpu's order.
@@ -55,6 +59,8 @@ pub fn adapters() -> Result<Vec<AdapterSummary>> {
                 timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
                 ray_query: features.contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY),
                 shader_f64: features.contains(wgpu::Features::SHADER_F64),
+                exact_arithmetic: super::context::exact_spirv(info.backend, features)
+                    && features.contains(wgpu::Features::SHADER_F64),
             }
         })
         .collect())

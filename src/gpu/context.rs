@@ -352,7 +352,7 @@ impl GpuContext {
 /// Whether lancer compiles its kernels to SPIR-V itself (gpu::exact_spirv) on a device of
 /// `backend` with `features`: Vulkan with passthrough shaders, unless `LANCER_WGSL=1` asks
 /// for wgpu's own translation (to measure or compare it).
-fn exact_spirv(backend: wgpu::Backend, features: wgpu::Features) -> bool {
+pub(crate) fn exact_spirv(backend: wgpu::Backend, features: wgpu::Features) -> bool {
     backend == wgpu::Backend::Vulkan
         && features.contains(wgpu::Features::PASSTHROUGH_SHADERS)
         && std::env::var_os("LANCER_WGSL").is_none_or(|v| v != "1")

@@ -15,8 +15,11 @@ pub const CPU_LAYOUT: LayoutKind = LayoutKind::Bvh8;
 /// docs/src/defaults.md gives the runs).
 pub const SOFTWARE_GPU_LAYOUT: LayoutKind = LayoutKind::Cwbvh;
 
-/// A hardware GPU's default: dfs-sign. No hardware GPU has run `bench layouts` here yet:
-/// the first that does decides this one.
+/// A hardware GPU's default: dfs-sign, not yet chosen by a measurement. The first `bench
+/// layouts` on a hardware GPU (an NVIDIA H200, the bunny at 256×256, 2026-12-04) found it
+/// the slowest binary layout there; it stays until a run over more meshes picks its
+/// successor, being also `lancer build`'s default and what the GPU-built LBVH flattens into
+/// (docs/src/defaults.md).
 pub const GPU_LAYOUT: LayoutKind = LayoutKind::DfsSign;
 
 /// The layout `device` traces with by default: [`CPU_LAYOUT`] on the CPU,
