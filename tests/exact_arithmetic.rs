@@ -58,13 +58,25 @@ fn inputs(n: usize) -> Vec<[f32; 4]> {
         let bits = ((r as u32) & 0x807f_ffff) | (exponent << 23);
         f32::from_bits(bits)
     };
-    (0..n)
+    let mut all: Vec<[f32; 4]> = (0..n)
         .map(|_| {
             let (a, b, d) = (value(), value(), value());
             let c = -(a * b) * (1.0 + value().fract() * 1e-3);
             [a, b, c, d]
         })
-        .collect()
+        .collect();
+    // Zeros of both signs, a division by zero, the largest and smallest normal f32s.
+    let (max, min) = (f32::MAX, f32::MIN_POSITIVE);
+    all.extend([
+        [0.0, 1.0, -0.0, 0.0],
+        [-0.0, 3.0, 0.0, -0.0],
+        [1.0, 0.0, 2.0, 1.0],
+        [-1.0, -0.0, 4.0, 2.0],
+        [max, 0.5, max, 1.0],
+        [min, 2.0, min, min],
+        [max, min, 1.0, max],
+    ]);
+    all
 }
 
 /// The kernel's answers on `ctx` (its pipelines from lancer's SPIR-V or from wgpu's
@@ -120,11 +132,16 @@ fn differences(data: &[[f32; 4]], gpu: &[[f32; 4]]) -> [usize; 4] {
 #[test]
 fn multiply_adds_divisions_and_roots_round_as_on_the_cpu() {
     let ctx = gpu();
-    assert!(
-        ctx.exact_spirv,
-        "{}: a Vulkan adapter takes lancer's own SPIR-V",
-        ctx.adapter
-    );
+    if !ctx.exact_spirv {
+        // CI's lavapipe always takes it: the test may not pass without checking there.
+        assert!(
+            std::env::var("CI").is_err(),
+            "{}: a Vulkan adapter takes lancer's own SPIR-V",
+            ctx.adapter
+        );
+        println!("skipping: {} takes wgpu's translation", ctx.adapter);
+        return;
+    }
     let data = inputs(1 << 14);
     let off = differences(&data, &on_gpu(ctx, &data));
     println!(

@@ -47,7 +47,7 @@ impl AdaptersCmd {
                 yes(a.ray_query)
             );
             let arithmetic = match a.exact_arithmetic {
-                true => "as the CPU's (lancer's own SPIR-V: nothing fused, f64 division)",
+                true => "as the CPU's (lancer's own SPIR-V: nothing fused, f64 division; `lancer check` tests it)",
                 false => "may differ from the CPU's by an ulp (wgpu's translation)",
             };
             say!(say, "   arithmetic        {arithmetic}");

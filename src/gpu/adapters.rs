@@ -29,9 +29,10 @@ pub struct AdapterSummary {
     pub ray_query: bool,
     /// f64 in shaders (lancer's SPIR-V divides and takes square roots through it).
     pub shader_f64: bool,
-    /// lancer's kernels round as the CPU does here: it compiles them to its own SPIR-V
-    /// (Vulkan with passthrough shaders and f64; see `gpu::exact_spirv`). Elsewhere wgpu
-    /// translates them and a driver may fuse a multiply-add or divide to within a few ulps.
+    /// lancer's kernels are compiled to round as the CPU does here: its own SPIR-V (Vulkan
+    /// with passthrough shaders and f64; see `gpu::exact_spirv`), which holds on every
+    /// driver tried so far (`lancer check` tests a driver). Elsewhere wgpu translates them
+    /// and a driver may fuse a multiply-add or divide to within a few ulps.
     pub exact_arithmetic: bool,
 }
 

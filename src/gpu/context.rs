@@ -62,7 +62,9 @@ pub struct GpuContext {
     /// a few ulps (`lancer check` shows where).
     pub exact_spirv: bool,
     /// With [`exact_spirv`](Self::exact_spirv), f32 division and square root are taken
-    /// through f64 (the device has `Features::SHADER_F64`): correctly rounded, as on the CPU.
+    /// through f64 (the device has `Features::SHADER_F64`): correctly rounded, as on the CPU,
+    /// wherever the driver's f64 is as accurate as IEEE's (Vulkan promises less; `lancer
+    /// check` tests a driver).
     pub exact_division: bool,
     /// Errors the device reported outside an error scope since the last [`wait`], which
     /// returns the first of them (so no GPU error passes silently).

@@ -97,6 +97,8 @@ pub struct Kernel {
     modules: Modules,
     /// Group 0's binding numbers.
     bindings: Vec<u32>,
+    /// The caller vouched for the kernel's indices (`Kernel::new`'s `trusted`).
+    trusted: bool,
 }
 
 /// Where a kernel's pipelines come from.
@@ -162,6 +164,7 @@ impl Kernel {
                 pipeline_layout,
                 modules,
                 bindings: entries.iter().map(|e| e.binding).collect(),
+                trusted,
             }
         })
     }
@@ -182,7 +185,7 @@ impl Kernel {
                     self.entry,
                     constants,
                     &self.bindings,
-                    trusted,
+                    trusted && self.trusted,
                     ctx.exact_division,
                 )?;
                 let desc = wgpu::ShaderModuleDescriptorPassthrough {
