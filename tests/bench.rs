@@ -352,6 +352,45 @@ fn accuracy_prices_every_knob_against_the_defaults() {
     );
 }
 
+/// On a GPU every trace row counts the answers that are not the CPU twin's: none with the
+/// defaults (the promise), and where the adapter takes lancer's exact SPIR-V, a row prices
+/// wgpu's own translation against it.
+#[test]
+fn accuracy_counts_gpu_answers_that_are_not_the_twins() {
+    let scene = RenderScene::from_file(Path::new("scenes/cornell.toml")).unwrap();
+    let config = bench::accuracy::Config {
+        width: 8,
+        height: 8,
+        render_size: 4,
+        reference_spp: 4,
+        max_spp: 1,
+        reference_bounces: 1,
+        repeat: 1,
+        device: DeviceChoice::Gpu,
+        ..bench::accuracy::Config::new(scene, "scenes/cornell.toml")
+    };
+    let report = with_progress(|p| bench::accuracy::run(&config, p));
+    let exact = lancer::gpu::GpuContext::new().unwrap().exact_spirv;
+    let trace_rows = || (report.rows.iter()).filter(|r| r.knob != "spp" && r.knob != "max bounces");
+    for r in trace_rows() {
+        assert_eq!(r.twin_mismatches.is_some(), r.device == "gpu", "{r:?}");
+    }
+    let gpu = |setting: &str| (trace_rows()).find(|r| r.device == "gpu" && r.setting == setting);
+    assert_eq!(
+        gpu(bench::accuracy::DEFAULTS).unwrap().twin_mismatches,
+        Some(0)
+    );
+    let translated = gpu(bench::accuracy::WGPU_ARITHMETIC);
+    assert_eq!(translated.is_some(), exact, "{translated:?}");
+    let text = report.text();
+    assert!(text.contains("≠ CPU twin"), "{text}");
+    assert_eq!(
+        text.contains("gpu: lancer's exact SPIR-V takes"),
+        exact,
+        "{text}"
+    );
+}
+
 #[test]
 fn report_writes_a_dated_page_with_its_chart_beside_it() {
     let report = bench::trace::run(&trace_config(DeviceChoice::Cpu), &bench::silent).unwrap();

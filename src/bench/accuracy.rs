@@ -3,7 +3,9 @@
 //! and shadow rays and judged on the hard cases of [`crate::accuracy`] (leaks on a closed
 //! icosphere, false misses on the constructed cases, self-hits of secondary rays); BVH
 //! builders by SAH cost and work per ray; samples per pixel and bounces by RMSE and bias
-//! against a high-spp, deep reference render.
+//! against a high-spp, deep reference render. Every GPU row also counts the answers that
+//! are not bit for bit the CPU twin's: what lancer's exact SPIR-V buys against wgpu's own
+//! translation of the WGSL (the `GPU arithmetic` row, on adapters that take the former).
 
 use std::sync::Arc;
 
@@ -18,6 +20,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{Precision, Ray, RayOffset, Robustness, SlabTest, TriangleTest};
 use crate::mesh::Mesh;
 use crate::render::{compare_images, Image, RenderOptions, RenderScene, Renderer, Rng};
+use crate::trace::compare::compare_hits;
 use crate::trace::{Tracer, TracerOptions};
 use crate::Vec3;
 
@@ -85,6 +88,10 @@ pub const FASTEST: &str = "MT + plain + no offset + trusted";
 /// The three accuracy knobs at their fast settings, the shader checks left at the default:
 /// what the robust defaults (watertight, robust slab, error-bound offset) are priced against.
 pub const FAST_ACCURACY: &str = "MT + plain + no offset";
+/// The GPU kernels as wgpu translates the WGSL (a driver may fuse a multiply-add), against
+/// the default, lancer's exact SPIR-V (`gpu::exact_spirv`); measured where the adapter
+/// takes the latter (elsewhere the defaults' row already is wgpu's translation).
+pub const WGPU_ARITHMETIC: &str = "wgpu's translation";
 
 /// One setting of the trace knobs: robustness and builder.
 struct Setting {
@@ -96,6 +103,9 @@ struct Setting {
     gpu: bool,
     /// Judge leaks, false misses and self-hits (the builders are judged by SAH cost).
     errors: bool,
+    /// GPU: the kernels in lancer's exact SPIR-V where the adapter takes it (false: as wgpu
+    /// translates the WGSL).
+    exact: bool,
 }
 
 fn settings() -> Vec<Setting> {
@@ -115,6 +125,7 @@ fn settings() -> Vec<Setting> {
         cpu,
         gpu,
         errors: true,
+        exact: true,
     };
     let builder = |name: String, builder, bins| Setting {
         knob: "BVH builder",
@@ -128,6 +139,7 @@ fn settings() -> Vec<Setting> {
         cpu: true,
         gpu: true,
         errors: false,
+        exact: true,
     };
     let with = |f: &dyn Fn(&mut Robustness)| {
         let mut r = d;
@@ -171,6 +183,10 @@ fn settings() -> Vec<Setting> {
             false,
             true,
         ),
+        Setting {
+            exact: false,
+            ..rob("GPU arithmetic", WGPU_ARITHMETIC, d, false, true)
+        },
         rob(
             "CPU precision",
             "f64",
@@ -221,6 +237,10 @@ pub struct Row {
     pub false_misses: Option<usize>,
     /// Secondary rays that hit the surface they leave, in %.
     pub self_hits_pct: Option<f64>,
+    /// GPU rows: primary and shadow rays whose answer (t, triangle, u, v) is not bit for bit
+    /// the CPU twin's, with the same layout and settings (0 wherever the kernels' arithmetic
+    /// is the CPU's).
+    pub twin_mismatches: Option<usize>,
     /// Leaks, false misses and self-hits in % of the rays they are counted on.
     pub error_pct: Option<f64>,
     /// SAH cost of the BVH.
@@ -337,6 +357,9 @@ fn trace_ms(tracer: &mut Tracer, rays: &[Ray], query: Query) -> Result<f64> {
 /// the icosphere's and every hard case's.
 struct Tracers<'d> {
     scene: Tracer<'d>,
+    /// The scene's layout and options, for the CPU twin of a GPU row.
+    layout: Arc<dyn GpuForm>,
+    opts: TracerOptions,
     sah: f64,
     judged: Vec<Tracer<'d>>,
 }
@@ -360,7 +383,7 @@ impl<'d> Tracers<'d> {
             &work.mesh,
         )?
         .into();
-        let scene = Tracer::with_layout(device, layout, &opts)?;
+        let scene = Tracer::with_layout(device, layout.clone(), &opts)?;
         let mut tracers = Vec::new();
         if judged {
             tracers.push(Tracer::new(device, &work.sphere, &opts)?);
@@ -370,6 +393,8 @@ impl<'d> Tracers<'d> {
         }
         Ok(Tracers {
             scene,
+            layout,
+            opts,
             sah,
             judged: tracers,
         })
@@ -394,8 +419,29 @@ fn time_once(t: &mut Tracers, s: &Setting, work: &Work) -> Result<f64> {
         + trace_ms(&mut t.scene, &work.shadow, Query::Any)?)
 }
 
+/// Primary and shadow rays on which the GPU's answers are not bit for bit those of the CPU
+/// twin of the same layout and settings.
+fn twin_mismatches(t: &mut Tracers, s: &Setting, work: &Work) -> Result<usize> {
+    let cpu = Device::cpu();
+    let mut twin = Tracer::with_layout(&cpu, t.layout.clone(), &t.opts)?;
+    twin.set_kernel(s.rob, 64, false);
+    t.scene.set_kernel(s.rob, 64, false);
+    let mut differ = 0;
+    for (rays, query) in [(&work.primary, Query::Closest), (&work.shadow, Query::Any)] {
+        let want = twin.trace(rays, query)?.hits;
+        let got = t.scene.trace(rays, query)?.hits;
+        let same = compare_hits(&work.mesh, rays, query, &want, &got).identical;
+        differ += rays.len() - same;
+    }
+    Ok(differ)
+}
+
 /// The work per ray and (for judged settings) the errors one setting leaves on one device.
 fn judge(t: &mut Tracers, s: &Setting, device: &'static str, work: &Work, ms: f64) -> Result<Row> {
+    let twin = match device {
+        "gpu" => Some(twin_mismatches(t, s, work)?),
+        _ => None,
+    };
     t.scene.set_kernel(s.rob, 64, true);
     let stats = t.scene.trace(&work.primary, Query::Closest)?.stats;
     let (nodes, tris) = RayStats::means(&stats.unwrap_or_default());
@@ -409,6 +455,7 @@ fn judge(t: &mut Tracers, s: &Setting, device: &'static str, work: &Work, ms: f6
         sah: Some(t.sah),
         nodes: Some(nodes),
         tris: Some(tris),
+        twin_mismatches: twin,
         ..Row::default()
     };
     if !s.errors {
@@ -475,6 +522,14 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     if !device.is_cpu() {
         devices.push(("gpu", &device));
     }
+    // The GPU as wgpu translates the WGSL, where the default is lancer's exact SPIR-V.
+    let translated = (device.gpu_context())
+        .filter(|ctx| ctx.exact_spirv)
+        .map(|ctx| {
+            let mut ctx = ctx.clone();
+            (ctx.exact_spirv, ctx.exact_division) = (false, false);
+            Device::gpu(ctx)
+        });
     let work = Work::new(scene, config.width, config.height)?;
     let settings = settings();
     let spps: Vec<u32> = std::iter::successors(Some(1u32), |s| s.checked_mul(4))
@@ -486,14 +541,22 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     let repeat = config.repeat.max(1);
     let mut rows = Vec::new();
     for &(dev_name, dev) in &devices {
-        let runs = |s: &&Setting| if dev.is_cpu() { s.cpu } else { s.gpu };
+        // A setting's device: `dev`, or the GPU as wgpu translates the WGSL.
+        let on = |s: &Setting| match s.exact {
+            true => Some(dev),
+            false => translated.as_ref().filter(|_| !dev.is_cpu()),
+        };
+        let runs = |s: &&Setting| on(s).is_some() && if dev.is_cpu() { s.cpu } else { s.gpu };
+        // One set of tracers per build and arithmetic.
+        let same = |a: &Setting, b: &Setting| a.build == b.build && a.exact == b.exact;
         let mut groups: Vec<(Tracers, Vec<&Setting>)> = Vec::new();
         for s in settings.iter().filter(runs) {
-            match groups.iter_mut().find(|g| g.1[0].build == s.build) {
+            match groups.iter_mut().find(|g| same(g.1[0], s)) {
                 Some(g) => g.1.push(s),
                 None => {
-                    let judged = settings.iter().any(|o| o.build == s.build && o.errors);
-                    groups.push((Tracers::new(dev, &work, &s.build, judged)?, vec![s]));
+                    let judged = settings.iter().any(|o| same(o, s) && o.errors);
+                    let tracers = Tracers::new(on(s).unwrap_or(dev), &work, &s.build, judged)?;
+                    groups.push((tracers, vec![s]));
                 }
             }
         }
@@ -655,6 +718,7 @@ impl BenchReport for Report {
             "leaks",
             "false misses",
             "self-hits %",
+            "≠ CPU twin",
             "SAH cost",
             "nodes/ray",
             "tris/ray",
@@ -673,6 +737,7 @@ impl BenchReport for Report {
                 count(r.leaks),
                 count(r.false_misses),
                 dash(r.self_hits_pct, 2),
+                count(r.twin_mismatches),
                 dash(r.sah, 1),
                 dash(r.nodes, 1),
                 dash(r.tris, 1),
@@ -681,6 +746,24 @@ impl BenchReport for Report {
             ]);
         }
         out += &t.text();
+        out += &format!(
+            "≠ CPU twin: GPU rows, of the {} primary and shadow rays, those whose answer is not \
+             bit for bit the CPU twin's (same layout and settings)\n",
+            s.rays
+        );
+        let gpu =
+            |setting: &str| (self.rows.iter()).find(|r| r.device == "gpu" && r.setting == setting);
+        if let (Some(exact), Some(fused)) = (gpu(DEFAULTS), gpu(WGPU_ARITHMETIC)) {
+            out += &format!(
+                "gpu: lancer's exact SPIR-V takes {:.2} ms ({} answers not the CPU's); wgpu's \
+                 translation {:.2} ms ({} not the CPU's): exactness costs {:+.1}%\n",
+                exact.ms,
+                count(exact.twin_mismatches),
+                fused.ms,
+                count(fused.twin_mismatches),
+                100.0 * (exact.ms / fused.ms - 1.0)
+            );
+        }
         for dev in &s.devices {
             let ms = |name| self.ms(dev, name);
             if let (Some(robust), Some(fast), Some(fastest)) =
