@@ -48,14 +48,18 @@ const PREAMBLE: [u32; 22] = [
 ];
 
 impl ExactModule {
-    /// Parses and validates `source` (every capability allowed: the driver, not naga, says
-    /// what the device can run).
-    pub fn new(label: &str, source: &str) -> Result<ExactModule> {
+    /// Parses and validates `source` with the capabilities wgpu grants a device of
+    /// `features` (wgpu checks nothing in a module it is handed as SPIR-V, so a kernel the
+    /// device cannot run is refused here, by name, not left to the driver). The downlevel
+    /// flags, which only grant capabilities no compute kernel uses (cube arrays,
+    /// multisampled shading, f16 in f32), are taken as none.
+    pub fn new(label: &str, source: &str, features: wgpu::Features) -> Result<ExactModule> {
         let module = naga::front::wgsl::parse_str(source)
             .map_err(|e| Error::Gpu(format!("the {label} kernel: {}", e.emit_to_string(source))))?;
-        let info = naga::valid::Validator::new(
+        let info = wgpu_naga_bridge::create_validator(
+            features,
+            wgpu::DownlevelFlags::empty(),
             naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
         )
         .validate(&module)
         .map_err(|e| Error::Gpu(format!("the {label} kernel: {}", e.emit_to_string(source))))?;
@@ -342,7 +346,7 @@ mod tests {
 
     #[test]
     fn every_float_operation_is_marked_and_divisions_go_through_f64() {
-        let m = ExactModule::new("test", SOURCE).unwrap();
+        let m = ExactModule::new("test", SOURCE, wgpu::Features::empty()).unwrap();
         let plain = m
             .spirv("main", &[("SCALE", 2.0)], &[3, 7], false, false)
             .unwrap();
@@ -420,7 +424,7 @@ mod tests {
                 let wide = f64(x.x) * 2.0lf;
                 data[0] = vec2<f32>(x.x / x.y, f32(wide));
             }";
-        let m = ExactModule::new("test", source).unwrap();
+        let m = ExactModule::new("test", source, wgpu::Features::SHADER_F64).unwrap();
         let words = m.spirv("main", &[], &[0], false, true).unwrap();
         let f64_types = ops(&words)
             .iter()
@@ -430,6 +434,35 @@ mod tests {
         assert_eq!(count(&words, OP_FDIV), 1);
         // The division: two in, one out; the module's own: f64(x.x) and f32(wide).
         assert_eq!(count(&words, OP_FCONVERT), 3 + 2);
+    }
+
+    /// A kernel the device's features do not allow (f64, subgroup operations) is refused by
+    /// name, as wgpu refuses its WGSL; with the feature it passes.
+    #[test]
+    fn a_kernel_beyond_the_devices_features_is_refused() {
+        let f64_source = "
+            @group(0) @binding(0) var<storage, read_write> data: array<f32>;
+            @compute @workgroup_size(1)
+            fn main() { data[0] = f32(f64(data[0]) * 2.0lf); }";
+        let subgroup_source = "
+            @group(0) @binding(0) var<storage, read_write> data: array<f32>;
+            @compute @workgroup_size(32)
+            fn main(@builtin(local_invocation_index) i: u32) {
+                data[i] = subgroupAdd(data[i]);
+            }";
+        for (source, feature) in [
+            (f64_source, wgpu::Features::SHADER_F64),
+            (subgroup_source, wgpu::Features::SUBGROUP),
+        ] {
+            let refused = ExactModule::new("wide", source, wgpu::Features::empty())
+                .err()
+                .expect("validated without the feature");
+            assert!(refused.to_string().contains("the wide kernel"), "{refused}");
+            assert!(
+                ExactModule::new("wide", source, feature).is_ok(),
+                "{feature:?}"
+            );
+        }
     }
 
     /// WGSL's dot() and cross() — like fma(), length(), normalize() and the rest — are the

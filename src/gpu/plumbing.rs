@@ -125,7 +125,7 @@ impl Kernel {
         trusted: bool,
     ) -> Result<Kernel> {
         let exact = match ctx.exact_spirv {
-            true => Some(ExactModule::new(label, source)?),
+            true => Some(ExactModule::new(label, source, ctx.device.features())?),
             false => None,
         };
         scoped(ctx, &format!("compiling the {label} kernel"), || {
