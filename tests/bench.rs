@@ -296,20 +296,31 @@ fn structures_measures_every_structure_with_a_gpu_flag_that_matches_the_registry
         .is_none());
 }
 
-#[test]
-fn accuracy_prices_every_knob_against_the_defaults() {
-    let scene = RenderScene::from_file(Path::new("scenes/textured.toml")).unwrap();
-    let config = bench::accuracy::Config {
+/// `bench accuracy` on `scene` at a tiny size: 8×8 rays, 4×4 renders against a reference of
+/// `reference_spp`, spp rows up to `max_spp`, one bounce, one timed run.
+fn tiny_accuracy(
+    scene: &str,
+    device: DeviceChoice,
+    reference_spp: u32,
+    max_spp: u32,
+) -> bench::accuracy::Config {
+    let render_scene = RenderScene::from_file(Path::new(scene)).unwrap();
+    bench::accuracy::Config {
         width: 8,
         height: 8,
         render_size: 4,
-        reference_spp: 16,
-        max_spp: 4,
+        reference_spp,
+        max_spp,
         reference_bounces: 1,
         repeat: 1,
-        device: DeviceChoice::Cpu,
-        ..bench::accuracy::Config::new(scene, "scenes/textured.toml")
-    };
+        device,
+        ..bench::accuracy::Config::new(render_scene, scene)
+    }
+}
+
+#[test]
+fn accuracy_prices_every_knob_against_the_defaults() {
+    let config = tiny_accuracy("scenes/textured.toml", DeviceChoice::Cpu, 16, 4);
     let report = with_progress(|p| bench::accuracy::run(&config, p));
     assert!(report.rows.iter().all(|r| r.device == "cpu" && r.ms > 0.0));
     let row = |setting: &str| report.rows.iter().find(|r| r.setting == setting);
@@ -357,18 +368,7 @@ fn accuracy_prices_every_knob_against_the_defaults() {
 /// wgpu's own translation against it.
 #[test]
 fn accuracy_counts_gpu_answers_that_are_not_the_twins() {
-    let scene = RenderScene::from_file(Path::new("scenes/cornell.toml")).unwrap();
-    let config = bench::accuracy::Config {
-        width: 8,
-        height: 8,
-        render_size: 4,
-        reference_spp: 4,
-        max_spp: 1,
-        reference_bounces: 1,
-        repeat: 1,
-        device: DeviceChoice::Gpu,
-        ..bench::accuracy::Config::new(scene, "scenes/cornell.toml")
-    };
+    let config = tiny_accuracy("scenes/cornell.toml", DeviceChoice::Gpu, 4, 1);
     let report = with_progress(|p| bench::accuracy::run(&config, p));
     let exact = lancer::gpu::GpuContext::new().unwrap().exact_spirv;
     let trace_rows = || (report.rows.iter()).filter(|r| r.knob != "spp" && r.knob != "max bounces");
