@@ -376,10 +376,12 @@ fn accuracy_counts_gpu_answers_that_are_not_the_twins() {
         assert_eq!(r.twin_mismatches.is_some(), r.device == "gpu", "{r:?}");
     }
     let gpu = |setting: &str| (trace_rows()).find(|r| r.device == "gpu" && r.setting == setting);
-    assert_eq!(
-        gpu(bench::accuracy::DEFAULTS).unwrap().twin_mismatches,
-        Some(0)
-    );
+    // Where wgpu translates the WGSL (not Vulkan, or LANCER_WGSL=1), a driver may fuse and
+    // move an answer: only the exact SPIR-V promises none.
+    let defaults = gpu(bench::accuracy::DEFAULTS).unwrap().twin_mismatches;
+    if exact {
+        assert_eq!(defaults, Some(0));
+    }
     let translated = gpu(bench::accuracy::WGPU_ARITHMETIC);
     assert_eq!(translated.is_some(), exact, "{translated:?}");
     let text = report.text();
