@@ -7,6 +7,8 @@
 //! one-triangle leaves are not stored (their box, count and decision follow from the
 //! triangle), which halves the memory of the programme's tree.
 
+use glam::Vec3;
+
 use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
 use crate::geometry::Aabb;
@@ -210,13 +212,17 @@ impl<'a> Binary<'a> {
         }
     }
 
-    /// The leaf-order positions of the triangles beneath `n`, left to right.
-    pub fn positions(&self, n: u32, out: &mut Vec<u32>) {
+    /// Writes the leaf-order positions of the triangles beneath `n`, left to right, at the
+    /// start of `out` (room for them all); returns how many.
+    pub fn positions(&self, n: u32, out: &mut [u32]) -> u32 {
         match self.kids(n) {
-            None => out.push(n & !LEAF),
+            None => {
+                out[0] = n & !LEAF;
+                1
+            }
             Some([a, b]) => {
-                self.positions(a, out);
-                self.positions(b, out);
+                let k = self.positions(a, out);
+                k + self.positions(b, &mut out[k as usize..])
             }
         }
     }
@@ -246,7 +252,7 @@ fn fill<'s>(
         _ => {
             let mut share = share;
             let mut cursor = 0;
-            let root = add(node, &mut share, &mut cursor, tris);
+            let root = add(node, &mut share, &mut cursor, tris, &mut Vec::new());
             debug_assert_eq!(cursor, share.boxes.len());
             (root, share.clipped)
         }
@@ -261,15 +267,16 @@ impl Share<'_, WIDTH> {
         self.put(i, bbox, [l.0, r.0], tris, entry)
     }
 
-    /// A one-triangle leaf (leaf-order position `p`, box `bbox` within its triangle's
-    /// `whole` box): nothing stored but a clipped box.
-    fn leaf(&mut self, p: u32, bbox: Aabb, whole: &Aabb) -> Made<WIDTH> {
-        // Bit for bit: a clipped −0 is not the triangle's +0.
-        let bits = |b: &Aabb| [b.lo.to_array(), b.hi.to_array()].map(|v| v.map(f32::to_bits));
-        if bits(&bbox) != bits(whole) {
-            self.clipped.push((p, bbox));
+    /// A one-triangle leaf: nothing stored but a clipped box.
+    fn leaf(&mut self, r: &Ref) -> Made<WIDTH> {
+        if r.clipped {
+            self.clipped.push((r.p, r.bbox));
         }
-        (LEAF | p, bbox, Entry::new(bbox.area(), 1, None, COSTS))
+        (
+            LEAF | r.p,
+            r.bbox,
+            Entry::new(r.bbox.area(), 1, None, COSTS),
+        )
     }
 }
 
@@ -279,28 +286,37 @@ fn add(
     share: &mut Share<'_, WIDTH>,
     cursor: &mut usize,
     tris: &LeafOrder,
+    refs: &mut Vec<Ref>,
 ) -> Made<WIDTH> {
     match node {
         Node::Leaf {
             bbox, start, count, ..
         } => {
             // A triangle's box is its bounds within the leaf's box: all of it, unless a
-            // spatial split gave the leaf only a part of the triangle.
-            let mut refs: Vec<(u32, Aabb)> = (*start..start + count)
-                .map(|p| {
-                    let b = tris.triangle(p).bbox();
-                    let within = Aabb {
-                        lo: b.lo.max(bbox.lo),
-                        hi: b.hi.min(bbox.hi),
-                    };
-                    (p, within)
-                })
-                .collect();
-            split(&mut refs, tris, share, cursor)
+            // spatial split gave the leaf only a part of the triangle (then it is kept).
+            let at = |p: u32| {
+                let whole = tris.triangle(p).bbox();
+                let within = Aabb {
+                    lo: whole.lo.max(bbox.lo),
+                    hi: whole.hi.min(bbox.hi),
+                };
+                // Bit for bit: a clipped −0 is not the triangle's +0.
+                let same = |a: Vec3, b: Vec3| (0..3).all(|k| a[k].to_bits() == b[k].to_bits());
+                Ref {
+                    p,
+                    bbox: within,
+                    clipped: !(same(within.lo, whole.lo) && same(within.hi, whole.hi)),
+                }
+            };
+            // One buffer for every leaf of the subtree (a leaf is made for every few
+            // triangles).
+            refs.clear();
+            refs.extend((*start..start + count).map(at));
+            split(refs, share, cursor)
         }
         Node::Inner { children, .. } => {
-            let l = add(&children[0], share, cursor, tris);
-            let r = add(&children[1], share, cursor, tris);
+            let l = add(&children[0], share, cursor, tris, refs);
+            let r = add(&children[1], share, cursor, tris, refs);
             next(share, cursor, l, r)
         }
     }
@@ -319,29 +335,32 @@ fn next(
     share.join(i, l, r, n)
 }
 
-/// A binary leaf's triangles (leaf-order positions with their boxes within the leaf, at
-/// least one) as a tree of one-triangle leaves: median splits on the longest axis of the
-/// box centres.
-fn split(
-    refs: &mut [(u32, Aabb)],
-    tris: &LeafOrder,
-    share: &mut Share<'_, WIDTH>,
-    cursor: &mut usize,
-) -> Made<WIDTH> {
-    if let [(p, bbox)] = refs {
-        return share.leaf(*p, *bbox, &tris.triangle(*p).bbox());
+/// A triangle of a binary leaf: its leaf-order position, its box within the leaf, and
+/// whether that is less than the triangle's whole box.
+#[derive(Clone, Copy)]
+struct Ref {
+    p: u32,
+    bbox: Aabb,
+    clipped: bool,
+}
+
+/// A binary leaf's triangles (at least one) as a tree of one-triangle leaves: median
+/// splits on the longest axis of the box centres.
+fn split(refs: &mut [Ref], share: &mut Share<'_, WIDTH>, cursor: &mut usize) -> Made<WIDTH> {
+    if let [r] = refs {
+        return share.leaf(r);
     }
     let centres = refs
         .iter()
-        .fold(Aabb::EMPTY, |b, (_, r)| b.grow(r.center()));
+        .fold(Aabb::EMPTY, |b, r| b.grow(r.bbox.center()));
     let axis = centres.longest_axis();
-    refs.sort_by(|(a, ra), (b, rb)| {
-        let (ca, cb) = (ra.center()[axis], rb.center()[axis]);
-        ca.total_cmp(&cb).then(a.cmp(b))
+    refs.sort_by(|a, b| {
+        let (ca, cb) = (a.bbox.center()[axis], b.bbox.center()[axis]);
+        ca.total_cmp(&cb).then(a.p.cmp(&b.p))
     });
     let (lo, hi) = refs.split_at_mut(refs.len() / 2);
-    let l = split(lo, tris, share, cursor);
-    let r = split(hi, tris, share, cursor);
+    let l = split(lo, share, cursor);
+    let r = split(hi, share, cursor);
     next(share, cursor, l, r)
 }
 

@@ -174,6 +174,10 @@ impl Cwbvh {
         let mut places: Vec<u32> = zeroed_on_all_threads(order.len());
         let (first, rest) = nodes.split_at_mut(1);
         let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut places));
+        // The collapse's arrays are freed before the triangles' (the bigger) is made: the
+        // allocator may give their pages to it (a lower peak, fewer pages faulted in).
+        let bounds = tree.bbox(root);
+        drop((tree, plan, counts));
         let tris = {
             use rayon::prelude::*;
             let tri = |&p: &u32| LeafTri::new(leaves.triangle(p).v, leaves.order[p as usize]);
@@ -182,7 +186,7 @@ impl Cwbvh {
         Cwbvh {
             nodes,
             tris,
-            bounds: tree.bbox(root),
+            bounds,
             deepest,
         }
     }
@@ -319,7 +323,12 @@ impl Writer<'_> {
         places: Part<'_, u32>,
     ) -> usize {
         let children = self.plan.children(self.tree, n);
-        let boxes: Vec<Aabb> = children.iter().map(|&(c, _)| self.tree.bbox(c)).collect();
+        // Held in place, not allocated: a wide node is written for every few triangles.
+        let mut boxes = [Aabb::EMPTY; WIDTH];
+        for (b, &(c, _)) in boxes.iter_mut().zip(children.iter()) {
+            *b = self.tree.bbox(c);
+        }
+        let boxes = &boxes[..children.len()];
         let bbox = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
         let frame = Frame::new(&bbox);
         let mut node = CwNode {
@@ -332,10 +341,10 @@ impl Writer<'_> {
             q_lo: [[0; WIDTH]; 3],
             q_hi: [[0; WIDTH]; 3],
         };
-        let mut inner = Vec::with_capacity(WIDTH);
+        let mut inner = [0u32; WIDTH];
+        let mut inner_len = 0;
         let mut offset = 0u32;
-        let mut positions = Vec::new();
-        for (s, c) in slots::assign(&bbox, &boxes).into_iter().enumerate() {
+        for (s, c) in slots::assign(&bbox, boxes).into_iter().enumerate() {
             let Some(c) = c else { continue };
             let (b, leaf) = children[c];
             let (lo, hi) = frame.quantise(&boxes[c]);
@@ -344,27 +353,25 @@ impl Writer<'_> {
                 node.q_hi[axis][s] = hi[axis];
             }
             if leaf {
-                positions.clear();
-                self.tree.positions(b, &mut positions);
-                let count = positions.len() as u32;
+                let count = self.tree.positions(b, &mut places.1[offset as usize..]);
                 node.child_meta[s] = (((1 << count) - 1) << COUNT_SHIFT | offset) as u8;
-                places.1[offset as usize..][..positions.len()].copy_from_slice(&positions);
                 offset += count;
             } else {
                 node.imask |= 1 << s;
                 node.child_meta[s] = CwNode::inner_meta(s);
-                inner.push(b);
+                inner[inner_len] = b;
+                inner_len += 1;
             }
         }
         *slot = node;
         // The parts of the children: their records, then each one's descendants and
         // triangles in turn.
-        let (records, mut rest) = nodes.1.split_at_mut(inner.len());
-        let mut rest_base = nodes.0 + inner.len() as u32;
+        let (records, mut rest) = nodes.1.split_at_mut(inner_len);
+        let mut rest_base = nodes.0 + inner_len as u32;
         let (_, mut places_rest) = places.1.split_at_mut(offset as usize);
         let mut places_base = places.0 + offset;
-        let mut jobs = Vec::with_capacity(inner.len());
-        for (&c, record) in inner.iter().zip(records) {
+        let mut jobs = Vec::with_capacity(inner_len);
+        for (&c, record) in inner[..inner_len].iter().zip(records) {
             let below = counts.descendants(c) as usize;
             let (mine, more) = std::mem::take(&mut rest).split_at_mut(below);
             let (my_places, more_places) =

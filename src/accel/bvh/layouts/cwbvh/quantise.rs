@@ -55,11 +55,7 @@ impl Frame {
             let covers = |x: i32| plane(lo, pow2(x), Q_MAX) >= hi;
             // A guess from the extent, then walk to the smallest exponent that covers.
             let ext = (hi as f64 - lo as f64) / Q_MAX as f64;
-            let guess = if ext > 0.0 {
-                ext.log2().ceil() as i32
-            } else {
-                E_MIN
-            };
+            let guess = if ext > 0.0 { ceil_log2(ext) } else { E_MIN };
             let mut x = guess.clamp(E_MIN, E_MAX);
             while x < E_MAX && !covers(x) {
                 x += 1;
@@ -73,42 +69,81 @@ impl Frame {
     }
 
     /// The bytes of a child box inside the frame: (low planes, high planes), conservative.
+    /// The three axes walk side by side, one per lane of a vector, each exactly as its
+    /// own scalar walk would: a lane moves only while its own condition holds.
     pub fn quantise(&self, child: &Aabb) -> ([u8; 3], [u8; 3]) {
+        let p = Vec3A::from(self.p);
         let s = step(self.e);
-        let (mut lo, mut hi) = ([0u8; 3], [0u8; 3]);
-        for axis in 0..3 {
-            let (p, s) = (self.p[axis], s[axis]);
-            let value = |q: u32| plane(p, s, q);
-            let estimate = |x: f32| ((x as f64 - p as f64) / s as f64).clamp(0.0, Q_MAX as f64);
-            // Largest q with value(q) ≤ child lo (q = 0 gives p ≤ child lo).
-            let mut q = estimate(child.lo[axis]).floor() as u32;
-            while q > 0 && value(q) > child.lo[axis] {
-                q -= 1;
+        let value = |q: Vec3A| dequantise(p, s, q);
+        let (zero, one, top) = (Vec3A::ZERO, Vec3A::ONE, Vec3A::splat(Q_MAX as f32));
+        // 1/step is exact (a power of two). The estimate only starts the walks, which
+        // find the bytes whatever it is; a NaN estimate starts at 0.
+        let inv = one / s;
+        let estimate = |x: Vec3A| ((x - p) * inv).max(zero).min(top);
+        // Largest q with value(q) ≤ child lo (q = 0 gives p ≤ child lo). The estimate is
+        // not negative: truncation is its floor.
+        let x = Vec3A::from(child.lo);
+        let mut lo = estimate(x).trunc();
+        loop {
+            let down = lo.cmpgt(zero) & value(lo).cmpgt(x);
+            if !down.any() {
+                break;
             }
-            while q < Q_MAX && value(q + 1) <= child.lo[axis] {
-                q += 1;
-            }
-            // Where a step is below the f32 spacing of the planes, several bytes decode to
-            // one value: take the first (and the last for hi), so that lo ≤ hi as bytes.
-            while q > 0 && value(q - 1) == value(q) {
-                q -= 1;
-            }
-            lo[axis] = q as u8;
-            // Smallest q with value(q) ≥ child hi (q = 255 covers the whole frame).
-            let mut q = estimate(child.hi[axis]).ceil() as u32;
-            while q < Q_MAX && value(q) < child.hi[axis] {
-                q += 1;
-            }
-            while q > 0 && value(q - 1) >= child.hi[axis] {
-                q -= 1;
-            }
-            while q < Q_MAX && value(q + 1) == value(q) {
-                q += 1;
-            }
-            hi[axis] = q as u8;
+            lo = Vec3A::select(down, lo - one, lo);
         }
-        (lo, hi)
+        loop {
+            let up = lo.cmplt(top) & value(lo + one).cmple(x);
+            if !up.any() {
+                break;
+            }
+            lo = Vec3A::select(up, lo + one, lo);
+        }
+        // Where a step is below the f32 spacing of the planes, several bytes decode to one
+        // value: take the first (and the last for hi), so that lo ≤ hi as bytes.
+        loop {
+            let down = lo.cmpgt(zero) & value(lo - one).cmpeq(value(lo));
+            if !down.any() {
+                break;
+            }
+            lo = Vec3A::select(down, lo - one, lo);
+        }
+        // Smallest q with value(q) ≥ child hi (q = 255 covers the whole frame).
+        let x = Vec3A::from(child.hi);
+        let e = estimate(x);
+        let t = e.trunc();
+        let mut hi = Vec3A::select(t.cmplt(e), t + one, t);
+        loop {
+            let up = hi.cmplt(top) & value(hi).cmplt(x);
+            if !up.any() {
+                break;
+            }
+            hi = Vec3A::select(up, hi + one, hi);
+        }
+        loop {
+            let down = hi.cmpgt(zero) & value(hi - one).cmpge(x);
+            if !down.any() {
+                break;
+            }
+            hi = Vec3A::select(down, hi - one, hi);
+        }
+        loop {
+            let up = hi.cmplt(top) & value(hi + one).cmpeq(value(hi));
+            if !up.any() {
+                break;
+            }
+            hi = Vec3A::select(up, hi + one, hi);
+        }
+        let bytes = |q: Vec3A| [q.x as u8, q.y as u8, q.z as u8];
+        (bytes(lo), bytes(hi))
     }
+}
+
+/// ⌈log₂ x⌉ of a positive, normal f64, from its bits (no libm call: a frame is made for
+/// every wide node).
+fn ceil_log2(x: f64) -> i32 {
+    let bits = x.to_bits();
+    let exponent = ((bits >> 52) & 0x7ff) as i32 - 1023;
+    exponent + (bits & ((1 << 52) - 1) != 0) as i32
 }
 
 /// 2^x for x in E_MIN..=E_MAX.
@@ -119,4 +154,70 @@ fn pow2(x: i32) -> f32 {
 /// One plane, through [`dequantise`] so that the check is the traversal's own arithmetic.
 fn plane(p: f32, step: f32, q: u32) -> f32 {
     dequantise(Vec3A::splat(p), Vec3A::splat(step), Vec3A::splat(q as f32)).x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The bytes by definition, every byte tried: the largest q decoding to ≤ lo, moved
+    /// down to the first byte of its value; the smallest decoding to ≥ hi (or 255), moved
+    /// up to the last of its value.
+    fn by_definition(frame: &Frame, child: &Aabb) -> ([u8; 3], [u8; 3]) {
+        let s = step(frame.e);
+        let (mut lo, mut hi) = ([0u8; 3], [0u8; 3]);
+        for axis in 0..3 {
+            let value = |q: u32| plane(frame.p[axis], s[axis], q);
+            let l = (0..=Q_MAX)
+                .rev()
+                .find(|&q| value(q) <= child.lo[axis])
+                .unwrap_or(0);
+            lo[axis] = (0..=l).find(|&q| value(q) == value(l)).unwrap() as u8;
+            let h = (0..=Q_MAX)
+                .find(|&q| value(q) >= child.hi[axis])
+                .unwrap_or(Q_MAX);
+            hi[axis] = (h..=Q_MAX).rev().find(|&q| value(q) == value(h)).unwrap() as u8;
+        }
+        (lo, hi)
+    }
+
+    proptest! {
+        /// The walks from the estimate find the bytes of the definition, on boxes from
+        /// tiny (steps below the planes' f32 spacing) to huge.
+        #[test]
+        fn quantise_finds_the_bytes_of_the_definition(
+            lo in prop::array::uniform3(-1e6f32..1e6),
+            size in prop::array::uniform3(0.0f32..1.0),
+            scale in -30i32..30,
+            child in prop::array::uniform3((0.0f32..1.0, 0.0f32..1.0)),
+        ) {
+            let lo = Vec3::from(lo);
+            let size = Vec3::from(size) * 2f32.powi(scale);
+            let parent = Aabb { lo, hi: lo + size };
+            let frame = Frame::new(&parent);
+            let at = |k: usize, t: f32| lo[k] + size[k] * t;
+            let (a, b) = (child.map(|c| c.0.min(c.1)), child.map(|c| c.0.max(c.1)));
+            let child = Aabb {
+                lo: Vec3::new(at(0, a[0]), at(1, a[1]), at(2, a[2])),
+                hi: Vec3::new(at(0, b[0]), at(1, b[1]), at(2, b[2])),
+            };
+            prop_assert_eq!(frame.quantise(&child), by_definition(&frame, &child));
+        }
+
+        /// ⌈log₂ x⌉ = r: 2^(r−1) < x ≤ 2^r.
+        #[test]
+        fn ceil_log2_is_the_smallest_power_above(m in 1.0f64..2.0, k in -1000i32..1000) {
+            let x = m * 2f64.powi(k);
+            let r = ceil_log2(x);
+            prop_assert!(2f64.powi(r - 1) < x && x <= 2f64.powi(r));
+        }
+    }
+
+    #[test]
+    fn ceil_log2_of_powers_of_two_is_exact() {
+        for k in -1000..1000 {
+            assert_eq!(ceil_log2(2f64.powi(k)), k);
+        }
+    }
 }
