@@ -24,7 +24,7 @@
 //! no depth cap). A big tree is first walked on all threads, its top split into tasks.
 
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock};
 
 use crate::accel::LeafTri;
@@ -334,15 +334,16 @@ fn leaf(
                 .find(|&v| !holds_point(b, v))
                 .map(|v| (*b, v))
         };
-        let outside_slot = slot.bbox.as_ref().and_then(out_of);
-        let beyond = out_of(&within);
-        match beyond {
+        // `within` lies inside the slot's own box: the slot is asked about only where a
+        // vertex is outside `within` (rarely).
+        let outside_slot = || slot.bbox.as_ref().and_then(out_of);
+        match out_of(&within) {
             // Whole inside every box on the way (the usual case).
             None => below = vs.into_iter().fold(below, Aabb::grow),
             // A part of a triangle other leaves hold too: only its bounds within count here,
             // and the parts together must cover it.
             Some(off) if vs.iter().all(|v| v.is_finite()) && marks.several(tris, t.prim) => {
-                let (bbox, vertex) = outside_slot.unwrap_or(off);
+                let (bbox, vertex) = outside_slot().unwrap_or(off);
                 let tb = Aabb::from_points(&vs);
                 below = below.union(Aabb {
                     lo: tb.lo.max(within.lo),
@@ -356,7 +357,7 @@ fn leaf(
                     within,
                 });
             }
-            Some(_) => match outside_slot {
+            Some(_) => match outside_slot() {
                 Some((bbox, vertex)) => {
                     return Err(outside_message(slot.at, record, t, &bbox, vertex));
                 }
@@ -368,17 +369,27 @@ fn leaf(
     Ok(below)
 }
 
-/// The marks of the walk on all threads.
+/// The marks of the walk on all threads. A record is marked by a plain load and store,
+/// not an atomic swap (a locked instruction a triangle): two threads marking one record
+/// may then both find it unmarked, so each task also counts the records it marks
+/// (`marked`, added to `records` when it ends). Every record seen and as many marks as
+/// records means none was marked twice.
 #[derive(Clone, Copy)]
 struct SharedMarks<'a> {
     seen: &'a [AtomicBool],
+    records: &'a AtomicUsize,
+    marked: usize,
     parts: &'a Mutex<Vec<Part>>,
     several: &'a OnceLock<HashSet<u32>>,
 }
 
 impl Marks for SharedMarks<'_> {
     fn mark(&mut self, r: usize) -> bool {
-        self.seen[r].swap(true, Ordering::Relaxed)
+        self.marked += 1;
+        let seen = &self.seen[r];
+        let before = seen.load(Ordering::Relaxed);
+        seen.store(true, Ordering::Relaxed);
+        before
     }
     fn part(&mut self, p: Part) {
         // A poisoned lock only means another thread panicked: its parts are still there.
@@ -398,14 +409,22 @@ const TASKS: usize = 64;
 /// Whether every check of [`check_in_order`] passes, the tree walked on all threads: each
 /// slot's subtree is checked on its own and returns the box of the vertices below it.
 fn holds_everywhere<T: BoxTree + Sync>(tree: &T) -> bool {
+    use rayon::prelude::*;
     let tris = tree.tris();
-    let seen: Vec<AtomicBool> = (0..tris.len()).map(|_| AtomicBool::new(false)).collect();
+    let seen: Vec<AtomicBool> = (0..tris.len())
+        .into_par_iter()
+        .map(|_| AtomicBool::new(false))
+        .collect();
     let several = OnceLock::new();
     for root in tree.roots() {
-        seen.iter().for_each(|s| s.store(false, Ordering::Relaxed));
+        seen.par_iter()
+            .for_each(|s| s.store(false, Ordering::Relaxed));
         let parts = Mutex::new(Vec::new());
+        let records = AtomicUsize::new(0);
         let marks = SharedMarks {
             seen: &seen,
+            records: &records,
+            marked: 0,
             parts: &parts,
             several: &several,
         };
@@ -413,11 +432,19 @@ fn holds_everywhere<T: BoxTree + Sync>(tree: &T) -> bool {
             return false;
         }
         let parts = parts.into_inner().unwrap_or_else(|e| e.into_inner());
-        if check_parts(tris, &parts).is_err() || !seen.iter().all(|s| s.load(Ordering::Relaxed)) {
+        if check_parts(tris, &parts).is_err() || !each_once(&seen, records.into_inner()) {
             return false;
         }
     }
     true
+}
+
+/// Whether the walk on all threads marked every record once: each one seen, and as many
+/// marks as records (a record two threads both found unmarked was seen with one mark too
+/// many).
+fn each_once(seen: &[AtomicBool], marks: usize) -> bool {
+    use rayon::prelude::*;
+    marks == seen.len() && seen.par_iter().all(|s| s.load(Ordering::Relaxed))
 }
 
 /// The box of the vertices below `slot` (reached within `within`), every check below it
@@ -442,7 +469,12 @@ fn subtree<T: BoxTree + Sync>(
                 .try_reduce(|| Aabb::EMPTY, |a, b| Some(a.union(b)))?
         }
         // One task: the walk in order (no recursion, whatever the depth).
-        _ => return walk_slot(tree, slot, within, &mut { marks }).ok(),
+        _ => {
+            let mut task = SharedMarks { marked: 0, ..marks };
+            let below = walk_slot(tree, slot, within, &mut task);
+            marks.records.fetch_add(task.marked, Ordering::Relaxed);
+            return below.ok();
+        }
     };
     inner(slot, &below).ok()?;
     Some(below)
@@ -668,6 +700,20 @@ mod tests {
             assert!(e.is_err(), "{what}: passed");
             assert_eq!(e, want, "{what}");
         }
+    }
+
+    #[test]
+    fn a_record_marked_twice_unnoticed_is_refused_by_the_count() {
+        let seen = |flags: &[bool]| {
+            flags
+                .iter()
+                .map(|&f| AtomicBool::new(f))
+                .collect::<Vec<_>>()
+        };
+        assert!(each_once(&seen(&[true; 5]), 5));
+        // Two threads found record 3 unmarked: all seen, one mark too many.
+        assert!(!each_once(&seen(&[true; 5]), 6));
+        assert!(!each_once(&seen(&[true, true, false, true, true]), 5));
     }
 
     #[test]
