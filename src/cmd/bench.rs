@@ -91,7 +91,7 @@ struct BenchTrace {
 impl BenchTrace {
     fn run(self) -> Result<()> {
         let mesh = load_mesh(&self.mesh)?;
-        (self.out).check::<lancer::bench::trace::Report>(&mesh.sources, None)?;
+        (self.out).check::<lancer::bench::trace::Report>(&mesh.sources, &[])?;
         let config = lancer::bench::trace::Config {
             mesh,
             name: self.mesh.display().to_string(),
@@ -171,8 +171,8 @@ impl Outputs {
     }
 
     /// Checks every output path before work starts: the JSON file, the report and its
-    /// charts, and `chart`.
-    pub fn check<R: BenchReport>(&self, inputs: &[PathBuf], chart: Option<&Path>) -> Result<()> {
+    /// charts, and `charts` (the --chart files).
+    pub fn check<R: BenchReport>(&self, inputs: &[PathBuf], charts: &[&Path]) -> Result<()> {
         // One file for two outputs would keep only the last written.
         let json = match &self.json {
             Some(JsonTo::File(p)) => Some(p.as_path()),
@@ -185,7 +185,7 @@ impl Outputs {
             .flat_map(|p| page::outputs::<R>(p));
         let mut all: Vec<PathBuf> = json
             .into_iter()
-            .chain(chart)
+            .chain(charts.iter().copied())
             .map(Path::to_path_buf)
             .collect();
         all.extend(pages);
@@ -199,7 +199,7 @@ impl Outputs {
             }
         }
         self.json.as_ref().map_or(Ok(()), |j| j.check(inputs))?;
-        if let Some(c) = chart {
+        for c in charts {
             check_output(c, inputs)?;
         }
         self.report.check::<R>(inputs)

@@ -1,7 +1,7 @@
 //! `lancer bench accuracy`: parses, runs `lancer::bench::accuracy`, prints the table and
 //! writes the charts and the JSON.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 use lancer::bench::accuracy::{run, Config, Report};
@@ -9,8 +9,8 @@ use lancer::bench::{page, BenchReport};
 use lancer::render::{ImageSize, RenderScene};
 use lancer::{DeviceChoice, Result};
 
-use super::bench::{print_text, with_bar, ReportArg};
-use super::out::{json_to, say, JsonTo, Say};
+use super::bench::{with_bar, Outputs};
+use super::out::say;
 
 #[derive(Args)]
 pub struct BenchAccuracy {
@@ -44,28 +44,24 @@ pub struct BenchAccuracy {
     /// and gpu is an error; cpu measures the CPU alone.
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto, hide_possible_values = true)]
     device: DeviceChoice,
-    /// Error-vs-time charts: NAME-cpu.png and NAME-gpu.png, and the spp convergence curve
-    /// NAME-spp.png, from this path's stem.
-    #[arg(long, value_name = "NAME.png", default_value = "bench-accuracy.png")]
-    chart: PathBuf,
-    /// The results as one JSON object: on stdout with --json alone or --json - (the table
-    /// then goes to stderr), or in FILE.json (default: the --chart path with .json; keys:
-    /// the book's JSON page, docs/src/reference/json.md).
-    #[arg(long, value_name = "FILE.json", num_args = 0..=1, default_missing_value = "-", value_parser = json_to)]
-    json: Option<JsonTo>,
+    /// Also draw the error-vs-time charts, NAME-cpu.png and NAME-gpu.png, and the spp
+    /// convergence curve, NAME-spp.png, from this path's stem (none by default).
+    #[arg(long, value_name = "NAME.png")]
+    chart: Option<PathBuf>,
     #[command(flatten)]
-    report: ReportArg,
+    out: Outputs,
 }
 
 impl BenchAccuracy {
     pub fn run(self) -> Result<()> {
-        let json =
-            (self.json.clone()).unwrap_or_else(|| JsonTo::File(self.chart.with_extension("json")));
-        let say = Say::new(json.is_stdout());
         // The charts beside --chart: NAME-cpu.png, NAME-gpu.png, NAME-spp.png.
-        let stem = self.chart.with_extension("md");
-        let charts: Vec<PathBuf> = (Report::CHARTS.iter())
-            .map(|s| page::beside(&stem, s))
+        let charts: Vec<PathBuf> = (self.chart.iter())
+            .flat_map(|c| {
+                let stem = c.with_extension("md");
+                (Report::CHARTS.iter())
+                    .map(|s| page::beside(&stem, s))
+                    .collect::<Vec<_>>()
+            })
             .collect();
         let mut inputs: Vec<PathBuf> = self.scene.iter().cloned().collect();
         let (scene, name) = match &self.scene {
@@ -79,11 +75,8 @@ impl BenchAccuracy {
             ),
         };
         inputs.extend(scene.mesh.sources.iter().cloned());
-        for out in &charts {
-            lancer::output::check_output(out, &inputs)?;
-        }
-        json.check(&inputs)?;
-        self.report.check::<Report>(&inputs)?;
+        let chart_paths: Vec<&Path> = charts.iter().map(PathBuf::as_path).collect();
+        self.out.check::<Report>(&inputs, &chart_paths)?;
         let config = Config {
             width: self.width,
             height: self.height,
@@ -96,11 +89,12 @@ impl BenchAccuracy {
             ..Config::new(scene, name)
         };
         let report = with_bar("settings", |p| run(&config, p))?;
-        print_text(say, &report.text());
-        report.draw_charts(&charts)?;
-        let names: Vec<String> = charts.iter().map(|c| c.display().to_string()).collect();
-        say!(say, "charts -> {}", names.join(", "));
-        json.write(&report, say)?;
-        self.report.write(&report, say)
+        self.out.finish(&report, None)?;
+        if !charts.is_empty() {
+            let drawn = report.draw_charts(&charts)?;
+            let names: Vec<String> = drawn.iter().map(|c| c.display().to_string()).collect();
+            say!(self.out.say(), "charts -> {}", names.join(", "));
+        }
+        Ok(())
     }
 }

@@ -52,7 +52,7 @@ impl BenchBuilders {
             sources.extend(mesh.sources.iter().cloned());
             meshes.push((path.display().to_string(), mesh));
         }
-        self.out.check::<Report>(&sources, chart)?;
+        self.out.check::<Report>(&sources, chart.as_slice())?;
         let builders = match self.builders.is_empty() {
             true => Builder::ALL.to_vec(),
             false => self.builders,

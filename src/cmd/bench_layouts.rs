@@ -43,7 +43,7 @@ impl BenchLayouts {
         let chart = self.chart.as_deref();
         // Loaded first: every file the mesh names (an MTL library, its textures) is an input.
         let mesh = load_geometry(&self.mesh)?;
-        self.out.check::<Report>(&mesh.sources, chart)?;
+        self.out.check::<Report>(&mesh.sources, chart.as_slice())?;
         let config = Config {
             mesh,
             name: self.mesh.display().to_string(),

@@ -46,7 +46,7 @@ impl BenchRefit {
     pub fn run(self) -> Result<()> {
         let chart = self.chart.as_deref();
         let mesh = load_geometry(&self.mesh)?;
-        self.out.check::<Report>(&mesh.sources, chart)?;
+        self.out.check::<Report>(&mesh.sources, chart.as_slice())?;
         let config = Config {
             mesh,
             name: self.mesh.display().to_string(),

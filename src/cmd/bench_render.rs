@@ -43,7 +43,7 @@ impl BenchRender {
             scale: None,
         };
         let scene = RenderScene::open(&self.scene, &size, &Default::default())?;
-        self.out.check::<Report>(&scene.mesh.sources, None)?;
+        self.out.check::<Report>(&scene.mesh.sources, &[])?;
         let config = Config {
             scene,
             name: self.scene.display().to_string(),

@@ -42,7 +42,7 @@ impl BenchStructures {
     pub fn run(self) -> Result<()> {
         let chart = self.chart.as_deref();
         let (mesh, camera) = load(&self.mesh)?;
-        self.out.check::<Report>(&mesh.sources, chart)?;
+        self.out.check::<Report>(&mesh.sources, chart.as_slice())?;
         let config = Config {
             mesh,
             camera,
