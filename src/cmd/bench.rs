@@ -108,7 +108,7 @@ impl BenchTrace {
             build: self.build.options(),
         };
         let report = with_bar("runs", |p| lancer::bench::trace::run(&config, p))?;
-        self.out.finish(&report, None)
+        self.out.finish(&report, &[])
     }
 }
 
@@ -205,13 +205,17 @@ impl Outputs {
         self.report.check::<R>(inputs)
     }
 
-    /// Prints the report's text, draws `chart`, writes the JSON and the results page.
-    pub fn finish<R: BenchReport>(&self, report: &R, chart: Option<&Path>) -> Result<()> {
+    /// Prints the report's text, draws `charts` (the --chart files; naming those drawn),
+    /// writes the JSON and the results page.
+    pub fn finish<R: BenchReport>(&self, report: &R, charts: &[&Path]) -> Result<()> {
         let say = self.say();
         print_text(say, &report.text());
-        if let Some(path) = chart {
-            report.draw_charts(&[path.to_path_buf()])?;
-            say!(say, "\nchart -> {}", path.display());
+        if !charts.is_empty() {
+            let paths: Vec<PathBuf> = charts.iter().map(|c| c.to_path_buf()).collect();
+            let drawn = report.draw_charts(&paths)?;
+            let names: Vec<String> = drawn.iter().map(|c| c.display().to_string()).collect();
+            let s = if drawn.len() == 1 { "" } else { "s" };
+            say!(say, "\nchart{s} -> {}", names.join(", "));
         }
         write_json(self.json.as_ref(), report, say)?;
         self.report.write(report, say)

@@ -1,5 +1,6 @@
 //! `lancer bench accuracy`: parses, runs `lancer::bench::accuracy`, prints the table and
-//! writes the charts and the JSON.
+//! writes the charts, the JSON and the results page where asked (`--chart`, `--json`,
+//! `--report`).
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +11,6 @@ use lancer::render::{ImageSize, RenderScene};
 use lancer::{DeviceChoice, Result};
 
 use super::bench::{with_bar, Outputs};
-use super::out::say;
 
 #[derive(Args)]
 pub struct BenchAccuracy {
@@ -89,12 +89,6 @@ impl BenchAccuracy {
             ..Config::new(scene, name)
         };
         let report = with_bar("settings", |p| run(&config, p))?;
-        self.out.finish(&report, None)?;
-        if !charts.is_empty() {
-            let drawn = report.draw_charts(&charts)?;
-            let names: Vec<String> = drawn.iter().map(|c| c.display().to_string()).collect();
-            say!(self.out.say(), "charts -> {}", names.join(", "));
-        }
-        Ok(())
+        self.out.finish(&report, &chart_paths)
     }
 }

@@ -69,6 +69,6 @@ impl BenchBuilders {
             repeat: self.repeat as usize,
         };
         let report = with_bar("", |p| run(&config, p))?;
-        self.out.finish(&report, chart)
+        self.out.finish(&report, chart.as_slice())
     }
 }

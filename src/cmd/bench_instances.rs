@@ -57,6 +57,6 @@ impl BenchInstances {
             build: self.build.options(),
         };
         let report = with_bar("", |p| run(&config, p))?;
-        self.out.finish(&report, chart)
+        self.out.finish(&report, chart.as_slice())
     }
 }

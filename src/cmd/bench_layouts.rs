@@ -58,6 +58,6 @@ impl BenchLayouts {
             build: self.build.options(),
         };
         let report = with_bar("runs", |p| run(&config, p))?;
-        self.out.finish(&report, chart)
+        self.out.finish(&report, chart.as_slice())
     }
 }

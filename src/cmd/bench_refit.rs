@@ -61,6 +61,6 @@ impl BenchRefit {
             build: self.build.options(),
         };
         let report = with_bar("", |p| run(&config, p))?;
-        self.out.finish(&report, chart)
+        self.out.finish(&report, chart.as_slice())
     }
 }

@@ -53,6 +53,6 @@ impl BenchRender {
             layout: self.build.layout,
         };
         let report = with_bar("samples", |p| run(&config, p))?;
-        self.out.finish(&report, None)
+        self.out.finish(&report, &[])
     }
 }

@@ -56,6 +56,6 @@ impl BenchStructures {
             build: self.build.options(),
         };
         let report = with_bar("", |p| run(&config, p))?;
-        self.out.finish(&report, chart)
+        self.out.finish(&report, chart.as_slice())
     }
 }

@@ -369,35 +369,50 @@ fn leaf(
     Ok(below)
 }
 
-/// The marks of the walk on all threads. A record is marked by a plain load and store,
-/// not an atomic swap (a locked instruction a triangle): two threads marking one record
-/// may then both find it unmarked, so each task also counts the records it marks
-/// (`marked`, added to `records` when it ends). Every record seen and as many marks as
-/// records means none was marked twice.
+/// What the walk on all threads shares: the records' flags, the count of marks, the parts
+/// of split triangles, which prims have several records. Only a task marks
+/// ([`TaskMarks`]), so that every mark is counted.
 #[derive(Clone, Copy)]
 struct SharedMarks<'a> {
     seen: &'a [AtomicBool],
     records: &'a AtomicUsize,
-    marked: usize,
     parts: &'a Mutex<Vec<Part>>,
     several: &'a OnceLock<HashSet<u32>>,
 }
 
-impl Marks for SharedMarks<'_> {
+/// One task's marks. A record is marked by a plain load and store, not an atomic swap (a
+/// locked instruction a triangle): two threads marking one record may then both find it
+/// unmarked, so the task counts its marks and adds them to `records` when it ends,
+/// however it ends ([`each_once`] then finds the mark too many).
+struct TaskMarks<'a> {
+    shared: SharedMarks<'a>,
+    marked: usize,
+}
+
+impl Drop for TaskMarks<'_> {
+    fn drop(&mut self) {
+        self.shared
+            .records
+            .fetch_add(self.marked, Ordering::Relaxed);
+    }
+}
+
+impl Marks for TaskMarks<'_> {
     fn mark(&mut self, r: usize) -> bool {
         self.marked += 1;
-        let seen = &self.seen[r];
+        let seen = &self.shared.seen[r];
         let before = seen.load(Ordering::Relaxed);
         seen.store(true, Ordering::Relaxed);
         before
     }
     fn part(&mut self, p: Part) {
         // A poisoned lock only means another thread panicked: its parts are still there.
-        let mut parts = self.parts.lock().unwrap_or_else(|e| e.into_inner());
+        let mut parts = self.shared.parts.lock().unwrap_or_else(|e| e.into_inner());
         parts.push(p);
     }
     fn several(&mut self, tris: &[LeafTri], prim: u32) -> bool {
-        self.several
+        self.shared
+            .several
             .get_or_init(|| several_prims(tris))
             .contains(&prim)
     }
@@ -424,7 +439,6 @@ fn holds_everywhere<T: BoxTree + Sync>(tree: &T) -> bool {
         let marks = SharedMarks {
             seen: &seen,
             records: &records,
-            marked: 0,
             parts: &parts,
             several: &several,
         };
@@ -470,10 +484,11 @@ fn subtree<T: BoxTree + Sync>(
         }
         // One task: the walk in order (no recursion, whatever the depth).
         _ => {
-            let mut task = SharedMarks { marked: 0, ..marks };
-            let below = walk_slot(tree, slot, within, &mut task);
-            marks.records.fetch_add(task.marked, Ordering::Relaxed);
-            return below.ok();
+            let mut task = TaskMarks {
+                shared: marks,
+                marked: 0,
+            };
+            return walk_slot(tree, slot, within, &mut task).ok();
         }
     };
     inner(slot, &below).ok()?;

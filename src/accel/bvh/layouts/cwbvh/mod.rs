@@ -174,8 +174,8 @@ impl Cwbvh {
         let mut places: Vec<u32> = zeroed_on_all_threads(order.len());
         let (first, rest) = nodes.split_at_mut(1);
         let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut places));
-        // The collapse's arrays are freed before the triangles' (the bigger) is made: the
-        // allocator may give their pages to it (a lower peak, fewer pages faulted in).
+        // The collapse's arrays are freed before the triangle array is made: the allocator
+        // may give their pages to it (a lower peak, fewer pages faulted in).
         let bounds = tree.bbox(root);
         drop((tree, plan, counts));
         let tris = {

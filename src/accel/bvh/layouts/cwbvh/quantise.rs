@@ -69,17 +69,22 @@ impl Frame {
     }
 
     /// The bytes of a child box inside the frame: (low planes, high planes), conservative.
-    /// The three axes walk side by side, one per lane of a vector, each exactly as its
-    /// own scalar walk would: a lane moves only while its own condition holds.
+    /// The three axes walk side by side, one per lane of a vector (a lane moves only while
+    /// its own condition holds). The walks start from an estimate, and end on the same
+    /// byte wherever they start: `value(q) = p + q·step` never decreases as q grows (`q·step`
+    /// is exact, rounding keeps the order, an overflow goes to +∞), so each walk finds the
+    /// byte its condition defines.
     pub fn quantise(&self, child: &Aabb) -> ([u8; 3], [u8; 3]) {
         let p = Vec3A::from(self.p);
         let s = step(self.e);
         let value = |q: Vec3A| dequantise(p, s, q);
         let (zero, one, top) = (Vec3A::ZERO, Vec3A::ONE, Vec3A::splat(Q_MAX as f32));
-        // 1/step is exact (a power of two). The estimate only starts the walks, which
-        // find the bytes whatever it is; a NaN estimate starts at 0.
+        // 1/step is exact (a power of two). An estimate below 0, or NaN, starts at 0.
         let inv = one / s;
-        let estimate = |x: Vec3A| ((x - p) * inv).max(zero).min(top);
+        let estimate = |x: Vec3A| {
+            let e = (x - p) * inv;
+            Vec3A::select(e.cmpge(zero), e.min(top), zero)
+        };
         // Largest q with value(q) ≤ child lo (q = 0 gives p ≤ child lo). The estimate is
         // not negative: truncation is its floor.
         let x = Vec3A::from(child.lo);
@@ -206,6 +211,33 @@ mod tests {
         }
 
         /// ⌈log₂ x⌉ = r: 2^(r−1) < x ≤ 2^r.
+        /// The same at the ends of f32: steps near the smallest and largest exponents,
+        /// frames whose top plane overflows to +∞.
+        #[test]
+        fn quantise_finds_the_bytes_at_the_ends_of_f32(
+            (m, e, negative) in (1.0f32..2.0, -140i32..=126, any::<bool>()),
+            below in 0i32..=30,
+            child in prop::array::uniform3((0.0f32..1.0, 0.0f32..1.0)),
+        ) {
+            // A box corner of any exponent, and a size of the same order or below.
+            let corner = if negative { -m } else { m } * 2f32.powi(e);
+            let size = m * 2f32.powi(e + 1 - below);
+            // Below f32's largest value (the box is finite); flat where the size is below
+            // the corner's spacing.
+            let (lo, hi) = match corner + size {
+                hi if hi.is_finite() => (corner, hi),
+                _ => (corner - size, corner),
+            };
+            let parent = Aabb { lo: Vec3::splat(lo), hi: Vec3::splat(hi) };
+            let frame = Frame::new(&parent);
+            let at = |t: f32| (lo + size * t).clamp(lo, hi);
+            let child = Aabb {
+                lo: Vec3::from(child.map(|c| at(c.0.min(c.1)))),
+                hi: Vec3::from(child.map(|c| at(c.0.max(c.1)))),
+            };
+            prop_assert_eq!(frame.quantise(&child), by_definition(&frame, &child));
+        }
+
         #[test]
         fn ceil_log2_is_the_smallest_power_above(m in 1.0f64..2.0, k in -1000i32..1000) {
             let x = m * 2f64.powi(k);
