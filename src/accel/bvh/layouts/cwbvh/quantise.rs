@@ -46,26 +46,40 @@ pub(crate) struct Frame {
 
 impl Frame {
     /// The frame of a node whose children all lie in `bbox` (non-empty, finite): on each
-    /// axis the smallest step with `p + 255·step ≥ hi` in f32.
+    /// axis the smallest step with `p + 255·step ≥ hi` in f32. The axes walk side by side
+    /// in the lanes of a vector, from a guess, by doubling and halving the step (exact for
+    /// the normal powers of two the walks stay within).
     pub fn new(bbox: &Aabb) -> Frame {
         let p = bbox.lo;
-        let mut e = [0u8; 3];
-        for (axis, e) in e.iter_mut().enumerate() {
-            let (lo, hi) = (p[axis], bbox.hi[axis]);
-            let covers = |x: i32| plane(lo, pow2(x), Q_MAX) >= hi;
-            // A guess from the extent, then walk to the smallest exponent that covers.
-            let ext = (hi as f64 - lo as f64) / Q_MAX as f64;
-            let guess = if ext > 0.0 { ceil_log2(ext) } else { E_MIN };
-            let mut x = guess.clamp(E_MIN, E_MAX);
-            while x < E_MAX && !covers(x) {
-                x += 1;
+        let (lo, hi) = (Vec3A::from(p), Vec3A::from(bbox.hi));
+        let covers = |s: Vec3A| dequantise(lo, s, Vec3A::splat(Q_MAX as f32)).cmpge(hi);
+        // A guess from the extent, then walk to the smallest step that covers.
+        let guess = |axis: usize| {
+            let ext = (bbox.hi[axis] as f64 - p[axis] as f64) / Q_MAX as f64;
+            let x = if ext > 0.0 { ceil_log2(ext) } else { E_MIN };
+            pow2(x.clamp(E_MIN, E_MAX))
+        };
+        let mut s = Vec3A::new(guess(0), guess(1), guess(2));
+        let (least, most) = (Vec3A::splat(pow2(E_MIN)), Vec3A::splat(pow2(E_MAX)));
+        loop {
+            let up = s.cmplt(most) & !covers(s);
+            if !up.any() {
+                break;
             }
-            while x > E_MIN && covers(x - 1) {
-                x -= 1;
-            }
-            *e = (x + 127) as u8;
+            s = Vec3A::select(up, s * 2.0, s);
         }
-        Frame { p, e }
+        loop {
+            let down = s.cmpgt(least) & covers(s * 0.5);
+            if !down.any() {
+                break;
+            }
+            s = Vec3A::select(down, s * 0.5, s);
+        }
+        let e = |x: f32| (x.to_bits() >> 23) as u8;
+        Frame {
+            p,
+            e: [e(s.x), e(s.y), e(s.z)],
+        }
     }
 
     /// The bytes of a child box inside the frame: (low planes, high planes), conservative.
@@ -156,15 +170,25 @@ fn pow2(x: i32) -> f32 {
     f32::from_bits(((x + 127) as u32) << 23)
 }
 
-/// One plane, through [`dequantise`] so that the check is the traversal's own arithmetic.
-fn plane(p: f32, step: f32, q: u32) -> f32 {
-    dequantise(Vec3A::splat(p), Vec3A::splat(step), Vec3A::splat(q as f32)).x
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// One plane, through [`dequantise`] so that the check is the traversal's own arithmetic.
+    fn plane(p: f32, step: f32, q: u32) -> f32 {
+        dequantise(Vec3A::splat(p), Vec3A::splat(step), Vec3A::splat(q as f32)).x
+    }
+
+    /// The frame's exponents by definition, every exponent tried: the smallest whose 255th
+    /// plane reaches the box's top (the largest where none does).
+    fn exponents_by_definition(bbox: &Aabb) -> [u8; 3] {
+        [0, 1, 2].map(|axis| {
+            let covers = |x: i32| plane(bbox.lo[axis], pow2(x), Q_MAX) >= bbox.hi[axis];
+            let x = (E_MIN..=E_MAX).find(|&x| covers(x)).unwrap_or(E_MAX);
+            (x + 127) as u8
+        })
+    }
 
     /// The bytes by definition, every byte tried: the largest q decoding to ≤ lo, moved
     /// down to the first byte of its value; the smallest decoding to ≥ hi (or 255), moved
@@ -201,6 +225,7 @@ mod tests {
             let size = Vec3::from(size) * 2f32.powi(scale);
             let parent = Aabb { lo, hi: lo + size };
             let frame = Frame::new(&parent);
+            prop_assert_eq!(frame.e, exponents_by_definition(&parent));
             let at = |k: usize, t: f32| lo[k] + size[k] * t;
             let (a, b) = (child.map(|c| c.0.min(c.1)), child.map(|c| c.0.max(c.1)));
             let child = Aabb {
@@ -230,6 +255,7 @@ mod tests {
             };
             let parent = Aabb { lo: Vec3::splat(lo), hi: Vec3::splat(hi) };
             let frame = Frame::new(&parent);
+            prop_assert_eq!(frame.e, exponents_by_definition(&parent));
             let at = |t: f32| (lo + size * t).clamp(lo, hi);
             let child = Aabb {
                 lo: Vec3::from(child.map(|c| at(c.0.min(c.1)))),
