@@ -8,7 +8,7 @@
 //! plane to the smallest value ≥ it, both found with [`dequantise`] itself, so the decoded
 //! box always contains the exact one.
 
-use glam::{Vec3, Vec3A};
+use glam::{BVec3A, Vec3, Vec3A};
 
 use crate::geometry::Aabb;
 
@@ -59,22 +59,10 @@ impl Frame {
             let x = if ext > 0.0 { ceil_log2(ext) } else { E_MIN };
             pow2(x.clamp(E_MIN, E_MAX))
         };
-        let mut s = Vec3A::new(guess(0), guess(1), guess(2));
+        let s = Vec3A::new(guess(0), guess(1), guess(2));
         let (least, most) = (Vec3A::splat(pow2(E_MIN)), Vec3A::splat(pow2(E_MAX)));
-        loop {
-            let up = s.cmplt(most) & !covers(s);
-            if !up.any() {
-                break;
-            }
-            s = Vec3A::select(up, s * 2.0, s);
-        }
-        loop {
-            let down = s.cmpgt(least) & covers(s * 0.5);
-            if !down.any() {
-                break;
-            }
-            s = Vec3A::select(down, s * 0.5, s);
-        }
+        let s = walk(s, |s| s * 2.0, |s| s.cmplt(most) & !covers(s));
+        let s = walk(s, |s| s * 0.5, |s| s.cmpgt(least) & covers(s * 0.5));
         let e = |x: f32| (x.to_bits() >> 23) as u8;
         Frame {
             p,
@@ -102,58 +90,36 @@ impl Frame {
         // Largest q with value(q) ≤ child lo (q = 0 gives p ≤ child lo). The estimate is
         // not negative: truncation is its floor.
         let x = Vec3A::from(child.lo);
-        let mut lo = estimate(x).trunc();
-        loop {
-            let down = lo.cmpgt(zero) & value(lo).cmpgt(x);
-            if !down.any() {
-                break;
-            }
-            lo = Vec3A::select(down, lo - one, lo);
-        }
-        loop {
-            let up = lo.cmplt(top) & value(lo + one).cmple(x);
-            if !up.any() {
-                break;
-            }
-            lo = Vec3A::select(up, lo + one, lo);
-        }
+        let (down, up) = (|q: Vec3A| q - one, |q: Vec3A| q + one);
+        let lo = estimate(x).trunc();
+        let lo = walk(lo, down, |q| q.cmpgt(zero) & value(q).cmpgt(x));
+        let lo = walk(lo, up, |q| q.cmplt(top) & value(q + one).cmple(x));
         // Where a step is below the f32 spacing of the planes, several bytes decode to one
         // value: take the first (and the last for hi), so that lo ≤ hi as bytes.
-        loop {
-            let down = lo.cmpgt(zero) & value(lo - one).cmpeq(value(lo));
-            if !down.any() {
-                break;
-            }
-            lo = Vec3A::select(down, lo - one, lo);
-        }
+        let lo = walk(lo, down, |q| q.cmpgt(zero) & value(q - one).cmpeq(value(q)));
         // Smallest q with value(q) ≥ child hi (q = 255 covers the whole frame).
         let x = Vec3A::from(child.hi);
         let e = estimate(x);
         let t = e.trunc();
-        let mut hi = Vec3A::select(t.cmplt(e), t + one, t);
-        loop {
-            let up = hi.cmplt(top) & value(hi).cmplt(x);
-            if !up.any() {
-                break;
-            }
-            hi = Vec3A::select(up, hi + one, hi);
-        }
-        loop {
-            let down = hi.cmpgt(zero) & value(hi - one).cmpge(x);
-            if !down.any() {
-                break;
-            }
-            hi = Vec3A::select(down, hi - one, hi);
-        }
-        loop {
-            let up = hi.cmplt(top) & value(hi + one).cmpeq(value(hi));
-            if !up.any() {
-                break;
-            }
-            hi = Vec3A::select(up, hi + one, hi);
-        }
+        let hi = Vec3A::select(t.cmplt(e), t + one, t);
+        let hi = walk(hi, up, |q| q.cmplt(top) & value(q).cmplt(x));
+        let hi = walk(hi, down, |q| q.cmpgt(zero) & value(q - one).cmpge(x));
+        let hi = walk(hi, up, |q| q.cmplt(top) & value(q + one).cmpeq(value(q)));
         let bytes = |q: Vec3A| [q.x as u8, q.y as u8, q.z as u8];
         (bytes(lo), bytes(hi))
+    }
+}
+
+/// Moves each lane of `q` by `next` while its lane of `go` holds (the lanes side by side,
+/// each as its own scalar walk would go).
+#[inline(always)]
+fn walk(mut q: Vec3A, next: impl Fn(Vec3A) -> Vec3A, go: impl Fn(Vec3A) -> BVec3A) -> Vec3A {
+    loop {
+        let moving = go(q);
+        if !moving.any() {
+            return q;
+        }
+        q = Vec3A::select(moving, next(q), q);
     }
 }
 
