@@ -3,9 +3,12 @@
 //! 32-byte primitive references (box in SIMD lanes, index in a spare lane) rather than
 //! indices, so every pass streams through memory; a node costs two linear passes (bin,
 //! partition), the partition also yielding the children's centroid bounds. The split
-//! candidates of the three axes are evaluated together in SIMD lanes.
+//! candidates of the three axes are evaluated together in SIMD lanes; a small node sweeps
+//! only its occupied bins.
 
-use glam::{Mat3A, Vec3A};
+use std::mem::MaybeUninit;
+
+use glam::{Mat3A, Vec3A, Vec4};
 
 use super::prim_ref::{bounds, box_area, BoxA, Ref};
 
@@ -61,6 +64,7 @@ const EMPTY_BIN: Bin = Bin {
 
 /// Bin of a centroid coordinate. `(c − lo)·scale` lies in [0, K] (c within the centroid
 /// bounds, scale finite), so the truncating conversion needs no saturation checks.
+#[cfg(any(test, not(target_arch = "x86_64")))]
 #[inline(always)]
 fn bin_index(c: f32, lo: f32, scale: f32, last: usize) -> usize {
     let x = (c - lo) * scale;
@@ -113,8 +117,8 @@ fn node(
     // (cost, axis, first bin on the right, left box, right box)
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     if !opts.depth_forces_median(depth, n) && splittable.any() {
-        best = if n <= SMALL_NODE {
-            best_split_small(opts, idx, nbins, cbox.lo, scale, splittable, bbox.area())
+        best = if n <= SPARSE_NODE {
+            best_split_sparse(opts, idx, nbins, cbox.lo, scale, splittable, bbox.area())
         } else {
             let fill = |refs: &[Ref]| fill_bins(refs, nbins, cbox.lo, scale);
             // The top nodes, where the subtree parallelism has not started yet, bin in chunks
@@ -137,7 +141,9 @@ fn node(
                 return leaf(bbox, offset, n);
             }
             let (lo, scale) = (cbox.lo[axis], scale[axis]);
-            let (k, lc, rc) = partition(idx, |c| bin_index(c[axis], lo, scale, nbins - 1) < s);
+            // bin_index(c) < s without the conversion: x = (c − lo)·scale ≥ 0 and s is a
+            // whole number below the last bin, so ⌊x⌋ < s exactly when x < s.
+            let (k, lc, rc) = partition(idx, |c| (c[axis] - lo) * scale < s as f32);
             (k, axis, lbox, rbox, lc, rc)
         }
         None => {
@@ -228,15 +234,16 @@ fn best_split(
     area: f32,
     n: usize,
 ) -> Option<(f32, usize, usize, BoxA, BoxA)> {
-    // Right to left: area and count of everything right of each boundary.
-    let mut r_area = [Vec3A::ZERO; MAX_BINS];
-    let mut r_count = [Vec3A::ZERO; MAX_BINS];
+    // Right to left: area and count of everything right of each boundary s = 1..nbins
+    // (only those are written and read; clearing them all would cost more).
+    let mut right = [const { MaybeUninit::<(Vec3A, Vec3A)>::uninit() }; MAX_BINS];
     let mut acc = Lanes::EMPTY;
     for s in (1..nbins).rev() {
         acc.add(&Lanes::of(&bins[s]));
-        r_area[s] = acc.area();
-        r_count[s] = acc.count;
+        right[s].write((acc.area(), acc.count));
     }
+    // SAFETY: right[s] was written above for every s in 1..nbins.
+    let right = |s: usize| unsafe { right[s].assume_init() };
     // Left to right: the candidates. A boundary after an empty bin repeats the one before
     // it and cannot win (strictly smaller keys only).
     let mut l = Lanes::EMPTY;
@@ -244,9 +251,10 @@ fn best_split(
     let mut found = glam::BVec3A::FALSE;
     for s in 1..nbins {
         l.add(&Lanes::of(&bins[s - 1]));
-        let valid = l.count.cmpgt(Vec3A::ZERO) & r_count[s].cmpgt(Vec3A::ZERO) & splittable;
+        let (r_area, r_count) = right(s);
+        let valid = l.count.cmpgt(Vec3A::ZERO) & r_count.cmpgt(Vec3A::ZERO) & splittable;
         let al = l.area();
-        let key = al * l.count + r_area[s] * r_count[s];
+        let key = al * l.count + r_area * r_count;
         let better = valid & (key.cmplt(key_best) | !found);
         key_best = Vec3A::select(better, key, key_best);
         s_best = Vec3A::select(better, Vec3A::splat(s as f32), s_best);
@@ -256,7 +264,8 @@ fn best_split(
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     for a in (0..3).filter(|&a| found.test(a)) {
         let s = s_best[a] as usize;
-        let (ar, nr) = (r_area[s][a], r_count[s][a] as usize);
+        let (r_area, r_count) = right(s);
+        let (ar, nr) = (r_area[a], r_count[a] as usize);
         let cost = opts.split_cost(area, al_best[a], n - nr, ar, nr);
         if best.is_none_or(|b| cost < b.0) {
             let side = |r: std::ops::Range<usize>| {
@@ -270,16 +279,56 @@ fn best_split(
     best
 }
 
-/// Nodes this small skip the bins: [`best_split_small`] finds the same split directly.
-const SMALL_NODE: usize = 8;
+/// Nodes of at most this many references find their split in sparse bins
+/// ([`best_split_sparse`]): the same split, without sweeping empty bins.
+const SPARSE_NODE: usize = 64;
 
-/// [`best_split`] for a node of at most [`SMALL_NODE`] references, without bins: the
-/// references are sorted by bin and swept from both sides. Only boundaries right after an
-/// occupied bin can win (a boundary after an empty bin repeats the key before it), and each
-/// side's box is the union of its references' boxes, exactly what the bins would hold. Keys,
-/// costs and tie order are computed as there, so the split is the same (checked by
+/// One axis's bins for a small node: only the bins in `occupied` hold a box and a count
+/// (nothing else is initialised: a node this small would spend longer clearing bins than
+/// filling them).
+struct SparseBins {
+    occupied: u64,
+    bins: [MaybeUninit<(BoxA, u32)>; MAX_BINS],
+}
+
+impl SparseBins {
+    #[inline(always)]
+    fn new() -> SparseBins {
+        SparseBins {
+            occupied: 0,
+            bins: [const { MaybeUninit::uninit() }; MAX_BINS],
+        }
+    }
+
+    #[inline(always)]
+    fn add(&mut self, k: usize, b: BoxA) {
+        let bit = 1u64 << k;
+        let bin = if self.occupied & bit == 0 {
+            self.occupied |= bit;
+            (b, 1)
+        } else {
+            let (old, count) = self.get(k as u32);
+            (old.union(b), count + 1)
+        };
+        self.bins[k].write(bin);
+    }
+
+    /// The box and count of occupied bin k.
+    #[inline(always)]
+    fn get(&self, k: u32) -> (BoxA, u32) {
+        debug_assert!(self.occupied >> k & 1 == 1);
+        // SAFETY: callers pass only occupied bins, which were written.
+        unsafe { self.bins[k as usize].assume_init() }
+    }
+}
+
+/// [`best_split`] for a node of at most [`SPARSE_NODE`] references: the bins of each axis
+/// are filled as there, but only the occupied ones are swept. A boundary after an empty bin
+/// repeats the key before it and cannot win (strictly smaller keys only), so the candidates
+/// are the boundaries right after each occupied bin but the last. Keys, costs and tie order
+/// are computed as there, so the split is the same (checked by
 /// `small_nodes_split_as_the_bins_do`).
-fn best_split_small(
+fn best_split_sparse(
     opts: &BuildOptions,
     refs: &[Ref],
     nbins: usize,
@@ -289,74 +338,154 @@ fn best_split_small(
     area: f32,
 ) -> Option<(f32, usize, usize, BoxA, BoxA)> {
     let n = refs.len();
-    let mut bin = [[0usize; 3]; SMALL_NODE];
-    for (b, r) in bin.iter_mut().zip(refs) {
-        *b = bin_of(r.centroid(), lo, scale, nbins - 1);
+    let mut bins = [SparseBins::new(), SparseBins::new(), SparseBins::new()];
+    for r in refs {
+        let k = bin_of(r.centroid(), lo, scale, nbins - 1);
+        let b = r.bbox();
+        for a in 0..3 {
+            bins[a].add(k[a], b);
+        }
     }
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     for a in (0..3).filter(|&a| splittable.test(a)) {
-        let mut ord: [usize; SMALL_NODE] = std::array::from_fn(|i| i);
-        ord[..n].sort_unstable_by_key(|&i| bin[i][a]);
-        // right[j]: the union of the references from sorted position j on.
-        let mut right = [BoxA::EMPTY; SMALL_NODE];
-        let mut acc = BoxA::EMPTY;
-        for j in (1..n).rev() {
-            acc = acc.union(refs[ord[j]].bbox());
-            right[j] = acc;
+        let bins = &bins[a];
+        let m = bins.occupied.count_ones() as usize;
+        // Right to left: the area and count of the occupied bins of rank j.. (in bin
+        // order), for j = m − 1 down to 1 (only those are written and read).
+        let mut right = [const { MaybeUninit::<(f32, u32)>::uninit() }; SPARSE_NODE];
+        let (mut acc, mut count, mut rest) = (BoxA::EMPTY, 0, bins.occupied);
+        for j in (1..m).rev() {
+            let k = 63 - rest.leading_zeros();
+            rest &= !(1u64 << k);
+            let (b, c) = bins.get(k);
+            acc = acc.union(b);
+            count += c;
+            right[j].write((box_area(acc), count));
         }
-        // (key, boundary, left area, left box, split position) of the first smallest key.
+        // SAFETY: right[j] was written above for every j in 1..m.
+        let right = |j: usize| unsafe { right[j].assume_init() };
+        // Left to right: the candidates; the first smallest key wins.
+        // (key, boundary, left area, left box, right rank)
         let mut axis_best: Option<(f32, usize, f32, BoxA, usize)> = None;
-        let mut left = BoxA::EMPTY;
-        for j in 1..n {
-            left = left.union(refs[ord[j - 1]].bbox());
-            let (prev, next) = (bin[ord[j - 1]][a], bin[ord[j]][a]);
-            if prev == next {
-                continue;
-            }
+        let (mut left, mut l_count, mut rest) = (BoxA::EMPTY, 0, bins.occupied);
+        for j in 1..m {
+            let k = rest.trailing_zeros();
+            rest &= rest - 1;
+            let (b, c) = bins.get(k);
+            left = left.union(b);
+            l_count += c;
+            let (ar, nr) = right(j);
             let al = box_area(left);
-            let key = al * j as f32 + box_area(right[j]) * (n - j) as f32;
+            let key = al * l_count as f32 + ar * nr as f32;
             if axis_best.is_none_or(|b| key < b.0) {
-                axis_best = Some((key, prev + 1, al, left, j));
+                axis_best = Some((key, k as usize + 1, al, left, j));
             }
         }
         if let Some((_, s, al, l, j)) = axis_best {
-            let cost = opts.split_cost(area, al, j, box_area(right[j]), n - j);
+            let (ar, nr) = right(j);
+            let cost = opts.split_cost(area, al, n - nr as usize, ar, nr as usize);
             if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, a, s, l, right[j]));
+                // The right box folded from left to right, as `best_split` folds it (the
+                // sign of a zero bound can depend on the order).
+                let mut r = BoxA::EMPTY;
+                let mut rest = bins.occupied & !((1u64 << s) - 1);
+                while rest != 0 {
+                    r = r.union(bins.get(rest.trailing_zeros()).0);
+                    rest &= rest - 1;
+                }
+                best = Some((cost, a, s, l, r));
             }
         }
     }
     best
 }
 
+/// A bin while it is filled: the box's low corner with the count in lane w, and its high
+/// corner negated, so that a reference is added by two lane-wise minimums and one addition
+/// (max(h, x) = −min(−h, −x) exactly) — two stores instead of three.
+#[derive(Clone, Copy)]
+struct Tally {
+    lo: Vec4,
+    neg_hi: Vec4,
+}
+
+impl Tally {
+    const EMPTY: Tally = Tally {
+        lo: Vec4::new(f32::MAX, f32::MAX, f32::MAX, 0.0),
+        neg_hi: Vec4::splat(f32::MAX),
+    };
+
+    /// Adds a reference given as [`Tally::operands`].
+    #[inline(always)]
+    fn add(&mut self, (lo, neg_hi): (Vec4, Vec4)) {
+        // Adding −0 leaves every value as it is (−0 included); lane w counts.
+        self.lo = self.lo.min(lo) + Vec4::new(-0.0, -0.0, -0.0, 1.0);
+        self.neg_hi = self.neg_hi.min(neg_hi);
+    }
+
+    /// A reference's box as `add` takes it: lane w of the low corner +∞ (the count's
+    /// minimum leaves it), lane w of the negated high corner never read.
+    #[inline(always)]
+    fn operands(r: &Ref) -> (Vec4, Vec4) {
+        let b = r.bbox();
+        (b.lo.extend(f32::INFINITY), -b.hi.extend(0.0))
+    }
+
+    /// The bin, its count added to `bin`'s.
+    #[inline(always)]
+    fn into_bin(self, bin: &mut Bin) {
+        let bbox = BoxA {
+            lo: Vec3A::from_vec4(self.lo),
+            hi: -Vec3A::from_vec4(self.neg_hi),
+        };
+        bin.bbox = bin.bbox.union(bbox);
+        bin.count += self.lo.w as usize;
+    }
+}
+
+/// Most references tallied before the counts are moved out of their lanes (f32 counts
+/// every integer up to 2^24 exactly).
+const TALLY_MAX: usize = 1 << 24;
+
 /// Bins every reference on all three axes (a flat axis all into bin 0, never chosen), so
 /// there is no branch per axis.
 fn fill_bins(refs: &[Ref], nbins: usize, lo: Vec3A, scale: Vec3A) -> Vec<[Bin; 3]> {
     let mut bins = vec![[EMPTY_BIN; 3]; nbins];
-    let add = |bins: &mut [[Bin; 3]], r: &Ref| {
-        let b = r.bbox();
+    let mut tallies = vec![[Tally::EMPTY; 3]; nbins];
+    let add = |tallies: &mut [[Tally; 3]], r: &Ref| {
         let k = bin_of(r.centroid(), lo, scale, nbins - 1);
+        let operands = Tally::operands(r);
         for a in 0..3 {
-            let bin = &mut bins[k[a]][a];
-            bin.bbox = bin.bbox.union(b);
-            bin.count += 1;
+            tallies[k[a]][a].add(operands);
+        }
+    };
+    let empty = |tallies: &mut [[Tally; 3]], bins: &mut [[Bin; 3]]| {
+        for (bin, tally) in bins.iter_mut().zip(tallies) {
+            for a in 0..3 {
+                tally[a].into_bin(&mut bin[a]);
+                tally[a] = Tally::EMPTY;
+            }
         }
     };
     if refs.len() < TWO_BIN_SETS {
-        refs.iter().for_each(|r| add(&mut bins, r));
+        refs.iter().for_each(|r| add(&mut tallies, r));
+        empty(&mut tallies, &mut bins);
         return bins;
     }
     // Neighbouring references mostly fall in the same bins: alternate between two sets so
-    // that one update need not wait for the store of the one before (the union of boxes and
-    // sum of counts do not depend on the order).
-    let mut other = vec![[EMPTY_BIN; 3]; nbins];
-    let (pairs, rest) = refs.as_chunks::<2>();
-    for [a, b] in pairs {
-        add(&mut bins, a);
-        add(&mut other, b);
+    // that one update need not wait for the store of the one before.
+    let mut other = vec![[Tally::EMPTY; 3]; nbins];
+    for chunk in refs.chunks(TALLY_MAX) {
+        let (pairs, rest) = chunk.as_chunks::<2>();
+        for [a, b] in pairs {
+            add(&mut tallies, a);
+            add(&mut other, b);
+        }
+        rest.iter().for_each(|r| add(&mut tallies, r));
+        empty(&mut tallies, &mut bins);
+        empty(&mut other, &mut bins);
     }
-    rest.iter().for_each(|r| add(&mut bins, r));
-    merge_bins(bins, other)
+    bins
 }
 
 /// Nodes of at least this many references bin into two sets ([`fill_bins`]).
@@ -437,7 +566,10 @@ mod tests {
                 .iter()
                 .enumerate()
                 .map(|(i, &(left, x))| {
-                    let lo = Vec3::new(x as f32, if left { 0.0 } else { 10.0 }, i as f32);
+                    // Low bounds of −0 and +0 (x = 0 and x = 8): references make −0 +0, so
+                    // two bin sets keep the bits of one.
+                    let x = if x == 0 { -0.0 } else { x as f32 - 8.0 };
+                    let lo = Vec3::new(x, if left { 0.0 } else { 10.0 }, i as f32);
                     Ref::new(&Aabb { lo, hi: lo + Vec3::ONE }, i as u32)
                 })
                 .collect();
@@ -477,9 +609,10 @@ mod tests {
         #[test]
         fn small_nodes_split_as_the_bins_do(
             boxes in prop::collection::vec(
-                // Coarse coordinates, so centroids often share a bin or a value.
-                (prop::array::uniform3(0i8..8), prop::array::uniform3(0i8..3)),
-                2..=SMALL_NODE,
+                // Coarse coordinates, so centroids often share a bin or a value, and zeros
+                // of both signs (references make −0 +0, so the order of unions never shows).
+                (prop::array::uniform3(-8i8..8), prop::array::uniform3(0i8..3)),
+                2..=SPARSE_NODE,
             ),
             nbins in 2usize..=MAX_BINS,
         ) {
@@ -487,8 +620,11 @@ mod tests {
                 .iter()
                 .enumerate()
                 .map(|(i, (lo, size))| {
-                    let lo = Vec3::from(lo.map(|x| x as f32 * 0.25));
-                    let hi = lo + Vec3::from(size.map(|x| x as f32 * 0.5));
+                    let x = |x: i8| if x == -8 { -0.0 } else { x as f32 * 0.25 };
+                    let lo = Vec3::from(lo.map(x));
+                    let size = Vec3::from(size.map(|s| s as f32 * 0.5));
+                    // hi = lo where the size is 0, so that −0 is a high bound too.
+                    let hi = Vec3::select(size.cmpeq(Vec3::ZERO), lo, lo + size);
                     Ref::new(&Aabb { lo, hi }, i as u32)
                 })
                 .collect();
@@ -501,7 +637,7 @@ mod tests {
             let area = bbox.aabb().area();
             let bins = fill_bins(&refs, nbins, cbox.lo, scale);
             let binned = best_split(&opts, &bins, nbins, splittable, area, refs.len());
-            let small = best_split_small(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
+            let small = best_split_sparse(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
             match (binned, small) {
                 (None, None) => {}
                 (Some(b), Some(s)) => {
