@@ -185,8 +185,9 @@ fn seed_node(boxes: &[Aabb], o: &BuildOptions, idx: Vec<usize>, order: &mut Vec<
     let sorted = |axis: usize| {
         let mut v = idx.clone();
         v.sort_by(|&a, &b| {
+            // By value (−0 and +0 are one centroid: a tie, ordered by index); no NaN here.
             let (ca, cb) = (boxes[a].center()[axis], boxes[b].center()[axis]);
-            ca.total_cmp(&cb).then(a.cmp(&b))
+            ca.partial_cmp(&cb).unwrap().then(a.cmp(&b))
         });
         v
     };

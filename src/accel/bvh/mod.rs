@@ -22,7 +22,7 @@ mod tree;
 use rayon::prelude::*;
 
 use crate::geometry::Aabb;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, TriStatus};
 
 pub use binned::MAX_BINS;
 pub use epo::epo_cost;
@@ -37,13 +37,18 @@ use tree::leaf;
 
 /// Builds a BVH over the mesh's included triangles. Deterministic for a given input.
 pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
-    let ids = mesh.included();
-    let prims = Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()));
+    let ids = Included::of(mesh);
+    let prims = match &ids {
+        Included::All => Prims::new(mesh.triangles.par_iter().map(|t| t.bbox())),
+        Included::Some(ids) => {
+            Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()))
+        }
+    };
     build_prims(
         prims,
         &ids,
         opts,
-        Some(&|i| mesh.triangles[ids[i as usize] as usize]),
+        Some(&|i| mesh.triangles[ids.id(i) as usize]),
     )
 }
 
@@ -51,8 +56,37 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
 /// boxes): `order` holds positions in `boxes`. The spatial-split builder, which clips
 /// triangles, builds binned here. Deterministic for a given input.
 pub fn build_boxes(boxes: &[Aabb], opts: &BuildOptions) -> Bvh {
-    let ids: Vec<u32> = (0..boxes.len() as u32).collect();
-    build_prims(Prims::new(boxes.par_iter().copied()), &ids, opts, None)
+    build_prims(
+        Prims::new(boxes.par_iter().copied()),
+        &Included::All,
+        opts,
+        None,
+    )
+}
+
+/// The triangles a tree is built over, by position: every one (position = index, the
+/// usual case: no list is made), or those listed.
+enum Included {
+    All,
+    Some(Vec<u32>),
+}
+
+impl Included {
+    fn of(mesh: &Mesh) -> Included {
+        if mesh.count(TriStatus::Ok) == mesh.len() {
+            Included::All
+        } else {
+            Included::Some(mesh.included())
+        }
+    }
+
+    /// The triangle at position i.
+    fn id(&self, i: u32) -> u32 {
+        match self {
+            Included::All => i,
+            Included::Some(ids) => ids[i as usize],
+        }
+    }
 }
 
 /// The builders' common entry: `prims` are the boxes of the primitives `ids` (positions
@@ -60,11 +94,11 @@ pub fn build_boxes(boxes: &[Aabb], opts: &BuildOptions) -> Bvh {
 /// i (the spatial-split builder clips them; without triangles it builds binned).
 fn build_prims(
     prims: Prims,
-    ids: &[u32],
+    ids: &Included,
     opts: &BuildOptions,
     triangle: Option<&(dyn Fn(u32) -> crate::geometry::Triangle + Sync)>,
 ) -> Bvh {
-    if ids.is_empty() {
+    if prims.len() == 0 {
         return Bvh {
             root: leaf(Aabb::EMPTY, 0, 0),
             order: Vec::new(),
@@ -87,16 +121,21 @@ fn build_prims(
             None => binned::build(prims, opts),
         },
     };
-    finish(root, &local, ids, opts)
+    let ids = match ids {
+        Included::All => None,
+        Included::Some(ids) => Some(&ids[..]),
+    };
+    finish(root, local, ids, opts)
 }
 
-/// A builder's tree over positions `local` in `ids` as the BVH over `ids`, optimised when
-/// asked.
-fn finish(root: Node, local: &[u32], ids: &[u32], opts: &BuildOptions) -> Bvh {
-    let mut bvh = Bvh {
-        root,
-        order: local.par_iter().map(|&l| ids[l as usize]).collect(),
+/// A builder's tree over positions `local` in `ids` (None: positions are the indices) as
+/// the BVH over `ids`, optimised when asked.
+fn finish(root: Node, local: Vec<u32>, ids: Option<&[u32]>, opts: &BuildOptions) -> Bvh {
+    let order = match ids {
+        None => local,
+        Some(ids) => local.par_iter().map(|&l| ids[l as usize]).collect(),
     };
+    let mut bvh = Bvh { root, order };
     if opts.optimize {
         optimize(&mut bvh, opts);
     }
@@ -123,5 +162,5 @@ pub fn build_from_radix_tree(
         Some(tree) => tree,
         None => binned::build(prims, opts),
     };
-    finish(root, &local, ids, opts)
+    finish(root, local, Some(ids), opts)
 }
