@@ -48,7 +48,8 @@ pub(crate) fn build_with(prims: Prims, opts: &BuildOptions, top: &Top) -> (Node,
     let mut refs = prims.refs;
     let (bbox, cbox) = bounds(&refs);
     let root = node(opts, top, &mut refs, bbox, cbox, 0, 0);
-    (root, refs.iter().map(Ref::id).collect())
+    use rayon::prelude::*;
+    (root, refs.par_iter().map(Ref::id).collect())
 }
 
 #[derive(Clone, Copy)]
