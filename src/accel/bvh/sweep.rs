@@ -112,7 +112,7 @@ pub(crate) fn sorted_by_centroid(refs: &[Ref], axis: usize, in_index_order: bool
         let mut keys: Vec<(u64, u32)> = (refs.iter().enumerate())
             .map(|(i, r)| (order_key(r, axis), i as u32))
             .collect();
-        keys.sort_unstable_by_key(|k| k.0);
+        radsort::sort_by_key(&mut keys, |k| k.0);
         keys.iter().map(|&(_, i)| refs[i as usize]).collect()
     }
 }
