@@ -185,7 +185,8 @@ fn seed_node(boxes: &[Aabb], o: &BuildOptions, idx: Vec<usize>, order: &mut Vec<
     let sorted = |axis: usize| {
         let mut v = idx.clone();
         v.sort_by(|&a, &b| {
-            // By value (−0 and +0 are one centroid: a tie, ordered by index); no NaN here.
+            // By value (−0 and +0 are one centroid: a tie, ordered by index; the builders'
+            // references make −0 bounds +0); no NaN here.
             let (ca, cb) = (boxes[a].center()[axis], boxes[b].center()[axis]);
             ca.partial_cmp(&cb).unwrap().then(a.cmp(&b))
         });

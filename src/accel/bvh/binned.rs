@@ -74,6 +74,15 @@ fn bin_index(c: f32, lo: f32, scale: f32, last: usize) -> usize {
     (unsafe { x.to_int_unchecked::<i32>() } as usize).min(last)
 }
 
+/// Whether a centroid coordinate's bin lies left of bin `s`: `bin_index(c) < s` without
+/// the conversion. x = (c − lo)·scale ≥ 0 and s is a whole number no greater than the last
+/// bin, so min(⌊x⌋, last) < s exactly when x < s (checked by
+/// `the_partition_test_is_the_bins`).
+#[inline(always)]
+fn left_of(c: f32, lo: f32, scale: f32, s: usize) -> bool {
+    (c - lo) * scale < s as f32
+}
+
 /// Bin index of a centroid on every axis at once; a flat axis (scale 0) maps all to bin 0.
 /// The same values as [`bin_index`] per axis (clamping before truncating is equivalent),
 /// converted in one SIMD instruction.
@@ -142,9 +151,7 @@ fn node(
                 return leaf(bbox, offset, n);
             }
             let (lo, scale) = (cbox.lo[axis], scale[axis]);
-            // bin_index(c) < s without the conversion: x = (c − lo)·scale ≥ 0 and s is a
-            // whole number below the last bin, so ⌊x⌋ < s exactly when x < s.
-            let (k, lc, rc) = partition(idx, |c| (c[axis] - lo) * scale < s as f32);
+            let (k, lc, rc) = partition(idx, |c| left_of(c[axis], lo, scale, s));
             (k, axis, lbox, rbox, lc, rc)
         }
         None => {
@@ -265,9 +272,9 @@ fn best_split(
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     for a in (0..3).filter(|&a| found.test(a)) {
         let s = s_best[a] as usize;
-        let (r_area, r_count) = right(s);
-        let (ar, nr) = (r_area[a], r_count[a] as usize);
-        let cost = opts.split_cost(area, al_best[a], n - nr, ar, nr);
+        // The count right of s in whole numbers: the lanes' f32 sums round above 2^24.
+        let nr: usize = bins[s..nbins].iter().map(|bin| bin[a].count).sum();
+        let cost = opts.split_cost(area, al_best[a], n - nr, right(s).0[a], nr);
         if best.is_none_or(|b| cost < b.0) {
             let side = |r: std::ops::Range<usize>| {
                 bins[r]
@@ -328,7 +335,9 @@ impl SparseBins {
 /// repeats the key before it and cannot win (strictly smaller keys only), so the candidates
 /// are the boundaries right after each occupied bin but the last. Keys, costs and tie order
 /// are computed as there, so the split is the same (checked by
-/// `small_nodes_split_as_the_bins_do`).
+/// `small_nodes_split_as_the_bins_do`). Not inlined: its bins (some 12 KB) would otherwise
+/// sit in every level of the recursion's stack.
+#[inline(never)]
 fn best_split_sparse(
     opts: &BuildOptions,
     refs: &[Ref],
@@ -351,9 +360,10 @@ fn best_split_sparse(
     for a in (0..3).filter(|&a| splittable.test(a)) {
         let bins = &bins[a];
         let m = bins.occupied.count_ones() as usize;
-        // Right to left: the area and count of the occupied bins of rank j.. (in bin
-        // order), for j = m − 1 down to 1 (only those are written and read).
-        let mut right = [const { MaybeUninit::<(f32, u32)>::uninit() }; SPARSE_NODE];
+        // Right to left: the union, its area and count of the occupied bins of rank j.. (in
+        // bin order), for j = m − 1 down to 1 (only those are written and read). References
+        // hold no −0, so the union's bits do not depend on the order `best_split` takes.
+        let mut right = [const { MaybeUninit::<(BoxA, f32, u32)>::uninit() }; SPARSE_NODE];
         let (mut acc, mut count, mut rest) = (BoxA::EMPTY, 0, bins.occupied);
         for j in (1..m).rev() {
             let k = 63 - rest.leading_zeros();
@@ -361,7 +371,7 @@ fn best_split_sparse(
             let (b, c) = bins.get(k);
             acc = acc.union(b);
             count += c;
-            right[j].write((box_area(acc), count));
+            right[j].write((acc, box_area(acc), count));
         }
         // SAFETY: right[j] was written above for every j in 1..m.
         let right = |j: usize| unsafe { right[j].assume_init() };
@@ -375,7 +385,7 @@ fn best_split_sparse(
             let (b, c) = bins.get(k);
             left = left.union(b);
             l_count += c;
-            let (ar, nr) = right(j);
+            let (_, ar, nr) = right(j);
             let al = box_area(left);
             let key = al * l_count as f32 + ar * nr as f32;
             if axis_best.is_none_or(|b| key < b.0) {
@@ -383,17 +393,9 @@ fn best_split_sparse(
             }
         }
         if let Some((_, s, al, l, j)) = axis_best {
-            let (ar, nr) = right(j);
+            let (r, ar, nr) = right(j);
             let cost = opts.split_cost(area, al, n - nr as usize, ar, nr as usize);
             if best.is_none_or(|b| cost < b.0) {
-                // The right box folded from left to right, as `best_split` folds it (the
-                // sign of a zero bound can depend on the order).
-                let mut r = BoxA::EMPTY;
-                let mut rest = bins.occupied & !((1u64 << s) - 1);
-                while rest != 0 {
-                    r = r.union(bins.get(rest.trailing_zeros()).0);
-                    rest &= rest - 1;
-                }
                 best = Some((cost, a, s, l, r));
             }
         }
@@ -451,6 +453,18 @@ const TALLY_MAX: usize = 1 << 24;
 /// Bins every reference on all three axes (a flat axis all into bin 0, never chosen), so
 /// there is no branch per axis.
 fn fill_bins(refs: &[Ref], nbins: usize, lo: Vec3A, scale: Vec3A) -> Vec<[Bin; 3]> {
+    fill_bins_in_runs(refs, nbins, lo, scale, TALLY_MAX)
+}
+
+/// [`fill_bins`], the counts moved out of the tallies every `run` references (a test
+/// makes runs short).
+fn fill_bins_in_runs(
+    refs: &[Ref],
+    nbins: usize,
+    lo: Vec3A,
+    scale: Vec3A,
+    run: usize,
+) -> Vec<[Bin; 3]> {
     let mut bins = vec![[EMPTY_BIN; 3]; nbins];
     let mut tallies = vec![[Tally::EMPTY; 3]; nbins];
     let add = |tallies: &mut [[Tally; 3]], r: &Ref| {
@@ -476,7 +490,7 @@ fn fill_bins(refs: &[Ref], nbins: usize, lo: Vec3A, scale: Vec3A) -> Vec<[Bin; 3
     // Neighbouring references mostly fall in the same bins: alternate between two sets so
     // that one update need not wait for the store of the one before.
     let mut other = vec![[Tally::EMPTY; 3]; nbins];
-    for chunk in refs.chunks(TALLY_MAX) {
+    for chunk in refs.chunks(run) {
         let (pairs, rest) = chunk.as_chunks::<2>();
         for [a, b] in pairs {
             add(&mut tallies, a);
@@ -598,9 +612,12 @@ mod tests {
                     }
                     bins
                 };
-                let (want, got) = (one(&refs), fill_bins(&refs, 16, cbox.lo, scale));
-                for (w, g) in want.iter().flatten().zip(got.iter().flatten()) {
-                    prop_assert!(w.count == g.count && same_box(w.bbox, g.bbox));
+                let want = one(&refs);
+                for run in [TALLY_MAX, 7, 2] {
+                    let got = fill_bins_in_runs(&refs, 16, cbox.lo, scale, run);
+                    for (w, g) in want.iter().flatten().zip(got.iter().flatten()) {
+                        prop_assert!(w.count == g.count && same_box(w.bbox, g.bbox));
+                    }
                 }
             }
         }
@@ -610,18 +627,24 @@ mod tests {
         #[test]
         fn small_nodes_split_as_the_bins_do(
             boxes in prop::collection::vec(
-                // Coarse coordinates, so centroids often share a bin or a value, and zeros
-                // of both signs (references make −0 +0, so the order of unions never shows).
-                (prop::array::uniform3(-8i8..8), prop::array::uniform3(0i8..3)),
+                (prop::array::uniform3(-512i16..512), prop::array::uniform3(0i8..3)),
                 2..=SPARSE_NODE,
             ),
             nbins in 2usize..=MAX_BINS,
+            fine in any::<bool>(),
         ) {
+            // Coarse coordinates (16 values), so that centroids often share a bin or a
+            // value; or fine ones (1,024), so that up to 64 bins are occupied. Zeros of both
+            // signs: references make −0 +0, so the order of unions never shows.
+            let x = |x: i16| match (fine, x) {
+                (_, -512) => -0.0,
+                (false, x) => (x >> 6) as f32 * 0.25,
+                (true, x) => x as f32 / 64.0,
+            };
             let refs: Vec<Ref> = boxes
                 .iter()
                 .enumerate()
                 .map(|(i, (lo, size))| {
-                    let x = |x: i8| if x == -8 { -0.0 } else { x as f32 * 0.25 };
                     let lo = Vec3::from(lo.map(x));
                     let size = Vec3::from(size.map(|s| s as f32 * 0.5));
                     // hi = lo where the size is 0, so that −0 is a high bound too.
@@ -653,6 +676,39 @@ mod tests {
                     prop_assert!(same_box(b.3, s.3) && same_box(b.4, s.4), "boxes");
                 }
                 (b, s) => prop_assert!(false, "binned {:?} vs small {:?}", b.map(|x| x.0), s.map(|x| x.0)),
+            }
+        }
+    }
+
+    /// The partition's side test, (c − lo)·scale < s, is the bins' bin_index(c) < s for
+    /// every first bin on the right s, at random centroids and at the bins' boundaries.
+    #[test]
+    fn the_partition_test_is_the_bins() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for _ in 0..2000 {
+            let lo = (next() - 0.5) * 200.0;
+            let hi = lo + (next() * 100.0).max(1e-3);
+            let nbins = 2 + (next() * (MAX_BINS - 1) as f32) as usize;
+            let scale = nbins as f32 / (hi - lo);
+            let mut cs = vec![lo, hi, lo + next() * (hi - lo)];
+            for s in 1..nbins {
+                let c = lo + s as f32 / scale;
+                cs.extend([c.next_down(), c, c.next_up()]);
+            }
+            for c in cs.into_iter().map(|c| c.clamp(lo, hi)) {
+                for s in 1..nbins {
+                    assert_eq!(
+                        left_of(c, lo, scale, s),
+                        bin_index(c, lo, scale, nbins - 1) < s,
+                        "c {c} lo {lo} hi {hi} bins {nbins} s {s}"
+                    );
+                }
             }
         }
     }

@@ -73,7 +73,7 @@ enum Included {
 
 impl Included {
     fn of(mesh: &Mesh) -> Included {
-        if mesh.count(TriStatus::Ok) == mesh.len() {
+        if mesh.status.len() == mesh.len() && mesh.count(TriStatus::Ok) == mesh.len() {
             Included::All
         } else {
             Included::Some(mesh.included())

@@ -100,7 +100,7 @@ pub(crate) fn order_key(r: &Ref, axis: usize) -> u64 {
 
 /// The references in list order on `axis`. References in index order (the whole mesh's)
 /// take a radix sort of their centroid keys, which is stable, so equal centroids stay in
-/// index order; others a comparison sort of (centroid, index) keys.
+/// index order; others a radix sort of their unique (centroid, index) keys.
 pub(crate) fn sorted_by_centroid(refs: &[Ref], axis: usize, in_index_order: bool) -> Vec<Ref> {
     if in_index_order {
         let mut keys: Vec<(u32, u32)> = (refs.iter().enumerate())

@@ -295,12 +295,17 @@ fn add(
             // A triangle's box is its bounds within the leaf's box: all of it, unless a
             // spatial split gave the leaf only a part of the triangle (then it is kept).
             let at = |p: u32| {
-                let whole = tris.triangle(p).bbox();
-                let within = Aabb {
+                // Bounds of −0 made +0 (as the builders' references make them, so that a
+                // leaf's bound of +0 does not read as a clip of the triangle's −0).
+                let plus_zero = |b: Aabb| Aabb {
+                    lo: b.lo + Vec3::ZERO,
+                    hi: b.hi + Vec3::ZERO,
+                };
+                let whole = plus_zero(tris.triangle(p).bbox());
+                let within = plus_zero(Aabb {
                     lo: whole.lo.max(bbox.lo),
                     hi: whole.hi.min(bbox.hi),
-                };
-                // Bit for bit: a clipped −0 is not the triangle's +0.
+                });
                 let same = |a: Vec3, b: Vec3| (0..3).all(|k| a[k].to_bits() == b[k].to_bits());
                 Ref {
                     p,
