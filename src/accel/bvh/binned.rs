@@ -678,35 +678,30 @@ mod tests {
                 (b, s) => prop_assert!(false, "binned {:?} vs small {:?}", b.map(|x| x.0), s.map(|x| x.0)),
             }
         }
-    }
 
-    /// The partition's side test, (c − lo)·scale < s, is the bins' bin_index(c) < s for
-    /// every first bin on the right s, at random centroids and at the bins' boundaries.
-    #[test]
-    fn the_partition_test_is_the_bins() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
-        for _ in 0..2000 {
-            let lo = (next() - 0.5) * 200.0;
-            let hi = lo + (next() * 100.0).max(1e-3);
-            let nbins = 2 + (next() * (MAX_BINS - 1) as f32) as usize;
+        /// The partition's side test, (c − lo)·scale < s, is the bins' bin_index(c) < s for
+        /// every first bin on the right s, at a random centroid and at the bins' boundaries
+        /// (and one float either side).
+        #[test]
+        fn the_partition_test_is_the_bins(
+            lo in -100.0f32..100.0,
+            width in 1e-3f32..100.0,
+            t in 0.0f32..=1.0,
+            nbins in 2usize..=MAX_BINS,
+        ) {
+            let hi = lo + width;
             let scale = nbins as f32 / (hi - lo);
-            let mut cs = vec![lo, hi, lo + next() * (hi - lo)];
+            let mut cs = vec![lo, hi, lo + t * (hi - lo)];
             for s in 1..nbins {
                 let c = lo + s as f32 / scale;
                 cs.extend([c.next_down(), c, c.next_up()]);
             }
             for c in cs.into_iter().map(|c| c.clamp(lo, hi)) {
                 for s in 1..nbins {
-                    assert_eq!(
+                    prop_assert_eq!(
                         left_of(c, lo, scale, s),
                         bin_index(c, lo, scale, nbins - 1) < s,
-                        "c {c} lo {lo} hi {hi} bins {nbins} s {s}"
+                        "c {} s {}", c, s
                     );
                 }
             }
