@@ -80,6 +80,14 @@ impl Included {
         }
     }
 
+    /// The list of included triangles, None when every one is.
+    fn list(&self) -> Option<&[u32]> {
+        match self {
+            Included::All => None,
+            Included::Some(ids) => Some(ids),
+        }
+    }
+
     /// The triangle at position i.
     fn id(&self, i: u32) -> u32 {
         match self {
@@ -121,11 +129,7 @@ fn build_prims(
             None => binned::build(prims, opts),
         },
     };
-    let ids = match ids {
-        Included::All => None,
-        Included::Some(ids) => Some(&ids[..]),
-    };
-    finish(root, local, ids, opts)
+    finish(root, local, ids.list(), opts)
 }
 
 /// A builder's tree over positions `local` in `ids` (None: positions are the indices) as
