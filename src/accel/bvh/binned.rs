@@ -13,7 +13,7 @@ use glam::{Mat3A, Vec3A, Vec4};
 use super::prim_ref::{bounds, box_area, BoxA, Ref};
 
 use super::prims::{join, Prims, PARALLEL_MIN};
-use super::tree::{leaf, Node};
+use super::tree::{leaf, Kids, Node};
 use super::BuildOptions;
 
 /// Most bins per axis the builder supports (the CLI refuses more).
@@ -171,13 +171,14 @@ fn node(
             (k, axis, lbox, rbox, lc, rc)
         }
     };
+    let kids = Kids::reserve();
     let (l, r) = idx.split_at_mut(k);
     let (a, b) = join(
         opts.parallel && n >= PARALLEL_MIN,
         || node(opts, top, l, lbox, lc, offset, depth + 1),
         || node(opts, top, r, rbox, rc, offset + k, depth + 1),
     );
-    Node::inner(bbox, axis, [a, b])
+    kids.inner(bbox, axis, [a, b])
 }
 
 /// A bin on all three axes at once, transposed so that each vector holds one coordinate

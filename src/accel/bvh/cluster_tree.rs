@@ -5,7 +5,7 @@
 use std::sync::atomic::AtomicU32;
 use std::sync::atomic::Ordering::Relaxed;
 
-use super::tree::{children_order, leaf, Node};
+use super::tree::{children_order, leaf, Kids, Node};
 use super::BuildOptions;
 use crate::geometry::Aabb;
 
@@ -106,6 +106,8 @@ fn convert(
     let (a, b) = if swap { (b, a) } else { (a, b) };
     let na = counts[a as usize].load(Relaxed) as usize;
     let (left, right) = order.split_at_mut(na);
+    // Reserved before the children are built (see `Kids`); freed again if this becomes a leaf.
+    let kids = Kids::reserve();
     let go = |c: u32, part: &mut [u32], at: usize| {
         convert(tree, c, n, opts, counts, part, at, depth + 1)
     };
@@ -120,5 +122,5 @@ fn convert(
     if count <= opts.max_leaf.max(1) && as_leaf <= split {
         return (leaf(bbox, start, count), count, as_leaf);
     }
-    (Node::inner(bbox, axis, [l, r]), count, split)
+    (kids.inner(bbox, axis, [l, r]), count, split)
 }

@@ -2,7 +2,7 @@
 //! becomes a leaf under the same SAH rule as the other builders.
 
 use super::prims::{join, median_split, Prims, PARALLEL_MIN};
-use super::tree::{leaf, Node};
+use super::tree::{leaf, Kids, Node};
 use super::BuildOptions;
 
 pub(crate) fn build(prims: &Prims, opts: &BuildOptions) -> (Node, Vec<u32>) {
@@ -25,11 +25,12 @@ fn node(prims: &Prims, opts: &BuildOptions, idx: &mut [u32], offset: usize) -> N
     if opts.prefers_leaf(n, cost) {
         return leaf(bbox, offset, n);
     }
+    let kids = Kids::reserve();
     let (l, r) = idx.split_at_mut(k);
     let (a, b) = join(
         opts.parallel && n >= PARALLEL_MIN,
         || node(prims, opts, l, offset),
         || node(prims, opts, r, offset + k),
     );
-    Node::inner(bbox, axis, [a, b])
+    kids.inner(bbox, axis, [a, b])
 }

@@ -19,7 +19,7 @@ use std::collections::BinaryHeap;
 
 use rayon::prelude::*;
 
-use super::tree::{children_order, leaf, Node};
+use super::tree::{children_order, leaf, Kids, Node};
 use super::{BuildOptions, Bvh};
 use crate::geometry::Aabb;
 
@@ -299,9 +299,10 @@ impl Arena {
         let [a, b] = self.kids[n as usize];
         let (axis, swap) = children_order(&self.bbox[a as usize], &self.bbox[b as usize]);
         let (first, second) = if swap { (b, a) } else { (a, b) };
+        let kids = Kids::reserve();
         let l = self.emit(first, order, out);
         let r = self.emit(second, order, out);
-        Node::inner(bbox, axis, [l, r])
+        kids.inner(bbox, axis, [l, r])
     }
 }
 

@@ -26,7 +26,7 @@ use glam::Vec3A;
 use super::prim_ref::{bounds, box_area, BoxA, Ref};
 use super::prims::{join, Prims, PARALLEL_MIN};
 use super::sweep::{order_key, sorted_by_centroid, sweep};
-use super::tree::{leaf, Node};
+use super::tree::{leaf, Kids, Node};
 use super::BuildOptions;
 use crate::geometry::{chopped_bounds, clip_bounds, Aabb, Triangle};
 
@@ -174,9 +174,10 @@ fn assemble(arena: &mut [Built], i: usize, order: &mut Vec<u32>) -> Node {
             leaf(bbox, start, order.len() - start)
         }
         Built::Inner(bbox, axis, [l, r]) => {
+            let kids = Kids::reserve();
             let l = assemble(arena, l, order);
             let r = assemble(arena, r, order);
-            Node::inner(bbox, axis, [l, r])
+            kids.inner(bbox, axis, [l, r])
         }
     }
 }

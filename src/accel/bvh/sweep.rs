@@ -25,7 +25,7 @@ use glam::Vec3A;
 use super::binned::{self, Handover, Top, MAX_BINS};
 use super::prim_ref::{bounds, box_area, BoxA, Ref};
 use super::prims::{join, Prims, PARALLEL_MIN};
-use super::tree::{leaf, Node};
+use super::tree::{leaf, Kids, Node};
 use super::BuildOptions;
 use crate::geometry::Aabb;
 
@@ -181,12 +181,13 @@ fn node(opts: &BuildOptions, w: Work, bbox: BoxA, offset: usize, depth: usize) -
         right_areas: r1,
         order: o1,
     };
+    let kids = Kids::reserve();
     let (l, r) = join(
         opts.parallel && n >= PARALLEL_MIN,
         || node(opts, left, lbox, offset, depth + 1),
         || node(opts, right, rbox, offset + k, depth + 1),
     );
-    Node::inner(aabb, axis, [l, r])
+    kids.inner(aabb, axis, [l, r])
 }
 
 /// The best split of a node.

@@ -33,12 +33,7 @@ pub enum Node {
 
 impl Node {
     pub(crate) fn inner(bbox: Aabb, axis: usize, children: [Node; 2]) -> Node {
-        Node::Inner {
-            bbox,
-            axis: axis as u8,
-            nodes: 1 + children[0].nodes() + children[1].nodes(),
-            children: Box::new(children),
-        }
+        Kids::reserve().inner(bbox, axis, children)
     }
 
     /// Nodes in this subtree, itself included.
@@ -83,6 +78,36 @@ impl Drop for Bvh {
             std::mem::replace(&mut self.root, leaf(Aabb::EMPTY, 0, 0)),
             0,
         );
+    }
+}
+
+/// An inner node's children's place, allocated before they are built: a builder that
+/// reserves it before recursing lays the tree out in memory in the order a depth-first walk
+/// reads it (parents before children, left subtrees before right), so that walks stream
+/// through memory instead of chasing pointers back and forth.
+pub(crate) struct Kids(Box<[Node; 2]>);
+
+impl Kids {
+    const UNSET: Node = Node::Leaf {
+        bbox: Aabb::EMPTY,
+        start: 0,
+        count: 0,
+    };
+
+    pub fn reserve() -> Kids {
+        Kids(Box::new([Kids::UNSET, Kids::UNSET]))
+    }
+
+    /// The inner node of these children, put in their reserved place.
+    pub fn inner(mut self, bbox: Aabb, axis: usize, children: [Node; 2]) -> Node {
+        *self.0 = children;
+        let nodes = 1 + self.0[0].nodes() + self.0[1].nodes();
+        Node::Inner {
+            bbox,
+            axis: axis as u8,
+            nodes,
+            children: self.0,
+        }
     }
 }
 
