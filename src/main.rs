@@ -91,6 +91,25 @@ static COMMIT_ARENAS_AS_USED: extern "C" fn() = {
     commit_arenas_as_used
 };
 
+/// `bench builders` times builds and flattens on fresh memory (`bench::memory::fresh_memory`):
+/// freed memory goes back at once while they run, then the default delay again.
+fn fresh_memory_switch(on: bool) {
+    use std::sync::atomic::{AtomicI64, Ordering};
+    /// The delay before the switch went on, restored when it goes off.
+    static BEFORE: AtomicI64 = AtomicI64::new(0);
+    // SAFETY: reading and setting an option are allowed at any time.
+    unsafe {
+        if on {
+            let delay = libmimalloc_sys::mi_option_get(MI_OPTION_PURGE_DELAY);
+            BEFORE.store(delay as i64, Ordering::Relaxed);
+            libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, 0);
+        } else {
+            let delay = BEFORE.load(Ordering::Relaxed) as std::ffi::c_long;
+            libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, delay);
+        }
+    }
+}
+
 /// One-shot commands return freed memory soon (see [`PURGE_DELAY_MS`]); the benches keep
 /// mimalloc's default (their repeated builds reuse those pages).
 fn release_freed_memory_soon() {
@@ -140,6 +159,7 @@ fn main() {
     if !cli.is_bench() {
         release_freed_memory_soon();
     }
+    lancer::bench::memory::set_fresh_memory_switch(fresh_memory_switch);
     if let Err(e) = cmd::run(cli) {
         eprintln!("error: {e}");
         std::process::exit(e.exit_code());

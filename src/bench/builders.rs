@@ -23,7 +23,7 @@ use crate::mesh::Mesh;
 use crate::trace::{defaults, Tracer, TracerOptions};
 
 use super::markdown::{dash, Table};
-use super::memory::peak_during;
+use super::memory::{fresh_memory, peak_during};
 use super::rank::spearman;
 use super::rays::{random_rays, view_ray_sets, RaySet, BENCH_SEED};
 use super::timing::{median, time_tracer};
@@ -233,7 +233,8 @@ struct Timed {
 }
 
 /// `repeat` timed builds, each followed by a timed Embree build where there is one (into
-/// `embree`'s times); then one more under the peak-memory count.
+/// `embree`'s times), on fresh memory (as a one-shot command's, and as Embree's builds
+/// allocate theirs anew); then one more under the peak-memory count.
 fn timed_build(
     mesh: &Mesh,
     opts: &BuildOptions,
@@ -241,17 +242,20 @@ fn timed_build(
     mut embree: Option<&mut EmbreePair>,
 ) -> Result<Timed> {
     let mut times = Vec::new();
-    for _ in 0..repeat {
-        settle();
-        let start = Instant::now();
-        let bvh = build(mesh, opts);
-        times.push(start.elapsed().as_secs_f64() * 1e3);
-        drop(bvh);
-        if let Some(e) = embree.as_deref_mut() {
+    fresh_memory(|| -> Result<()> {
+        for _ in 0..repeat {
             settle();
-            e.time()?;
+            let start = Instant::now();
+            let bvh = build(mesh, opts);
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+            drop(bvh);
+            if let Some(e) = embree.as_deref_mut() {
+                settle();
+                e.time()?;
+            }
         }
-    }
+        Ok(())
+    })?;
     let (bvh, peak) = peak_during(|| build(mesh, opts));
     Ok(Timed {
         bvh,
@@ -300,13 +304,16 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
             // Flattened `repeat` times: the median time, the last layout.
             let mut flatten_times = Vec::new();
             let mut layout = None;
-            for _ in 0..repeat {
-                drop(layout.take());
-                settle();
-                let start = Instant::now();
-                layout = Some(try_flatten(defaults::CPU_LAYOUT, &bvh, mesh)?);
-                flatten_times.push(start.elapsed().as_secs_f64() * 1e3);
-            }
+            fresh_memory(|| -> Result<()> {
+                for _ in 0..repeat {
+                    drop(layout.take());
+                    settle();
+                    let start = Instant::now();
+                    layout = Some(try_flatten(defaults::CPU_LAYOUT, &bvh, mesh)?);
+                    flatten_times.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+                Ok(())
+            })?;
             let flatten_ms = median(flatten_times);
             let layout: Arc<dyn GpuForm> = match layout {
                 Some(l) => l.into(),
@@ -637,7 +644,9 @@ impl BenchReport for Report {
         out += "\n(build + flatten) ÷ Embree: lancer's tree built and flattened into the CPU \
                 layout it traces, against Embree 3's medium-quality scene build (its BVH is \
                 ready to trace) of the same triangles on the same threads, timed right after \
-                each build; the medians (Embree's over all its builds on the mesh).\n";
+                each build; the medians (Embree's over all its builds on the mesh). Both start \
+                on fresh memory: lancer's allocator hands freed memory back at once while it \
+                times, as a command run once would find it; Embree allocates its own anew.\n";
         out += "ρ: Spearman's rank correlation over the builders between the predictor and the \
                 time per ray (1 = it orders the trees exactly as their speed does). SAH and \
                 EPO are known before tracing; measured work (nodes + triangles per ray) is \

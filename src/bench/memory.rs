@@ -2,10 +2,12 @@
 //! allocator that a program installs as its global allocator (the `lancer` binary does), and
 //! [`peak_during`], which reads it. Exact bytes requested from the allocator, unlike the
 //! process's resident set, which an allocator keeping freed pages hides; that too is here
-//! ([`peak_resident`]), for what a whole command took.
+//! ([`peak_resident`]), for what a whole command took. And [`fresh_memory`], which times
+//! work on memory fresh from the system, where the program says how to get it.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicIsize, Ordering};
+use std::sync::OnceLock;
 
 /// Bytes allocated minus bytes freed since [`peak_during`] started (counted only then).
 static NET: AtomicIsize = AtomicIsize::new(0);
@@ -92,4 +94,57 @@ pub fn peak_resident() -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
+}
+
+/// The program's switch for its allocator: on, freed memory goes back to the system at
+/// once; off, as the allocator does by default. Set by [`set_fresh_memory_switch`].
+static FRESH_MEMORY_SWITCH: OnceLock<fn(bool)> = OnceLock::new();
+
+/// Tells [`fresh_memory`] how to make the program's allocator hand freed memory back to
+/// the system at once (`true`) and how to restore its default (`false`). The `lancer`
+/// binary sets mimalloc's purge delay: its default keeps freed pages for a second, for
+/// reuse. Only the first switch set counts.
+pub fn set_fresh_memory_switch(switch: fn(bool)) {
+    // A second call is ignored, as documented.
+    let _ = FRESH_MEMORY_SWITCH.set(switch);
+}
+
+/// Runs `work` with the allocator handing freed memory back to the system at once (where a
+/// switch is set), so that what `work` allocates is faulted in fresh, as in a command run
+/// once. Timed builds repeated in one process would otherwise reuse the pages the build
+/// before freed, or not, depending on how long ago that was.
+pub fn fresh_memory<T>(work: impl FnOnce() -> T) -> T {
+    let switch = FRESH_MEMORY_SWITCH.get();
+    if let Some(on) = switch {
+        on(true);
+    }
+    let out = work();
+    if let Some(on) = switch {
+        on(false);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicU32;
+
+    /// Whether the test's switch is on, and how many times it was turned.
+    static ON: AtomicBool = AtomicBool::new(false);
+    static TURNS: AtomicU32 = AtomicU32::new(0);
+
+    fn switch(on: bool) {
+        ON.store(on, Ordering::SeqCst);
+        TURNS.fetch_add(1, Ordering::SeqCst);
+    }
+
+    #[test]
+    fn fresh_memory_is_on_for_the_work_and_off_after() {
+        set_fresh_memory_switch(switch);
+        let inside = fresh_memory(|| ON.load(Ordering::SeqCst));
+        assert!(inside, "the switch is on while the work runs");
+        assert!(!ON.load(Ordering::SeqCst), "and off after it");
+        assert_eq!(TURNS.load(Ordering::SeqCst), 2);
+    }
 }
