@@ -111,7 +111,8 @@ fn fresh_memory_switch(on: bool) {
 }
 
 /// One-shot commands return freed memory soon (see [`PURGE_DELAY_MS`]); the benches keep
-/// mimalloc's default (their repeated builds reuse those pages).
+/// mimalloc's default (their repeated runs reuse those pages), except where they time on
+/// fresh memory ([`fresh_memory_switch`]).
 fn release_freed_memory_soon() {
     // SAFETY: setting an option is allowed at any time.
     unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, PURGE_DELAY_MS) };
