@@ -92,7 +92,7 @@ static COMMIT_ARENAS_AS_USED: extern "C" fn() = {
 };
 
 /// `bench builders` times builds and flattens on fresh memory (`bench::memory::fresh_memory`):
-/// freed memory goes back at once while they run, then the default delay again.
+/// freed memory goes back at once while they run, then the delay it had before again.
 fn fresh_memory_switch(on: bool) {
     use std::sync::atomic::{AtomicI64, Ordering};
     /// The delay before the switch went on, restored when it goes off.
