@@ -6,6 +6,7 @@
 //! candidates of the three axes are evaluated together in SIMD lanes; a small node sweeps
 //! only its occupied bins.
 
+use std::cell::RefCell;
 use std::mem::MaybeUninit;
 
 use glam::{Mat3A, Vec3A, Vec4};
@@ -292,43 +293,21 @@ fn best_split(
 /// ([`best_split_sparse`]): the same split, without sweeping empty bins.
 const SPARSE_NODE: usize = 64;
 
-/// One axis's bins for a small node: only the bins in `occupied` hold a box and a count
-/// (nothing else is initialised: a node this small would spend longer clearing bins than
-/// filling them).
-struct SparseBins {
-    occupied: u64,
-    bins: [MaybeUninit<(BoxA, u32)>; MAX_BINS],
+thread_local! {
+    /// Each thread's bins for small nodes, all empty between nodes: a node adds its
+    /// references without a branch on whether a bin is in use yet (its outcome is as good as
+    /// random), and empties again only the bins it used.
+    static SPARSE_BINS: RefCell<[[Tally; MAX_BINS]; 3]> =
+        const { RefCell::new([[Tally::EMPTY; MAX_BINS]; 3]) };
 }
 
-impl SparseBins {
-    #[inline(always)]
-    fn new() -> SparseBins {
-        SparseBins {
-            occupied: 0,
-            bins: [const { MaybeUninit::uninit() }; MAX_BINS],
-        }
-    }
-
-    #[inline(always)]
-    fn add(&mut self, k: usize, b: BoxA) {
-        let bit = 1u64 << k;
-        let bin = if self.occupied & bit == 0 {
-            self.occupied |= bit;
-            (b, 1)
-        } else {
-            let (old, count) = self.get(k as u32);
-            (old.union(b), count + 1)
-        };
-        self.bins[k].write(bin);
-    }
-
-    /// The box and count of occupied bin k.
-    #[inline(always)]
-    fn get(&self, k: u32) -> (BoxA, u32) {
-        debug_assert!(self.occupied >> k & 1 == 1);
-        // SAFETY: callers pass only occupied bins, which were written.
-        unsafe { self.bins[k as usize].assume_init() }
-    }
+/// One occupied bin of a small node's axis: its box and count.
+#[derive(Clone, Copy)]
+struct Occupied {
+    bbox: BoxA,
+    count: u32,
+    /// The bin's index.
+    k: u32,
 }
 
 /// [`best_split`] for a node of at most [`SPARSE_NODE`] references: the bins of each axis
@@ -336,7 +315,7 @@ impl SparseBins {
 /// repeats the key before it and cannot win (strictly smaller keys only), so the candidates
 /// are the boundaries right after each occupied bin but the last. Keys, costs and tie order
 /// are computed as there, so the split is the same (checked by
-/// `small_nodes_split_as_the_bins_do`). Not inlined: its bins (some 12 KB) would otherwise
+/// `small_nodes_split_as_the_bins_do`). Not inlined: its arrays (some 12 KB) would otherwise
 /// sit in every level of the recursion's stack.
 #[inline(never)]
 fn best_split_sparse(
@@ -349,29 +328,46 @@ fn best_split_sparse(
     area: f32,
 ) -> Option<(f32, usize, usize, BoxA, BoxA)> {
     let n = refs.len();
-    let mut bins = [SparseBins::new(), SparseBins::new(), SparseBins::new()];
-    for r in refs {
-        let k = bin_of(r.centroid(), lo, scale, nbins - 1);
-        let b = r.bbox();
-        for a in 0..3 {
-            bins[a].add(k[a], b);
+    debug_assert!(n <= SPARSE_NODE);
+    // Each axis's occupied bins in bin order, taken out of the thread's bins (emptying them).
+    let mut occupied = [[const { MaybeUninit::<Occupied>::uninit() }; SPARSE_NODE]; 3];
+    let mut m = [0usize; 3];
+    SPARSE_BINS.with_borrow_mut(|tallies| {
+        let mut used = [0u64; 3];
+        for r in refs {
+            let k = bin_of(r.centroid(), lo, scale, nbins - 1);
+            let operands = Tally::operands(r);
+            for a in 0..3 {
+                tallies[a][k[a]].add(operands);
+                used[a] |= 1 << k[a];
+            }
         }
-    }
+        for a in 0..3 {
+            let mut rest = used[a];
+            while rest != 0 {
+                let k = rest.trailing_zeros();
+                rest &= rest - 1;
+                let tally = std::mem::replace(&mut tallies[a][k as usize], Tally::EMPTY);
+                let (bbox, count) = tally.bin();
+                occupied[a][m[a]].write(Occupied { bbox, count, k });
+                m[a] += 1;
+            }
+        }
+    });
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     for a in (0..3).filter(|&a| splittable.test(a)) {
-        let bins = &bins[a];
-        let m = bins.occupied.count_ones() as usize;
+        let m = m[a];
+        // SAFETY: the first m entries of axis a were written above.
+        let bin = |j: usize| unsafe { occupied[a][j].assume_init() };
         // Right to left: the union, its area and count of the occupied bins of rank j.. (in
         // bin order), for j = m − 1 down to 1 (only those are written and read). References
         // hold no −0, so the union's bits do not depend on the order `best_split` takes.
         let mut right = [const { MaybeUninit::<(BoxA, f32, u32)>::uninit() }; SPARSE_NODE];
-        let (mut acc, mut count, mut rest) = (BoxA::EMPTY, 0, bins.occupied);
+        let (mut acc, mut count) = (BoxA::EMPTY, 0);
         for j in (1..m).rev() {
-            let k = 63 - rest.leading_zeros();
-            rest &= !(1u64 << k);
-            let (b, c) = bins.get(k);
-            acc = acc.union(b);
-            count += c;
+            let b = bin(j);
+            acc = acc.union(b.bbox);
+            count += b.count;
             right[j].write((acc, box_area(acc), count));
         }
         // SAFETY: right[j] was written above for every j in 1..m.
@@ -379,18 +375,16 @@ fn best_split_sparse(
         // Left to right: the candidates; the first smallest key wins.
         // (key, boundary, left area, left box, right rank)
         let mut axis_best: Option<(f32, usize, f32, BoxA, usize)> = None;
-        let (mut left, mut l_count, mut rest) = (BoxA::EMPTY, 0, bins.occupied);
+        let (mut left, mut l_count) = (BoxA::EMPTY, 0);
         for j in 1..m {
-            let k = rest.trailing_zeros();
-            rest &= rest - 1;
-            let (b, c) = bins.get(k);
-            left = left.union(b);
-            l_count += c;
+            let b = bin(j - 1);
+            left = left.union(b.bbox);
+            l_count += b.count;
             let (_, ar, nr) = right(j);
             let al = box_area(left);
             let key = al * l_count as f32 + ar * nr as f32;
             if axis_best.is_none_or(|b| key < b.0) {
-                axis_best = Some((key, k as usize + 1, al, left, j));
+                axis_best = Some((key, b.k as usize + 1, al, left, j));
             }
         }
         if let Some((_, s, al, l, j)) = axis_best {
@@ -435,15 +429,22 @@ impl Tally {
         (b.lo.extend(f32::INFINITY), -b.hi.extend(0.0))
     }
 
-    /// The bin, its count added to `bin`'s.
+    /// The box and count tallied.
     #[inline(always)]
-    fn into_bin(self, bin: &mut Bin) {
+    fn bin(self) -> (BoxA, u32) {
         let bbox = BoxA {
             lo: Vec3A::from_vec4(self.lo),
             hi: -Vec3A::from_vec4(self.neg_hi),
         };
+        (bbox, self.lo.w as u32)
+    }
+
+    /// The bin, its count added to `bin`'s.
+    #[inline(always)]
+    fn into_bin(self, bin: &mut Bin) {
+        let (bbox, count) = self.bin();
         bin.bbox = bin.bbox.union(bbox);
-        bin.count += self.lo.w as usize;
+        bin.count += count as usize;
     }
 }
 
