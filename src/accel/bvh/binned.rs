@@ -129,7 +129,11 @@ fn node(
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     if !opts.depth_forces_median(depth, n) && splittable.any() {
         best = if n <= SPARSE_NODE {
-            best_split_sparse(opts, idx, nbins, cbox.lo, scale, splittable, bbox.area())
+            let area = bbox.area();
+            match best_split_sparse(opts, idx, nbins, cbox.lo, scale, splittable, area) {
+                Small::Leaf => return leaf(bbox, offset, n),
+                Small::Split(best) => best,
+            }
         } else {
             let fill = |refs: &[Ref]| fill_bins(refs, nbins, cbox.lo, scale);
             // The top nodes, where the subtree parallelism has not started yet, bin in chunks
@@ -310,8 +314,17 @@ struct Occupied {
     k: u32,
 }
 
+/// What [`best_split_sparse`] found.
+enum Small {
+    /// A leaf beats every split ([`BuildOptions::leaf_beats_splits_over`]): none was swept.
+    Leaf,
+    /// The split [`best_split`] would find.
+    Split(Option<(f32, usize, usize, BoxA, BoxA)>),
+}
+
 /// [`best_split`] for a node of at most [`SPARSE_NODE`] references: the bins of each axis
-/// are filled as there, but only the occupied ones are swept. A boundary after an empty bin
+/// are filled as there, but only the occupied ones are swept; none at all where the
+/// references' own boxes show that a leaf beats every split. A boundary after an empty bin
 /// repeats the key before it and cannot win (strictly smaller keys only), so the candidates
 /// are the boundaries right after each occupied bin but the last. Keys, costs and tie order
 /// are computed as there, so the split is the same (checked by
@@ -326,14 +339,18 @@ fn best_split_sparse(
     scale: Vec3A,
     splittable: glam::BVec3A,
     area: f32,
-) -> Option<(f32, usize, usize, BoxA, BoxA)> {
+) -> Small {
     let n = refs.len();
     debug_assert!(n <= SPARSE_NODE);
+    // Whether a leaf is allowed at all.
+    let leaf_test = n <= opts.max_leaf;
     // Each axis's occupied bins in bin order, taken out of the thread's bins (emptying them).
     let mut occupied = [[const { MaybeUninit::<Occupied>::uninit() }; SPARSE_NODE]; 3];
     let mut m = [0usize; 3];
-    SPARSE_BINS.with_borrow_mut(|tallies| {
+    let leaf = SPARSE_BINS.with_borrow_mut(|tallies| {
         let mut used = [0u64; 3];
+        // The areas of the references' boxes, where a leaf is allowed.
+        let mut boxes_area = 0.0;
         for r in refs {
             let k = bin_of(r.centroid(), lo, scale, nbins - 1);
             let operands = Tally::operands(r);
@@ -341,19 +358,29 @@ fn best_split_sparse(
                 tallies[a][k[a]].add(operands);
                 used[a] |= 1 << k[a];
             }
+            if leaf_test {
+                boxes_area += box_area(r.bbox());
+            }
         }
+        let leaf = leaf_test && opts.leaf_beats_splits_over(n, boxes_area, area);
         for a in 0..3 {
             let mut rest = used[a];
             while rest != 0 {
                 let k = rest.trailing_zeros();
                 rest &= rest - 1;
                 let tally = std::mem::replace(&mut tallies[a][k as usize], Tally::EMPTY);
-                let (bbox, count) = tally.bin();
-                occupied[a][m[a]].write(Occupied { bbox, count, k });
-                m[a] += 1;
+                if !leaf {
+                    let (bbox, count) = tally.bin();
+                    occupied[a][m[a]].write(Occupied { bbox, count, k });
+                    m[a] += 1;
+                }
             }
         }
+        leaf
     });
+    if leaf {
+        return Small::Leaf;
+    }
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     for a in (0..3).filter(|&a| splittable.test(a)) {
         let m = m[a];
@@ -395,7 +422,7 @@ fn best_split_sparse(
             }
         }
     }
-    best
+    Small::Split(best)
 }
 
 /// A bin while it is filled: the box's low corner with the count in lane w, and its high
@@ -663,7 +690,18 @@ mod tests {
             let area = bbox.aabb().area();
             let bins = fill_bins(&refs, nbins, cbox.lo, scale);
             let binned = best_split(&opts, &bins, nbins, splittable, area, refs.len());
-            let small = best_split_sparse(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
+            // Without leaves (max_leaf 0) the sweep always runs.
+            let no_leaf = BuildOptions { max_leaf: 0, ..opts };
+            let Small::Split(small) =
+                best_split_sparse(&no_leaf, &refs, nbins, cbox.lo, scale, splittable, area)
+            else {
+                unreachable!("no leaf is allowed");
+            };
+            // Where the leaf test skips the sweep, the split found would make a leaf too.
+            let leaf_test = best_split_sparse(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
+            if matches!(leaf_test, Small::Leaf) {
+                prop_assert!(binned.is_none_or(|b| opts.prefers_leaf(refs.len(), b.0)), "leaf test");
+            }
             match (binned, small) {
                 (None, None) => {}
                 (Some(b), Some(s)) => {
@@ -678,6 +716,40 @@ mod tests {
                     prop_assert!(same_box(b.3, s.3) && same_box(b.4, s.4), "boxes");
                 }
                 (b, s) => prop_assert!(false, "binned {:?} vs small {:?}", b.map(|x| x.0), s.map(|x| x.0)),
+            }
+        }
+
+        /// Small nodes of boxes that overlap much: where the leaf test skips the sweep, the
+        /// best binned split would have made the node a leaf as well.
+        #[test]
+        fn the_leaf_test_makes_only_leaves_the_bins_make(
+            boxes in prop::collection::vec(
+                (prop::array::uniform3(0u8..32), prop::array::uniform3(0u8..64)),
+                3..=16,
+            ),
+            nbins in 2usize..=MAX_BINS,
+        ) {
+            let refs: Vec<Ref> = boxes
+                .iter()
+                .enumerate()
+                .map(|(i, (lo, size))| {
+                    let lo = Vec3::from(lo.map(|x| x as f32 / 16.0));
+                    let size = Vec3::from(size.map(|x| 2.0 + x as f32 / 16.0));
+                    Ref::new(&Aabb { lo, hi: lo + size }, i as u32)
+                })
+                .collect();
+            let (bbox, cbox) = bounds(&refs);
+            let ext = cbox.hi - cbox.lo;
+            let scale = nbins as f32 / ext;
+            let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
+            let scale = Vec3A::select(splittable, scale, Vec3A::ZERO);
+            let opts = BuildOptions::default();
+            let area = bbox.aabb().area();
+            let small = best_split_sparse(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
+            if matches!(small, Small::Leaf) {
+                let bins = fill_bins(&refs, nbins, cbox.lo, scale);
+                let binned = best_split(&opts, &bins, nbins, splittable, area, refs.len());
+                prop_assert!(binned.is_none_or(|b| opts.prefers_leaf(refs.len(), b.0)));
             }
         }
 
@@ -708,5 +780,36 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The leaf test fires for boxes that nearly fill their node, and not for small boxes
+    /// far apart (which a split separates).
+    #[test]
+    fn the_leaf_test_fires_where_the_boxes_fill_the_node() {
+        let small = |boxes: &[(f32, f32)]| {
+            let refs: Vec<Ref> = (boxes.iter().enumerate())
+                .map(|(i, &(lo, hi))| {
+                    let b = Aabb {
+                        lo: Vec3::new(lo, 0.0, 0.0),
+                        hi: Vec3::new(hi, 1.0, 1.0),
+                    };
+                    Ref::new(&b, i as u32)
+                })
+                .collect();
+            let (bbox, cbox) = bounds(&refs);
+            let scale = Vec3A::new(16.0 / (cbox.hi.x - cbox.lo.x), 0.0, 0.0);
+            let splittable = glam::BVec3A::new(true, false, false);
+            let area = bbox.aabb().area();
+            let opts = BuildOptions::default();
+            best_split_sparse(&opts, &refs, 16, cbox.lo, scale, splittable, area)
+        };
+        assert!(matches!(
+            small(&[(0.0, 10.0), (0.1, 10.1), (0.2, 10.2)]),
+            Small::Leaf
+        ));
+        assert!(matches!(
+            small(&[(0.0, 1.0), (5.0, 6.0), (10.0, 11.0)]),
+            Small::Split(Some(_))
+        ));
     }
 }

@@ -120,6 +120,23 @@ impl BuildOptions {
         n <= self.max_leaf.max(1) && n as f32 * self.t_obj <= 2.0 * self.t_cube
     }
 
+    /// Whether a leaf beats every split of a node of n primitives and surface area `area`
+    /// whose primitives' boxes have areas summing to `boxes_area`: each side's box holds
+    /// each of its primitives' boxes, so A_L·N_L + A_R·N_R is at least that sum and any
+    /// split costs at least 2·T_cube + sum/A·T_obj. The margin covers the rounding of the
+    /// sum and of the splits' costs (a few ulps; a computed area never shrinks as a box
+    /// grows, rounding being monotone), so where this holds the splits evaluated would make
+    /// the node the same leaf.
+    pub(crate) fn leaf_beats_splits_over(&self, n: usize, boxes_area: f32, area: f32) -> bool {
+        const MARGIN: f32 = 1.0 - 1e-4;
+        let bound = 2.0 * self.t_cube + boxes_area / area * self.t_obj;
+        n <= self.max_leaf.max(1)
+            && area > 0.0
+            && self.t_obj > 0.0
+            && self.t_cube >= 0.0
+            && n as f32 * self.t_obj <= bound * MARGIN
+    }
+
     /// Whether a node must take a balanced (median) split to keep every leaf within
     /// max_depth: a median split halves n, so depth + ⌈log2 n⌉ ≤ max_depth holds all the way
     /// down (it holds at the root for any n < 2^64 when max_depth = 64).
