@@ -102,6 +102,16 @@ fn bin_of(c: Vec3A, lo: Vec3A, scale: Vec3A, last: usize) -> [usize; 3] {
     std::array::from_fn(|a| bin_index(c[a], lo[a], scale[a], last))
 }
 
+/// The bins of a node's centroid bounds `cbox`: K/extent per axis (0 where the axis is not
+/// binned), and which axes are binned: not a flat one, nor one so thin that K/extent
+/// overflows.
+fn bin_scale(cbox: BoxA, nbins: usize) -> (Vec3A, glam::BVec3A) {
+    let ext = cbox.hi - cbox.lo;
+    let scale = nbins as f32 / ext;
+    let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
+    (Vec3A::select(splittable, scale, Vec3A::ZERO), splittable)
+}
+
 fn node(
     opts: &BuildOptions,
     top: &Top,
@@ -120,11 +130,7 @@ fn node(
         return leaf(bbox, offset, n);
     }
     let nbins = top.bins;
-    let ext = cbox.hi - cbox.lo;
-    let scale = nbins as f32 / ext;
-    // A flat axis, or one so thin that K/extent overflows, is not binned.
-    let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
-    let scale = Vec3A::select(splittable, scale, Vec3A::ZERO);
+    let (scale, splittable) = bin_scale(cbox, nbins);
     // (cost, axis, first bin on the right, left box, right box)
     let mut best: Option<(f32, usize, usize, BoxA, BoxA)> = None;
     if !opts.depth_forces_median(depth, n) && splittable.any() {
@@ -682,10 +688,7 @@ mod tests {
                 })
                 .collect();
             let (bbox, cbox) = bounds(&refs);
-            let ext = cbox.hi - cbox.lo;
-            let scale = nbins as f32 / ext;
-            let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
-            let scale = Vec3A::select(splittable, scale, Vec3A::ZERO);
+            let (scale, splittable) = bin_scale(cbox, nbins);
             let opts = BuildOptions::default();
             let area = bbox.aabb().area();
             let bins = fill_bins(&refs, nbins, cbox.lo, scale);
@@ -739,10 +742,7 @@ mod tests {
                 })
                 .collect();
             let (bbox, cbox) = bounds(&refs);
-            let ext = cbox.hi - cbox.lo;
-            let scale = nbins as f32 / ext;
-            let splittable = ext.cmpgt(Vec3A::ZERO) & scale.is_finite_mask();
-            let scale = Vec3A::select(splittable, scale, Vec3A::ZERO);
+            let (scale, splittable) = bin_scale(cbox, nbins);
             let opts = BuildOptions::default();
             let area = bbox.aabb().area();
             let small = best_split_sparse(&opts, &refs, nbins, cbox.lo, scale, splittable, area);
