@@ -105,6 +105,25 @@ pub trait Accel: Send + Sync {
         stats: &mut RayStats,
     ) -> Hit;
 
+    /// [`Accel::intersect_masked`], and where the structure keeps it the prune bound of the
+    /// hit returned: the bound its traversal cut boxes against after taking that hit
+    /// ([`TriHit::prune`](crate::geometry::TriHit::prune), the WGSL `taken_prune`), which a
+    /// two-level walk carries on to the next instance instead of testing the triangle
+    /// again. None where the structure does not keep it (and for a miss, whatever it is).
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
+        (
+            self.intersect_masked(ray, query, robustness, mask, stats),
+            None,
+        )
+    }
+
     /// Traces a batch of rays on all threads; returns the hits alone, without recording
     /// per-ray work (what [`Tracer`](crate::Tracer) runs when no statistics are asked for;
     /// rays go to the threads in chunks of [`RAY_CHUNK`], as the Embree row's do).

@@ -283,16 +283,22 @@ impl GpuTwoLevel {
             }
             let n: &DfsNode = &nodes[i];
             if n.is_leaf() {
-                let (first, count) = (n.a as usize, n.count() as usize);
-                let Some(leaf) = seen_entries.get_mut(first..first + count) else {
-                    return Err(format!("top leaf {i} refers to entries past the end"));
+                // The walks (two_level.wgsl and its twin) take one instance a leaf.
+                if n.count() != 1 {
+                    return Err(format!(
+                        "top leaf {i} holds {} instances, not one",
+                        n.count()
+                    ));
+                }
+                let Some(seen) = seen_entries.get_mut(n.a as usize) else {
+                    return Err(format!("top leaf {i} refers to an entry past the end"));
                 };
-                if leaf.iter().any(|&s| s) {
+                if *seen {
                     return Err(format!(
                         "top leaf {i} refers to an entry another leaf holds"
                     ));
                 }
-                leaf.fill(true);
+                *seen = true;
                 continue;
             }
             let second = n.a as usize;

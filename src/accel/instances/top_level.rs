@@ -27,7 +27,9 @@ pub(crate) struct TopEntry {
     pub tri_base: u32,
 }
 
-/// The top-level tree: dfs-sign nodes whose leaves refer to ranges of `entries`.
+/// The top-level tree: dfs-sign nodes whose leaves each refer to one of `entries` (built
+/// with `max_leaf` 1, which every builder honours): the walks (two_level.wgsl and its twin)
+/// enter a leaf's one instance without a loop over a range.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TopLevel {
     /// Depth-first nodes; empty when no instance has a triangle to hit.
@@ -121,5 +123,52 @@ impl TopLevel {
     /// Bounds of every placed instance (empty when none is).
     pub fn bounds(&self) -> Aabb {
         self.nodes.first().map_or(Aabb::EMPTY, DfsNode::bbox)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use glam::Vec3;
+
+    use super::*;
+    use crate::accel::bvh::Builder;
+    use crate::accel::instances::Instance;
+    use crate::geometry::Triangle;
+
+    /// The walks take one instance a leaf: every builder makes leaves of one, even over
+    /// instances placed on top of each other (which no split separates).
+    #[test]
+    fn every_builder_makes_leaves_of_one_instance() {
+        let mesh = Arc::new(Mesh::from_triangles(vec![Triangle::new(
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+        )]));
+        let instances: Vec<Instance> = (0..40)
+            .map(|i| Instance {
+                mesh: 0,
+                // Twenty pairs of coincident copies along x.
+                to_world: Affine::translation(Vec3::new((i / 2) as f32, 0.0, 0.0)),
+            })
+            .collect();
+        let set = InstanceSet::new(vec![mesh], instances).unwrap();
+        for builder in Builder::ALL {
+            for optimize in [false, true] {
+                let opts = BuildOptions {
+                    builder,
+                    optimize,
+                    ..BuildOptions::default()
+                };
+                let top = TopLevel::build(&set, &opts);
+                let leaves: Vec<&DfsNode> = top.nodes.iter().filter(|n| n.is_leaf()).collect();
+                assert_eq!(leaves.len(), 40, "{builder:?}");
+                assert!(leaves.iter().all(|n| n.count() == 1), "{builder:?}");
+                let mut seen: Vec<u32> = leaves.iter().map(|n| n.a).collect();
+                seen.sort_unstable();
+                assert_eq!(seen, (0..40).collect::<Vec<u32>>(), "{builder:?}");
+            }
+        }
     }
 }

@@ -153,7 +153,8 @@ impl<B: Accel + ?Sized> TwoLevel<B> {
 
 /// The prune bound a leaf step moves to when it takes triangle `tri`'s hit at `t` on `ray`
 /// (the same test again: [`TriHit::prune`](crate::geometry::TriHit::prune)), so the top
-/// level culls instances as a flattened traversal culls boxes after that hit.
+/// level culls instances as a flattened traversal culls boxes after that hit: for bottom
+/// levels that do not report it ([`Accel::intersect_pruned`]; the BVH layouts do).
 fn prune_after(tri: &Triangle, ray: &Ray, robustness: &Robustness, t: f32) -> f32 {
     let h = match (robustness.precision, robustness.triangle_test) {
         (Precision::F64, _) => triangle_hit_f64(tri, ray, ray.tmin, t),
@@ -217,37 +218,34 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
                     idx = near;
                     continue;
                 }
-                let first = node.a as usize;
-                for e in &self.top.entries[first..first + node.count() as usize] {
-                    let mut local = e.to_object.ray(ray);
-                    if best.is_hit() {
-                        local.tmax = prune;
-                    }
-                    // The mask is asked of the instance's triangles (WGSL: bottom_prim_base).
-                    let shifted = mask.map(|mask| Shifted {
-                        mask,
-                        base: e.first_prim,
-                    });
-                    let h = self.bottoms[e.mesh as usize].intersect_masked(
-                        &local,
-                        query,
-                        robustness,
-                        shifted.as_ref().map(|s| s as &dyn HitMask),
-                        stats,
-                    );
-                    if !h.is_hit() {
-                        continue;
-                    }
-                    let prim = e.first_prim + h.prim;
-                    if !Hit::beats(h.t, prim, best.t, best.prim) {
-                        continue;
-                    }
+                // A leaf holds one instance (TopLevel::build).
+                let e = &self.top.entries[node.a as usize];
+                let mut local = e.to_object.ray(ray);
+                if best.is_hit() {
+                    local.tmax = prune;
+                }
+                // The mask is asked of the instance's triangles (WGSL: bottom_prim_base).
+                let shifted = mask.map(|mask| Shifted {
+                    mask,
+                    base: e.first_prim,
+                });
+                let (h, h_prune) = self.bottoms[e.mesh as usize].intersect_pruned(
+                    &local,
+                    query,
+                    robustness,
+                    shifted.as_ref().map(|s| s as &dyn HitMask),
+                    stats,
+                );
+                let prim = e.first_prim.wrapping_add(h.prim);
+                if h.is_hit() && Hit::beats(h.t, prim, best.t, best.prim) {
                     best = Hit { prim, ..h };
                     if query == Query::Any {
                         return best;
                     }
-                    let tri = &self.meshes[e.mesh as usize].triangles[h.prim as usize];
-                    prune = prune_after(tri, &local, robustness, h.t);
+                    prune = h_prune.unwrap_or_else(|| {
+                        let tri = &self.meshes[e.mesh as usize].triangles[h.prim as usize];
+                        prune_after(tri, &local, robustness, h.t)
+                    });
                 }
             }
             if sp == 0 {
@@ -257,5 +255,70 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
             idx = stack[sp] as usize;
         }
         best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::accel::bvh::layouts::{flatten, LayoutKind};
+    use crate::accel::bvh::{build, BuildOptions};
+    use crate::geometry::{Robustness, TriangleTest};
+
+    /// Every BVH layout hands up the prune bound of the hit it returns, the one the triangle
+    /// test gives again (what the walk computes for structures that do not hand it up).
+    #[test]
+    fn every_layout_reports_the_prune_bound_of_its_hit() {
+        // A soup of small triangles in the unit cube, from a fixed linear congruential stream.
+        let mut state = 12345u32;
+        let mut next = move || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let mut point = || Vec3::new(next(), next(), next());
+        let tris: Vec<Triangle> = (0..400)
+            .map(|_| {
+                let c = point();
+                Triangle::new(c, c + 0.1 * point(), c + 0.1 * point())
+            })
+            .collect();
+        let mesh = Mesh::from_triangles(tris);
+        let bvh = build(&mesh, &BuildOptions::default());
+        let rays: Vec<Ray> = (0..2000)
+            .map(|_| {
+                let o = 3.0 * point() - Vec3::splat(1.0);
+                Ray::new(o, point() - o, 0.0, f32::INFINITY)
+            })
+            .collect();
+        let tests = [TriangleTest::Watertight, TriangleTest::MollerTrumbore];
+        let robs = (tests.map(|triangle_test| Robustness {
+            triangle_test,
+            ..Robustness::default()
+        }))
+        .into_iter()
+        .chain([Robustness {
+            precision: Precision::F64,
+            ..Robustness::default()
+        }]);
+        for rob in robs {
+            for &kind in LayoutKind::ALL {
+                let layout = flatten(kind, &bvh, &mesh);
+                let mut hits = 0;
+                for ray in &rays {
+                    let mut stats = RayStats::default();
+                    let (h, prune) =
+                        layout.intersect_pruned(ray, Query::Closest, &rob, None, &mut stats);
+                    if !h.is_hit() {
+                        continue;
+                    }
+                    hits += 1;
+                    let again = prune_after(&mesh.triangles[h.prim as usize], ray, &rob, h.t);
+                    assert_eq!(prune.map(f32::to_bits), Some(again.to_bits()), "{kind:?}");
+                }
+                assert!(hits > 100, "{kind:?}: {hits} hits");
+            }
+        }
     }
 }

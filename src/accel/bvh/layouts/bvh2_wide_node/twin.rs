@@ -28,8 +28,22 @@ impl Accel for Bvh2WideNode {
         mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
+        self.intersect_pruned(ray, query, robustness, mask, stats).0
+    }
+
+    #[inline]
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
+        let (hit, prune) =
+            with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats));
+        (hit, Some(prune))
     }
 }
 
@@ -43,13 +57,16 @@ impl Bvh2WideNode {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         let mut best = Hit::miss(ray.tmax);
+        // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
+        // exactly the best t in a later box is still tested: equal t → smaller index.
+        let mut prune = prune_bound(best.t);
         let Some(head) = self.nodes.first() else {
-            return best;
+            return (best, prune);
         };
         if !ray.is_valid() {
-            return best;
+            return (best, prune);
         }
         let widen = robustness.far_widen();
         let leaf = LeafRay::new(ray, robustness, mask);
@@ -77,15 +94,12 @@ impl Bvh2WideNode {
                 )
             }
         };
-        // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
-        // exactly the best t in a later box is still tested: equal t → smaller index.
-        let mut prune = prune_bound(best.t);
         // The root box, once, from the header.
         stats.nodes += 1;
         let (enter, exit) = box_interval(head.lo0, head.hi0, prune);
         let enters = enter <= exit; // false for NaN, as in the WGSL
         if !enters {
-            return best;
+            return (best, prune);
         }
         let mut stack: [ChildRef; MAX_DEPTH] = [(0, 0); MAX_DEPTH];
         let mut sp = 0usize;
@@ -96,7 +110,7 @@ impl Bvh2WideNode {
                 let count = (cur.1 >> COUNT_SHIFT) as usize;
                 let tris = &self.tris[first..first + count];
                 if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
-                    return best;
+                    return (best, prune);
                 }
             } else {
                 let node = &self.nodes[cur.0 as usize];
@@ -132,6 +146,6 @@ impl Bvh2WideNode {
             cur = stack[sp];
         }
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
-        best
+        (best, prune)
     }
 }

@@ -41,15 +41,29 @@ impl Accel for Cwbvh {
         mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
+        self.intersect_pruned(ray, query, robustness, mask, stats).0
+    }
+
+    #[inline]
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
         // The same source compiled for AVX2 where the CPU has it: the eight slots in one
         // vector (identical results: no fused operations either way).
         #[cfg(target_arch = "x86_64")]
         if has_avx2() {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
+            let (hit, prune) = unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
+            return (hit, Some(prune));
         }
-        self.intersect_with::<false>(ray, query, robustness, mask, stats)
+        let (hit, prune) = self.intersect_with::<false>(ray, query, robustness, mask, stats);
+        (hit, Some(prune))
     }
 
     fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
@@ -224,7 +238,7 @@ impl RayBox {
 }
 
 impl Cwbvh {
-    /// [`Accel::intersect`] with the node test in SSE (`AVX2` false: the target's
+    /// [`Accel::intersect_pruned`] with the node test in SSE (`AVX2` false: the target's
     /// baseline) or AVX2 lanes. `AVX2` true is for `intersect_avx2` alone (and, in
     /// `trace_chunk_with`, `trace_chunk_avx2`): the AVX2 code it reaches needs the CPU to
     /// have AVX2.
@@ -236,7 +250,7 @@ impl Cwbvh {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
         with_leaf_test!(
             robustness,
@@ -244,7 +258,7 @@ impl Cwbvh {
         )
     }
 
-    /// [`Accel::intersect`] compiled with AVX2 (and the bit instructions every AVX2 CPU
+    /// [`Accel::intersect_pruned`] compiled with AVX2 (and the bit instructions every AVX2 CPU
     /// has); the CPU must have them.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
@@ -255,7 +269,7 @@ impl Cwbvh {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         self.intersect_with::<true>(ray, query, robustness, mask, stats)
     }
 
@@ -297,12 +311,12 @@ impl Cwbvh {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         let mut w = Walk::<TEST, AVX2>::idle(self, query, robustness, mask);
         if w.start(ray) {
             while !w.step(stats) {}
         }
-        w.best
+        (w.best, w.prune)
     }
 
     /// [`Accel::trace_hits`] on one chunk of rays, [`Cwbvh::walk`] for a few at once.
@@ -526,14 +540,18 @@ mod tests {
                 let mut hits = 0;
                 for (i, r) in rays.iter().enumerate() {
                     let mut s = RayStats::default();
-                    let h = cw.intersect_with::<false>(r, query, rob, None, &mut s);
+                    let (h, prune) = cw.intersect_with::<false>(r, query, rob, None, &mut s);
                     assert_eq!(b(&h), b(&chunk[i]), "ray {i}, two at a time: {r:?}");
                     #[cfg(target_arch = "x86_64")]
                     if avx2 {
                         let mut s2 = RayStats::default();
                         // SAFETY: as above.
-                        let h2 = unsafe { cw.intersect_avx2(r, query, rob, None, &mut s2) };
+                        let (h2, prune2) =
+                            unsafe { cw.intersect_avx2(r, query, rob, None, &mut s2) };
                         assert_eq!(b(&h), b(&h2), "ray {i}, AVX2: {r:?}");
+                        if h.prim != MISS {
+                            assert_eq!(prune.to_bits(), prune2.to_bits(), "ray {i}, AVX2 prune");
+                        }
                         assert_eq!(s, s2, "ray {i}, AVX2 work: {r:?}");
                         assert_eq!(b(&h), b(&chunk_avx2[i]), "ray {i}, AVX2 two at a time");
                     }

@@ -23,8 +23,22 @@ impl Accel for DfsDistance {
         mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
+        self.intersect_pruned(ray, query, robustness, mask, stats).0
+    }
+
+    #[inline]
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
+        let (hit, prune) =
+            with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats));
+        (hit, Some(prune))
     }
 }
 
@@ -38,24 +52,24 @@ impl DfsDistance {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         let mut best = Hit::miss(ray.tmax);
+        let mut prune = prune_bound(best.t);
         if !ray.is_valid() {
-            return best;
+            return (best, prune);
         }
         let nodes = self.nodes();
         let boxes = DfsNodeRay::new(ray, robustness);
         let leaf = LeafRay::new(ray, robustness, mask);
         // Node i's box for the ray, one node load (WGSL dfs_distance_load + slab_interval).
         let interval = |n: &DfsNode, prune: f32| boxes.interval(n, prune);
-        let mut prune = prune_bound(best.t);
         let mut node = &nodes[0];
         stats.nodes += 1;
         let (enter, exit) = interval(node, prune);
         // Written as the WGSL does: NaN bounds are a miss.
         let enters = enter <= exit;
         if !enters {
-            return best;
+            return (best, prune);
         }
         let mut stack = [(0u32, 0f32); MAX_DEPTH];
         let mut sp = 0usize;
@@ -91,13 +105,13 @@ impl DfsDistance {
                 let first = node.a as usize;
                 let tris = &self.flat.tris[first..first + node.count() as usize];
                 if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
-                    return best;
+                    return (best, prune);
                 }
             }
             // Pop the next child whose box the ray enters before the best hit (with slack).
             loop {
                 if sp == 0 {
-                    return best;
+                    return (best, prune);
                 }
                 sp -= 1;
                 let (i, enter) = stack[sp];

@@ -26,8 +26,22 @@ impl Accel for DfsSign {
         mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
+        self.intersect_pruned(ray, query, robustness, mask, stats).0
+    }
+
+    #[inline]
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
+        let (hit, prune) =
+            with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats));
+        (hit, Some(prune))
     }
 }
 
@@ -41,16 +55,16 @@ impl DfsSign {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         let mut best = Hit::miss(ray.tmax);
-        if !ray.is_valid() {
-            return best;
-        }
-        let boxes = DfsNodeRay::new(ray, robustness);
-        let leaf = LeafRay::new(ray, robustness, mask);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
+        if !ray.is_valid() {
+            return (best, prune);
+        }
+        let boxes = DfsNodeRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut idx = 0usize;
@@ -74,7 +88,7 @@ impl DfsSign {
                 let first = node.a as usize;
                 let tris = &self.tris[first..first + node.count() as usize];
                 if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
-                    return best;
+                    return (best, prune);
                 }
             }
             if sp == 0 {
@@ -84,6 +98,6 @@ impl DfsSign {
             idx = stack[sp] as usize;
         }
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
-        best
+        (best, prune)
     }
 }

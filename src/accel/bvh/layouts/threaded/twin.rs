@@ -27,8 +27,22 @@ impl Accel for Threaded {
         mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
+        self.intersect_pruned(ray, query, robustness, mask, stats).0
+    }
+
+    #[inline]
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
-        with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats))
+        let (hit, prune) =
+            with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats));
+        (hit, Some(prune))
     }
 }
 
@@ -42,16 +56,16 @@ impl Threaded {
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         let mut best = Hit::miss(ray.tmax);
-        if !ray.is_valid() {
-            return best;
-        }
-        let boxes = DfsNodeRay::new(ray, robustness);
-        let leaf = LeafRay::new(ray, robustness, mask);
         // Boxes are cut against the best t plus a few ulps (prune_bound), so a triangle at
         // exactly the best t in a later box is still tested: equal t → smaller index.
         let mut prune = prune_bound(best.t);
+        if !ray.is_valid() {
+            return (best, prune);
+        }
+        let boxes = DfsNodeRay::new(ray, robustness);
+        let leaf = LeafRay::new(ray, robustness, mask);
         let n = self.copy_len();
         let mut idx = octant(ray.dir) * n;
         let end = idx + n;
@@ -70,7 +84,7 @@ impl Threaded {
                         &mut prune,
                         stats,
                     ) {
-                        return best;
+                        return (best, prune);
                     }
                 }
                 idx += 1;
@@ -82,6 +96,6 @@ impl Threaded {
             }
         }
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
-        best
+        (best, prune)
     }
 }

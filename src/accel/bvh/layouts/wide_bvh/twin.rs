@@ -44,6 +44,18 @@ where
         mask: Mask<'_>,
         stats: &mut RayStats,
     ) -> Hit {
+        self.intersect_pruned(ray, query, robustness, mask, stats).0
+    }
+
+    #[inline]
+    fn intersect_pruned(
+        &self,
+        ray: &Ray,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'_>,
+        stats: &mut RayStats,
+    ) -> (Hit, Option<f32>) {
         // The walk compiled for AVX2 where the CPU has it: bvh8's eight slots tested in one
         // vector (0.72× → 0.82× of Embree on the bunny's primary rays); bvh4's, the same
         // source as for baseline x86-64, 0.74× → 0.77× (what the walk generic over the width
@@ -51,9 +63,11 @@ where
         #[cfg(target_arch = "x86_64")]
         if crate::accel::bvh::layouts::has_avx2() {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
+            let (hit, prune) = unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
+            return (hit, Some(prune));
         }
-        self.intersect_with::<false>(ray, query, robustness, mask, stats)
+        let (hit, prune) = self.intersect_with::<false>(ray, query, robustness, mask, stats);
+        (hit, Some(prune))
     }
 }
 
@@ -61,7 +75,7 @@ impl<const W: usize> WideBvh<W>
 where
     WideNode<W>: bytemuck::Pod,
 {
-    /// [`Accel::intersect`] compiled with AVX2 (and the bit instructions every AVX2 CPU
+    /// [`Accel::intersect_pruned`] compiled with AVX2 (and the bit instructions every AVX2 CPU
     /// has); the CPU must have them.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
@@ -72,11 +86,11 @@ where
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         self.intersect_with::<true>(ray, query, robustness, mask, stats)
     }
 
-    /// [`Accel::intersect`] with the slab test in SSE or (`AVX2`, for `intersect_avx2`
+    /// [`Accel::intersect_pruned`] with the slab test in SSE or (`AVX2`, for `intersect_avx2`
     /// alone) AVX2 lanes.
     #[inline(always)]
     fn intersect_with<const AVX2: bool>(
@@ -86,7 +100,7 @@ where
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         // One specialised loop per triangle test (the choice is not re-made per triangle).
         with_leaf_test!(
             robustness,
@@ -150,9 +164,9 @@ where
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         if !ray.is_valid() {
-            return Hit::miss(ray.tmax);
+            return (Hit::miss(ray.tmax), f32::NAN);
         }
         // The shared slab test: the scalar one (parallel-axis rule) for a ray parallel to
         // an axis, one slot at a time; else four slots at a time in SIMD lanes, which equal
@@ -177,7 +191,7 @@ where
         robustness: &Robustness,
         mask: Mask<'_>,
         stats: &mut RayStats,
-    ) -> Hit {
+    ) -> (Hit, f32) {
         let mut best = Hit::miss(ray.tmax);
         let widen = robustness.far_widen();
         let leaf = LeafRay::new(ray, robustness, mask);
@@ -271,7 +285,7 @@ where
                 let first = child as usize;
                 let tris = &self.tris[first..first + kind as usize];
                 if leaf.test_leaf::<TEST>(tris, query == Query::Any, &mut best, &mut prune, stats) {
-                    return best;
+                    return (best, prune);
                 }
             }
             if !descended {
@@ -294,7 +308,7 @@ where
             }
         }
         debug_assert!(best.prim == MISS || best.t >= ray.tmin);
-        best
+        (best, prune)
     }
 }
 
