@@ -225,12 +225,15 @@ fn empty_meshes_keep_their_numbers_and_bad_instances_are_refused() {
 
 /// The top level's WGSL against its CPU twin, bit for bit (hits and work counted, both BVH
 /// memories, closest and any hit), with every layout as the bottom level: moved, rotated,
-/// scaled and mirrored instances of two meshes, and duplicates at the identity (exact ties
-/// across instances).
+/// scaled and mirrored instances of three meshes, and duplicates at the identity (exact ties
+/// across instances). Mesh 0, one triangle, has the shallowest tree: the kernel's stack must
+/// hold the walk of the deepest bottom level, not of the first.
 #[test]
 fn gpu_two_level_equals_its_cpu_twin_with_every_layout() {
     let mut rng = Rng::new(3703);
+    let one = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
     let meshes = vec![
+        Arc::new(Mesh::from_triangles(vec![one])),
         Arc::new(soup(&mut rng, 300, 0.25)),
         Arc::new(soup(&mut rng, 200, 0.4)),
     ];
@@ -248,7 +251,7 @@ fn gpu_two_level_equals_its_cpu_twin_with_every_layout() {
             Vec3::new(-0.9, 0.8, 0.2),
         )),
     ];
-    let instances = [(0, 0), (1, 1), (0, 2), (1, 3), (1, 0)]
+    let instances = [(0, 3), (1, 0), (2, 1), (1, 2), (2, 3), (2, 0)]
         .map(|(m, a)| placed(m, maps[a]))
         .to_vec();
     let set = InstanceSet::new(meshes, instances).unwrap();

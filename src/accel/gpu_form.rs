@@ -41,6 +41,14 @@ pub trait GpuForm: Accel {
     /// `traverse(r: Ray, any_hit: bool) -> Hit`.
     fn wgsl(&self) -> String;
 
+    /// The depth of tree its WGSL's traversal stack is sized for ([`GpuForm::wgsl`] and
+    /// [`GpuForm::subgroup_wgsl`] hold the walk of this tree and of any shallower one in the
+    /// same layout); 0 where the stack does not depend on the tree. A two-level form takes
+    /// the WGSL of its deepest bottom level.
+    fn stack_depth(&self) -> usize {
+        0
+    }
+
     /// Its subgroup-coherent WGSL traversal ([`TraversalMode::Subgroup`]), if it has one:
     /// like [`GpuForm::wgsl`], `traverse(r: Ray, any_hit: bool) -> Hit`, but called by every
     /// invocation of a subgroup together (those past the end of the rays with an invalid

@@ -32,7 +32,7 @@ pub struct MeshWords<'a> {
 pub struct GpuTwoLevel {
     twin: TwoLevel<dyn GpuForm>,
     layout: LayoutKind,
-    /// The bottom layout's traversal.
+    /// The bottom layout's traversal, generated for its deepest bottom level.
     bottom_wgsl: String,
     /// The GPU arrays, laid out on first use (a CPU device never asks): the bottom levels'
     /// nodes, then the top level's nodes, then its entries; the bottom levels' triangles.
@@ -86,7 +86,9 @@ impl GpuTwoLevel {
         mut twin: TwoLevel<dyn GpuForm>,
         trees: Vec<Arc<bvh::Bvh>>,
     ) -> crate::Result<GpuTwoLevel> {
-        let Some(bottom_wgsl) = twin.bottoms.first().map(|b| b.wgsl()) else {
+        // The deepest bottom level's traversal, whose stack holds every bottom level's walk.
+        let deepest = twin.bottoms.iter().max_by_key(|b| b.stack_depth());
+        let Some(bottom_wgsl) = deepest.map(|b| b.wgsl()) else {
             return Err(crate::Error::Usage(
                 "an instanced scene needs at least one mesh".into(),
             ));

@@ -408,6 +408,11 @@ impl super::GpuForm for Cwbvh {
         GpuArrays::of(&self.nodes, &self.tris)
     }
 
+    /// `CWBVH_SPILL_SIZE` is sized to this tree's deepest node ([`Cwbvh::spill_size`]).
+    fn stack_depth(&self) -> usize {
+        self.deepest
+    }
+
     fn wgsl(&self) -> String {
         format!("{}{}", self.node_wgsl(), include_str!("cwbvh.wgsl"))
     }

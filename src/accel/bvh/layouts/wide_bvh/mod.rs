@@ -233,6 +233,11 @@ where
         GpuArrays::of(&self.nodes, &self.tris)
     }
 
+    /// `WIDE_STACK_SIZE` holds W − 1 entries for each level of this tree.
+    fn stack_depth(&self) -> usize {
+        self.depth()
+    }
+
     fn wgsl(&self) -> String {
         format!(
             "const WIDE_INNER: u32 = {INNER}u;\n\
