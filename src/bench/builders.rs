@@ -23,7 +23,7 @@ use crate::mesh::Mesh;
 use crate::trace::{defaults, Tracer, TracerOptions};
 
 use super::markdown::{dash, Table};
-use super::memory::{fresh_memory, peak_during};
+use super::memory::{fresh_memory, peak_during, FRESH_MEMORY_NOTE};
 use super::rank::spearman;
 use super::rays::{random_rays, view_ray_sets, RaySet, BENCH_SEED};
 use super::timing::{median, time_tracer};
@@ -645,8 +645,9 @@ impl BenchReport for Report {
                 layout it traces, against Embree 3's medium-quality scene build (its BVH is \
                 ready to trace) of the same triangles on the same threads, timed right after \
                 each build; the medians (Embree's over all its builds on the mesh). Both start \
-                on fresh memory: lancer's allocator hands freed memory back at once while it \
-                times, as a command run once would find it; Embree allocates its own anew.\n";
+                on fresh memory: ";
+        out += FRESH_MEMORY_NOTE;
+        out += "\n";
         out += "ρ: Spearman's rank correlation over the builders between the predictor and the \
                 time per ray (1 = it orders the trees exactly as their speed does). SAH and \
                 EPO are known before tracing; measured work (nodes + triangles per ray) is \

@@ -24,7 +24,7 @@ use crate::mesh::Mesh;
 use crate::trace::{Tracer, TracerOptions};
 
 use super::markdown::Table;
-use super::memory::fresh_memory;
+use super::memory::{fresh_memory, FRESH_MEMORY_NOTE};
 use super::rays::primary_and_shadow;
 use super::timing::{median, TimeRun};
 use super::{BenchReport, Progress, Ticker};
@@ -534,9 +534,10 @@ impl BenchReport for Report {
             ]);
         }
         out += &sizes.text();
-        out += "\nbuild ms: one build of each variant (tree and layout; Embree's scene commits), \
-                on fresh memory as a command run once finds it: lancer's allocator hands freed \
-                memory back at once while it times, and Embree allocates its own anew.\n\n";
+        out += &format!(
+            "\nbuild ms: one build of each variant (tree and layout; Embree's scene commits), \
+             on fresh memory: {FRESH_MEMORY_NOTE}\n\n"
+        );
         let mut runs = Table::new(&[
             "variant",
             "rays",

@@ -109,6 +109,10 @@ pub fn set_fresh_memory_switch(switch: fn(bool)) {
     let _ = FRESH_MEMORY_SWITCH.set(switch);
 }
 
+/// What the footnotes of benches that time builds in [`fresh_memory`] say of it.
+pub const FRESH_MEMORY_NOTE: &str = "lancer's allocator hands freed memory back at once while \
+    it times, as a command run once would find it; Embree allocates its own anew.";
+
 /// Runs `work` with the allocator handing freed memory back to the system at once (where a
 /// switch is set), so that what `work` allocates is faulted in fresh, as in a command run
 /// once. Timed builds repeated in one process would otherwise reuse the pages the build

@@ -408,7 +408,7 @@ impl super::GpuForm for Cwbvh {
         GpuArrays::of(&self.nodes, &self.tris)
     }
 
-    /// `CWBVH_SPILL_SIZE` is sized to this tree's deepest node ([`Cwbvh::spill_size`]).
+    /// `CWBVH_SPILL_SIZE` is sized to this tree's deepest node (see `spill_size`).
     fn stack_depth(&self) -> usize {
         self.deepest
     }
