@@ -25,10 +25,13 @@
 //!    child order, same stack discipline, same tests in the same operation order, the
 //!    mask of `intersect_masked` handed to the leaf step (`LeafRay::new`) — so the
 //!    GPU and the twin agree bit for bit (the equivalence tests in `tests/gpu_vs_cpu.rs`
-//!    run over every entry of [`LayoutKind::ALL`]).
-//! 4. `impl GpuForm`: name, arrays, WGSL source, overrides, validation (its structural
-//!    checks, then `validate_boxes::check_boxes` on its `BoxTree`: the node and slot
-//!    walk every layout's geometric check shares); and
+//!    run over every entry of [`LayoutKind::ALL`]). Its `intersect_pruned` returns the
+//!    prune bound of the hit it returns with it (what the WGSL leaves in `taken_prune`), so
+//!    that a two-level walk over it need not test the triangle again.
+//! 4. `impl GpuForm`: name, arrays, WGSL source (and `stack_depth`, where the source
+//!    sizes its stack to the tree: a two-level scene takes its deepest mesh's source),
+//!    overrides, validation (its structural checks, then `validate_boxes::check_boxes`
+//!    on its `BoxTree`: the node and slot walk every layout's geometric check shares); and
 //!    `from_arrays(GpuArrays) -> Result<Self, String>`, which rebuilds it from its arrays
 //!    (with `records`) and runs `validate` (a [BVH file](bvh_file) is read through it).
 //! 5. Register it: a variant of [`LayoutKind`] and its arms in [`flatten`] and
