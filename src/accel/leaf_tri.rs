@@ -103,6 +103,44 @@ macro_rules! with_leaf_test {
 }
 pub(crate) use with_leaf_test;
 
+/// The two tracing methods of a BVH layout's [`Accel`](crate::accel::Accel) impl whose
+/// `walk::<TEST>(ray, query, robustness, mask, stats) -> (Hit, f32)` returns the hit and its
+/// prune bound: `intersect_pruned` runs the walk with the triangle test `robustness` asks
+/// for (one specialised loop per test, the choice not re-made per triangle), and
+/// `intersect_masked` keeps its hit.
+macro_rules! walk_accel_methods {
+    () => {
+        #[inline]
+        fn intersect_masked(
+            &self,
+            ray: &$crate::geometry::Ray,
+            query: $crate::accel::Query,
+            robustness: &$crate::geometry::Robustness,
+            mask: $crate::accel::Mask<'_>,
+            stats: &mut $crate::accel::RayStats,
+        ) -> $crate::geometry::Hit {
+            self.intersect_pruned(ray, query, robustness, mask, stats).0
+        }
+
+        #[inline]
+        fn intersect_pruned(
+            &self,
+            ray: &$crate::geometry::Ray,
+            query: $crate::accel::Query,
+            robustness: &$crate::geometry::Robustness,
+            mask: $crate::accel::Mask<'_>,
+            stats: &mut $crate::accel::RayStats,
+        ) -> ($crate::geometry::Hit, Option<f32>) {
+            let (hit, prune) = $crate::accel::leaf_tri::with_leaf_test!(
+                robustness,
+                self.walk(ray, query, robustness, mask, stats)
+            );
+            (hit, Some(prune))
+        }
+    };
+}
+pub(crate) use walk_accel_methods;
+
 /// One ray's fixed state in a twin's leaf step: the triangle test's ray set-up and whether
 /// near hits are rejected (see [`Robustness::rejects_near_hits`]).
 pub(crate) struct LeafRay<'a> {

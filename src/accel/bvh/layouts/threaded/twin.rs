@@ -5,7 +5,7 @@
 
 use super::{octant, Threaded};
 use crate::accel::bvh::layouts::dfs_sign::DfsNodeRay;
-use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
+use crate::accel::leaf_tri::{walk_accel_methods, LeafRay};
 use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, MISS};
 
@@ -18,32 +18,7 @@ impl Accel for Threaded {
         }
     }
 
-    #[inline]
-    fn intersect_masked(
-        &self,
-        ray: &Ray,
-        query: Query,
-        robustness: &Robustness,
-        mask: Mask<'_>,
-        stats: &mut RayStats,
-    ) -> Hit {
-        self.intersect_pruned(ray, query, robustness, mask, stats).0
-    }
-
-    #[inline]
-    fn intersect_pruned(
-        &self,
-        ray: &Ray,
-        query: Query,
-        robustness: &Robustness,
-        mask: Mask<'_>,
-        stats: &mut RayStats,
-    ) -> (Hit, Option<f32>) {
-        // One specialised loop per triangle test (the choice is not re-made per triangle).
-        let (hit, prune) =
-            with_leaf_test!(robustness, self.walk(ray, query, robustness, mask, stats));
-        (hit, Some(prune))
-    }
+    walk_accel_methods!();
 }
 
 impl Threaded {
