@@ -1,6 +1,7 @@
 //! [`TwoLevel`]: the top level over instances composed with a bottom-level structure per
 //! mesh, traced on the CPU.
 
+use std::mem::MaybeUninit;
 use std::sync::Arc;
 
 use super::top_level::TopLevel;
@@ -199,7 +200,9 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
         }
         let boxes = DfsNodeRay::new(ray, robustness);
         let mut prune = prune_bound(best.t);
-        let mut stack = [0u32; MAX_DEPTH];
+        // Left uninitialised: zeroing its 64 entries for every ray cost ~5% of a trace
+        // through one instance of the bunny (one thread). Only pushed entries are read.
+        let mut stack = [MaybeUninit::<u32>::uninit(); MAX_DEPTH];
         let mut sp = 0usize;
         let mut idx = 0usize;
         loop {
@@ -213,7 +216,7 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
                     } else {
                         (first, second)
                     };
-                    stack[sp] = far as u32;
+                    stack[sp] = MaybeUninit::new(far as u32);
                     sp += 1;
                     idx = near;
                     continue;
@@ -252,7 +255,8 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
                 break;
             }
             sp -= 1;
-            idx = stack[sp] as usize;
+            // SAFETY: every entry below the old `sp` was written by a push above.
+            idx = unsafe { stack[sp].assume_init() } as usize;
         }
         best
     }
