@@ -103,13 +103,15 @@ macro_rules! with_leaf_test {
 }
 pub(crate) use with_leaf_test;
 
-/// The two tracing methods of a BVH layout's [`Accel`](crate::accel::Accel) impl whose
-/// `walk::<TEST>(ray, query, robustness, mask, stats) -> (Hit, f32)` returns the hit and its
-/// prune bound: `intersect_pruned` runs the walk with the triangle test `robustness` asks
-/// for (one specialised loop per test, the choice not re-made per triangle), and
-/// `intersect_masked` keeps its hit.
+/// The two tracing methods of a BVH layout's [`Accel`](crate::accel::Accel) impl:
+/// `intersect_pruned`, the hit and its prune bound, and `intersect_masked`, which keeps the
+/// hit. `walk_accel_methods!()` runs the layout's
+/// `walk::<TEST>(ray, query, robustness, mask, stats) -> (Hit, f32)` with the triangle test
+/// `robustness` asks for (one specialised loop per test, the choice not re-made per
+/// triangle); `walk_accel_methods!(avx2)` runs its `intersect_avx2` where the CPU has AVX2,
+/// else its `intersect_with::<false>` (both returning `(Hit, f32)`).
 macro_rules! walk_accel_methods {
-    () => {
+    (@methods |$s:ident, $ray:ident, $query:ident, $rob:ident, $mask:ident, $stats:ident| $pruned:block) => {
         #[inline]
         fn intersect_masked(
             &self,
@@ -124,19 +126,39 @@ macro_rules! walk_accel_methods {
 
         #[inline]
         fn intersect_pruned(
-            &self,
-            ray: &$crate::geometry::Ray,
-            query: $crate::accel::Query,
-            robustness: &$crate::geometry::Robustness,
-            mask: $crate::accel::Mask<'_>,
-            stats: &mut $crate::accel::RayStats,
+            &$s,
+            $ray: &$crate::geometry::Ray,
+            $query: $crate::accel::Query,
+            $rob: &$crate::geometry::Robustness,
+            $mask: $crate::accel::Mask<'_>,
+            $stats: &mut $crate::accel::RayStats,
         ) -> ($crate::geometry::Hit, Option<f32>) {
-            let (hit, prune) = $crate::accel::leaf_tri::with_leaf_test!(
-                robustness,
-                self.walk(ray, query, robustness, mask, stats)
-            );
+            let (hit, prune) = $pruned;
             (hit, Some(prune))
         }
+    };
+    () => {
+        $crate::accel::leaf_tri::walk_accel_methods!(@methods
+            |self, ray, query, robustness, mask, stats| {
+                $crate::accel::leaf_tri::with_leaf_test!(
+                    robustness,
+                    self.walk(ray, query, robustness, mask, stats)
+                )
+            });
+    };
+    (avx2) => {
+        $crate::accel::leaf_tri::walk_accel_methods!(@methods
+            |self, ray, query, robustness, mask, stats| {
+                #[cfg(target_arch = "x86_64")]
+                if $crate::accel::bvh::layouts::has_avx2() {
+                    // SAFETY: the CPU has AVX2.
+                    unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) }
+                } else {
+                    self.intersect_with::<false>(ray, query, robustness, mask, stats)
+                }
+                #[cfg(not(target_arch = "x86_64"))]
+                self.intersect_with::<false>(ray, query, robustness, mask, stats)
+            });
     };
 }
 pub(crate) use walk_accel_methods;

@@ -16,7 +16,7 @@ use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
 #[cfg(target_arch = "x86_64")]
 use crate::accel::bvh::layouts::has_avx2;
 use crate::accel::bvh::layouts::interleave::{walk_interleaved, Stepper, WALKS};
-use crate::accel::leaf_tri::{with_leaf_test, LeafRay, LeafTri};
+use crate::accel::leaf_tri::{walk_accel_methods, with_leaf_test, LeafRay, LeafTri};
 use crate::accel::{trace_chunks, Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
 
@@ -32,39 +32,10 @@ impl Accel for Cwbvh {
         self.bounds
     }
 
-    #[inline]
-    fn intersect_masked(
-        &self,
-        ray: &Ray,
-        query: Query,
-        robustness: &Robustness,
-        mask: Mask<'_>,
-        stats: &mut RayStats,
-    ) -> Hit {
-        self.intersect_pruned(ray, query, robustness, mask, stats).0
-    }
-
-    #[inline]
-    fn intersect_pruned(
-        &self,
-        ray: &Ray,
-        query: Query,
-        robustness: &Robustness,
-        mask: Mask<'_>,
-        stats: &mut RayStats,
-    ) -> (Hit, Option<f32>) {
-        // One specialised loop per triangle test (the choice is not re-made per triangle).
-        // The same source compiled for AVX2 where the CPU has it: the eight slots in one
-        // vector (identical results: no fused operations either way).
-        #[cfg(target_arch = "x86_64")]
-        if has_avx2() {
-            // SAFETY: the CPU has AVX2.
-            let (hit, prune) = unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
-            return (hit, Some(prune));
-        }
-        let (hit, prune) = self.intersect_with::<false>(ray, query, robustness, mask, stats);
-        (hit, Some(prune))
-    }
+    // One specialised loop per triangle test (the choice is not re-made per triangle).
+    // The same source compiled for AVX2 where the CPU has it: the eight slots in one
+    // vector (identical results: no fused operations either way).
+    walk_accel_methods!(avx2);
 
     fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
         trace_chunks(rays, Hit::miss(0.0), |rays, out| {

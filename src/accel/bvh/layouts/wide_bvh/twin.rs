@@ -11,7 +11,7 @@ use std::mem::MaybeUninit;
 use glam::{Vec3, Vec4};
 
 use super::{stack_size, WideBvh, WideNode, INNER, MAX_STACK_SIZE};
-use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
+use crate::accel::leaf_tri::{walk_accel_methods, with_leaf_test, LeafRay};
 use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
 
@@ -35,40 +35,11 @@ where
             .fold(Aabb::EMPTY, |b, k| b.union(root.bbox(k)))
     }
 
-    #[inline]
-    fn intersect_masked(
-        &self,
-        ray: &Ray,
-        query: Query,
-        robustness: &Robustness,
-        mask: Mask<'_>,
-        stats: &mut RayStats,
-    ) -> Hit {
-        self.intersect_pruned(ray, query, robustness, mask, stats).0
-    }
-
-    #[inline]
-    fn intersect_pruned(
-        &self,
-        ray: &Ray,
-        query: Query,
-        robustness: &Robustness,
-        mask: Mask<'_>,
-        stats: &mut RayStats,
-    ) -> (Hit, Option<f32>) {
-        // The walk compiled for AVX2 where the CPU has it: bvh8's eight slots tested in one
-        // vector (0.72× → 0.82× of Embree on the bunny's primary rays); bvh4's, the same
-        // source as for baseline x86-64, 0.74× → 0.77× (what the walk generic over the width
-        // had cost it against its own 4-wide code).
-        #[cfg(target_arch = "x86_64")]
-        if crate::accel::bvh::layouts::has_avx2() {
-            // SAFETY: the CPU has AVX2.
-            let (hit, prune) = unsafe { self.intersect_avx2(ray, query, robustness, mask, stats) };
-            return (hit, Some(prune));
-        }
-        let (hit, prune) = self.intersect_with::<false>(ray, query, robustness, mask, stats);
-        (hit, Some(prune))
-    }
+    // The walk compiled for AVX2 where the CPU has it: bvh8's eight slots tested in one
+    // vector (0.72× → 0.82× of Embree on the bunny's primary rays); bvh4's, the same
+    // source as for baseline x86-64, 0.74× → 0.77× (what the walk generic over the width
+    // had cost it against its own 4-wide code).
+    walk_accel_methods!(avx2);
 }
 
 impl<const W: usize> WideBvh<W>
