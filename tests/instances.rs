@@ -278,6 +278,75 @@ fn gpu_two_level_equals_its_cpu_twin_with_every_layout() {
     }
 }
 
+/// The two-level twin's batches over cwbvh bottom levels walk two rays at a time
+/// (`interleaved.rs`); over other layouts, one at a time. Either way every hit is the one
+/// walked alone (`intersect`) gives, bit for bit: closest and any hit, under each triangle
+/// test, over several batch chunks, with rotated, mirrored and coincident instances (exact
+/// ties across instances), rays parallel to an axis and invalid rays among them.
+#[test]
+fn two_level_batches_answer_as_rays_walked_alone() {
+    let mut rng = Rng::new(3710);
+    let one = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+    let meshes = vec![
+        Arc::new(soup(&mut rng, 300, 0.25)),
+        Arc::new(Mesh::from_triangles(vec![one])),
+        Arc::new(soup(&mut rng, 500, 0.3)),
+    ];
+    let turned = Affine::from_mat4(&Mat4::from_scale_rotation_translation(
+        Vec3::new(-0.8, 1.2, 0.9),
+        Quat::from_rotation_y(0.7) * Quat::from_rotation_x(0.2),
+        Vec3::new(0.3, -0.2, 0.5),
+    ));
+    let instances = [
+        (0, Affine::IDENTITY),
+        (2, turned),
+        (0, Affine::IDENTITY),
+        (1, turned),
+        (2, Affine::IDENTITY),
+    ]
+    .map(|(m, a)| placed(m, a))
+    .to_vec();
+    let set = InstanceSet::new(meshes, instances).unwrap();
+    let flat = set.flatten();
+    let mut rays = random_rays(&mut rng, 3000, &flat);
+    for (i, r) in rays.iter_mut().enumerate().step_by(37) {
+        r.dir[i % 3] = 0.0;
+    }
+    rays[5].dir = Vec3::NAN;
+    rays[1500].tmin = rays[1500].tmax + 1.0;
+    let cwbvh = AccelKind::Bvh(LayoutKind::Cwbvh);
+    assert!(build(cwbvh, &flat, &BuildOptions::default())
+        .unwrap()
+        .as_cwbvh()
+        .is_some());
+    let settings = [
+        Robustness::default(),
+        Robustness {
+            triangle_test: lancer::geometry::TriangleTest::MollerTrumbore,
+            ..Robustness::default()
+        },
+        Robustness {
+            precision: lancer::geometry::Precision::F64,
+            ..Robustness::default()
+        },
+    ];
+    for kind in [cwbvh, AccelKind::Bvh(LayoutKind::DfsSign)] {
+        let two = two_level(kind, &set);
+        for rob in &settings {
+            for query in [Query::Closest, Query::Any] {
+                let batch = two.trace_hits(&rays, query, rob);
+                let mut hits = 0;
+                for (i, (r, got)) in rays.iter().zip(&batch).enumerate() {
+                    let alone = two.intersect(r, query, rob, &mut RayStats::default());
+                    assert_eq!(bits(got), bits(&alone), "{kind:?} {query:?} ray {i}: {r:?}");
+                    hits += alone.is_hit() as usize;
+                }
+                assert!(hits > 1000, "{kind:?} {query:?}: only {hits} hits");
+            }
+        }
+    }
+}
+
 /// The library's way in: a `Tracer` over instances, on the CPU and the GPU, answers as the
 /// flattened scene's tracer does at the identity (bit for bit), in the default layouts.
 #[test]

@@ -166,8 +166,8 @@ pub(crate) use walk_accel_methods;
 /// One ray's fixed state in a twin's leaf step: the triangle test's ray set-up and whether
 /// near hits are rejected (see [`Robustness::rejects_near_hits`]).
 pub(crate) struct LeafRay<'a> {
-    /// The ray.
-    pub ray: &'a Ray,
+    /// The ray (a copy: a two-level walk sets up each instance's object-space ray here).
+    pub ray: Ray,
     /// Its watertight set-up.
     pub wr: WatertightRay,
     /// The ray and its set-up in four lanes (the triangle tests' verdict for four triangles
@@ -203,10 +203,10 @@ fn lanes(tris: &[LeafTri]) -> [[Vec4; 3]; 3] {
 impl<'a> LeafRay<'a> {
     /// The set-up for `ray` under `robustness`, hits tested by `mask`.
     #[inline(always)]
-    pub fn new(ray: &'a Ray, robustness: &Robustness, mask: Mask<'a>) -> Self {
+    pub fn new(ray: &Ray, robustness: &Robustness, mask: Mask<'a>) -> Self {
         let wr = WatertightRay::new(ray.dir);
         LeafRay {
-            ray,
+            ray: *ray,
             wr,
             ray4: TriangleRay4::new(ray.origin, ray.dir, &wr, ray.tmin),
             reject_near: robustness.rejects_near_hits_of(ray),
@@ -217,8 +217,8 @@ impl<'a> LeafRay<'a> {
 
     /// The same set-up for another ray (the robustness settings kept).
     #[inline(always)]
-    pub fn reset(&mut self, ray: &'a Ray) {
-        self.ray = ray;
+    pub fn reset(&mut self, ray: &Ray) {
+        self.ray = *ray;
         self.wr = WatertightRay::new(ray.dir);
         self.ray4 = TriangleRay4::new(ray.origin, ray.dir, &self.wr, ray.tmin);
         self.reject_near = self.robustness.rejects_near_hits_of(ray);
@@ -333,7 +333,7 @@ impl<'a> LeafRay<'a> {
         } else {
             TriangleTest::Watertight
         };
-        let ray = self.ray;
+        let ray = &self.ray;
         let tri = lt.triangle();
         let h = if TEST == leaf_test::F64 {
             crate::geometry::triangle_hit_f64(&tri, ray, ray.tmin, best.t)

@@ -124,6 +124,13 @@ pub trait Accel: Send + Sync {
         )
     }
 
+    /// This structure as cwbvh's CPU twin, if it is one: the two-level twin
+    /// ([`TwoLevel`](instances::TwoLevel)) walks a batch through cwbvh bottom levels two rays
+    /// at a time, as cwbvh's own batches are walked.
+    fn as_cwbvh(&self) -> Option<&layouts::Cwbvh> {
+        None
+    }
+
     /// Traces a batch of rays on all threads; returns the hits alone, without recording
     /// per-ray work (what [`Tracer`](crate::Tracer) runs when no statistics are asked for;
     /// rays go to the threads in chunks of [`RAY_CHUNK`], as the Embree row's do).

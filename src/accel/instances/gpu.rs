@@ -368,6 +368,10 @@ impl Accel for GpuTwoLevel {
         self.twin
             .intersect_masked(ray, query, robustness, mask, stats)
     }
+
+    fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
+        self.twin.trace_hits(rays, query, robustness)
+    }
 }
 
 impl GpuForm for GpuTwoLevel {

@@ -13,6 +13,7 @@
 //! traversal of the top level is to match.
 
 mod gpu;
+mod interleaved;
 mod top_level;
 mod two_level;
 

@@ -4,11 +4,14 @@
 use std::mem::MaybeUninit;
 use std::sync::Arc;
 
+use super::interleaved::CwbvhLevels;
 use super::top_level::TopLevel;
 use super::{Affine, Instance, InstanceSet};
-use crate::accel::bvh::layouts::DfsNodeRay;
+use crate::accel::bvh::layouts::{Cwbvh, DfsNodeRay};
 use crate::accel::bvh::{BuildOptions, MAX_DEPTH};
-use crate::accel::{Accel, AccelKind, HitMask, Mask, Query, RayStats};
+use crate::accel::{
+    trace_chunks, trace_in_chunks, Accel, AccelKind, HitMask, Mask, Query, RayStats,
+};
 use crate::geometry::{
     intersect_triangle_bounded, prune_bound, triangle_hit_f64, Aabb, Hit, Precision, Ray,
     Robustness, Triangle, WatertightRay,
@@ -259,6 +262,25 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
             idx = unsafe { stack[sp].assume_init() } as usize;
         }
         best
+    }
+
+    /// Over cwbvh bottom levels, two rays walked at a time, as cwbvh's own batches are
+    /// walked (`interleaved.rs`: the same answers as [`Accel::intersect`]); over others, one
+    /// ray at a time.
+    fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
+        let bottoms: Option<Vec<&Cwbvh>> = self.bottoms.iter().map(|b| b.as_cwbvh()).collect();
+        if let Some(bottoms) = bottoms.filter(|b| !b.is_empty()) {
+            let levels = CwbvhLevels {
+                top: &self.top,
+                bottoms,
+            };
+            return trace_chunks(rays, Hit::miss(0.0), |rays, out| {
+                levels.trace_chunk(rays, out, query, robustness)
+            });
+        }
+        trace_in_chunks(rays, Hit::miss(0.0), RayStats::default, |stats, r| {
+            self.intersect(r, query, robustness, stats)
+        })
     }
 }
 

@@ -1,4 +1,5 @@
-//! A chunk of rays walked a few at a time: a CPU twin's `trace_hits` (cwbvh's). A twin's
+//! A chunk of rays walked a few at a time: a CPU twin's `trace_hits` (cwbvh's, and the
+//! two-level twin's over cwbvh bottom levels). A twin's
 //! walk of one ray is a chain of dependent steps (each node's test waits on its loads and
 //! the one before); taking a step of each of two rays in turn gives the CPU independent work
 //! to overlap. Every ray still takes exactly its own walk's steps, in order, so the answers are
@@ -10,9 +11,9 @@ use crate::geometry::{Hit, Ray};
 /// Walks of one twin that [`walk_interleaved`] drives: `start` begins a ray's walk (false
 /// when there is nothing to walk: its answer is then ready), `step` takes one step (true
 /// when the walk has ended), `best` is the answer.
-pub(crate) trait Stepper<'a> {
+pub(crate) trait Stepper {
     /// Begins the walk of `ray`; false when it has nothing to walk (an invalid ray).
-    fn start(&mut self, ray: &'a Ray) -> bool;
+    fn start(&mut self, ray: &Ray) -> bool;
     /// Takes one step; true when the walk has ended.
     fn step(&mut self, stats: &mut RayStats) -> bool;
     /// The answer, once `start` gave false or `step` true.
@@ -27,11 +28,7 @@ pub(crate) const WALKS: usize = 2;
 /// Answers `rays` into `out` (as long) with the walks `walks`, each taking the next ray
 /// when its own has ended.
 #[inline(always)]
-pub(crate) fn walk_interleaved<'a, W: Stepper<'a>>(
-    rays: &'a [Ray],
-    out: &mut [Hit],
-    walks: [W; WALKS],
-) {
+pub(crate) fn walk_interleaved<W: Stepper>(rays: &[Ray], out: &mut [Hit], walks: [W; WALKS]) {
     debug_assert_eq!(rays.len(), out.len());
     let mut stats = RayStats::default();
     let mut walks = walks.map(|w| (usize::MAX, w));

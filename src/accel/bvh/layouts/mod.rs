@@ -60,10 +60,12 @@ use crate::mesh::Mesh;
 
 pub use build_report::{build_and_flatten, flatten_and_report, BuildReport};
 pub use bvh2_wide_node::Bvh2WideNode;
+pub(crate) use cwbvh::CwbvhWalk;
 pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub(crate) use dfs_sign::{dfs_nodes, DfsNode, DfsNodeRay, LEAF_TAG as DFS_LEAF_TAG};
+pub(crate) use interleave::{walk_interleaved, Stepper, WALKS};
 pub use threaded::Threaded;
 pub use wide_bvh::{Bvh4, Bvh8, WideBvh};
 

@@ -22,6 +22,8 @@ mod quantise;
 mod slots;
 mod twin;
 
+pub(crate) use twin::Walk as CwbvhWalk;
+
 use std::borrow::Cow;
 use std::sync::atomic::{AtomicU32, Ordering};
 

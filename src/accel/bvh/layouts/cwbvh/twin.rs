@@ -37,6 +37,10 @@ impl Accel for Cwbvh {
     // vector (identical results: no fused operations either way).
     walk_accel_methods!(avx2);
 
+    fn as_cwbvh(&self) -> Option<&Cwbvh> {
+        Some(self)
+    }
+
     fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
         trace_chunks(rays, Hit::miss(0.0), |rays, out| {
             #[cfg(target_arch = "x86_64")]
@@ -305,8 +309,9 @@ impl Cwbvh {
 }
 
 /// One ray's traversal of `cw`, a node step at a time ([`Stepper`]), with the triangle
-/// test `TEST` and the node test in SSE or AVX2 lanes.
-struct Walk<'a, const TEST: u8, const AVX2: bool> {
+/// test `TEST` and the node test in SSE or AVX2 lanes (`AVX2` true only where the CPU has
+/// AVX2). The two-level twin walks its cwbvh bottom levels with it ([`Walk::begin`]).
+pub(crate) struct Walk<'a, const TEST: u8, const AVX2: bool> {
     cw: &'a Cwbvh,
     /// The ray's leaf-step set-up.
     leaf: LeafRay<'a>,
@@ -331,7 +336,12 @@ struct Walk<'a, const TEST: u8, const AVX2: bool> {
 impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
     /// A walk with no ray yet, answering `query` under `robustness`, hits tested by `mask`.
     #[inline(always)]
-    fn idle(cw: &'a Cwbvh, query: Query, robustness: &Robustness, mask: Mask<'a>) -> Self {
+    pub(crate) fn idle(
+        cw: &'a Cwbvh,
+        query: Query,
+        robustness: &Robustness,
+        mask: Mask<'a>,
+    ) -> Self {
         const NONE: Ray = Ray {
             origin: Vec3::ZERO,
             dir: Vec3::X,
@@ -352,9 +362,27 @@ impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
     }
 }
 
-impl<'a, const TEST: u8, const AVX2: bool> Stepper<'a> for Walk<'a, TEST, AVX2> {
+impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
+    /// Begins the walk of `ray` through `cw` instead (a two-level walk entering an
+    /// instance): false when there is nothing to walk (an invalid ray: the answer, a miss,
+    /// is then ready).
     #[inline(always)]
-    fn start(&mut self, ray: &'a Ray) -> bool {
+    pub(crate) fn begin(&mut self, cw: &'a Cwbvh, ray: &Ray) -> bool {
+        self.cw = cw;
+        self.start(ray)
+    }
+
+    /// The answer and the prune bound of its hit, once the walk has ended (what
+    /// `intersect_pruned` returns).
+    #[inline(always)]
+    pub(crate) fn answer(&self) -> (Hit, f32) {
+        (self.best, self.prune)
+    }
+}
+
+impl<const TEST: u8, const AVX2: bool> Stepper for Walk<'_, TEST, AVX2> {
+    #[inline(always)]
+    fn start(&mut self, ray: &Ray) -> bool {
         self.best = Hit::miss(ray.tmax);
         if !ray.is_valid() {
             return false;
