@@ -360,9 +360,7 @@ impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
             group: [0, 0],
         }
     }
-}
 
-impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
     /// Begins the walk of `ray` through `cw` instead (a two-level walk entering an
     /// instance): false when there is nothing to walk (an invalid ray: the answer, a miss,
     /// is then ready).
