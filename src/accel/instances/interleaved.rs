@@ -13,68 +13,22 @@ use std::mem::MaybeUninit;
 use glam::Vec3;
 
 use super::top_level::{TopEntry, TopLevel};
-#[cfg(target_arch = "x86_64")]
-use crate::accel::bvh::layouts::has_avx2;
-use crate::accel::bvh::layouts::{walk_interleaved, Cwbvh, CwbvhWalk, DfsNodeRay, Stepper, WALKS};
+use crate::accel::bvh::layouts::{
+    walk_interleaved, ChunkWalk, Cwbvh, CwbvhWalk, DfsNodeRay, Stepper, WALKS,
+};
 use crate::accel::bvh::MAX_DEPTH;
-use crate::accel::leaf_tri::with_leaf_test;
 use crate::accel::{Query, RayStats};
 use crate::geometry::{prune_bound, Hit, Ray, Robustness};
 
 /// A two-level structure whose bottom levels are all cwbvh: the top level, and each mesh's
-/// bottom level by mesh index.
+/// bottom level by mesh index. Its chunks of rays are walked two rays at a time
+/// ([`ChunkWalk`]).
 pub(super) struct CwbvhLevels<'a> {
     pub top: &'a TopLevel,
     pub bottoms: Vec<&'a Cwbvh>,
 }
 
-impl CwbvhLevels<'_> {
-    /// Answers `rays` into `out` (as long), two rays walked at a time, with the triangle
-    /// test `robustness` asks for and the node test in AVX2 lanes where the CPU has them.
-    pub fn trace_chunk(
-        &self,
-        rays: &[Ray],
-        out: &mut [Hit],
-        query: Query,
-        robustness: &Robustness,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if has_avx2() {
-            // SAFETY: the CPU has AVX2.
-            return unsafe { self.trace_chunk_avx2(rays, out, query, robustness) };
-        }
-        self.trace_chunk_with::<false>(rays, out, query, robustness);
-    }
-
-    /// [`CwbvhLevels::trace_chunk`] with cwbvh's node test in SSE (`AVX2` false) or AVX2
-    /// lanes; `AVX2` true only below `trace_chunk_avx2`.
-    #[inline(always)]
-    fn trace_chunk_with<const AVX2: bool>(
-        &self,
-        rays: &[Ray],
-        out: &mut [Hit],
-        query: Query,
-        robustness: &Robustness,
-    ) {
-        with_leaf_test!(
-            robustness,
-            self.walk_chunk::<_, AVX2>(rays, out, query, robustness)
-        )
-    }
-
-    /// [`CwbvhLevels::trace_chunk_with`] compiled with AVX2; the CPU must have it.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
-    unsafe fn trace_chunk_avx2(
-        &self,
-        rays: &[Ray],
-        out: &mut [Hit],
-        query: Query,
-        robustness: &Robustness,
-    ) {
-        self.trace_chunk_with::<true>(rays, out, query, robustness)
-    }
-
+impl ChunkWalk for CwbvhLevels<'_> {
     #[inline(always)]
     fn walk_chunk<const TEST: u8, const AVX2: bool>(
         &self,

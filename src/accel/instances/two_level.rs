@@ -7,7 +7,7 @@ use std::sync::Arc;
 use super::interleaved::CwbvhLevels;
 use super::top_level::TopLevel;
 use super::{Affine, Instance, InstanceSet};
-use crate::accel::bvh::layouts::{Cwbvh, DfsNodeRay};
+use crate::accel::bvh::layouts::{trace_chunk, Cwbvh, DfsNodeRay};
 use crate::accel::bvh::{BuildOptions, MAX_DEPTH};
 use crate::accel::{
     trace_chunks, trace_in_chunks, Accel, AccelKind, HitMask, Mask, Query, RayStats,
@@ -275,7 +275,7 @@ impl<B: Accel + ?Sized> Accel for TwoLevel<B> {
                 bottoms,
             };
             return trace_chunks(rays, Hit::miss(0.0), |rays, out| {
-                levels.trace_chunk(rays, out, query, robustness)
+                trace_chunk(&levels, rays, out, query, robustness)
             });
         }
         trace_in_chunks(rays, Hit::miss(0.0), RayStats::default, |stats, r| {

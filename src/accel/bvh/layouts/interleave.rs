@@ -5,8 +5,11 @@
 //! to overlap. Every ray still takes exactly its own walk's steps, in order, so the answers are
 //! those of walking it alone.
 
-use crate::accel::RayStats;
-use crate::geometry::{Hit, Ray};
+#[cfg(target_arch = "x86_64")]
+use super::has_avx2;
+use crate::accel::leaf_tri::with_leaf_test;
+use crate::accel::{Query, RayStats};
+use crate::geometry::{Hit, Ray, Robustness};
 
 /// Walks of one twin that [`walk_interleaved`] drives: `start` begins a ray's walk (false
 /// when there is nothing to walk: its answer is then ready), `step` takes one step (true
@@ -58,4 +61,65 @@ pub(crate) fn walk_interleaved<W: Stepper>(rays: &[Ray], out: &mut [Hit], walks:
             break;
         }
     }
+}
+
+/// A twin that answers a chunk of rays a few at a time ([`walk_interleaved`]), specialised
+/// by the triangle test `TEST` (`leaf_tri::leaf_test`) and by whether its node test uses
+/// AVX2 lanes (`AVX2` true only below [`trace_chunk_avx2`]).
+pub(crate) trait ChunkWalk {
+    /// Answers `rays` into `out` (as long).
+    fn walk_chunk<const TEST: u8, const AVX2: bool>(
+        &self,
+        rays: &[Ray],
+        out: &mut [Hit],
+        query: Query,
+        robustness: &Robustness,
+    );
+}
+
+/// Answers a chunk of rays with `twin`: the triangle test `robustness` asks for (chosen once,
+/// not per triangle), the node test in AVX2 lanes where the CPU has them.
+pub(crate) fn trace_chunk<T: ChunkWalk>(
+    twin: &T,
+    rays: &[Ray],
+    out: &mut [Hit],
+    query: Query,
+    robustness: &Robustness,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { trace_chunk_avx2(twin, rays, out, query, robustness) };
+    }
+    trace_chunk_with::<T, false>(twin, rays, out, query, robustness);
+}
+
+/// [`trace_chunk`] with the node test in SSE (`AVX2` false: the target's baseline) or AVX2
+/// lanes; `AVX2` true only below [`trace_chunk_avx2`].
+#[inline(always)]
+pub(crate) fn trace_chunk_with<T: ChunkWalk, const AVX2: bool>(
+    twin: &T,
+    rays: &[Ray],
+    out: &mut [Hit],
+    query: Query,
+    robustness: &Robustness,
+) {
+    with_leaf_test!(
+        robustness,
+        twin.walk_chunk::<_, AVX2>(rays, out, query, robustness)
+    )
+}
+
+/// [`trace_chunk_with`] compiled with AVX2 (and the bit instructions every AVX2 CPU has);
+/// the CPU must have them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
+pub(crate) unsafe fn trace_chunk_avx2<T: ChunkWalk>(
+    twin: &T,
+    rays: &[Ray],
+    out: &mut [Hit],
+    query: Query,
+    robustness: &Robustness,
+) {
+    trace_chunk_with::<T, true>(twin, rays, out, query, robustness)
 }

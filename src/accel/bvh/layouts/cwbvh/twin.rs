@@ -13,9 +13,9 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use super::quantise::step;
 use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
-#[cfg(target_arch = "x86_64")]
-use crate::accel::bvh::layouts::has_avx2;
-use crate::accel::bvh::layouts::interleave::{walk_interleaved, Stepper, WALKS};
+use crate::accel::bvh::layouts::interleave::{
+    trace_chunk, walk_interleaved, ChunkWalk, Stepper, WALKS,
+};
 use crate::accel::leaf_tri::{walk_accel_methods, with_leaf_test, LeafRay, LeafTri};
 use crate::accel::{trace_chunks, Accel, Mask, Query, RayStats};
 use crate::geometry::{prune_bound, Aabb, Hit, Ray, Robustness, SlabRay4, MISS, PARALLEL_INV};
@@ -43,12 +43,7 @@ impl Accel for Cwbvh {
 
     fn trace_hits(&self, rays: &[Ray], query: Query, robustness: &Robustness) -> Vec<Hit> {
         trace_chunks(rays, Hit::miss(0.0), |rays, out| {
-            #[cfg(target_arch = "x86_64")]
-            if has_avx2() {
-                // SAFETY: the CPU has AVX2.
-                return unsafe { self.trace_chunk_avx2(rays, out, query, robustness) };
-            }
-            self.trace_chunk_with::<false>(rays, out, query, robustness)
+            trace_chunk(self, rays, out, query, robustness)
         })
     }
 }
@@ -194,8 +189,9 @@ impl RayBox {
     fn child_hits<const AVX2: bool>(&self, node: &CwNode, prune: f32) -> u32 {
         #[cfg(target_arch = "x86_64")]
         if AVX2 && !self.parallel {
-            // SAFETY: `AVX2` is true only below `intersect_avx2` and `trace_chunk_avx2`, which
-            // run only where `has_avx2()` said the CPU has it.
+            // SAFETY: `AVX2` is true only below `intersect_avx2` and
+            // `interleave::trace_chunk_avx2`, which run only where `has_avx2()` said the CPU
+            // has it.
             return unsafe { self.child_hits_avx2(node, prune) };
         }
         let mut entered = self.entered(node, prune);
@@ -214,8 +210,8 @@ impl RayBox {
 
 impl Cwbvh {
     /// [`Accel::intersect_pruned`] with the node test in SSE (`AVX2` false: the target's
-    /// baseline) or AVX2 lanes. `AVX2` true is for `intersect_avx2` alone (and, in
-    /// `trace_chunk_with`, `trace_chunk_avx2`): the AVX2 code it reaches needs the CPU to
+    /// baseline) or AVX2 lanes. `AVX2` true is for `intersect_avx2` alone (and, for
+    /// batches, `interleave::trace_chunk_avx2`): the AVX2 code it reaches needs the CPU to
     /// have AVX2.
     #[inline(always)]
     fn intersect_with<const AVX2: bool>(
@@ -248,35 +244,6 @@ impl Cwbvh {
         self.intersect_with::<true>(ray, query, robustness, mask, stats)
     }
 
-    /// [`Cwbvh::walk_chunk`] with the node test in SSE or AVX2 lanes (as
-    /// [`Cwbvh::intersect_with`]).
-    #[inline(always)]
-    fn trace_chunk_with<const AVX2: bool>(
-        &self,
-        rays: &[Ray],
-        out: &mut [Hit],
-        query: Query,
-        robustness: &Robustness,
-    ) {
-        with_leaf_test!(
-            robustness,
-            self.walk_chunk::<_, AVX2>(rays, out, query, robustness)
-        )
-    }
-
-    /// [`Cwbvh::trace_chunk_with`] compiled with AVX2; the CPU must have it.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt,bmi1,lzcnt")]
-    unsafe fn trace_chunk_avx2(
-        &self,
-        rays: &[Ray],
-        out: &mut [Hit],
-        query: Query,
-        robustness: &Robustness,
-    ) {
-        self.trace_chunk_with::<true>(rays, out, query, robustness)
-    }
-
     /// The traversal, with the triangle test `TEST` (`leaf_tri::leaf_test`).
     #[inline(always)]
     fn walk<const TEST: u8, const AVX2: bool>(
@@ -293,7 +260,9 @@ impl Cwbvh {
         }
         (w.best, w.prune)
     }
+}
 
+impl ChunkWalk for Cwbvh {
     /// [`Accel::trace_hits`] on one chunk of rays, [`Cwbvh::walk`] for a few at once.
     #[inline(always)]
     fn walk_chunk<const TEST: u8, const AVX2: bool>(
@@ -463,6 +432,11 @@ impl<const TEST: u8, const AVX2: bool> Stepper for Walk<'_, TEST, AVX2> {
 mod tests {
     use super::*;
     use crate::accel::bvh::build;
+    #[cfg(target_arch = "x86_64")]
+    use crate::accel::bvh::layouts::has_avx2;
+    #[cfg(target_arch = "x86_64")]
+    use crate::accel::bvh::layouts::interleave::trace_chunk_avx2;
+    use crate::accel::bvh::layouts::interleave::trace_chunk_with;
     use crate::geometry::Triangle;
     use crate::mesh::Mesh;
 
@@ -526,13 +500,13 @@ mod tests {
         for rob in &settings {
             for query in [Query::Closest, Query::Any] {
                 let mut chunk = vec![Hit::miss(0.0); rays.len()];
-                cw.trace_chunk_with::<false>(&rays, &mut chunk, query, rob);
+                trace_chunk_with::<_, false>(&cw, &rays, &mut chunk, query, rob);
                 #[cfg(target_arch = "x86_64")]
                 let mut chunk_avx2 = chunk.clone();
                 #[cfg(target_arch = "x86_64")]
                 if avx2 {
                     // SAFETY: the CPU has AVX2.
-                    unsafe { cw.trace_chunk_avx2(&rays, &mut chunk_avx2, query, rob) };
+                    unsafe { trace_chunk_avx2(&cw, &rays, &mut chunk_avx2, query, rob) };
                 }
                 let mut hits = 0;
                 for (i, r) in rays.iter().enumerate() {
