@@ -10,11 +10,9 @@
 
 use std::mem::MaybeUninit;
 
-use glam::Vec3;
-
 use super::top_level::{TopEntry, TopLevel};
 use crate::accel::bvh::layouts::{
-    walk_interleaved, ChunkWalk, Cwbvh, CwbvhWalk, DfsNodeRay, Stepper, WALKS,
+    walk_interleaved, ChunkWalk, Cwbvh, CwbvhWalk, DfsNodeRay, Stepper, IDLE_RAY, WALKS,
 };
 use crate::accel::bvh::MAX_DEPTH;
 use crate::accel::{Query, RayStats};
@@ -66,20 +64,14 @@ struct Walk<'a, const TEST: u8, const AVX2: bool> {
 
 impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
     fn idle(levels: &'a CwbvhLevels<'a>, query: Query, robustness: &Robustness) -> Self {
-        let none = Ray {
-            origin: Vec3::ZERO,
-            dir: Vec3::X,
-            tmin: 0.0,
-            tmax: 0.0,
-        };
         // The walk's bottom levels are entered with `begin`; any one serves until then.
         let first = levels.bottoms[0];
         Walk {
             levels,
             robustness: *robustness,
             any: query == Query::Any,
-            ray: none,
-            boxes: DfsNodeRay::new(&none, robustness),
+            ray: IDLE_RAY,
+            boxes: DfsNodeRay::new(&IDLE_RAY, robustness),
             best: Hit::miss(0.0),
             prune: 0.0,
             stack: [MaybeUninit::uninit(); MAX_DEPTH],

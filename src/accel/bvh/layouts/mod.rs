@@ -65,7 +65,7 @@ pub use cwbvh::{CwChild, Cwbvh};
 pub use dfs_distance::DfsDistance;
 pub use dfs_sign::DfsSign;
 pub(crate) use dfs_sign::{dfs_nodes, DfsNode, DfsNodeRay, LEAF_TAG as DFS_LEAF_TAG};
-pub(crate) use interleave::{trace_chunk, walk_interleaved, ChunkWalk, Stepper, WALKS};
+pub(crate) use interleave::{trace_chunk, walk_interleaved, ChunkWalk, Stepper, IDLE_RAY, WALKS};
 pub use threaded::Threaded;
 pub use wide_bvh::{Bvh4, Bvh8, WideBvh};
 

@@ -14,7 +14,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use super::quantise::step;
 use super::{CwNode, Cwbvh, COUNT_SHIFT, STACK_SIZE, TRI_BITS, WIDTH};
 use crate::accel::bvh::layouts::interleave::{
-    trace_chunk, walk_interleaved, ChunkWalk, Stepper, WALKS,
+    trace_chunk, walk_interleaved, ChunkWalk, Stepper, IDLE_RAY, WALKS,
 };
 use crate::accel::leaf_tri::{walk_accel_methods, with_leaf_test, LeafRay, LeafTri};
 use crate::accel::{trace_chunks, Accel, Mask, Query, RayStats};
@@ -311,16 +311,10 @@ impl<'a, const TEST: u8, const AVX2: bool> Walk<'a, TEST, AVX2> {
         robustness: &Robustness,
         mask: Mask<'a>,
     ) -> Self {
-        const NONE: Ray = Ray {
-            origin: Vec3::ZERO,
-            dir: Vec3::X,
-            tmin: 0.0,
-            tmax: 0.0,
-        };
         Walk {
             cw,
-            leaf: LeafRay::new(&NONE, robustness, mask),
-            rb: RayBox::new(&NONE, robustness.far_widen()),
+            leaf: LeafRay::new(&IDLE_RAY, robustness, mask),
+            rb: RayBox::new(&IDLE_RAY, robustness.far_widen()),
             any: query == Query::Any,
             best: Hit::miss(0.0),
             prune: 0.0,
