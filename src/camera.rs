@@ -89,7 +89,20 @@ impl ViewChange {
         camera.eye = self.look_from.unwrap_or(camera.eye);
         camera.look_at = self.look_at.unwrap_or(camera.look_at);
         let fwd = camera.look_at - camera.eye;
-        if fwd.length() == 0.0 || !fwd.is_finite() {
+        // A distance past f32's range (an eye given far away, or moved there to keep the
+        // framing of a very narrow view) has no direction left to look along.
+        if !camera.eye.is_finite() || !fwd.is_finite() || !fwd.length().is_finite() {
+            return Err(match self.fov {
+                Some(f) if keep_framing && self.look_from.is_none() => format!(
+                    "--fov {f}: a view this narrow would put the eye too far away for f32 \
+                     arithmetic: widen it, or give --look-from"
+                ),
+                _ => "the eye (--look-from) is too far from the point looked at (--look-at) \
+                      for f32 arithmetic: bring it closer"
+                    .into(),
+            });
+        }
+        if fwd.length() == 0.0 || !fwd.normalize().is_finite() {
             return Err("the eye (--look-from) is on the point looked at (--look-at)".into());
         }
         if fwd.normalize().cross(camera.up).length() < 1e-4 {

@@ -68,6 +68,17 @@ pub fn check_memory(what: &str, bytes: u128, hint: &str) -> Result<()> {
     Ok(())
 }
 
+/// Decodes an image whose size, read from its header, [`check_image`] has passed. The image
+/// crate's own cap (512 MiB a decode) is lifted: it would refuse textures within
+/// [`MAX_TEXTURE_SIDE`] on a machine with room for them, and lancer's check is the
+/// memory the machine has.
+pub fn decode_checked<R: std::io::BufRead + std::io::Seek>(
+    mut reader: image::ImageReader<R>,
+) -> image::ImageResult<image::DynamicImage> {
+    reader.no_limits();
+    reader.decode()
+}
+
 /// Refuses an image whose pixel count does not fit the u32 pixel index the kernels use or
 /// whose buffers (`bytes_per_pixel`) do not fit in memory.
 pub fn check_image(width: u32, height: u32, bytes_per_pixel: u64, hint: &str) -> Result<()> {

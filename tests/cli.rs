@@ -542,10 +542,11 @@ fn check_compares_every_layout_on_the_gpu_with_its_twin() {
         }
     }
     assert!(text.contains("every answer agrees"), "{text}");
-    // No GPU, no check: a device error (exit 1), not a silent pass on the CPU alone.
+    // No GPU, no check, and never a silent pass on the CPU alone: --device cpu is a usage
+    // error (exit 2; exit 1 is a disagreement or a device that fails to open).
     let out = lancer(&["check", s(&teapot), "--device", "cpu"]);
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("no GPU adapter"));
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--device cpu leaves no GPU"));
 }
 
 #[test]

@@ -1220,6 +1220,157 @@ fn hostile_command_lines() {
         .warns(&["nothere.mtl"]),
     );
 
+    // ---- glTF meshes with triangles left out: counted, and refused when none is left, by
+    // every command (build and trace read a glTF through another path than render's)
+    let gltf = |nodes: usize, tris: &str| {
+        let (bytes, count, data) = match tris {
+            "nan" => (36, 3, "AADAfwAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"),
+            _ => (
+                72,
+                6,
+                "AADAfwAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAAAAAACAPwAAAAAAAAAA\
+                 AAAAAAAAgD8AAAAA",
+            ),
+        };
+        let node_list: Vec<String> = (0..nodes).map(|i| i.to_string()).collect();
+        let node_defs: Vec<String> = (0..nodes)
+            .map(|i| format!(r#"{{"mesh":0,"translation":[{},0,0]}}"#, 3 * i))
+            .collect();
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[{}]}}],"nodes":[{}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "buffers":[{{"byteLength":{bytes},"uri":"data:application/octet-stream;base64,{data}"}}],
+            "bufferViews":[{{"buffer":0,"byteLength":{bytes}}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3",
+            "min":[0,0,0],"max":[1,1,0]}}]}}"#,
+            node_list.join(","),
+            node_defs.join(",")
+        )
+    };
+    for (nodes, what) in [(1, "one node"), (2, "two nodes: instances")] {
+        let none = s.write(
+            &format!("gltf-left-out/none{nodes}.gltf"),
+            gltf(nodes, "nan"),
+        );
+        let half = s.write(
+            &format!("gltf-left-out/half{nodes}.gltf"),
+            gltf(nodes, "half"),
+        );
+        let hits = s.path(&format!("gltf-left-out/h{nodes}.hits"));
+        let trace = |m: &Path| -> Vec<String> {
+            with(
+                &[&"trace", &m, &"--rays", &rays, &"-o", &hits],
+                &["--device", "cpu"],
+            )
+        };
+        // Each instance's copy of the triangle is left out.
+        let left_out = format!("{nodes} with NaN/Inf vertices");
+        let (none_name, half_name) = (format!("none{nodes}.gltf"), format!("half{nodes}.gltf"));
+        rows.extend([
+            Row::new(
+                format!("glTF, {what}: no usable triangle (build)"),
+                Want::Fail(2),
+                &[&"build", &none],
+            )
+            .names(&[&none_name, "no usable triangle"]),
+            row_args(
+                &format!("glTF, {what}: no usable triangle (trace)"),
+                Want::Fail(2),
+                trace(&none),
+            )
+            .names(&[&none_name, "no usable triangle"]),
+            Row::new(
+                format!("glTF, {what}: one triangle left out (build)"),
+                Want::Ok,
+                &[&"build", &half],
+            )
+            .warns(&[&half_name, &left_out]),
+            row_args(
+                &format!("glTF, {what}: one triangle left out (trace)"),
+                Want::Ok,
+                trace(&half),
+            )
+            .warns(&[&half_name, &left_out]),
+        ]);
+    }
+    // A glTF camera without a name is named by its index.
+    let camera = s.write(
+        "gltf-camera/cam.gltf",
+        gltf(1, "half")
+            .replacen(
+                r#""nodes":[{"mesh":0,"translation":[0,0,0]}]"#,
+                r#""nodes":[{"mesh":0,"translation":[0,0,0]},{"camera":0,"translation":[0,0,5]}],
+            "cameras":[{"type":"perspective","perspective":{"yfov":0,"znear":0.1}}]"#,
+                1,
+            )
+            .replacen(r#""nodes":[0]"#, r#""nodes":[0,1]"#, 1),
+    );
+    rows.push(
+        row_args(
+            "glTF: a degenerate camera without a name",
+            Want::Ok,
+            r(&[&"render", &camera, &"-o", &s.path("gltf-camera/x.png")]),
+        )
+        .check(|got: &Got| {
+            let named = got
+                .warnings()
+                .iter()
+                .any(|w| w.contains("camera \"#0\" not used"));
+            match named {
+                true => Vec::new(),
+                false => vec!["no warning naming camera \"#0\"".into()],
+            }
+        })
+        .lacks(&["None", "Some("]),
+    );
+
+    // ---- a check without a GPU, and views past f32's range
+    rows.extend([
+        Row::new(
+            "check: --device cpu leaves nothing to check (a usage error, not a device's)",
+            Want::Fail(2),
+            &[
+                &"check",
+                &quad,
+                &"--device",
+                &"cpu",
+                &"--width",
+                &"4",
+                &"--height",
+                &"4",
+            ],
+        )
+        .names(&["--device cpu"]),
+        row_args(
+            "render: an eye too far for f32",
+            Want::Fail(2),
+            r(&[
+                &"render",
+                &quad,
+                &"-o",
+                &s.path("far.png"),
+                &"--look-from",
+                &"1e38,0,0",
+            ]),
+        )
+        .names(&["--look-from", "too far"])
+        .absent(&s.path("far.png")),
+        row_args(
+            "render: a field of view so narrow the framed eye is too far for f32",
+            Want::Fail(2),
+            r(&[
+                &"render",
+                &quad,
+                &"-o",
+                &s.path("narrow.png"),
+                &"--fov",
+                &"1e-30",
+            ]),
+        )
+        .names(&["--fov", "too far"])
+        .absent(&s.path("narrow.png")),
+    ]);
+
     // ---- missing, folder and unreadable inputs
     let missing_mesh_scene = s.write(
         "v-missing-mesh.toml",

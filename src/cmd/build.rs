@@ -13,7 +13,7 @@ use lancer::{Device, Error, Result};
 
 use super::out::{print_json, say, Say};
 use super::BuildArgs;
-use lancer::render::{load_geometry, load_traceable, Geometry};
+use lancer::render::load_flattened;
 
 #[derive(Args)]
 pub struct BuildCmd {
@@ -45,12 +45,8 @@ impl BuildCmd {
             )));
         }
         // A scene that places a mesh many times is built flattened (a BVH file holds one
-        // level); the report counts its instances.
-        // The flattened mesh as every command flattens it (a placed file is read again).
-        let (mesh, instances) = match load_traceable(&self.mesh)? {
-            Geometry::Mesh(mesh) => (mesh, None),
-            Geometry::Placed(set) => (load_geometry(&self.mesh)?, Some(set)),
-        };
+        // level), as every command flattens it; the report counts its instances.
+        let (mesh, instances) = load_flattened(&self.mesh)?;
         if let Some(out) = &self.out {
             lancer::output::check_output(out, &mesh.sources)?;
         }

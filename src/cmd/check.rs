@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use clap::Args;
 use lancer::mesh::load_mesh;
 use lancer::trace::check::{self, CheckConfig, CheckProgress, CheckRays, TABLE_HEADER};
-use lancer::{Error, Result};
+use lancer::{DeviceChoice, Error, Result};
 
 use super::input::load_bvh;
 use super::out::{is_std, print_json, read_rays, say, Say};
@@ -56,6 +56,14 @@ pub struct CheckCmd {
 
 impl CheckCmd {
     pub fn run(self) -> Result<()> {
+        // Refused before anything is read: a check compares a GPU with the CPU.
+        if self.device.device == DeviceChoice::Cpu {
+            return Err(Error::Usage(
+                "check compares GPU kernels with their CPU twins, and --device cpu leaves no \
+                 GPU to check: use --device gpu or auto (lavapipe counts)"
+                    .into(),
+            ));
+        }
         let say = Say::new(self.json);
         let mesh = load_mesh(&self.mesh)?;
         // A check needs a GPU: auto takes any adapter here, a software one included.

@@ -187,9 +187,13 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
             continue;
         };
         let name = (camera.name().or(node.name())).map(str::to_string);
+        // Named in warnings as materials are: by name, else by index.
+        let label = name
+            .clone()
+            .unwrap_or_else(|| format!("#{}", camera.index()));
         let ::gltf::camera::Projection::Perspective(p) = camera.projection() else {
             log::warn!(
-                "{}: orthographic camera {name:?} not used (lancer's camera is a pinhole)",
+                "{}: orthographic camera {label:?} not used (lancer's camera is a pinhole)",
                 path.display()
             );
             continue;
@@ -198,7 +202,7 @@ fn cameras_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfCamera> {
         let frame = camera_frame(world).filter(|_| yfov_deg > 0.0 && yfov_deg < 180.0);
         let Some((eye, look_at, up)) = frame else {
             log::warn!(
-                "{}: camera {name:?} not used: its node's map or field of view is degenerate",
+                "{}: camera {label:?} not used: its node's map or field of view is degenerate",
                 path.display()
             );
             continue;
@@ -304,6 +308,9 @@ fn lights_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfLight> {
             continue;
         };
         let name = (light.name().or(node.name())).map(str::to_string);
+        let label = name
+            .clone()
+            .unwrap_or_else(|| format!("#{}", light.index()));
         let kind = match light.kind() {
             Kind::Point => GltfLightKind::Point,
             Kind::Directional => GltfLightKind::Directional,
@@ -332,7 +339,7 @@ fn lights_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfLight> {
             && angles_ok;
         if !usable {
             log::warn!(
-                "{}: light {name:?} not used: its node's map, its intensity or its cone is \
+                "{}: light {label:?} not used: its node's map, its intensity or its cone is \
                  degenerate",
                 path.display()
             );
@@ -340,7 +347,7 @@ fn lights_of(path: &Path, walked: &[(Node, Mat4)]) -> Vec<GltfLight> {
         }
         if light.range().is_some() {
             log::warn!(
-                "{}: light {name:?}: its range is not honoured (it lights beyond it, falling \
+                "{}: light {label:?}: its range is not honoured (it lights beyond it, falling \
                  off with the square of the distance)",
                 path.display()
             );

@@ -62,6 +62,38 @@ impl InstanceSet {
         Ok(set)
     }
 
+    /// Logs one warning naming `path` and counting the placed triangles left out of the BVH
+    /// (each mesh's, once for every instance of it: what a trace of the set leaves out),
+    /// and refuses a set in which no instance places a usable triangle.
+    pub fn check_usable(&self, path: &std::path::Path) -> crate::Result<()> {
+        let mut uses = vec![0u64; self.meshes.len()];
+        for i in &self.instances {
+            uses[i.mesh as usize] += 1;
+        }
+        let mut left_out = [0u64; 5];
+        let mut usable = false;
+        for (mesh, &n) in self.meshes.iter().zip(&uses).filter(|(_, &n)| n > 0) {
+            for (total, count) in left_out.iter_mut().zip(mesh.exclusions()) {
+                *total += count * n;
+            }
+            usable |= mesh.status.contains(&TriStatus::Ok);
+        }
+        if let Some(s) = super::exclusion_summary(left_out) {
+            log::warn!("{}: {s}", path.display());
+        }
+        if !usable {
+            return Err(Error::input(
+                path,
+                None,
+                format!(
+                    "no usable triangle ({} placed): nothing to trace",
+                    self.triangle_count()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Triangles of the flattened scene (every instance's mesh, excluded triangles
     /// included, as they are numbered).
     pub fn triangle_count(&self) -> u64 {

@@ -99,24 +99,18 @@ impl Mesh {
 
     /// One line naming what was left out, or None when nothing was.
     pub fn exclusion_summary(&self) -> Option<String> {
-        let parts: Vec<String> = [
-            (self.count(TriStatus::NonFinite), "with NaN/Inf vertices"),
-            (self.count(TriStatus::Degenerate), "with zero area"),
-            (
-                self.count(TriStatus::OutOfRange),
-                "with out-of-range indices",
-            ),
-            (self.short_faces, "faces with fewer than 3 vertices"),
-            (
-                self.count(TriStatus::TooFar),
-                "with a coordinate beyond ±1e11 (the supported range)",
-            ),
+        exclusion_summary(self.exclusions())
+    }
+
+    /// What was left out, by cause, in [`EXCLUSION_CAUSES`]' order.
+    pub fn exclusions(&self) -> [u64; 5] {
+        [
+            self.count(TriStatus::NonFinite) as u64,
+            self.count(TriStatus::Degenerate) as u64,
+            self.count(TriStatus::OutOfRange) as u64,
+            self.short_faces as u64,
+            self.count(TriStatus::TooFar) as u64,
         ]
-        .iter()
-        .filter(|(n, _)| *n > 0)
-        .map(|(n, what)| format!("{n} {what}"))
-        .collect();
-        (!parts.is_empty()).then(|| format!("left out of the BVH: {}", parts.join(", ")))
     }
 
     /// Bounds of the included triangles.
@@ -178,4 +172,23 @@ pub(crate) fn check_triangle_count(path: &std::path::Path, tris: u128) -> crate:
         tris * BYTES_PER_TRIANGLE,
         "use a smaller mesh",
     )
+}
+
+/// The causes [`Mesh::exclusions`] counts, as [`exclusion_summary`] names them.
+pub const EXCLUSION_CAUSES: [&str; 5] = [
+    "with NaN/Inf vertices",
+    "with zero area",
+    "with out-of-range indices",
+    "faces with fewer than 3 vertices",
+    "with a coordinate beyond ±1e11 (the supported range)",
+];
+
+/// One line naming what was left out (counts by [`EXCLUSION_CAUSES`]), or None when
+/// nothing was.
+pub fn exclusion_summary(counts: [u64; 5]) -> Option<String> {
+    let parts: Vec<String> = (counts.iter().zip(EXCLUSION_CAUSES))
+        .filter(|(n, _)| **n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+    (!parts.is_empty()).then(|| format!("left out of the BVH: {}", parts.join(", ")))
 }

@@ -360,8 +360,9 @@ pub fn read_map(path: &Path) -> Result<Option<EnvMap>> {
     }
     // The decoded image (up to 16 bytes a texel), its RGB f32 copy, the texels and the
     // distribution.
-    crate::limits::check_image(width, height, 16 + 12 + 12 + 4, "scale the map down")?;
-    let img = (reader()?.decode())
+    crate::limits::check_image(width, height, 16 + 12 + 12 + 4, "scale the map down")
+        .map_err(|e| bad(e.to_string()))?;
+    let img = crate::limits::decode_checked(reader()?)
         .map_err(|e| bad(e.to_string()))?
         .to_rgb32f();
     let texels: Vec<Vec3> = img.pixels().map(|p| Vec3::from(p.0)).collect();

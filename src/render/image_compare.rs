@@ -149,8 +149,9 @@ pub fn load_image(path: &Path) -> Result<Image> {
     // The size from the header first: the decoded image (at most 16 bytes a pixel) and
     // its f32 copy must fit before anything is decoded.
     let (w, h) = reader()?.into_dimensions().map_err(bad)?;
-    crate::limits::check_image(w, h, 16 + 12, "not an image this machine can compare")?;
-    let decoded = reader()?.decode().map_err(bad)?;
+    crate::limits::check_image(w, h, 16 + 12, "not an image this machine can compare")
+        .map_err(|e| Error::input(path, None, e.to_string()))?;
+    let decoded = crate::limits::decode_checked(reader()?).map_err(bad)?;
     let rgb = decoded.to_rgb32f();
     let linear = |c: f32| match kind {
         ImageKind::Exr => c,

@@ -179,7 +179,10 @@ impl<'a> Renderer<'a> {
         let scene: &RenderScene = &owned;
         let (w, h) = (scene.camera.width, scene.camera.height);
         // Pixel indices of the full image seed the random numbers: they must fit a u32.
-        crate::limits::check_image(w, h, 0, "use a smaller --width/--height")?;
+        // The size is the scene file's [camera] or the caller's (--width/--height/--scale).
+        let smaller = "use a smaller image (--width/--height/--scale, or the scene file's \
+                       [camera] width and height)";
+        crate::limits::check_image(w, h, 0, smaller)?;
         let crop = options.crop.unwrap_or(Crop::full(w, h));
         crop.check(w, h)?;
         // Accumulator, image and encoding: about 48 bytes a pixel on either device.
@@ -187,7 +190,7 @@ impl<'a> Renderer<'a> {
             crop.width(),
             crop.height(),
             48,
-            "use a smaller --width/--height or render tiles (--crop)",
+            &format!("{smaller} or render tiles (--crop)"),
         )?;
         let kind =
             (options.accel).unwrap_or_else(|| AccelKind::Bvh(crate::trace::default_layout(device)));

@@ -54,6 +54,14 @@ fn whole_rays(path: &Path, len: u64) -> Result<()> {
 
 fn decode_ray_bytes(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>> {
     whole_rays(path, bytes.len() as u64)?;
+    // The file's bytes are held already: the rays decoded from them, and the hits a trace
+    // of them makes (16 bytes a ray), must fit beside them.
+    let rays = (bytes.len() / RAY_BYTES) as u128;
+    crate::limits::check_memory(
+        &format!("{}: {rays} rays and their hits", path.display()),
+        rays * (RAY_BYTES + std::mem::size_of::<Hit>()) as u128,
+        "free memory, or trace the rays in smaller files",
+    )?;
     // Decode explicitly little-endian, whatever the host.
     Ok(bytes
         .chunks_exact(RAY_BYTES)

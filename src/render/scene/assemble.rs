@@ -348,7 +348,7 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
     }
     crate::limits::check_image(width, height, 16 + 4 + 3 + 12 + 4, "scale the texture down")
         .map_err(|e| e.to_string())?;
-    let decoded = reader()?.decode().map_err(|e| e.to_string())?;
+    let decoded = crate::limits::decode_checked(reader()?).map_err(|e| e.to_string())?;
     // Alpha is data (glTF: linear, never sRGB-encoded), kept only where the image has it.
     let alpha = if decoded.color().has_alpha() {
         let a = decoded.to_rgba8();
@@ -1528,7 +1528,8 @@ impl RenderScene {
         crate::limits::check_memory(
             &format!("the flattened scene ({n} triangles)"),
             n * 256,
-            "render it with its placements (without --flatten)",
+            "trace or render it with its placements, in two levels (without --flatten; \
+             `lancer build` writes one flattened BVH)",
         )?;
         let mut mesh = pl.set().flatten();
         mesh.sources = self.mesh.sources.clone();

@@ -26,6 +26,40 @@ pub fn load_geometry(path: &std::path::Path) -> crate::Result<crate::mesh::Mesh>
     }
 }
 
+/// The flattened mesh of a file ([`load_geometry`]'s) and, where the file places a mesh
+/// more than once, the instances that place it ([`load_traceable`]'s set, for counting):
+/// each file read as few times as that allows, its left-out triangles counted in one
+/// warning.
+pub fn load_flattened(
+    path: &std::path::Path,
+) -> crate::Result<(crate::mesh::Mesh, Option<crate::mesh::InstanceSet>)> {
+    use crate::mesh::{FileKind, GltfLoaded};
+    Ok(match FileKind::of(path)? {
+        FileKind::Scene => {
+            let scene = RenderScene::from_file(path)?;
+            let set = (scene.placements.as_ref()).map(|p| p.set().clone());
+            (scene.flattened()?.mesh, set)
+        }
+        FileKind::Gltf => match crate::mesh::read_gltf(path)? {
+            GltfLoaded::Placed(p) if p.shares_meshes => {
+                let set = (p.instance_set())
+                    .map_err(|e| crate::Error::input(path, None, e.to_string()))?;
+                set.check_usable(path)?;
+                // Flattened as load_geometry flattens it; what it leaves out was counted.
+                let mesh = crate::mesh::load_gltf(path)?.mesh;
+                crate::mesh::check_traceable(path, &mesh)?;
+                (mesh, Some(set))
+            }
+            GltfLoaded::Flat(g) => {
+                crate::mesh::check_usable(path, &g.mesh)?;
+                (g.mesh, None)
+            }
+            GltfLoaded::Placed(_) => (load_geometry(path)?, None),
+        },
+        _ => (crate::mesh::load_mesh(path)?, None),
+    })
+}
+
 /// A file's geometry as `trace` takes it, the file read once: one mesh, or meshes placed by
 /// instances where the file places a mesh more than once.
 #[derive(Clone, Debug)]
@@ -44,16 +78,25 @@ pub enum Geometry {
 /// chosen by the extension.
 pub fn load_traceable(path: &std::path::Path) -> crate::Result<Geometry> {
     use crate::mesh::{FileKind, GltfLoaded};
+    // A glTF's flattened mesh is checked as `load_mesh` checks one: what is left out is
+    // counted, and a mesh with no usable triangle refused.
+    let usable = |mesh: crate::mesh::Mesh| -> crate::Result<Geometry> {
+        crate::mesh::check_usable(path, &mesh)?;
+        Ok(Geometry::Mesh(mesh))
+    };
     Ok(match FileKind::of(path)? {
         FileKind::Gltf => match crate::mesh::read_gltf(path)? {
-            GltfLoaded::Flat(g) => Geometry::Mesh(g.mesh),
+            GltfLoaded::Flat(g) => usable(g.mesh)?,
             // Placed only for its animation: traced still, flattened as before.
             GltfLoaded::Placed(p) if !p.shares_meshes => {
-                Geometry::Mesh(crate::mesh::load_gltf(path)?.mesh)
+                usable(crate::mesh::load_gltf(path)?.mesh)?
             }
-            GltfLoaded::Placed(p) => Geometry::Placed(
-                (p.instance_set()).map_err(|e| crate::Error::input(path, None, e.to_string()))?,
-            ),
+            GltfLoaded::Placed(p) => {
+                let set = (p.instance_set())
+                    .map_err(|e| crate::Error::input(path, None, e.to_string()))?;
+                set.check_usable(path)?;
+                Geometry::Placed(set)
+            }
         },
         FileKind::Scene => {
             let scene = RenderScene::from_file(path)?;
