@@ -195,7 +195,9 @@ impl Camera {
         }
     }
 
-    /// Primary rays through every pixel centre, row-major from the top-left.
+    /// Primary rays through every pixel centre, row-major from the top-left: width · height
+    /// rays of 32 bytes, allocated at once. A size that comes from input is checked first
+    /// ([`check_image`](crate::limits::check_image), as `lancer rays` and the renderer do).
     pub fn primary_rays(&self) -> Vec<Ray> {
         let f = self.frame();
         (0..self.height)

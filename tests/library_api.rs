@@ -207,3 +207,92 @@ fn a_device_too_small_for_the_kernels_is_refused() {
     let e = GpuContext::from_wgpu(device, queue).err().expect("refused");
     assert!(e.to_string().contains("storage buffers"), "{e}");
 }
+
+/// What an application assembles itself, with arrays that disagree, is refused with an
+/// error rather than a panic, wherever the library takes it (found by a probe of the API).
+#[test]
+fn inconsistent_arrays_made_in_code_are_refused_not_panicked_on() {
+    use lancer::accel::bvh::{build_boxes, Builder};
+    use lancer::accel::instances::{Affine, Instance, InstanceSet};
+    use lancer::geometry::Aabb;
+
+    let cpu = Device::cpu();
+    let (p, t) = height_field(4);
+    let mesh = Mesh::from_indexed(&p, &t).unwrap();
+
+    // A mesh with a status missing.
+    let mut short = mesh.clone();
+    short.status.pop();
+    let e = Tracer::new(&cpu, &short, &TracerOptions::default())
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("statuses"), "{e}");
+
+    // Instances of a mesh that is not there, flattened or in two levels.
+    let set = InstanceSet {
+        meshes: vec![Arc::new(mesh.clone())],
+        instances: vec![Instance {
+            mesh: 5,
+            to_world: Affine::IDENTITY,
+        }],
+    };
+    for flatten in [true, false] {
+        let options = TracerOptions {
+            flatten,
+            ..TracerOptions::default()
+        };
+        let e = Tracer::with_instances(&cpu, &set, &options)
+            .err()
+            .expect("refused");
+        assert!(e.to_string().contains("places mesh 5"), "{e}");
+    }
+
+    // A scene whose material names a texture it does not have, or whose material indices
+    // are short, on the CPU and on the GPU.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let mut scene = RenderScene::from_file(&path).unwrap();
+    (scene.camera.width, scene.camera.height) = (8, 8);
+    let options = RenderOptions {
+        spp: Some(1),
+        ..RenderOptions::default()
+    };
+    let mut no_texture = scene.clone();
+    no_texture.materials[0].texture = Some(99);
+    let mut short_materials = scene.clone();
+    short_materials.material_of.pop();
+    let gpu = Device::open(lancer::DeviceChoice::Gpu).ok();
+    for device in std::iter::once(&cpu).chain(gpu.as_ref()) {
+        let e = render(&no_texture, device, &options).expect_err("refused");
+        assert!(e.to_string().contains("texture 99"), "{e}");
+        let e = render(&short_materials, device, &options).expect_err("refused");
+        assert!(e.to_string().contains("material indices"), "{e}");
+    }
+    render(&scene, &cpu, &options).expect("the scene as read renders");
+
+    // An image with fewer pixels than its size.
+    let dir = std::env::temp_dir().join(format!("lancer-short-image-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("short.png");
+    let e = lancer::render::save_image(&png, &[Vec3::ONE; 2], 4, 4).expect_err("refused");
+    assert!(e.to_string().contains("2 pixels for a 4×4 image"), "{e}");
+    assert!(!png.exists());
+    std::fs::remove_dir_all(&dir).ok();
+
+    // NaN boxes: every builder makes a tree over all of them (PLOC named no neighbour).
+    let nan = Aabb {
+        lo: Vec3::NAN,
+        hi: Vec3::NAN,
+    };
+    for builder in [
+        Builder::Sweep,
+        Builder::Binned,
+        Builder::Median,
+        Builder::Ploc,
+    ] {
+        let opts = BuildOptions {
+            builder,
+            ..BuildOptions::default()
+        };
+        assert_eq!(build_boxes(&[nan; 4], &opts).order.len(), 4, "{builder:?}");
+    }
+}

@@ -87,3 +87,56 @@ fn a_refit_traces_the_same_hits_as_a_rebuild_over_the_same_triangles() {
         .into();
     same_on_gpu("refit cwbvh", &form, &rays, rob);
 }
+
+/// A refit cannot leave a triangle out as a load does: one moved beyond the supported range
+/// (±1e11, infinities included) is refused by name, the tree unchanged; a NaN corner only
+/// makes its triangle never hit.
+#[test]
+fn a_refit_refuses_triangles_moved_beyond_the_supported_range() {
+    let base = sheet(8, 0.0, 0.0);
+    let opts = BuildOptions::default();
+    for far in [1e12, 1e20, f32::INFINITY, -f32::INFINITY] {
+        let mut tree = build(&base, &opts);
+        let before = tree.clone();
+        let mut moved = base.clone();
+        moved.triangles[5].v[1].y = far;
+        let err = tree
+            .refit(&moved)
+            .expect_err("refit beyond the range")
+            .to_string();
+        assert!(
+            err.contains("triangle 5") && err.contains("supported range"),
+            "{err}"
+        );
+        assert_eq!(tree, before, "a refused refit changes nothing");
+    }
+    let mut tree = build(&base, &opts);
+    let mut moved = base.clone();
+    moved.triangles[5].v[1].y = f32::NAN;
+    tree.refit(&moved).expect("a NaN corner refits");
+    for kind in LayoutKind::ALL {
+        layouts::try_flatten(*kind, &tree, &moved).expect("flattens");
+    }
+}
+
+/// Triangles marked usable by hand though they lie far beyond the supported range (their
+/// boxes' areas overflow f32) still flatten into every layout: the wide layouts' SAH
+/// programme picks a valid split where every cost is infinite, and nothing panics.
+#[test]
+fn infinite_sah_costs_still_make_valid_wide_trees() {
+    let mut far = sheet(8, 0.0, 0.0);
+    for t in &mut far.triangles {
+        for v in &mut t.v {
+            *v *= 1e20;
+        }
+    }
+    far.status.fill(lancer::mesh::TriStatus::Ok);
+    let tree = build(&far, &BuildOptions::default());
+    assert_eq!(tree.order.len(), far.len(), "every triangle in the tree");
+    for kind in LayoutKind::ALL {
+        let layout = layouts::try_flatten(*kind, &tree, &far);
+        if let Ok(layout) = layout {
+            layout.validate().expect("a valid layout");
+        }
+    }
+}

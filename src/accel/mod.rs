@@ -249,6 +249,7 @@ pub fn build(
     mesh: &Mesh,
     options: &bvh::BuildOptions,
 ) -> crate::Result<Box<dyn Accel>> {
+    mesh.check_arrays()?;
     Ok(match kind {
         AccelKind::Bvh(layout) => {
             let tree = bvh::build(mesh, options);

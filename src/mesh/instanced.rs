@@ -67,8 +67,11 @@ impl InstanceSet {
     /// and refuses a set in which no instance places a usable triangle.
     pub fn check_usable(&self, path: &std::path::Path) -> crate::Result<()> {
         let mut uses = vec![0u64; self.meshes.len()];
+        // An instance of no mesh counts nothing here (InstanceSet::new refuses it).
         for i in &self.instances {
-            uses[i.mesh as usize] += 1;
+            if let Some(n) = uses.get_mut(i.mesh as usize) {
+                *n += 1;
+            }
         }
         let mut left_out = [0u64; 5];
         let mut usable = false;
@@ -87,7 +90,9 @@ impl InstanceSet {
                 None,
                 format!(
                     "no usable triangle ({} placed): nothing to trace",
-                    self.triangle_count()
+                    (self.meshes.iter().zip(&uses))
+                        .map(|(m, &n)| m.len() as u64 * n)
+                        .sum::<u64>()
                 ),
             ));
         }

@@ -84,11 +84,25 @@ impl Mesh {
         self.triangles.is_empty()
     }
 
-    /// Original indices of the triangles that go into the BVH.
+    /// Original indices of the triangles that go into the BVH (a triangle without a
+    /// status, in a mesh whose arrays [`Mesh::check_arrays`] refuses, stays out).
     pub fn included(&self) -> Vec<u32> {
-        (0..self.triangles.len() as u32)
+        (0..self.triangles.len().min(self.status.len()) as u32)
             .filter(|&i| self.status[i as usize] == TriStatus::Ok)
             .collect()
+    }
+
+    /// Refuses a mesh made in code whose arrays disagree: one status per triangle.
+    pub fn check_arrays(&self) -> crate::Result<()> {
+        if self.status.len() != self.triangles.len() {
+            return Err(crate::Error::Usage(format!(
+                "a mesh of {} triangles with {} statuses: give one status per triangle \
+                 (Mesh::from_triangles classifies them)",
+                self.triangles.len(),
+                self.status.len()
+            )));
+        }
+        Ok(())
     }
 
     /// Number of triangles with status `s`.

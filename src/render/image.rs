@@ -24,7 +24,29 @@ fn srgb(x: f32) -> u8 {
     (srgb_encoded(x) * 255.0).round() as u8
 }
 
-/// Linear radiance → a 16-bit sRGB image (values clipped to [0, 1]).
+/// Refuses pixels that are not `width · height` (an image made in code).
+fn check_pixels(px: &[Vec3], width: u32, height: u32) -> Result<()> {
+    if px.len() as u64 != width as u64 * height as u64 {
+        return Err(Error::Usage(format!(
+            "{} pixels for a {width}×{height} image",
+            px.len()
+        )));
+    }
+    Ok(())
+}
+
+/// The pixel at (x, y) of a `width`-wide image, black where `px` is too short.
+fn pixel(px: &[Vec3], width: u32, x: u32, y: u32) -> Vec3 {
+    let i = y as u64 * width as u64 + x as u64;
+    usize::try_from(i)
+        .ok()
+        .and_then(|i| px.get(i))
+        .copied()
+        .unwrap_or(Vec3::ZERO)
+}
+
+/// Linear radiance → a 16-bit sRGB image (values clipped to [0, 1]; pixels missing from
+/// `px` black).
 pub fn to_rgb16(
     px: &[Vec3],
     width: u32,
@@ -32,15 +54,16 @@ pub fn to_rgb16(
 ) -> image::ImageBuffer<image::Rgb<u16>, Vec<u16>> {
     let q = |x: f32| (srgb_encoded(x) * 65535.0).round() as u16;
     image::ImageBuffer::from_fn(width, height, |x, y| {
-        let c = px[(y * width + x) as usize];
+        let c = pixel(px, width, x, y);
         image::Rgb([q(c.x), q(c.y), q(c.z)])
     })
 }
 
-/// Linear radiance → an 8-bit sRGB image (values clipped to [0, 1]).
+/// Linear radiance → an 8-bit sRGB image (values clipped to [0, 1]; pixels missing from
+/// `px` black).
 pub fn to_rgb8(px: &[Vec3], width: u32, height: u32) -> image::RgbImage {
     image::RgbImage::from_fn(width, height, |x, y| {
-        let c = px[(y * width + x) as usize];
+        let c = pixel(px, width, x, y);
         image::Rgb([srgb(c.x), srgb(c.y), srgb(c.z)])
     })
 }
@@ -114,6 +137,7 @@ impl Image {
 
     /// Saves the image as a 16-bit sRGB PNG, written atomically.
     pub fn save_png16(&self, path: &Path) -> Result<()> {
+        check_pixels(&self.pixels, self.width, self.height)?;
         let png = to_rgb16(&self.pixels, self.width, self.height);
         crate::output::write_atomic(path, |w| {
             png.write_to(w, image::ImageFormat::Png)
@@ -149,11 +173,12 @@ impl Image {
 /// atomically (a temporary file in the same folder, then a rename).
 pub fn save_image(path: &Path, px: &[Vec3], width: u32, height: u32) -> Result<()> {
     let kind = image_kind(path)?;
+    check_pixels(px, width, height)?;
     let encode = |w: &mut std::io::BufWriter<std::fs::File>| {
         let r = match kind {
             ImageKind::Png => to_rgb8(px, width, height).write_to(w, image::ImageFormat::Png),
             ImageKind::Exr => image::Rgb32FImage::from_fn(width, height, |x, y| {
-                image::Rgb(px[(y * width + x) as usize].to_array())
+                image::Rgb(pixel(px, width, x, y).to_array())
             })
             .write_to(w, image::ImageFormat::OpenExr),
         };

@@ -177,6 +177,7 @@ impl<'a> Renderer<'a> {
         options: &RenderOptions,
     ) -> Result<Self> {
         let scene: &RenderScene = &owned;
+        scene.check_arrays()?;
         let (w, h) = (scene.camera.width, scene.camera.height);
         // Pixel indices of the full image seed the random numbers: they must fit a u32.
         // The size is the scene file's [camera] or the caller's (--width/--height/--scale).

@@ -106,6 +106,7 @@ impl<'d> Tracer<'d> {
     /// Builds the BVH over the mesh's usable triangles, flattens it, and uploads it when
     /// the device is a GPU.
     pub fn new(device: &'d Device, mesh: &Mesh, options: &TracerOptions) -> Result<Self> {
+        mesh.check_arrays()?;
         let layout = Self::flattened(device, mesh, options)?;
         Self::with_layout(device, layout, options)
     }
@@ -114,6 +115,7 @@ impl<'d> Tracer<'d> {
     /// and before the layout is uploaded: the mesh, the layout and the device's copy of it
     /// never take memory at once (a software driver's device memory is the host's).
     pub fn from_mesh(device: &'d Device, mesh: Mesh, options: &TracerOptions) -> Result<Self> {
+        mesh.check_arrays()?;
         let layout = Self::flattened(device, &mesh, options)?;
         drop(mesh);
         Self::with_layout(device, layout, options)
@@ -193,6 +195,8 @@ impl<'d> Tracer<'d> {
         options: &TracerOptions,
     ) -> Result<Self> {
         if options.flatten {
+            // InstanceSet::new's checks (its fields are public), as the two levels make them.
+            let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
             let n = set.triangle_count() as u128;
             crate::limits::check_memory(
                 &format!("the flattened scene ({n} triangles)"),

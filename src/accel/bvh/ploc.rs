@@ -120,11 +120,14 @@ fn round(tree: &mut Clusters, now: &Round, nn: &mut Vec<u32>, next: &mut Round, 
         let mut best = (f32::INFINITY, usize::MAX);
         for j in (lo..=hi).filter(|&j| j != i) {
             let d = box_area(boxes[i].union(boxes[j]));
-            let better = match d.total_cmp(&best.0) {
-                std::cmp::Ordering::Less => true,
-                std::cmp::Ordering::Equal => key(j) < key(best.1),
-                std::cmp::Ordering::Greater => false,
-            };
+            // The first candidate is taken whatever its distance (a NaN box's is NaN, above
+            // +∞ in the total order): every cluster names a neighbour.
+            let better = best.1 == usize::MAX
+                || match d.total_cmp(&best.0) {
+                    std::cmp::Ordering::Less => true,
+                    std::cmp::Ordering::Equal => key(j) < key(best.1),
+                    std::cmp::Ordering::Greater => false,
+                };
             if better {
                 best = (d, j);
             }

@@ -16,13 +16,27 @@ impl Bvh {
     /// mesh the tree was built for, moved: a triangle the tree holds keeps its place
     /// whatever its new shape (one that became degenerate is never hit), and a triangle the
     /// build left out stays out. Refused (nothing changed) when the tree refers to a
-    /// triangle `mesh` does not have.
+    /// triangle `mesh` does not have, or one moved beyond the supported range
+    /// ([`MAX_COORD`](crate::limits::MAX_COORD), infinities included), which a load would
+    /// have left out and a refit cannot (a NaN corner only makes its triangle never hit).
     pub fn refit(&mut self, mesh: &Mesh) -> crate::Result<()> {
         if let Some(&i) = self.order.iter().find(|&&i| i as usize >= mesh.len()) {
             return Err(crate::Error::Usage(format!(
                 "the BVH holds triangle {i}, but the mesh to refit it to has {}: refit to \
                  the mesh it was built for, moved",
                 mesh.len()
+            )));
+        }
+        let max = crate::limits::MAX_COORD;
+        let beyond = |&i: &u32| {
+            let t = &mesh.triangles[i as usize];
+            t.v.iter().any(|v| v.abs().max_element() > max)
+        };
+        if let Some(&i) = self.order.iter().find(|i| beyond(i)) {
+            return Err(crate::Error::Usage(format!(
+                "triangle {i} moved to {:?}, beyond ±{max:e} (the supported range), which a \
+                 refit cannot leave out: keep the mesh within it, or build it again",
+                mesh.triangles[i as usize].v.map(|v| v.to_array())
             )));
         }
         refit_node(&mut self.root, &self.order, mesh);

@@ -1509,6 +1509,79 @@ impl RenderScene {
         Ok(scene)
     }
 
+    /// Refuses a scene assembled in code whose arrays disagree (a scene read from a file
+    /// always agrees): one status, texture-coordinate triple and material index per
+    /// triangle, normals and tangents for every triangle or none, materials and textures
+    /// that the indices name, whole textures, and emitters among the triangles rendered
+    /// with one running area each.
+    pub fn check_arrays(&self) -> Result<()> {
+        self.mesh.check_arrays()?;
+        let n = self.mesh.len();
+        let bad = |msg: String| Err(Error::Usage(format!("a scene made in code: {msg}")));
+        for (what, len, may_be_empty) in [
+            ("texture coordinates (uvs)", self.uvs.len(), false),
+            (
+                "material indices (material_of)",
+                self.material_of.len(),
+                false,
+            ),
+            ("normals", self.normals.len(), true),
+            ("tangents", self.tangents.len(), true),
+        ] {
+            if len != n && !(may_be_empty && len == 0) {
+                return bad(format!("{len} {what} for {n} triangles"));
+            }
+        }
+        if let Some(m) = self
+            .material_of
+            .iter()
+            .find(|&&m| m as usize >= self.materials.len())
+        {
+            return bad(format!("material {m} of {}", self.materials.len()));
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            let slots = [
+                m.texture,
+                m.metallic_roughness_texture,
+                m.emission_texture,
+                m.normal_texture,
+                m.occlusion_texture,
+            ];
+            if let Some(t) = slots
+                .into_iter()
+                .flatten()
+                .find(|&t| t >= self.textures.len())
+            {
+                return bad(format!(
+                    "material {i} names texture {t} of {}",
+                    self.textures.len()
+                ));
+            }
+        }
+        for (i, t) in self.textures.iter().enumerate() {
+            if t.texels.len() as u64 != t.width as u64 * t.height as u64 || t.texels.is_empty() {
+                return bad(format!(
+                    "texture {i} is {}×{} with {} texels",
+                    t.width,
+                    t.height,
+                    t.texels.len()
+                ));
+            }
+        }
+        let rendered = self.triangle_count();
+        if let Some(e) = self.emitters.iter().find(|&&e| e as u64 >= rendered) {
+            return bad(format!("emitter {e} of {rendered} triangles"));
+        }
+        if self.emitter_cdf.len() != self.emitters.len() {
+            return bad(format!(
+                "{} running areas (emitter_cdf) for {} emitters",
+                self.emitter_cdf.len(),
+                self.emitters.len()
+            ));
+        }
+        Ok(())
+    }
+
     /// Triangles rendered: those of [`Self::mesh`], or with placements those they place.
     pub fn triangle_count(&self) -> u64 {
         match &self.placements {

@@ -68,8 +68,11 @@ impl<const W: usize> Entry<W> {
             };
         };
         let (cl, cr) = (&l.cost, &r.cost);
+        // Where no sum is finite (a box whose area overflows f32, built from triangles
+        // marked usable by hand) the first share is kept: a node spread over j slots must
+        // give each side one, whatever the costs.
         let spread = |j: usize| {
-            let mut best = (f32::INFINITY, 0u8);
+            let mut best = (f32::INFINITY, 1u8);
             for k in 1..j {
                 let c = cl[k - 1] + cr[j - k - 1];
                 if c < best.0 {
