@@ -65,8 +65,9 @@ impl ViewChange {
     /// `camera` changed: a new field of view keeps what it frames where the eye is not
     /// given (`keep_framing`: the eye moves along its line so that what filled the image
     /// still does), else only the angle changes. Refuses non-finite points, a field of
-    /// view outside (0, 180) degrees, an eye on the point looked at, and a view straight
-    /// up or down (parallel to the up hint).
+    /// view outside (0, 180) degrees, an eye on the point looked at or too far from it for
+    /// f32 (given so, or moved there to keep a very narrow view's framing), and a view
+    /// straight up or down (parallel to the up hint).
     pub fn apply(&self, camera: &mut Camera, keep_framing: bool) -> Result<(), String> {
         let finite = |v: Option<Vec3>| v.is_none_or(|v| v.is_finite());
         if !finite(self.look_from) || !finite(self.look_at) {

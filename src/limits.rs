@@ -68,14 +68,17 @@ pub fn check_memory(what: &str, bytes: u128, hint: &str) -> Result<()> {
     Ok(())
 }
 
-/// Decodes an image whose size, read from its header, [`check_image`] has passed. The image
-/// crate's own cap (512 MiB a decode) is lifted: it would refuse textures within
-/// [`MAX_TEXTURE_SIDE`] on a machine with room for them, and lancer's check is the
-/// memory the machine has.
-pub fn decode_checked<R: std::io::BufRead + std::io::Seek>(
+/// Decodes an image whose size, read from its header, [`check_image`] has passed for
+/// `bytes` of memory. The image crate's own cap (512 MiB a decode) becomes that size: the
+/// default would refuse textures within [`MAX_TEXTURE_SIDE`] on a machine with room for
+/// them, and lancer's check is the memory the machine has.
+pub(crate) fn decode_checked<R: std::io::BufRead + std::io::Seek>(
     mut reader: image::ImageReader<R>,
+    bytes: u64,
 ) -> image::ImageResult<image::DynamicImage> {
-    reader.no_limits();
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(limits.max_alloc.unwrap_or(0).max(bytes));
+    reader.limits(limits);
     reader.decode()
 }
 

@@ -1280,6 +1280,17 @@ fn hostile_command_lines() {
             )
             .names(&[&none_name, "no usable triangle"]),
             Row::new(
+                format!("glTF, {what}: no usable triangle (rays)"),
+                Want::Fail(2),
+                &[
+                    &"rays",
+                    &none,
+                    &"-o",
+                    &s.path(&format!("gltf-left-out/r{nodes}.rays")),
+                ],
+            )
+            .names(&[&none_name, "no usable triangle"]),
+            Row::new(
                 format!("glTF, {what}: one triangle left out (build)"),
                 Want::Ok,
                 &[&"build", &half],

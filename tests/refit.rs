@@ -110,6 +110,14 @@ fn a_refit_refuses_triangles_moved_beyond_the_supported_range() {
         );
         assert_eq!(tree, before, "a refused refit changes nothing");
     }
+    // A triangle the load left out (beyond the range) is not the tree's: it may stay there.
+    let mut far = base.clone();
+    far.triangles[3].v[0].x = 1e20;
+    far.status[3] = lancer::mesh::TriStatus::TooFar;
+    let mut tree = build(&far, &opts);
+    assert!(!tree.order.contains(&3));
+    tree.refit(&far)
+        .expect("a triangle left out does not count");
     let mut tree = build(&base, &opts);
     let mut moved = base.clone();
     moved.triangles[5].v[1].y = f32::NAN;
@@ -134,9 +142,7 @@ fn infinite_sah_costs_still_make_valid_wide_trees() {
     let tree = build(&far, &BuildOptions::default());
     assert_eq!(tree.order.len(), far.len(), "every triangle in the tree");
     for kind in LayoutKind::ALL {
-        let layout = layouts::try_flatten(*kind, &tree, &far);
-        if let Ok(layout) = layout {
-            layout.validate().expect("a valid layout");
-        }
+        let layout = layouts::try_flatten(*kind, &tree, &far).expect("flattens");
+        layout.validate().expect("a valid layout");
     }
 }

@@ -2,8 +2,8 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lancer::camera::Camera;
-use lancer::mesh::{FileKind, GltfLoaded};
-use lancer::render::{load_traceable, Geometry};
+use lancer::mesh::FileKind;
+use lancer::render::{load_traceable_with_cameras, Geometry};
 use lancer::trace::files::encode_rays;
 use lancer::{RenderScene, Result};
 
@@ -46,20 +46,9 @@ impl RaysCmd {
                 (c.width, c.height) = size((c.width, c.height));
                 (scene.camera, scene.mesh.sources, false)
             }
-            kind => {
+            _ => {
                 // A glTF file read once: its geometry and its cameras.
-                let (geometry, cameras) = match kind {
-                    FileKind::Gltf => match lancer::mesh::read_gltf(&self.mesh)? {
-                        GltfLoaded::Flat(g) => (Geometry::Mesh(g.mesh), g.cameras),
-                        GltfLoaded::Placed(p) => {
-                            let set = p.instance_set().map_err(|e| {
-                                lancer::Error::input(&self.mesh, None, e.to_string())
-                            })?;
-                            (Geometry::Placed(set), p.cameras)
-                        }
-                    },
-                    _ => (load_traceable(&self.mesh)?, Vec::new()),
-                };
+                let (geometry, cameras) = load_traceable_with_cameras(&self.mesh)?;
                 let picked = lancer::camera::pick_camera(&cameras, view.camera.as_deref())
                     .map_err(|e| lancer::Error::input(&self.mesh, None, e))?;
                 let (w, h) = mesh_size;

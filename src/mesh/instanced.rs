@@ -36,12 +36,19 @@ impl InstanceSet {
     /// when an instance names no mesh or has a map that is not finite and invertible, or
     /// when the instanced triangles are more than [`MAX_INSTANCED_TRIANGLES`].
     pub fn new(meshes: Vec<Arc<Mesh>>, instances: Vec<Instance>) -> crate::Result<InstanceSet> {
-        for (i, inst) in instances.iter().enumerate() {
-            if inst.mesh as usize >= meshes.len() {
+        let set = InstanceSet { meshes, instances };
+        set.check()?;
+        Ok(set)
+    }
+
+    /// [`InstanceSet::new`]'s checks, for a set whose public fields were set by hand.
+    pub fn check(&self) -> crate::Result<()> {
+        for (i, inst) in self.instances.iter().enumerate() {
+            if inst.mesh as usize >= self.meshes.len() {
                 return Err(Error::Usage(format!(
                     "instance {i} places mesh {} of {}",
                     inst.mesh,
-                    meshes.len()
+                    self.meshes.len()
                 )));
             }
             if inst.to_world.inverse().is_none() {
@@ -51,15 +58,14 @@ impl InstanceSet {
                 )));
             }
         }
-        let set = InstanceSet { meshes, instances };
-        let total = set.triangle_count();
+        let total = self.triangle_count();
         if total > MAX_INSTANCED_TRIANGLES {
             return Err(Error::Usage(format!(
                 "{total} instanced triangles, more than lancer numbers \
                  ({MAX_INSTANCED_TRIANGLES}): place fewer instances"
             )));
         }
-        Ok(set)
+        Ok(())
     }
 
     /// Logs one warning naming `path` and counting the placed triangles left out of the BVH

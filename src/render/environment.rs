@@ -362,7 +362,7 @@ pub fn read_map(path: &Path) -> Result<Option<EnvMap>> {
     // distribution.
     crate::limits::check_image(width, height, 16 + 12 + 12 + 4, "scale the map down")
         .map_err(|e| bad(e.to_string()))?;
-    let img = crate::limits::decode_checked(reader()?)
+    let img = crate::limits::decode_checked(reader()?, 16 * width as u64 * height as u64)
         .map_err(|e| bad(e.to_string()))?
         .to_rgb32f();
     let texels: Vec<Vec3> = img.pixels().map(|p| Vec3::from(p.0)).collect();

@@ -28,7 +28,7 @@ fn srgb(x: f32) -> u8 {
 fn check_pixels(px: &[Vec3], width: u32, height: u32) -> Result<()> {
     if px.len() as u64 != width as u64 * height as u64 {
         return Err(Error::Usage(format!(
-            "{} pixels for a {width}×{height} image",
+            "{} pixels for a {width}×{height} image: give width · height pixels, row by row",
             px.len()
         )));
     }
@@ -131,7 +131,10 @@ impl Image {
     pub fn save(&self, path: &Path) -> Result<()> {
         match image_kind(path)? {
             ImageKind::Png => save_image(path, &self.pixels, self.width, self.height),
-            ImageKind::Exr => self.to_exr().write(path),
+            ImageKind::Exr => {
+                check_pixels(&self.pixels, self.width, self.height)?;
+                self.to_exr().write(path)
+            }
         }
     }
 

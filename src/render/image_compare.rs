@@ -151,7 +151,8 @@ pub fn load_image(path: &Path) -> Result<Image> {
     let (w, h) = reader()?.into_dimensions().map_err(bad)?;
     crate::limits::check_image(w, h, 16 + 12, "not an image this machine can compare")
         .map_err(|e| Error::input(path, None, e.to_string()))?;
-    let decoded = crate::limits::decode_checked(reader()?).map_err(bad)?;
+    let decoded =
+        crate::limits::decode_checked(reader()?, 16 * w as u64 * h as u64).map_err(bad)?;
     let rgb = decoded.to_rgb32f();
     let linear = |c: f32| match kind {
         ImageKind::Exr => c,

@@ -43,7 +43,10 @@ pub use merge::merge_tiles;
 pub use renderer::{render, Progress, ProgressFn, RenderOptions, Rendered, Renderer, Stop};
 pub use sampling::{cosine_direction, offset_origin, pcg, point_error, Rng, POINT_ERROR};
 pub use scene::builtin;
-pub use scene::{load_flattened, load_geometry, load_instances, load_traceable, Geometry};
+pub use scene::{
+    load_flattened, load_geometry, load_instances, load_traceable, load_traceable_with_cameras,
+    Geometry,
+};
 pub use scene::{
     ImageSize, Integrator, Light, LightKind, Material, MaterialKind, Motion, PlacedTriangle,
     Placements, RenderScene, SceneFile, Settings, Texture, TextureSlot, DEFAULT_FRAME_RATE,

@@ -318,6 +318,7 @@ impl<'a> Renderer<'a> {
     /// as a renderer made for it would, bit for bit. Refused, the renderer unchanged, where
     /// [`Renderer::can_move_to`] says no (then make a renderer for it).
     pub fn move_to(&mut self, scene: RenderScene, options: &RenderOptions) -> Result<()> {
+        scene.check_arrays()?;
         let (Some(two), Some(pl)) = (&self.two_level, &scene.placements) else {
             return Err(Error::Usage(
                 "move_to moves a renderer of a scene with placements in two levels".into(),

@@ -32,10 +32,11 @@ pub fn all_hits(mesh: &Mesh, ray: &Ray) -> Vec<(f64, u32)> {
     }
     let (o, d) = (d3(ray.origin), d3(ray.dir));
     let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
-    mesh.triangles
-        .iter()
+    // A triangle without a status (arrays that disagree) is left out, as `included` does.
+    (mesh.triangles.iter().zip(&mesh.status))
         .enumerate()
-        .filter(|(i, _)| mesh.status[*i] == TriStatus::Ok)
+        .filter(|(_, (_, s))| **s == TriStatus::Ok)
+        .map(|(i, (tri, _))| (i, tri))
         .filter_map(|(i, tri)| intersect_f64(&tri.v.map(d3), o, d).map(|h| (h.0, i as u32)))
         .filter(|&(t, _)| t >= tmin && t <= tmax)
         .collect()

@@ -196,7 +196,7 @@ impl<'d> Tracer<'d> {
     ) -> Result<Self> {
         if options.flatten {
             // InstanceSet::new's checks (its fields are public), as the two levels make them.
-            let set = InstanceSet::new(set.meshes.clone(), set.instances.clone())?;
+            set.check()?;
             let n = set.triangle_count() as u128;
             crate::limits::check_memory(
                 &format!("the flattened scene ({n} triangles)"),

@@ -54,6 +54,11 @@ impl Node {
 
 /// A BVH over the included triangles of a mesh: `order[i]` is the original triangle index
 /// at position i of leaf order (leaves appear left to right).
+///
+/// Its fields are open for reading; a tree is made by the builders ([`build`](super::build))
+/// and kept valid by [`Bvh::refit`]. Flattening trusts its shape (leaf ranges within
+/// `order`, `order` within the mesh, `nodes` counts, depth within [`MAX_DEPTH`]): a tree
+/// assembled by hand is not checked.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Bvh {
     /// The root node.

@@ -348,7 +348,8 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
     }
     crate::limits::check_image(width, height, 16 + 4 + 3 + 12 + 4, "scale the texture down")
         .map_err(|e| e.to_string())?;
-    let decoded = crate::limits::decode_checked(reader()?).map_err(|e| e.to_string())?;
+    let decoded = crate::limits::decode_checked(reader()?, 16 * width as u64 * height as u64)
+        .map_err(|e| e.to_string())?;
     // Alpha is data (glTF: linear, never sRGB-encoded), kept only where the image has it.
     let alpha = if decoded.color().has_alpha() {
         let a = decoded.to_rgba8();
@@ -1565,6 +1566,21 @@ impl RenderScene {
                     t.width,
                     t.height,
                     t.texels.len()
+                ));
+            }
+        }
+        if let Some(pl) = &self.placements {
+            // The placed meshes are slices of `mesh`, from their bases on.
+            let set = pl.set();
+            set.check()?;
+            let fits = pl.mesh_base().len() == set.meshes.len()
+                && (pl.mesh_base().iter().zip(&set.meshes))
+                    .all(|(&base, m)| base as usize + m.len() <= n);
+            if !fits {
+                return bad(format!(
+                    "placements of {} meshes from bases {:?} in a mesh of {n} triangles",
+                    set.meshes.len(),
+                    pl.mesh_base()
                 ));
             }
         }

@@ -28,8 +28,8 @@ pub fn load_geometry(path: &std::path::Path) -> crate::Result<crate::mesh::Mesh>
 
 /// The flattened mesh of a file ([`load_geometry`]'s) and, where the file places a mesh
 /// more than once, the instances that place it ([`load_traceable`]'s set, for counting):
-/// each file read as few times as that allows, its left-out triangles counted in one
-/// warning.
+/// each file read as few times as that allows, its left-out triangles counted once, in the
+/// flattened mesh the BVH is built over.
 pub fn load_flattened(
     path: &std::path::Path,
 ) -> crate::Result<(crate::mesh::Mesh, Option<crate::mesh::InstanceSet>)> {
@@ -44,11 +44,9 @@ pub fn load_flattened(
             GltfLoaded::Placed(p) if p.shares_meshes => {
                 let set = (p.instance_set())
                     .map_err(|e| crate::Error::input(path, None, e.to_string()))?;
-                set.check_usable(path)?;
-                // Flattened as load_geometry flattens it; what it leaves out was counted.
-                let mesh = crate::mesh::load_gltf(path)?.mesh;
-                crate::mesh::check_traceable(path, &mesh)?;
-                (mesh, Some(set))
+                // Flattened as load_geometry flattens it (in world space, where a node's
+                // map may leave out more than the meshes do).
+                (crate::mesh::load_mesh(path)?, Some(set))
             }
             GltfLoaded::Flat(g) => {
                 crate::mesh::check_usable(path, &g.mesh)?;
@@ -77,35 +75,44 @@ pub enum Geometry {
 /// Reads a file's [`Geometry`]: a mesh file (.obj, .ply, .gltf, .glb) or a scene (.toml),
 /// chosen by the extension.
 pub fn load_traceable(path: &std::path::Path) -> crate::Result<Geometry> {
+    Ok(load_traceable_with_cameras(path)?.0)
+}
+
+/// [`load_traceable`], with a glTF file's cameras (none for other files). What the file
+/// leaves out is counted in one warning, and a file with no usable triangle refused.
+pub fn load_traceable_with_cameras(
+    path: &std::path::Path,
+) -> crate::Result<(Geometry, Vec<crate::mesh::GltfCamera>)> {
     use crate::mesh::{FileKind, GltfLoaded};
-    // A glTF's flattened mesh is checked as `load_mesh` checks one: what is left out is
-    // counted, and a mesh with no usable triangle refused.
+    // A glTF's flattened mesh is checked as `load_mesh` checks one.
     let usable = |mesh: crate::mesh::Mesh| -> crate::Result<Geometry> {
         crate::mesh::check_usable(path, &mesh)?;
         Ok(Geometry::Mesh(mesh))
     };
     Ok(match FileKind::of(path)? {
         FileKind::Gltf => match crate::mesh::read_gltf(path)? {
-            GltfLoaded::Flat(g) => usable(g.mesh)?,
+            GltfLoaded::Flat(g) => (usable(g.mesh)?, g.cameras),
             // Placed only for its animation: traced still, flattened as before.
             GltfLoaded::Placed(p) if !p.shares_meshes => {
-                usable(crate::mesh::load_gltf(path)?.mesh)?
+                let g = crate::mesh::load_gltf(path)?;
+                (usable(g.mesh)?, g.cameras)
             }
             GltfLoaded::Placed(p) => {
                 let set = (p.instance_set())
                     .map_err(|e| crate::Error::input(path, None, e.to_string()))?;
                 set.check_usable(path)?;
-                Geometry::Placed(set)
+                (Geometry::Placed(set), p.cameras)
             }
         },
         FileKind::Scene => {
             let scene = RenderScene::from_file(path)?;
-            match scene.placements {
+            let geometry = match scene.placements {
                 Some(p) => Geometry::Placed(p.set().clone()),
                 None => Geometry::Mesh(scene.mesh),
-            }
+            };
+            (geometry, Vec::new())
         }
-        _ => Geometry::Mesh(crate::mesh::load_mesh(path)?),
+        _ => (Geometry::Mesh(crate::mesh::load_mesh(path)?), Vec::new()),
     })
 }
 
