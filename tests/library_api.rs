@@ -185,10 +185,8 @@ fn an_applications_own_device_traces_like_the_cpu() {
     assert_eq!(buffer.size(), 16);
 }
 
-#[test]
-fn an_applications_own_device_renders() {
-    let (device, queue) = app_device(wgpu::Limits::default());
-    let gpu = Device::gpu(GpuContext::from_wgpu(device, queue).unwrap());
+/// The Cornell box at 8×8 pixels, and options for one sample a pixel.
+fn small_cornell() -> (RenderScene, RenderOptions) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
     let mut scene = RenderScene::from_file(&path).unwrap();
     (scene.camera.width, scene.camera.height) = (8, 8);
@@ -196,6 +194,14 @@ fn an_applications_own_device_renders() {
         spp: Some(1),
         ..RenderOptions::default()
     };
+    (scene, options)
+}
+
+#[test]
+fn an_applications_own_device_renders() {
+    let (device, queue) = app_device(wgpu::Limits::default());
+    let gpu = Device::gpu(GpuContext::from_wgpu(device, queue).unwrap());
+    let (scene, options) = small_cornell();
     let rendered = render(&scene, &gpu, &options).unwrap();
     assert_eq!((rendered.image.width, rendered.image.height), (8, 8));
 }
@@ -249,13 +255,7 @@ fn inconsistent_arrays_made_in_code_are_refused_not_panicked_on() {
 
     // A scene whose material names a texture it does not have, or whose material indices
     // are short, on the CPU and on the GPU.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
-    let mut scene = RenderScene::from_file(&path).unwrap();
-    (scene.camera.width, scene.camera.height) = (8, 8);
-    let options = RenderOptions {
-        spp: Some(1),
-        ..RenderOptions::default()
-    };
+    let (scene, options) = small_cornell();
     let mut no_texture = scene.clone();
     no_texture.materials[0].texture = Some(99);
     let mut short_materials = scene.clone();
