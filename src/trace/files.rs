@@ -123,6 +123,12 @@ pub fn read_hits(path: &Path) -> Result<Vec<Hit>> {
             "size is not a multiple of 16 (one hit = t, prim, u, v)",
         ));
     }
+    // The hits decoded must fit beside the file's bytes, held already.
+    crate::limits::check_memory(
+        &format!("{}: {} hits", path.display(), bytes.len() / 16),
+        bytes.len() as u128,
+        "free memory, or compare the hits in smaller files",
+    )?;
     Ok(bytes
         .chunks_exact(16)
         .map(|c| {
