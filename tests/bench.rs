@@ -639,3 +639,64 @@ fn refit_measures_every_step_against_a_rebuild_on_both_devices() {
     assert!(text.contains("SAH refit ÷ rebuilt"), "{text}");
     assert_eq!(json(&report)["steps"].as_array().unwrap().len(), 3);
 }
+
+#[test]
+fn scale_times_each_step_from_the_file_on_both_devices() {
+    let path = Path::new("scenes/cornell-box.obj");
+    let sources = cornell().sources;
+    let bytes: u64 = sources
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    assert!(
+        bytes > std::fs::metadata(path).unwrap().len(),
+        "its materials count too"
+    );
+    for device in [DeviceChoice::Cpu, DeviceChoice::Gpu] {
+        let config = bench::scale::Config {
+            meshes: vec![path.into(), path.into()],
+            width: 12,
+            height: 8,
+            device,
+            bvh_memory: Default::default(),
+            layout: None,
+            repeat: 2,
+            build: Default::default(),
+        };
+        let report = with_progress(|p| bench::scale::run(&config, p));
+        let gpu = device == DeviceChoice::Gpu;
+        assert_eq!((report.gpu_driver.is_some(), report.repeat), (gpu, 2));
+        if !gpu {
+            assert_eq!(report.layout, lancer::trace::defaults::CPU_LAYOUT.name());
+        }
+        assert_eq!(report.rows.len(), 2);
+        for r in &report.rows {
+            assert_eq!(
+                (r.triangles, r.rays, r.file_bytes),
+                (32, 96, bytes),
+                "{r:?}"
+            );
+            let steps = [r.read_ms, r.build_ms, r.flatten_ms, r.first_trace_ms];
+            assert!(steps.iter().all(|&ms| ms > 0.0), "{r:?}");
+            // The device step is timed on a GPU only; the ratio counts what was timed.
+            assert_eq!(r.to_device_ms.is_some_and(|ms| ms > 0.0), gpu, "{r:?}");
+            let ratio = (r.flatten_ms + r.to_device_ms.unwrap_or(0.0)) / r.build_ms;
+            assert!((r.flatten_and_device_per_build - ratio).abs() <= 1e-9 * ratio);
+            let rate = bytes as f64 / 1e3 / r.read_ms;
+            assert!((r.read_mb_per_s - rate).abs() <= 1e-9 * rate, "{r:?}");
+            if cfg!(target_os = "linux") {
+                let (peak, start) = (r.peak_bytes.unwrap(), r.start_bytes.unwrap());
+                assert!(peak >= start && start > 0, "{r:?}");
+                let added = (peak - start) as f64 / 32.0;
+                assert_eq!(r.added_bytes_per_triangle, Some(added), "{r:?}");
+            }
+        }
+        let text = report.text();
+        assert!(text.contains("| cornell-box.obj | 32 |"), "{text}");
+        if cfg!(target_os = "linux") {
+            // The peak columns filled: a dash is the device step the CPU does not take.
+            assert_eq!(text.contains("| – |"), !gpu, "{text}");
+        }
+        assert_eq!(json(&report)["rows"].as_array().unwrap().len(), 2);
+    }
+}

@@ -1372,6 +1372,11 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
             "| dfs-sign |",
         ),
         (
+            vec!["bench", "scale", s(&quad), "--device", "cpu", "--json"],
+            0,
+            "| (flatten + device) ÷ build |",
+        ),
+        (
             vec![
                 "bench",
                 "accuracy",

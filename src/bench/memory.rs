@@ -90,10 +90,28 @@ pub fn peak_during<T>(work: impl FnOnce() -> T) -> (T, Option<u64>) {
 /// allocated and touched, the allocator's retained pages, and a software GPU's buffers
 /// included. None where the system does not say.
 pub fn peak_resident() -> Option<u64> {
+    status_bytes("VmHWM:")
+}
+
+/// The memory this process holds resident now (Linux's `VmRSS`); None where the system
+/// does not say.
+pub fn resident() -> Option<u64> {
+    status_bytes("VmRSS:")
+}
+
+/// A size in `/proc/self/status` (given there in KiB), in bytes.
+fn status_bytes(key: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
+}
+
+/// Starts [`peak_resident`]'s count anew from what the process holds now (Linux: writing
+/// 5 to `/proc/self/clear_refs`); false where the system does not allow it, and the peak
+/// then still counts from the process's start.
+pub fn reset_peak_resident() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
 /// The program's switch for its allocator: on, freed memory goes back to the system at

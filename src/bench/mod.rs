@@ -12,7 +12,10 @@
 //! - [`accuracy`]: what each robustness knob costs in time and the error it leaves;
 //! - [`render`]: milliseconds per sample, specialised and all-effects kernels;
 //! - [`trace`]: one structure's GPU kernel over BVH memory × workgroup × module;
-//! - [`instances`]: a mesh placed many times, in two levels against its flattened copy.
+//! - [`instances`]: a mesh placed many times, in two levels against its flattened copy;
+//! - [`refit`]: a deforming mesh's BVH refit against rebuilt;
+//! - [`scale`]: from a mesh file to its first traced rays, step by step, and the peak
+//!   memory on the way.
 //!
 //! Shared pieces: [`timing`] (medians, paired runs), [`rays`] (the ray sets every bench
 //! traces), [`markdown`] (tables), [`memory`] (peak heap bytes), [`rank`] (rank
@@ -35,6 +38,7 @@ pub mod rank;
 pub mod rays;
 pub mod refit;
 pub mod render;
+pub mod scale;
 pub mod structures;
 pub mod timing;
 pub mod trace;

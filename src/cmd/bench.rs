@@ -44,6 +44,9 @@ enum BenchWhat {
     /// A deforming mesh: its BVH refit against rebuilt at every step (time), and how the
     /// refit tree's SAH and speed per ray decay.
     Refit(super::bench_refit::BenchRefit),
+    /// From a mesh file to its first traced rays, step by step (read, build, flatten, to the
+    /// device, first trace) on one or more meshes, and the peak memory on the way.
+    Scale(super::bench_scale::BenchScale),
 }
 
 impl BenchCmd {
@@ -57,6 +60,7 @@ impl BenchCmd {
             BenchWhat::Builders(b) => b.run(),
             BenchWhat::Instances(b) => b.run(),
             BenchWhat::Refit(b) => b.run(),
+            BenchWhat::Scale(b) => b.run(),
         }
     }
 }

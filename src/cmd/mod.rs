@@ -8,6 +8,7 @@ mod bench_instances;
 mod bench_layouts;
 mod bench_refit;
 mod bench_render;
+mod bench_scale;
 mod bench_structures;
 mod build;
 mod check;
