@@ -255,6 +255,15 @@ fn row(mesh: String, runs: &[Run]) -> Row {
     }
 }
 
+/// A triangle count in few characters, for a chart's labels: 69k, 4.0M.
+fn count(n: usize) -> String {
+    match n {
+        0..1_000 => n.to_string(),
+        1_000..1_000_000 => format!("{:.0}k", n as f64 / 1e3),
+        _ => format!("{:.1}M", n as f64 / 1e6),
+    }
+}
+
 /// Bytes in MiB.
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1u64 << 20) as f64
@@ -343,13 +352,7 @@ impl BenchReport for Report {
     #[cfg(feature = "charts")]
     fn draw_charts(&self, paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
         let categories: Vec<String> = (self.rows.iter())
-            .map(|r| {
-                format!(
-                    "{} ({:.2}M triangles)",
-                    super::file_name(&r.mesh),
-                    r.triangles as f64 / 1e6
-                )
-            })
+            .map(|r| format!("{} ({})", super::file_name(&r.mesh), count(r.triangles)))
             .collect();
         let series: Vec<(String, Vec<f64>)> = (STEPS.iter())
             .filter(|(_, f)| self.rows.iter().any(|r| f(r).is_some()))
