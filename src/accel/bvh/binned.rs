@@ -523,20 +523,42 @@ fn fill_bins_in_runs(
         return bins;
     }
     // Neighbouring references mostly fall in the same bins: alternate between two sets so
-    // that one update need not wait for the store of the one before.
+    // that one update need not wait for the store of the one before. And find a block's
+    // bins before adding any: an add's address is then known long before its load, which
+    // the processor would otherwise start early, guessing that it does not depend on the
+    // add before it, and replay when it does (~5% of a 4M-triangle build).
     let mut other = vec![[Tally::EMPTY; 3]; nbins];
-    for chunk in refs.chunks(run) {
-        let (pairs, rest) = chunk.as_chunks::<2>();
-        for [a, b] in pairs {
-            add(&mut tallies, a);
-            add(&mut other, b);
+    let put = |tallies: &mut [[Tally; 3]], k: &[u32; 3], r: &Ref| {
+        let operands = Tally::operands(r);
+        for a in 0..3 {
+            tallies[k[a] as usize][a].add(operands);
         }
-        rest.iter().for_each(|r| add(&mut tallies, r));
+    };
+    for chunk in refs.chunks(run) {
+        for block in chunk.chunks(BLOCK) {
+            let mut ks = [[0u32; 3]; BLOCK];
+            for (k, r) in ks.iter_mut().zip(block) {
+                *k = bin_of(r.centroid(), lo, scale, nbins - 1).map(|b| b as u32);
+            }
+            let (pairs, rest) = block.as_chunks::<2>();
+            let (k_pairs, k_rest) = ks[..block.len()].as_chunks::<2>();
+            for ([a, b], [ka, kb]) in pairs.iter().zip(k_pairs) {
+                put(&mut tallies, ka, a);
+                put(&mut other, kb, b);
+            }
+            for (r, k) in rest.iter().zip(k_rest) {
+                put(&mut tallies, k, r);
+            }
+        }
         empty(&mut tallies, &mut bins);
         empty(&mut other, &mut bins);
     }
     bins
 }
+
+/// References whose bins [`fill_bins`] finds before it adds any of them (an even number:
+/// the two sets alternate as without blocks).
+const BLOCK: usize = 64;
 
 /// Nodes of at least this many references bin into two sets ([`fill_bins`]).
 const TWO_BIN_SETS: usize = 256;
