@@ -244,7 +244,7 @@ fn check_instances(name: &str, two: &TwoLevel, embree: &EmbreeInstances, rays: &
 fn embree_instances_agree_with_the_two_levels() {
     let mut rng = Rng::new(37);
     let set = four_copies(&mut rng);
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let kind = AccelKind::Bvh(LayoutKind::DfsSign);
     let two = TwoLevel::build(kind, &set, &BuildOptions::default()).unwrap();
     let embree = EmbreeInstances::new(&set, 2).unwrap();

@@ -52,7 +52,7 @@ fn at_the_identity_every_bottom_level_traces_the_flattened_scene_bit_for_bit() {
         .map(|m| placed(m, Affine::IDENTITY))
         .to_vec();
     let set = InstanceSet::new(meshes, instances).unwrap();
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     assert_eq!(flat.len(), 2000);
     let rays = random_rays(&mut rng, 2000, &flat);
     let expected = brute_force(&flat, &rays);
@@ -112,7 +112,7 @@ fn moved_instances_agree_with_the_oracle_and_their_flattened_copy() {
         .map(|(i, m)| placed(i as u32 % 2, Affine::from_mat4(m)))
         .collect();
     let set = InstanceSet::new(meshes, instances).unwrap();
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let rays = random_rays(&mut rng, 3000, &flat);
     let rob = Robustness::default();
     let bvh = build(AccelKind::ALL[0], &flat, &BuildOptions::default()).unwrap();
@@ -168,7 +168,7 @@ fn hits_are_numbered_by_instance_with_the_same_barycentrics() {
     .unwrap();
     assert_eq!(set.first_prims(), [0, 2, 4]);
     let ray = lancer::geometry::Ray::new(Vec3::new(0.3, -0.2, -5.0), Vec3::Z, 0.0, f32::INFINITY);
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let two = two_level(AccelKind::Bvh(LayoutKind::DfsSign), &set);
     let mut stats = RayStats::default();
     let got = two.intersect(&ray, Query::Closest, &Robustness::default(), &mut stats);
@@ -198,7 +198,7 @@ fn empty_meshes_keep_their_numbers_and_bad_instances_are_refused() {
     assert_eq!(set.first_prims(), [0, 100, 101]);
     let two = two_level(AccelKind::Bvh(LayoutKind::Bvh8), &set);
     assert_eq!((two.placed_instances(), two.top_nodes()), (2, 3));
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let rays = random_rays(&mut rng, 500, &flat);
     check("instances after an empty mesh", &flat, &two, &rays);
     let (hits, _) = two.trace_batch(&rays, Query::Closest, &Robustness::default());
@@ -255,7 +255,7 @@ fn gpu_two_level_equals_its_cpu_twin_with_every_layout() {
         .map(|(m, a)| placed(m, maps[a]))
         .to_vec();
     let set = InstanceSet::new(meshes, instances).unwrap();
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let rays = random_rays(&mut rng, 1500, &flat);
     for &layout in LayoutKind::ALL {
         let two = GpuTwoLevel::build(layout, &set, &BuildOptions::default()).unwrap();
@@ -307,7 +307,7 @@ fn two_level_batches_answer_as_rays_walked_alone() {
     .map(|(m, a)| placed(m, a))
     .to_vec();
     let set = InstanceSet::new(meshes, instances).unwrap();
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let mut rays = random_rays(&mut rng, 3000, &flat);
     for (i, r) in rays.iter_mut().enumerate().step_by(37) {
         r.dir[i % 3] = 0.0;
@@ -355,7 +355,7 @@ fn tracers_over_instances_answer_as_over_the_flattened_scene() {
     let meshes = vec![Arc::new(soup(&mut rng, 500, 0.3))];
     let instances = [0, 0, 0].map(|m| placed(m, Affine::IDENTITY)).to_vec();
     let set = InstanceSet::new(meshes, instances).unwrap();
-    let flat = set.flatten();
+    let flat = set.flatten().expect("the set flattens");
     let rays = random_rays(&mut rng, 1000, &flat);
     let want = brute_force(&flat, &rays);
     let options = TracerOptions {
@@ -785,7 +785,7 @@ fn moving_instances_traces_as_a_tracer_built_over_them() {
     };
     let (first, second) = (maps(0.3), maps(1.1));
     let moved_set = set_of(&second);
-    let rays = random_rays(&mut rng, 3000, &moved_set.flatten());
+    let rays = random_rays(&mut rng, 3000, &moved_set.flatten().unwrap());
     for device in [cpu_device(), gpu_device()] {
         for memory in [
             lancer::gpu::BvhMemory::Buffers,
@@ -833,7 +833,7 @@ fn moving_instances_traces_as_a_tracer_built_over_them() {
     // A tracer not over instances has nothing to move.
     let mut one = Tracer::new(
         cpu_device(),
-        &moved_set.flatten(),
+        &moved_set.flatten().unwrap(),
         &TracerOptions::default(),
     )
     .unwrap();
@@ -963,7 +963,7 @@ fn refitting_a_mesh_traces_as_a_tracer_built_over_it() {
         InstanceSet::new(vec![Arc::new(first), Arc::new(b.clone())], instances).unwrap()
     };
     let moved_set = set_of(deformed.clone());
-    let rays = random_rays(&mut rng, 3000, &moved_set.flatten());
+    let rays = random_rays(&mut rng, 3000, &moved_set.flatten().unwrap());
     for device in [cpu_device(), gpu_device()] {
         for memory in [
             lancer::gpu::BvhMemory::Buffers,

@@ -252,6 +252,33 @@ fn inconsistent_arrays_made_in_code_are_refused_not_panicked_on() {
             .expect("refused");
         assert!(e.to_string().contains("places mesh 5"), "{e}");
     }
+    // Its counts skip the missing mesh (they indexed past the meshes), and its flattened
+    // copy is refused as the set is.
+    assert_eq!(set.triangle_count(), 0);
+    assert_eq!(set.first_prims(), [0]);
+    assert_eq!(set.bounds(), Aabb::EMPTY);
+    let e = set.flatten().expect_err("refused");
+    assert!(e.to_string().contains("places mesh 5"), "{e}");
+
+    // Placed too small to trace in world space: refused as the same mesh that small is.
+    let tiny =
+        Affine::from_mat3_translation(glam::Mat3::from_diagonal(Vec3::splat(1e-14)), Vec3::ZERO);
+    let placed = |to_world| InstanceSet {
+        meshes: vec![Arc::new(mesh.clone())],
+        instances: vec![Instance { mesh: 0, to_world }; 2],
+    };
+    let path = std::path::Path::new("forest.glb");
+    placed(Affine::IDENTITY)
+        .check_usable(path)
+        .expect("a set at its size is usable");
+    let e = placed(tiny).check_usable(path).expect_err("refused");
+    assert!(
+        e.to_string().contains("forest.glb: the scene is") && e.to_string().contains("across"),
+        "{e}"
+    );
+    let e =
+        lancer::mesh::check_usable(path, &placed(tiny).flatten().unwrap()).expect_err("refused");
+    assert!(e.to_string().contains("the mesh is"), "{e}");
 
     // A scene whose material names a texture it does not have, or whose material indices
     // are short, on the CPU and on the GPU.

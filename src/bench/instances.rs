@@ -297,7 +297,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
     // Every build timed here, lancer's and Embree's, starts on fresh memory (as a command
     // run once does): each would otherwise reuse, or not, the pages the one before freed.
     ticker.say("building the flattened copy");
-    let flat_mesh = set.flatten();
+    let flat_mesh = set.flatten()?;
     let (flat, flat_ms) = fresh_memory(|| -> Result<_> {
         let t0 = Instant::now();
         let flat: Arc<dyn GpuForm> =

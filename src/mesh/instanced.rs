@@ -70,7 +70,8 @@ impl InstanceSet {
 
     /// Logs one warning naming `path` and counting the placed triangles left out of the BVH
     /// (each mesh's, once for every instance of it: what a trace of the set leaves out),
-    /// and refuses a set in which no instance places a usable triangle.
+    /// and refuses a set in which no instance places a usable triangle, or one too small in
+    /// world space to trace (as a single mesh is: [`MIN_EXTENT`](crate::limits::MIN_EXTENT)).
     pub fn check_usable(&self, path: &std::path::Path) -> crate::Result<()> {
         let mut uses = vec![0u64; self.meshes.len()];
         // An instance of no mesh counts nothing here (InstanceSet::new refuses it).
@@ -102,36 +103,45 @@ impl InstanceSet {
                 ),
             ));
         }
-        Ok(())
+        super::load::check_extent(path, "scene", self.bounds().extent().length())
+    }
+
+    /// The mesh an instance places, None where it names none (a set made by hand that
+    /// [`InstanceSet::check`] refuses).
+    fn mesh_of(&self, inst: &Instance) -> Option<&Mesh> {
+        self.meshes.get(inst.mesh as usize).map(|m| &**m)
     }
 
     /// Triangles of the flattened scene (every instance's mesh, excluded triangles
-    /// included, as they are numbered).
+    /// included, as they are numbered). An instance of no mesh counts none.
     pub fn triangle_count(&self) -> u64 {
-        self.instances
-            .iter()
-            .map(|i| self.meshes[i.mesh as usize].len() as u64)
+        (self.instances.iter())
+            .map(|i| self.mesh_of(i).map_or(0, |m| m.len() as u64))
             .sum()
     }
 
     /// Bounds of the placed meshes: the union of each instance's mesh bounds mapped into
     /// world space ([`Affine::image_box`]; for a rotated instance, looser than its
-    /// triangles' own bounds).
+    /// triangles' own bounds). An instance of no mesh adds nothing.
     pub fn bounds(&self) -> Aabb {
         let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(|m| m.bounds()).collect();
-        self.instances.iter().fold(Aabb::EMPTY, |b, i| {
-            b.union(i.to_world.image_box(&mesh_bounds[i.mesh as usize]))
-        })
+        self.instances
+            .iter()
+            .fold(Aabb::EMPTY, |b, i| match mesh_bounds.get(i.mesh as usize) {
+                Some(m) => b.union(i.to_world.image_box(m)),
+                None => b,
+            })
     }
 
-    /// Each instance's first triangle index in the flattened numbering.
+    /// Each instance's first triangle index in the flattened numbering (an instance of no
+    /// mesh numbers none; beyond u32, as [`InstanceSet::check`] refuses, they wrap).
     pub fn first_prims(&self) -> Vec<u32> {
         let mut next = 0u32;
         self.instances
             .iter()
             .map(|i| {
                 let first = next;
-                next += self.meshes[i.mesh as usize].len() as u32;
+                next = next.wrapping_add(self.mesh_of(i).map_or(0, |m| m.len() as u32));
                 first
             })
             .collect()
@@ -140,9 +150,18 @@ impl InstanceSet {
     /// The scene as one mesh in world space, numbered as the instanced scene: each instance's
     /// triangles mapped by [`Affine::point`] (corners kept in order, also under a mirroring
     /// map, so that u and v mean the same). A triangle its mesh leaves out stays out; the
-    /// others are classified again in world space.
-    pub fn flatten(&self) -> Mesh {
+    /// others are classified again in world space. Refused as [`InstanceSet::check`]
+    /// refuses a set, or where the flattened mesh would not fit in memory.
+    pub fn flatten(&self) -> crate::Result<Mesh> {
+        self.check()?;
         let n = self.triangle_count() as usize;
+        let per_triangle =
+            (std::mem::size_of::<Triangle>() + std::mem::size_of::<TriStatus>()) as u128;
+        crate::limits::check_memory(
+            &format!("the flattened copy of {n} instanced triangles"),
+            n as u128 * per_triangle,
+            "trace or render the instances in two levels instead",
+        )?;
         let (mut triangles, mut status) = (Vec::with_capacity(n), Vec::with_capacity(n));
         for inst in &self.instances {
             let a = &inst.to_world;
@@ -158,7 +177,7 @@ impl InstanceSet {
                 triangles.push(world);
             }
         }
-        Mesh {
+        Ok(Mesh {
             triangles,
             status,
             short_faces: self
@@ -171,6 +190,6 @@ impl InstanceSet {
                 .iter()
                 .flat_map(|m| m.sources.iter().cloned())
                 .collect(),
-        }
+        })
     }
 }

@@ -51,18 +51,9 @@ pub fn warn_exclusions(path: &Path, mesh: &Mesh) {
 /// Refuses a mesh with no usable triangle, or one too small to trace (see
 /// [`MIN_EXTENT`](crate::limits::MIN_EXTENT)).
 pub fn check_traceable(path: &Path, mesh: &Mesh) -> Result<()> {
-    let extent = mesh.bounds().extent().length();
     let usable = mesh.status.contains(&super::TriStatus::Ok);
-    if usable && extent < crate::limits::MIN_EXTENT {
-        return Err(Error::input(
-            path,
-            None,
-            format!(
-                "the mesh is {extent:e} across; lancer traces meshes at least {:e} across \
-                 (f32 intersection arithmetic underflows below): scale it up",
-                crate::limits::MIN_EXTENT
-            ),
-        ));
+    if usable {
+        check_extent(path, "mesh", mesh.bounds().extent().length())?;
     }
     if !usable {
         return Err(Error::input(
@@ -71,6 +62,23 @@ pub fn check_traceable(path: &Path, mesh: &Mesh) -> Result<()> {
             format!(
                 "no usable triangle ({} faces read): nothing to trace",
                 mesh.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses geometry (`what`: "mesh", "scene") whose bounds are `extent` across (their
+/// diagonal) where that is below [`MIN_EXTENT`](crate::limits::MIN_EXTENT).
+pub(crate) fn check_extent(path: &Path, what: &str, extent: f32) -> Result<()> {
+    if extent < crate::limits::MIN_EXTENT {
+        return Err(Error::input(
+            path,
+            None,
+            format!(
+                "the {what} is {extent:e} across; lancer traces meshes at least {:e} across \
+                 (f32 intersection arithmetic underflows below): scale it up",
+                crate::limits::MIN_EXTENT
             ),
         ));
     }

@@ -203,7 +203,7 @@ impl<'d> Tracer<'d> {
                 n * 256,
                 "trace it in two levels (without flatten)",
             )?;
-            return Self::new(device, &set.flatten(), options);
+            return Self::new(device, &set.flatten()?, options);
         }
         if options.build_on == BuildOn::Gpu {
             log::warn!("a scene in two levels builds its levels on the CPU (not --build-on gpu)");

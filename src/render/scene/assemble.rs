@@ -1620,7 +1620,7 @@ impl RenderScene {
             "trace or render it with its placements, in two levels (without --flatten; \
              `lancer build` writes one flattened BVH)",
         )?;
-        let mut mesh = pl.set().flatten();
+        let mut mesh = pl.set().flatten()?;
         mesh.sources = self.mesh.sources.clone();
         mesh.short_faces = self.mesh.short_faces;
         let (mut uvs, mut material_of) = (Vec::with_capacity(n as usize), Vec::new());
