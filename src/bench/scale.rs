@@ -30,7 +30,8 @@ use crate::LayoutKind;
 #[derive(Clone, Debug)]
 pub struct Config {
     /// The mesh files (.obj, .ply, .gltf, .glb; a scene .toml: its flattened mesh), each
-    /// read anew for every timed run.
+    /// read anew for every timed run. A file that places meshes more than once is measured
+    /// flattened, as `lancer trace --flatten` takes it.
     pub meshes: Vec<PathBuf>,
     /// Width of the default view whose primary rays are traced.
     pub width: u32,

@@ -14,7 +14,8 @@ use super::BuildArgs;
 #[derive(Args)]
 pub struct BenchScale {
     /// Meshes (.obj, .ply, .gltf, .glb) or scenes (.toml: the assembled mesh), one or more;
-    /// each is read anew for every timed run.
+    /// each is read anew for every timed run (a file placing meshes more than once:
+    /// flattened, as `trace --flatten` takes it).
     #[arg(required = true)]
     meshes: Vec<PathBuf>,
     /// Width of the default view whose primary rays are traced.
