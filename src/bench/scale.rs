@@ -86,7 +86,8 @@ pub struct Row {
     /// What the process held resident when the run started (the device, its driver and
     /// the program), median of the runs; None where the system does not say.
     pub start_bytes: Option<u64>,
-    /// (`peak_bytes` − `start_bytes`) per triangle: what the mesh's pipeline added.
+    /// (`peak_bytes` − `start_bytes`) per triangle: what the mesh's pipeline added (the
+    /// rays and their hits included: a small mesh's figure is mostly theirs).
     pub added_bytes_per_triangle: Option<f64>,
 }
 
@@ -343,7 +344,8 @@ impl BenchReport for Report {
                 primary rays (a GPU's pipeline compiled on the way). Peak: the most memory the \
                 process held resident from the read to the trace (VmHWM, reset before each \
                 run; a software GPU's memory included), what it held at the start (the device, \
-                its driver, the program), and what the run added per triangle. Medians of the runs, each on memory \
+                its driver, the program), and what the run added per triangle (the rays and hits \
+                included). Medians of the runs, each on memory \
                 fresh from the system.\n";
         out
     }
