@@ -1,5 +1,5 @@
 //! BVH invariants: every included triangle in exactly one leaf, children inside parents,
-//! depth within the stack, determinism, parallel ≡ serial, and SAH quality ordering; the
+//! depth within the stack, the shape `Bvh::new` asks of a tree made elsewhere, determinism, parallel ≡ serial, and SAH quality ordering; the
 //! exact sweep is the seed's algorithm (a from-scratch copy here builds the same tree), and
 //! the sweep's binned top levels cost under 0.5 % of SAH.
 
@@ -33,14 +33,17 @@ fn check_invariants(mesh: &Mesh, bvh: &Bvh) {
 /// — lie in the box of one of its leaves (the layouts' validation checks the whole
 /// triangle, in f64).
 fn check_tree(mesh: &Mesh, bvh: &Bvh, split: bool) {
+    // The shape a tree made elsewhere must have (Bvh::new) is every builder's.
+    let again = Bvh::new(bvh.root().clone(), bvh.order().to_vec(), mesh);
+    assert_eq!(&again.unwrap_or_else(|e| panic!("{e}")), bvh);
     let mut seen = vec![0u32; mesh.len()];
     let mut leaves_of: Vec<Vec<Aabb>> = vec![Vec::new(); mesh.len()];
-    let mut stack = vec![(&bvh.root, 0usize)];
+    let mut stack = vec![(bvh.root(), 0usize)];
     while let Some((n, depth)) = stack.pop() {
         assert!(depth <= MAX_DEPTH);
         match n {
             Node::Leaf { bbox, start, count } => {
-                let ids = &bvh.order[*start as usize..(start + count) as usize];
+                let ids = &bvh.order()[*start as usize..(start + count) as usize];
                 for &prim in ids {
                     seen[prim as usize] += 1;
                     let tb = mesh.triangles[prim as usize].bbox();
@@ -73,8 +76,8 @@ fn check_tree(mesh: &Mesh, bvh: &Bvh, split: bool) {
     }
     if split {
         let budget = 1.0 + lancer::accel::bvh::DUPLICATION as f64;
-        assert!(bvh.order.len() as f64 <= budget * mesh.included().len() as f64);
-        let mut rng = Rng::new(bvh.order.len() as u64);
+        assert!(bvh.order().len() as f64 <= budget * mesh.included().len() as f64);
+        let mut rng = Rng::new(bvh.order().len() as u64);
         for (t, boxes) in mesh.triangles.iter().zip(&leaves_of) {
             if boxes.len() < 2 {
                 continue;
@@ -106,7 +109,7 @@ fn check_tree(mesh: &Mesh, bvh: &Bvh, split: bool) {
     for &kind in LayoutKind::ALL {
         let layout = flatten(kind, bvh, mesh);
         layout.validate().unwrap_or_else(|e| panic!("{kind}: {e}"));
-        assert_eq!(layout.triangles(), bvh.order.len(), "{kind}");
+        assert_eq!(layout.triangles(), bvh.order().len(), "{kind}");
     }
 }
 
@@ -131,7 +134,7 @@ proptest! {
             let f = build(&mesh, &o);
             check_tree(&mesh, &f, b == Builder::Sbvh);
             // No leaf above max_leaf.
-            prop_assert!(largest_leaf(&f.root) <= max_leaf);
+            prop_assert!(largest_leaf(f.root()) <= max_leaf);
             if optimize {
                 // Reinsertion never raises the SAH.
                 let plain = BuildOptions { optimize: false, ..o };
@@ -156,8 +159,8 @@ proptest! {
         let o = BuildOptions { max_leaf, exact_below: usize::MAX, ..opts(Builder::Sweep) };
         let fast = build(&mesh, &o);
         let seed_tree = seed_sweep(&mesh, &o);
-        prop_assert_eq!(&fast.root, &seed_tree.0);
-        prop_assert_eq!(&fast.order, &seed_tree.1);
+        prop_assert_eq!(fast.root(), &seed_tree.0);
+        prop_assert_eq!(&fast.order(), &seed_tree.1);
     }
 }
 
@@ -266,7 +269,7 @@ fn excluded_triangles_stay_out() {
     mesh = Mesh::from_triangles(tris);
     let f = build(&mesh, &BuildOptions::default());
     check_invariants(&mesh, &f);
-    assert_eq!(f.order.len(), 197);
+    assert_eq!(f.order().len(), 197);
 }
 
 #[test]
@@ -455,7 +458,7 @@ fn spatial_splits_beat_the_sweep_on_long_thin_triangles() {
     let mesh = things_on_a_ramp(3);
     let [s, _, _, sb, _, _] = costs(&mesh);
     let tree = build(&mesh, &opts(Builder::Sbvh));
-    let refs = tree.order.len() as f64 / mesh.len() as f64;
+    let refs = tree.order().len() as f64 / mesh.len() as f64;
     println!("things on a ramp: sweep {s:.2} sbvh {sb:.2}, {refs:.3} references a triangle");
     assert!(sb < 0.8 * s, "sbvh {sb} sweep {s}");
     assert!(

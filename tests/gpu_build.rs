@@ -106,7 +106,7 @@ fn the_gpu_lbvh_is_the_cpu_lbvh() {
         };
         let g = build_lbvh(gpu(), &mesh, &opts).expect("GPU build");
         assert_eq!(g, build(&mesh, &opts), "optimize {optimize}");
-        assert_eq!(g.order.len(), mesh.triangles.len() - 1);
+        assert_eq!(g.order().len(), mesh.triangles.len() - 1);
     }
 }
 
@@ -214,7 +214,7 @@ fn an_exact_sah_tie_is_decided_as_on_the_cpu() {
         ..BuildOptions::default()
     };
     let cpu = build(&mesh, &opts);
-    assert_eq!(cpu.root.nodes(), 1, "the CPU's tie is a leaf");
+    assert_eq!(cpu.root().nodes(), 1, "the CPU's tie is a leaf");
     let g = lbvh_dfs_sign(gpu(), &mesh, &opts).unwrap();
     assert!(
         g == DfsSign::flatten(&cpu, &mesh),

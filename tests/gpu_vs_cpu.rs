@@ -155,9 +155,9 @@ fn spatial_split_trees_in_every_layout() {
         },
     );
     assert!(
-        tree.order.len() > mesh.len() + 100,
+        tree.order().len() > mesh.len() + 100,
         "{} references",
-        tree.order.len()
+        tree.order().len()
     );
     let rays = random_rays(&mut rng, 10_000, &mesh);
     for k in kernels() {

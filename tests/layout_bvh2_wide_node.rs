@@ -204,7 +204,7 @@ fn axis_parallel_rays_on_child_box_faces() {
     let mesh = soup(&mut rng, 1500, 0.25);
     let mut planes = Vec::new();
     box_planes(
-        &build_bvh(&mesh, &BuildOptions::default()).root,
+        build_bvh(&mesh, &BuildOptions::default()).root(),
         &mut planes,
     );
     let accel = wide(&mesh);
@@ -346,7 +346,7 @@ fn empty_mesh_single_triangle_and_invalid_rays() {
 /// cube: the node at depth d holds the rest of the chain (child 0) and leaf d (child 1),
 /// the last one two leaves; every box is the whole cube, so a ray entering it hits both
 /// children everywhere (equal entries: the chain first) and pushes once per level.
-fn chain(rng: &mut Rng, depth: usize) -> (Bvh, Mesh) {
+fn chain(rng: &mut Rng, depth: usize) -> (lancer::Result<Bvh>, Mesh) {
     let tris = (0..=depth)
         .map(|_| Triangle::new(rng.vec3(0.0, 1.0), rng.vec3(0.0, 1.0), rng.vec3(0.0, 1.0)))
         .collect();
@@ -354,9 +354,11 @@ fn chain(rng: &mut Rng, depth: usize) -> (Bvh, Mesh) {
         lo: Vec3::ZERO,
         hi: Vec3::ONE,
     };
-    let leaf = |i: usize| Node::Leaf {
+    // Leaves hold the order's positions left to right: leaf d (triangle d) is at position
+    // depth − d.
+    let leaf = |d: usize| Node::Leaf {
         bbox: cube,
-        start: i as u32,
+        start: (depth - d) as u32,
         count: 1,
     };
     let mut node = leaf(depth);
@@ -368,18 +370,21 @@ fn chain(rng: &mut Rng, depth: usize) -> (Bvh, Mesh) {
             children: Box::new([node, leaf(d)]),
         };
     }
-    let order = (0..=depth as u32).collect();
-    (Bvh { root: node, order }, Mesh::from_triangles(tris))
+    let order = (0..=depth as u32).rev().collect();
+    let mesh = Mesh::from_triangles(tris);
+    (Bvh::new(node, order, &mesh), mesh)
 }
 
 #[test]
 fn a_tree_at_the_depth_cap_fills_the_stack_on_cpu_and_gpu() {
     let mut rng = Rng::new(71);
-    // One level deeper than the stack allows is refused.
-    let (bvh, mesh) = chain(&mut rng, MAX_DEPTH + 1);
-    let e = flatten(WIDE, &bvh, &mesh).validate().unwrap_err();
-    assert!(e.contains("depth"), "{e}");
+    // One level deeper than the stack allows is refused before any flatten (a layout that
+    // deep from a file, by validate: the layouts' unit tests).
+    let (bvh, _) = chain(&mut rng, MAX_DEPTH + 1);
+    let e = bvh.unwrap_err().to_string();
+    assert!(e.contains(&format!("deeper than {MAX_DEPTH}")), "{e}");
     let (bvh, mesh) = chain(&mut rng, MAX_DEPTH);
+    let bvh = bvh.unwrap();
     let layout = flatten(WIDE, &bvh, &mesh);
     layout.validate().unwrap();
     let rays = random_rays(&mut rng, 2000, &mesh);

@@ -278,7 +278,7 @@ fn binary_leaves_bigger_than_a_node_are_split() {
         ..BuildOptions::default()
     };
     let bvh: Bvh = build(&mesh, &opts);
-    let (_, biggest) = depth_and_biggest_leaf(&bvh.root, 0);
+    let (_, biggest) = depth_and_biggest_leaf(bvh.root(), 0);
     assert!(
         biggest > 24,
         "the biggest binary leaf holds {biggest} triangles"
@@ -336,11 +336,8 @@ fn a_binary_chain_at_the_depth_cap_collapses_and_traces() {
             children: Box::new([a, b]),
         };
     }
-    let bvh = Bvh {
-        root,
-        order: (0..65).collect(),
-    };
-    assert_eq!(depth_and_biggest_leaf(&bvh.root, 0).0, MAX_DEPTH);
+    let bvh = Bvh::new(root, (0..65).collect(), &mesh).unwrap();
+    assert_eq!(depth_and_biggest_leaf(bvh.root(), 0).0, MAX_DEPTH);
     let layout = Cwbvh::flatten(&bvh, &mesh);
     layout.validate().unwrap();
     let wide = wide_depth(&layout);

@@ -458,7 +458,9 @@ fn stack_filler(depth: usize, innermost: usize) -> (Mesh, Bvh) {
         node = inner(node, inner(inner(a, b), c));
     }
     let order = (0..tris.len() as u32).collect();
-    (Mesh::from_triangles(tris), Bvh { root: node, order })
+    let mesh = Mesh::from_triangles(tris);
+    let bvh = Bvh::new(node, order, &mesh).unwrap();
+    (mesh, bvh)
 }
 
 fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
@@ -468,9 +470,9 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
     // 21 of 7 for bvh8. The kernel's stack, sized to the tree's depth, is then full (96 and
     // 147 entries). validate bounds any tree by wide depth 63 / L (31 for bvh4, 21 for
     // bvh8; 96 and 154 entries); a chain one wide level deeper is refused.
-    let (w, l) = match kind {
-        LayoutKind::Bvh4 => (4, 2),
-        _ => (8, 3),
+    let l = match kind {
+        LayoutKind::Bvh4 => 2,
+        _ => 3,
     };
     let levels = MAX_DEPTH / l;
     let (mesh, bvh) = stack_filler(l * levels, l);
@@ -526,35 +528,38 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
         assert_eq!(g.hits, c.hits, "{query:?}");
         assert_eq!(g.stats, c.stats, "{query:?}");
     }
-    // A chain whose inner nodes reach binary depth L · (63 / L + 1): a wide node one level
-    // deeper than validate allows.
+    // One binary level deeper than the stack holds is refused before any flatten; a layout
+    // one wide level deeper than validate allows (from a file) is refused by validate
+    // (`wide_bvh`'s unit tests).
     let deepest = (MAX_DEPTH - 1) / l + 1;
-    let (mesh, bvh) = stack_filler(l * deepest + 1, l);
-    let e = flatten(kind, &bvh, &mesh).validate().unwrap_err();
-    let entries = (w - 1) * deepest;
-    assert!(
-        e.contains(&format!("depth {deepest}")) && e.contains(&format!("{entries} stack entries")),
-        "{e}"
-    );
+    let e = std::panic::catch_unwind(|| stack_filler(l * deepest + 1, l)).unwrap_err();
+    let e = e.downcast_ref::<String>().unwrap();
+    assert!(e.contains(&format!("deeper than {MAX_DEPTH}")), "{e}");
 }
 
 fn validate_refuses_corrupted_trees(kind: LayoutKind) {
     let (mesh, bvh) = stack_filler(3, 2);
     let n = mesh.len() as u32;
+    // Boxes are the layout's to check: a tree of any boxes is taken, its flattening refused.
     let refuse = |root: Node, order: Vec<u32>, want: &str| {
-        let e = flatten(kind, &Bvh { root, order }, &mesh)
+        let e = flatten(kind, &Bvh::new(root, order, &mesh).unwrap(), &mesh)
             .validate()
             .unwrap_err();
         assert!(e.contains(want), "{e}");
     };
+    // The shape is the tree's: refused before any flatten.
+    let misshapen = |root: Node, order: Vec<u32>, want: &str| {
+        let e = Bvh::new(root, order, &mesh).unwrap_err().to_string();
+        assert!(e.contains(want), "{e}");
+    };
     let tri = mesh.triangles[0];
     let at = |start: u32, count: u32, bbox: Aabb| Node::Leaf { bbox, start, count };
-    let good = bvh.root.clone();
+    let good = bvh.root().clone();
     // A leaf past the end of the triangles.
-    refuse(
+    misshapen(
         inner(good.clone(), at(n, 2, tri.bbox())),
         (0..n).collect(),
-        &format!("refers to triangles {n}..{}", n + 2),
+        &format!("holds positions {n}..{} of an order of {n}", n + 2),
     );
     // A triangle outside its leaf's box.
     let far = Aabb {
@@ -568,17 +573,17 @@ fn validate_refuses_corrupted_trees(kind: LayoutKind) {
         hi: Vec3::ONE,
     };
     refuse(at(0, n, nan), (0..n).collect(), "non-finite box");
-    // Triangles in two leaves, and in none.
+    // Positions in two leaves, and in none.
     let all = mesh.bounds();
-    refuse(
+    misshapen(
         inner(at(0, 2, all), at(1, 2, all)),
         (0..n).collect(),
-        "in two leaves",
+        "the leaves before it end at 2",
     );
-    refuse(
+    misshapen(
         inner(at(0, 1, all), at(2, n - 2, all)),
         (0..n).collect(),
-        "triangles 1..2 are in no leaf",
+        "the leaves before it end at 1",
     );
     // And the good tree passes.
     flatten(kind, &bvh, &mesh).validate().unwrap();

@@ -320,6 +320,10 @@ fn inconsistent_arrays_made_in_code_are_refused_not_panicked_on() {
             builder,
             ..BuildOptions::default()
         };
-        assert_eq!(build_boxes(&[nan; 4], &opts).order.len(), 4, "{builder:?}");
+        assert_eq!(
+            build_boxes(&[nan; 4], &opts).order().len(),
+            4,
+            "{builder:?}"
+        );
     }
 }

@@ -115,7 +115,7 @@ fn a_refit_refuses_triangles_moved_beyond_the_supported_range() {
     far.triangles[3].v[0].x = 1e20;
     far.status[3] = lancer::mesh::TriStatus::TooFar;
     let mut tree = build(&far, &opts);
-    assert!(!tree.order.contains(&3));
+    assert!(!tree.order().contains(&3));
     tree.refit(&far)
         .expect("a triangle left out does not count");
     let mut tree = build(&base, &opts);
@@ -140,7 +140,7 @@ fn infinite_sah_costs_still_make_valid_wide_trees() {
     }
     far.status.fill(lancer::mesh::TriStatus::Ok);
     let tree = build(&far, &BuildOptions::default());
-    assert_eq!(tree.order.len(), far.len(), "every triangle in the tree");
+    assert_eq!(tree.order().len(), far.len(), "every triangle in the tree");
     for kind in LayoutKind::ALL {
         let layout = layouts::try_flatten(*kind, &tree, &far).expect("flattens");
         layout.validate().expect("a valid layout");

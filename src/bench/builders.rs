@@ -327,7 +327,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
                 vs_embree: None,
                 peak_mib: peak.map(|b| b as f64 / (1u64 << 20) as f64),
                 sah: Some(stats.sah_cost),
-                epo: Some(epo_cost(&bvh, mesh, &opts)),
+                epo: Some(epo_cost(&bvh, mesh, &opts)?),
                 nodes: Some(stats.nodes),
                 max_depth: Some(stats.max_depth),
             });

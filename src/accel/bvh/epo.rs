@@ -49,10 +49,19 @@ fn flatten(node: &Node, opts: &BuildOptions, out: &mut Vec<Flat>) -> (usize, (u3
     (at, range)
 }
 
-/// The tree's EPO cost over `mesh`'s triangles (the ones it was built from). 0 for a tree
-/// without surface area. Each leaf-order position is one reference: a triangle that several
-/// leaves reference is in the subtree of each of their ancestors.
-pub fn epo_cost(bvh: &Bvh, mesh: &Mesh, opts: &BuildOptions) -> f64 {
+/// The tree's EPO cost over `mesh`'s triangles (the ones it was built from; a mesh smaller
+/// than the tree's is refused). 0 for a tree without surface area. Each leaf-order position
+/// is one reference: a triangle that several leaves reference is in the subtree of each of
+/// their ancestors.
+pub fn epo_cost(bvh: &Bvh, mesh: &Mesh, opts: &BuildOptions) -> crate::Result<f64> {
+    if bvh.mesh_len > mesh.len() {
+        return Err(crate::Error::Usage(format!(
+            "the BVH was built over {} triangles but the mesh given has {}: measure it over \
+             the mesh it was built over",
+            bvh.mesh_len,
+            mesh.len()
+        )));
+    }
     let mut nodes = Vec::with_capacity(bvh.root.nodes() as usize);
     flatten(&bvh.root, opts, &mut nodes);
     // Every position of each triangle in the leaf order, sorted, to tell which nodes hold it.
@@ -82,11 +91,7 @@ pub fn epo_cost(bvh: &Bvh, mesh: &Mesh, opts: &BuildOptions) -> f64 {
             (sum, tri.area() as f64)
         })
         .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    if total > 0.0 {
-        overlap / total
-    } else {
-        0.0
-    }
+    Ok(if total > 0.0 { overlap / total } else { 0.0 })
 }
 
 fn overlaps(a: &Aabb, b: &Aabb) -> bool {
@@ -114,7 +119,7 @@ mod tests {
         // Two unit squares far apart: no node's box holds a triangle of another subtree.
         let apart: Vec<Triangle> = quad(0.0).into_iter().chain(quad(10.0)).collect();
         let mesh = Mesh::from_triangles(apart);
-        assert_eq!(epo_cost(&build(&mesh, &opts), &mesh, &opts), 0.0);
+        assert_eq!(epo_cost(&build(&mesh, &opts), &mesh, &opts).unwrap(), 0.0);
         // A big triangle over a grid of small ones: whichever subtree holds it, the other's
         // box lies on its surface.
         let mut tris: Vec<Triangle> = (0..8).flat_map(|i| quad(i as f32)).collect();
@@ -124,6 +129,6 @@ mod tests {
             Vec3::new(-1.0, 20.0, 0.0),
         ));
         let mesh = Mesh::from_triangles(tris);
-        assert!(epo_cost(&build(&mesh, &opts), &mesh, &opts) > 0.1);
+        assert!(epo_cost(&build(&mesh, &opts), &mesh, &opts).unwrap() > 0.1);
     }
 }

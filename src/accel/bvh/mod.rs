@@ -18,6 +18,7 @@ mod sbvh;
 mod stats;
 mod sweep;
 mod tree;
+mod tree_check;
 
 use rayon::prelude::*;
 
@@ -33,7 +34,6 @@ pub use stats::BvhStats;
 pub use tree::{Bvh, Node, MAX_DEPTH};
 
 use prims::Prims;
-use tree::leaf;
 
 /// Builds a BVH over the mesh's included triangles. Deterministic for a given input.
 pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
@@ -46,7 +46,7 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
     };
     build_prims(
         prims,
-        &ids,
+        (&ids, mesh.len()),
         opts,
         Some(&|i| mesh.triangles[ids.id(i) as usize]),
     )
@@ -58,7 +58,7 @@ pub fn build(mesh: &Mesh, opts: &BuildOptions) -> Bvh {
 pub fn build_boxes(boxes: &[Aabb], opts: &BuildOptions) -> Bvh {
     build_prims(
         Prims::new(boxes.par_iter().copied()),
-        &Included::All,
+        (&Included::All, boxes.len()),
         opts,
         None,
     )
@@ -98,19 +98,17 @@ impl Included {
 }
 
 /// The builders' common entry: `prims` are the boxes of the primitives `ids` (positions
-/// into `ids` in the tree; `order` maps them back), `triangle(i)` the triangle of position
-/// i (the spatial-split builder clips them; without triangles it builds binned).
+/// into `ids` in the tree; `order` maps them back) of the `mesh_len` in the mesh (or
+/// boxes), `triangle(i)` the triangle of position i (the spatial-split builder clips them;
+/// without triangles it builds binned).
 fn build_prims(
     prims: Prims,
-    ids: &Included,
+    (ids, mesh_len): (&Included, usize),
     opts: &BuildOptions,
     triangle: Option<&(dyn Fn(u32) -> crate::geometry::Triangle + Sync)>,
 ) -> Bvh {
     if prims.len() == 0 {
-        return Bvh {
-            root: leaf(Aabb::EMPTY, 0, 0),
-            order: Vec::new(),
-        };
+        return Bvh::empty(mesh_len);
     }
     let (root, local) = match opts.builder {
         Builder::Sweep => sweep::build(prims, opts),
@@ -129,17 +127,26 @@ fn build_prims(
             None => binned::build(prims, opts),
         },
     };
-    finish(root, local, ids.list(), opts)
+    finish(root, local, (ids.list(), mesh_len), opts)
 }
 
-/// A builder's tree over positions `local` in `ids` (None: positions are the indices) as
-/// the BVH over `ids`, optimised when asked.
-fn finish(root: Node, local: Vec<u32>, ids: Option<&[u32]>, opts: &BuildOptions) -> Bvh {
+/// A builder's tree over positions `local` in `ids` (None: positions are the indices) of
+/// the `mesh_len` in the mesh, as the BVH over `ids`, optimised when asked.
+fn finish(
+    root: Node,
+    local: Vec<u32>,
+    (ids, mesh_len): (Option<&[u32]>, usize),
+    opts: &BuildOptions,
+) -> Bvh {
     let order = match ids {
         None => local,
         Some(ids) => local.par_iter().map(|&l| ids[l as usize]).collect(),
     };
-    let mut bvh = Bvh { root, order };
+    let mut bvh = Bvh {
+        root,
+        order,
+        mesh_len,
+    };
     if opts.optimize {
         optimize(&mut bvh, opts);
     }
@@ -156,15 +163,12 @@ pub fn build_from_radix_tree(
     opts: &BuildOptions,
 ) -> Bvh {
     if ids.is_empty() {
-        return Bvh {
-            root: leaf(Aabb::EMPTY, 0, 0),
-            order: Vec::new(),
-        };
+        return Bvh::empty(mesh.len());
     }
     let prims = Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()));
     let (root, local) = match lbvh::to_tree(tree, &prims, opts) {
         Some(tree) => tree,
         None => binned::build(prims, opts),
     };
-    finish(root, local, Some(ids), opts)
+    finish(root, local, (Some(ids), mesh.len()), opts)
 }

@@ -53,18 +53,53 @@ impl Node {
 }
 
 /// A BVH over the included triangles of a mesh: `order[i]` is the original triangle index
-/// at position i of leaf order (leaves appear left to right).
+/// at position i of leaf order (leaves appear left to right, their ranges following one
+/// another).
 ///
-/// Its fields are open for reading; a tree is made by the builders ([`build`](super::build))
-/// and kept valid by [`Bvh::refit`]. Flattening trusts its shape (leaf ranges within
-/// `order`, `order` within the mesh, `nodes` counts, depth within [`MAX_DEPTH`]): a tree
-/// assembled by hand is not checked.
+/// Made by the builders ([`build`](super::build)), kept valid by [`Bvh::refit`] and
+/// [`optimize`](super::optimize), or from a tree made elsewhere (your own builder's) by
+/// [`Bvh::new`], which checks the shape that flattening and the statistics rely on. Its
+/// fields are read through [`Bvh::root`] and [`Bvh::order`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Bvh {
     /// The root node.
-    pub root: Node,
+    pub(crate) root: Node,
     /// Original (file-order) triangle indices in leaf order; included triangles only.
-    pub order: Vec<u32>,
+    pub(crate) order: Vec<u32>,
+    /// Triangles (the top level over instances: boxes) of what it was built over: every
+    /// entry of `order` lies below this.
+    pub(crate) mesh_len: usize,
+}
+
+impl Bvh {
+    /// The root node.
+    pub fn root(&self) -> &Node {
+        &self.root
+    }
+
+    /// Original (file-order) triangle indices in leaf order: a leaf holds positions
+    /// `start..start + count`. A triangle split in space (the spatial-split builder's) is
+    /// listed once for each leaf that holds a part of it.
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// Triangles of the mesh it was built over (the top level over instances: boxes): a
+    /// flattening refuses a mesh of another size ([`try_flatten`]).
+    ///
+    /// [`try_flatten`]: super::layouts::try_flatten
+    pub fn mesh_len(&self) -> usize {
+        self.mesh_len
+    }
+
+    /// The tree over none of a mesh's `mesh_len` triangles: one empty leaf.
+    pub(crate) fn empty(mesh_len: usize) -> Bvh {
+        Bvh {
+            root: leaf(Aabb::EMPTY, 0, 0),
+            order: Vec::new(),
+            mesh_len,
+        }
+    }
 }
 
 impl Drop for Bvh {

@@ -146,10 +146,12 @@ impl std::fmt::Display for LayoutKind {
     }
 }
 
-/// Flattens a built tree into the chosen layout, after checking that its arrays fit in the
-/// memory available (the `threaded` layout holds eight copies of the tree's nodes): the
-/// library's and the command line's way in, for trees built from input.
+/// Flattens a built tree into the chosen layout, after checking that `mesh` holds the
+/// triangles it refers to (a tree built over a bigger mesh is refused) and that its arrays
+/// fit in the memory available (the `threaded` layout holds eight copies of the tree's
+/// nodes): the library's and the command line's way in, for trees built from input.
 pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Box<dyn GpuForm>> {
+    check_mesh(bvh, mesh)?;
     if kind == LayoutKind::Threaded {
         crate::limits::check_memory(
             "the threaded layout",
@@ -168,13 +170,31 @@ pub fn try_flatten_owned(
     mesh: &Mesh,
 ) -> crate::Result<Box<dyn GpuForm>> {
     match kind {
-        LayoutKind::Cwbvh => Ok(Box::new(Cwbvh::flatten_owned(bvh, mesh))),
+        LayoutKind::Cwbvh => {
+            check_mesh(&bvh, mesh)?;
+            Ok(Box::new(Cwbvh::flatten_owned(bvh, mesh)))
+        }
         _ => try_flatten(kind, &bvh, mesh),
     }
 }
 
+/// Refuses a mesh smaller than the one `bvh` was built over (its triangles are read by
+/// the tree's indices).
+fn check_mesh(bvh: &Bvh, mesh: &Mesh) -> crate::Result<()> {
+    if bvh.mesh_len() > mesh.len() {
+        return Err(crate::Error::Usage(format!(
+            "the BVH was built over {} triangles but the mesh given has {}: flatten it with \
+             the mesh it was built over",
+            bvh.mesh_len(),
+            mesh.len()
+        )));
+    }
+    Ok(())
+}
+
 /// Flattens a built tree into the chosen layout, unchecked: for trees known to fit (tests,
-/// benches); input goes through [`try_flatten`].
+/// benches); input goes through [`try_flatten`]. Panics on a mesh smaller than the tree's
+/// ([`Bvh::mesh_len`]).
 pub fn flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> Box<dyn GpuForm> {
     match kind {
         LayoutKind::DfsSign => Box::new(DfsSign::flatten(bvh, mesh)),
@@ -200,4 +220,59 @@ pub fn from_arrays(kind: LayoutKind, arrays: GpuArrays<'_>) -> Result<Box<dyn Gp
         LayoutKind::Bvh8 => Box::new(Bvh8::from_arrays(arrays)?),
         LayoutKind::Threaded => Box::new(Threaded::from_arrays(arrays)?),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::accel::bvh::Node;
+    use crate::geometry::Triangle;
+
+    #[test]
+    fn validate_refuses_a_layout_deeper_than_its_traversal_stack() {
+        // A binary chain of 1000 leaves, one triangle each (made here, past the depth
+        // `Bvh::new` allows: a layout this deep can come only from a file or arrays), is
+        // deeper than every stack but `threaded`'s (which needs none) even once collapsed
+        // eight wide.
+        let n = 1000u32;
+        let tris: Vec<Triangle> = (0..n)
+            .map(|i| {
+                let p = Vec3::new(i as f32, 0.0, 0.0);
+                Triangle::new(p, p + Vec3::X, p + Vec3::Y)
+            })
+            .collect();
+        let mesh = Mesh::from_triangles(tris);
+        let leaf = |i: u32| Node::Leaf {
+            bbox: mesh.triangles[i as usize].bbox(),
+            start: i,
+            count: 1,
+        };
+        let mut root = leaf(n - 1);
+        for i in (0..n - 1).rev() {
+            let (a, b) = (leaf(i), root);
+            root = Node::Inner {
+                bbox: a.bbox().union(*b.bbox()),
+                axis: 0,
+                nodes: 1 + a.nodes() + b.nodes(),
+                children: Box::new([a, b]),
+            };
+        }
+        let bvh = Bvh {
+            root,
+            order: (0..n).collect(),
+            mesh_len: mesh.len(),
+        };
+        for &kind in LayoutKind::ALL {
+            let result = flatten(kind, &bvh, &mesh).validate();
+            match kind {
+                LayoutKind::Threaded => result.unwrap(),
+                _ => {
+                    let e = result.unwrap_err();
+                    assert!(e.contains("depth"), "{kind}: {e}");
+                }
+            }
+        }
+    }
 }

@@ -94,7 +94,8 @@ impl DfsSign {
     }
 
     /// The binary tree these arrays hold (the inverse of [`DfsSign::flatten`]): for the
-    /// statistics of a layout flattened elsewhere (on the GPU: `gpu::lbvh_dfs_sign`).
+    /// statistics of a layout flattened elsewhere (on the GPU: `gpu::lbvh_dfs_sign`). Its
+    /// mesh is taken to end at the last triangle it holds ([`Bvh::mesh_len`]).
     pub fn tree(&self) -> Bvh {
         fn node(nodes: &[DfsNode], i: usize) -> Node {
             let n = &nodes[i];
@@ -105,9 +106,11 @@ impl DfsSign {
                 Node::inner(n.bbox(), n.axis(), children)
             }
         }
+        let order: Vec<u32> = self.tris.iter().map(|t| t.prim).collect();
         Bvh {
             root: node(&self.nodes, 0),
-            order: self.tris.iter().map(|t| t.prim).collect(),
+            mesh_len: order.iter().max().map_or(0, |&m| m as usize + 1),
+            order,
         }
     }
 
