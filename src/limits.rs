@@ -48,6 +48,11 @@ fn cgroup_headroom() -> Option<u64> {
     Some(max.saturating_sub(current))
 }
 
+/// Most bounces a render follows after the primary hit (`max_bounces`): paths are not ended
+/// at random (no Russian roulette), so every sample of a closed scene follows this many;
+/// Blender Cycles' bounce settings stop at the same number.
+pub const MAX_BOUNCES: u32 = 1024;
+
 /// The largest texture side lancer decodes: what GPUs take as a 2D texture side (16384);
 /// a larger texture is refused by its header, before it is decoded.
 pub const MAX_TEXTURE_SIDE: u32 = 16_384;

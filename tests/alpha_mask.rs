@@ -217,7 +217,7 @@ fn a_blended_card_stops_rays_in_proportion_to_its_alpha() {
         &Default::default(),
     )
     .unwrap();
-    let mask = AlphaMask::new(&s, EffectSet::of(&s));
+    let mask = AlphaMask::new(&s, EffectSet::of(&s)).unwrap();
     let card = s.material_of[2];
     let eye = Vec3::new(0.0, 0.0, 4.0);
     let n = 20_000;

@@ -157,7 +157,7 @@ fn alpha_modes_mask_and_blend_cut_the_panel() {
         &Default::default(),
     )
     .unwrap();
-    let mask = AlphaMask::new(&scene, EffectSet::of(&scene));
+    let mask = AlphaMask::new(&scene, EffectSet::of(&scene)).unwrap();
     let frame = scene.camera.frame();
     let on_panel = |mask: Mask<'_>| {
         let mut n = 0;
@@ -205,7 +205,7 @@ fn alpha_modes_mask_and_blend_cut_the_panel() {
         m["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([1.0, 1.0, 1.0, 0.3]);
     });
     let (scene, _, _) = pixels(&faint);
-    let mask = AlphaMask::new(&scene, EffectSet::of(&scene));
+    let mask = AlphaMask::new(&scene, EffectSet::of(&scene)).unwrap();
     let accel = lancer::accel::build(
         AccelKind::Bvh(LayoutKind::DfsSign),
         &scene.mesh,

@@ -1033,6 +1033,12 @@ fn hostile_command_lines() {
         ),
         ("spp = 0", "v-spp-zero.toml", "spp = 1", "spp = 0"),
         (
+            "max_bounces = 4000000000 (every sample a hang)",
+            "v-bounces-huge.toml",
+            "spp = 1",
+            "spp = 1\nmax_bounces = 4000000000",
+        ),
+        (
             "sphere segments = 2",
             "v-segments-2.toml",
             "segments = 8",

@@ -9,7 +9,7 @@ use lancer::accel::bvh::layouts::{flatten, LayoutKind};
 use lancer::accel::bvh::{build, BuildOptions};
 use lancer::gpu::{wgpu, GpuContext};
 use lancer::mesh::TriStatus;
-use lancer::render::render;
+use lancer::render::{render, AlphaMask, EffectSet};
 use lancer::{Device, GpuForm, Hit, Mesh, Query, Ray, RenderOptions, RenderScene, Vec3};
 use lancer::{Tracer, TracerOptions};
 
@@ -295,6 +295,43 @@ fn inconsistent_arrays_made_in_code_are_refused_not_panicked_on() {
         assert!(e.to_string().contains("material indices"), "{e}");
     }
     render(&scene, &cpu, &options).expect("the scene as read renders");
+    // The same scenes through the lower-level entry points that indexed their arrays
+    // unchecked: an alpha mask, the flattened scene, a frame.
+    let e = AlphaMask::new(&no_texture, EffectSet::of(&no_texture))
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("texture 99"), "{e}");
+    let e = short_materials.at_frame(0).expect_err("refused");
+    assert!(e.to_string().contains("material indices"), "{e}");
+    assert!(AlphaMask::new(&scene, EffectSet::of(&scene)).is_ok());
+
+    // Settings a render cannot run with, refused before any work: more bounces than paths
+    // may follow (a closed scene's samples would each take billions: a hang), no sample.
+    let max = lancer::limits::MAX_BOUNCES;
+    let mut endless = scene.clone();
+    endless.settings.max_bounces = 4_000_000_000;
+    let mut deepest = scene.clone();
+    deepest.settings.max_bounces = max;
+    let mut no_samples = scene.clone();
+    no_samples.settings.spp = 0;
+    for device in std::iter::once(&cpu).chain(gpu.as_ref()) {
+        let e = render(&endless, device, &options).expect_err("refused");
+        assert!(e.to_string().contains(&format!("more than {max}")), "{e}");
+        let e = render(&no_samples, device, &options).expect_err("refused");
+        assert!(e.to_string().contains("spp must be at least 1"), "{e}");
+        // An spp of 0 asked of a renderer is a usage error, not an interrupted render.
+        let zero = RenderOptions {
+            spp: Some(0),
+            ..options.clone()
+        };
+        let e = render(&scene, device, &zero).expect_err("refused");
+        assert!(matches!(e, lancer::Error::Usage(_)), "{e:?}");
+    }
+    let one = RenderOptions {
+        spp: Some(1),
+        ..options.clone()
+    };
+    render(&deepest, &cpu, &one).expect("the most bounces render");
 
     // An image with fewer pixels than its size.
     let dir = std::env::temp_dir().join(format!("lancer-short-image-{}", std::process::id()));

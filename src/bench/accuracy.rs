@@ -516,6 +516,13 @@ fn render(scene: &RenderScene, device: &Device, spp: u32, seed: u32) -> Result<(
 
 /// Runs the bench.
 pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
+    // Primary and shadow rays, their hits and the images, per pixel.
+    crate::limits::check_image(
+        config.width,
+        config.height,
+        200,
+        "use a smaller --width/--height",
+    )?;
     let scene = &config.scene;
     let device = super::open_device(config.device)?;
     let cpu = Device::cpu();

@@ -183,7 +183,11 @@ pub fn build_lbvh(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Result<
     let ids = mesh.included();
     let tree = radix_tree_of(ctx, ids.len(), &|i| mesh.triangles[ids[i] as usize])?;
     let t = Instant::now();
-    let bvh = build_from_radix_tree(mesh, &ids, tree, opts);
+    let bvh = build_from_radix_tree(mesh, &ids, tree, opts).map_err(|e| {
+        Error::Gpu(format!(
+            "the GPU's LBVH is invalid (a bug: please report it with the adapter): {e}"
+        ))
+    })?;
     log::info!("GPU LBVH: lancer's tree made on the CPU in {:.0} ms", ms(t));
     Ok(bvh)
 }

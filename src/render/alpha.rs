@@ -17,22 +17,36 @@ use crate::accel::HitMask;
 pub struct AlphaMask<'a> {
     scene: &'a RenderScene,
     moved: bool,
+    /// Triangles the scene renders: prims beyond are not its.
+    triangles: u64,
 }
 
 impl<'a> AlphaMask<'a> {
     /// The masks of `scene`'s materials as a render simulating `fx` asks them: their
-    /// textures read at moved coordinates where it simulates `texture-transforms`.
-    pub fn new(scene: &'a RenderScene, fx: EffectSet) -> Self {
+    /// textures read at moved coordinates where it simulates `texture-transforms`. A scene
+    /// made in code whose arrays disagree is refused ([`RenderScene::check_arrays`]).
+    pub fn new(scene: &'a RenderScene, fx: EffectSet) -> crate::Result<Self> {
+        scene.check_arrays()?;
+        Ok(AlphaMask::of_checked(scene, fx))
+    }
+
+    /// [`AlphaMask::new`] of a scene already checked (the renderers').
+    pub(crate) fn of_checked(scene: &'a RenderScene, fx: EffectSet) -> Self {
         AlphaMask {
             scene,
             moved: fx.texture_transforms,
+            triangles: scene.triangle_count(),
         }
     }
 }
 
 impl HitMask for AlphaMask<'_> {
+    /// A triangle the scene does not have (a structure over another mesh) is kept.
     fn keeps(&self, prim: u32, u: f32, v: f32) -> bool {
         let scene = self.scene;
+        if prim as u64 >= self.triangles {
+            return true;
+        }
         let shade = scene.shade_of(prim);
         let mat = &scene.materials[scene.material_of[shade] as usize];
         if mat.alpha_cutoff.is_none() && !mat.alpha_blend {

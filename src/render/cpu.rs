@@ -68,7 +68,7 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 /// The CPU renderer of one scene over one acceleration structure.
-pub struct CpuRenderer<'a> {
+pub(crate) struct CpuRenderer<'a> {
     scene: &'a RenderScene,
     accel: &'a dyn Accel,
     robustness: Robustness,
@@ -103,7 +103,7 @@ impl<'a> CpuRenderer<'a> {
                     texture_transforms: moved,
                     ..EffectSet::ALL
                 };
-                AlphaMask::new(scene, fx)
+                AlphaMask::of_checked(scene, fx)
             }),
         }
     }

@@ -308,6 +308,7 @@ impl<'a> GpuRenderer<'a> {
         aovs: bool,
         mode: TraversalMode,
     ) -> Result<Self> {
+        scene.check()?;
         // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
         let pixels = crop.pixels() as u32;
         let mut shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())

@@ -25,7 +25,6 @@ mod trig;
 pub use alpha::{blend_threshold, AlphaMask};
 pub use aov::{AovSet, Aovs, FirstHit};
 pub use bsdf::{Bsdf, BsdfSample, Principled, ALPHA_MIN, DIELECTRIC_F0, LUMINANCE};
-pub use cpu::CpuRenderer;
 pub use crop::{Crop, Tile};
 pub use effects::EffectSet;
 pub use environment::{
@@ -53,5 +52,5 @@ pub use scene::{
     TRANSFORM_ERROR,
 };
 pub use stats::RenderStats;
-pub use texture::{sample_alpha, sample_texture, texture_uv};
+pub use texture::texture_uv;
 pub use trig::{atan2_turns, sin_cos_turns};

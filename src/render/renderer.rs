@@ -177,7 +177,7 @@ impl<'a> Renderer<'a> {
         options: &RenderOptions,
     ) -> Result<Self> {
         let scene: &RenderScene = &owned;
-        scene.check_arrays()?;
+        scene.check()?;
         let (w, h) = (scene.camera.width, scene.camera.height);
         // Pixel indices of the full image seed the random numbers: they must fit a u32.
         // The size is the scene file's [camera] or the caller's (--width/--height/--scale).
@@ -318,7 +318,7 @@ impl<'a> Renderer<'a> {
     /// as a renderer made for it would, bit for bit. Refused, the renderer unchanged, where
     /// [`Renderer::can_move_to`] says no (then make a renderer for it).
     pub fn move_to(&mut self, scene: RenderScene, options: &RenderOptions) -> Result<()> {
-        scene.check_arrays()?;
+        scene.check()?;
         let (Some(two), Some(pl)) = (&self.two_level, &scene.placements) else {
             return Err(Error::Usage(
                 "move_to moves a renderer of a scene with placements in two levels".into(),
@@ -452,6 +452,9 @@ impl<'a> Renderer<'a> {
     pub fn render(&mut self, options: &RenderOptions) -> Result<Rendered> {
         let settings = &self.scene.settings;
         let spp = options.spp.unwrap_or(settings.spp);
+        if spp == 0 {
+            return Err(Error::Usage("spp must be at least 1".into()));
+        }
         let seed = options.seed.unwrap_or(settings.seed);
         let fx = options
             .effects

@@ -41,8 +41,9 @@ pub fn texture_uv(map: Option<[[f32; 3]; 2]>, uv: Vec2) -> Vec2 {
     }
 }
 
-/// Bilinear lookup with wrap-around, in linear RGB.
-pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
+/// Bilinear lookup with wrap-around, in linear RGB, of a whole texture
+/// ([`RenderScene::check_arrays`](super::RenderScene::check_arrays)).
+pub(crate) fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
     let ([a, b, c, d], fx, fy) = texture_taps(t.width, t.height, uv);
     let lerp = |a: Vec3, b: Vec3, f: f32| a + (b - a) * f;
     let x = &t.texels;
@@ -51,7 +52,7 @@ pub fn sample_texture(t: &Texture, uv: Vec2) -> Vec3 {
 
 /// Bilinear lookup of a texture's alpha with wrap-around (1 where it has none). WGSL:
 /// `sample_alpha`.
-pub fn sample_alpha(t: &Texture, uv: Vec2) -> f32 {
+pub(crate) fn sample_alpha(t: &Texture, uv: Vec2) -> f32 {
     // (An alpha channel of another size than the colours is none: the GPU's upload agrees.)
     if t.alpha.len() != t.texels.len() {
         return 1.0;

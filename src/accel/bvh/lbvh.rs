@@ -43,6 +43,70 @@ pub struct RadixTree {
     pub boxes: Vec<Aabb>,
 }
 
+impl RadixTree {
+    /// Refuses a radix tree that is not one over `n` primitives (one made in code, or a
+    /// device's that went wrong), naming the first fault: `sorted` a permutation of `0..n`,
+    /// `n − 1` inner nodes with their boxes, every child in range, every node but the root
+    /// (inner node 0) the child of exactly one node and reached from the root. Then every
+    /// walk of it ends.
+    pub fn check(&self, n: usize) -> Result<(), String> {
+        let inner = n.saturating_sub(1);
+        if self.sorted.len() != n || self.kids.len() != inner || self.boxes.len() != inner {
+            return Err(format!(
+                "{} sorted places, {} inner nodes and {} boxes for {n} primitives (want {n}, \
+                 {inner}, {inner})",
+                self.sorted.len(),
+                self.kids.len(),
+                self.boxes.len()
+            ));
+        }
+        let mut placed = vec![false; n];
+        for (p, &s) in self.sorted.iter().enumerate() {
+            if (s as usize) >= n || std::mem::replace(&mut placed[s as usize], true) {
+                return Err(format!(
+                    "sorted place {p} holds primitive {s} twice or of {n}"
+                ));
+            }
+        }
+        // Parents: one for every node but the root, none for the root.
+        let mut leaf_parent = vec![false; n];
+        let mut inner_parent = vec![false; inner];
+        for (k, pair) in self.kids.iter().enumerate() {
+            for &c in pair {
+                let (taken, what) = match c & LEAF_BIT {
+                    0 => (inner_parent.get_mut(c as usize), "inner node"),
+                    _ => (leaf_parent.get_mut((c & !LEAF_BIT) as usize), "leaf"),
+                };
+                let i = c & !LEAF_BIT;
+                let Some(t) = taken else {
+                    return Err(format!("inner node {k} names {what} {i} of none such"));
+                };
+                if std::mem::replace(t, true) {
+                    return Err(format!("{what} {i} is the child of two nodes"));
+                }
+            }
+        }
+        if inner_parent.first() == Some(&true) {
+            return Err("the root (inner node 0) is a child".into());
+        }
+        // Each node has one parent and the root none, so this walk meets every node at most
+        // once; a node it misses lies on a cycle.
+        let mut reached = 0usize;
+        let mut stack: Vec<u32> = if inner > 0 { vec![0] } else { Vec::new() };
+        while let Some(k) = stack.pop() {
+            reached += 1;
+            stack.extend(self.kids[k as usize].iter().filter(|&&c| c & LEAF_BIT == 0));
+        }
+        if reached != inner {
+            return Err(format!(
+                "{} of its {inner} inner nodes are not reached from the root (a cycle)",
+                inner - reached
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// The Morton cell of a doubled centroid: `((c - lo) · s1) · s2`, truncated to
 /// [`CODE_BITS`] bits per axis.
 #[derive(Clone, Copy, Debug)]
@@ -324,5 +388,59 @@ mod tests {
             assert!(inner[1..].iter().all(|&c| c == 1));
             assert_eq!(t, radix_tree(&boxes, !parallel));
         }
+    }
+
+    #[test]
+    fn a_tree_that_is_no_radix_tree_is_refused_and_every_walk_of_a_checked_one_ends() {
+        let boxes: Vec<Aabb> = (0..9).map(|i| unit([i as f32 * 2.0, 0.0, 0.0])).collect();
+        for n in [1, 2, 9] {
+            radix_tree(&boxes[..n], false).check(n).unwrap();
+        }
+        let good = radix_tree(&boxes, false);
+        let refused = |f: &dyn Fn(&mut RadixTree), want: &str| {
+            let mut t = good.clone();
+            f(&mut t);
+            let e = t.check(9).unwrap_err();
+            assert!(e.contains(want), "{want}: {e}");
+        };
+        refused(&|t| t.sorted[3] = t.sorted[4], "holds primitive");
+        refused(&|t| t.sorted[0] = 9, "holds primitive 9");
+        refused(&|t| t.kids[2][0] = 40, "names inner node 40");
+        refused(&|t| t.kids[2][0] = LEAF_BIT | 9, "names leaf 9");
+        refused(&|t| t.kids.truncate(7), "7 inner nodes");
+        refused(
+            &|t| {
+                t.boxes.pop();
+            },
+            "7 boxes",
+        );
+        // Node 0 its own child: a walk from the root would never end.
+        refused(
+            &|t| t.kids[0] = [0, t.kids[0][1]],
+            "the root (inner node 0) is a child",
+        );
+        // Inner node 1 its own child, cut off from the root: every node but the root has
+        // one parent, and the walk from the root misses it (a walk into it never ends).
+        let cycle = RadixTree {
+            sorted: vec![0, 1, 2],
+            kids: vec![[LEAF_BIT, LEAF_BIT | 1], [1, LEAF_BIT | 2]],
+            boxes: vec![unit([0.0; 3]); 2],
+        };
+        let e = cycle.check(3).unwrap_err();
+        assert!(e.contains("1 of its 2 inner nodes are not reached"), "{e}");
+        // The builder from a radix tree refuses it (its walk would not end) and ids beyond
+        // the mesh.
+        use crate::accel::bvh::build_from_radix_tree;
+        use crate::geometry::Triangle;
+        let tris = (0..3).map(|i| {
+            let p = glam::Vec3::new(i as f32, 0.0, 0.0);
+            Triangle::new(p, p + glam::Vec3::X, p + glam::Vec3::Y)
+        });
+        let mesh = crate::mesh::Mesh::from_triangles(tris.collect());
+        let opts = Default::default();
+        let e = build_from_radix_tree(&mesh, &[0, 1, 2], cycle, &opts).unwrap_err();
+        assert!(e.to_string().contains("not reached from the root"), "{e}");
+        let e = build_from_radix_tree(&mesh, &[0, 1, 7], good, &opts).unwrap_err();
+        assert!(e.to_string().contains("id 7 of a mesh of 3"), "{e}");
     }
 }

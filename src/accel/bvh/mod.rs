@@ -155,20 +155,27 @@ fn finish(
 
 /// The BVH of an LBVH radix tree over the mesh's included triangles `ids` (built on the
 /// GPU: `gpu::build_lbvh`), exactly as [`build`] makes it from the CPU's radix tree: the
-/// SAH's leaves, the depth cap (beyond it, the binned builder), the optimiser.
+/// SAH's leaves, the depth cap (beyond it, the binned builder), the optimiser. Refused,
+/// naming the fault, where an id is not a triangle of `mesh` or `tree` is not a radix tree
+/// over the ids ([`lbvh::RadixTree::check`]).
 pub fn build_from_radix_tree(
     mesh: &Mesh,
     ids: &[u32],
     tree: lbvh::RadixTree,
     opts: &BuildOptions,
-) -> Bvh {
+) -> crate::Result<Bvh> {
+    let refuse = |e: String| crate::Error::Usage(format!("refusing the radix tree: {e}"));
+    if let Some(&i) = ids.iter().find(|&&i| i as usize >= mesh.len()) {
+        return Err(refuse(format!("id {i} of a mesh of {}", mesh.len())));
+    }
+    tree.check(ids.len()).map_err(refuse)?;
     if ids.is_empty() {
-        return Bvh::empty(mesh.len());
+        return Ok(Bvh::empty(mesh.len()));
     }
     let prims = Prims::new(ids.par_iter().map(|&i| mesh.triangles[i as usize].bbox()));
     let (root, local) = match lbvh::to_tree(tree, &prims, opts) {
         Some(tree) => tree,
         None => binned::build(prims, opts),
     };
-    finish(root, local, (Some(ids), mesh.len()), opts)
+    Ok(finish(root, local, (Some(ids), mesh.len()), opts))
 }

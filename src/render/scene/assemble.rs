@@ -264,6 +264,32 @@ pub struct Settings {
     pub ao_distance: f32,
 }
 
+impl Settings {
+    /// Refuses settings a render cannot run with: no sample per pixel, more bounces than
+    /// [`MAX_BOUNCES`](crate::limits::MAX_BOUNCES), an AO distance that is not a finite
+    /// length (≤ 0: a tenth of the scene's diagonal).
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let max = crate::limits::MAX_BOUNCES;
+        if self.spp == 0 {
+            return Err("spp must be at least 1".into());
+        }
+        if self.max_bounces > max {
+            return Err(format!(
+                "max_bounces is {}, more than {max} (paths follow every bounce: each sample \
+                 of a closed scene would take that many)",
+                self.max_bounces
+            ));
+        }
+        if !self.ao_distance.is_finite() {
+            return Err(format!(
+                "ao_distance must be a finite distance, got {}",
+                self.ao_distance
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// A scene ready to render: one mesh with per-triangle texture coordinates and materials,
 /// lights, and the emissive triangles that act as area lights. A scene that places an
 /// object more than once keeps each object once, with its placements.
@@ -1144,13 +1170,6 @@ impl RenderScene {
         };
         let r = &f.render;
         let rln = line_of(&src, src.find("[render]").unwrap_or(0));
-        if r.spp == 0 {
-            return Err(Error::input(
-                path,
-                Some(rln),
-                "render: spp must be at least 1",
-            ));
-        }
         if let Some(d) = r.ao_distance.filter(|d| !(d.is_finite() && *d > 0.0)) {
             return Err(Error::input(
                 path,
@@ -1165,6 +1184,9 @@ impl RenderScene {
             seed: r.seed,
             ao_distance: r.ao_distance.unwrap_or(0.0),
         };
+        if let Err(e) = settings.check() {
+            return Err(Error::input(path, Some(rln), format!("render: {e}")));
+        }
         let environment = environment_of(path, &src, &f, &dir, &mut b.sources)?;
         b.finish(path, camera, settings, lights, environment)
     }
@@ -1496,8 +1518,9 @@ impl RenderScene {
 
     /// The scene at frame `frame`: its placements moved to that frame (and its emitters'
     /// areas with them); the scene itself where nothing moves. Refused where a moved map is
-    /// not invertible.
+    /// not invertible, or where the scene's arrays disagree ([`RenderScene::check_arrays`]).
     pub fn at_frame(&self, frame: u32) -> Result<RenderScene> {
+        self.check_arrays()?;
         let mut scene = self.clone();
         if let Some(pl) = self.placements.as_ref().filter(|p| p.moves()) {
             scene.placements = Some(pl.at_frame(frame)?);
@@ -1508,6 +1531,14 @@ impl RenderScene {
             }
         }
         Ok(scene)
+    }
+
+    /// Refuses a scene assembled in code whose settings a render cannot run with
+    /// ([`Settings::check`]) or whose arrays disagree ([`RenderScene::check_arrays`]); a
+    /// scene read from a file always passes.
+    pub fn check(&self) -> Result<()> {
+        (self.settings.check()).map_err(|e| Error::Usage(format!("a scene made in code: {e}")))?;
+        self.check_arrays()
     }
 
     /// Refuses a scene assembled in code whose arrays disagree (a scene read from a file
@@ -1608,11 +1639,13 @@ impl RenderScene {
 
     /// The scene with its placements flattened: every placed triangle in one mesh in world
     /// space, numbered as before (so hits, emitters and materials keep their numbers).
-    /// A scene without placements is returned as it is.
+    /// A scene without placements is returned as it is; one whose arrays disagree
+    /// ([`RenderScene::check_arrays`]) is refused.
     pub fn flattened(self) -> Result<RenderScene> {
         let Some(pl) = &self.placements else {
             return Ok(self);
         };
+        self.check_arrays()?;
         let n = pl.set().triangle_count() as u128;
         crate::limits::check_memory(
             &format!("the flattened scene ({n} triangles)"),
