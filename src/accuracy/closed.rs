@@ -168,11 +168,14 @@ pub fn aimed_rays(
         .collect()
 }
 
-/// The mesh of `v` scaled by `scale` and moved by `shift`, with its vertices.
+/// The mesh of `v` scaled by `scale` and moved by `shift`, with its vertices. A triangle
+/// naming a vertex the shape does not have keeps its index with NaN corners (left out of
+/// the BVH, never hit).
 pub fn placed(shape: &Indexed, scale: f32, shift: Vec3) -> (Mesh, Vec<Vec3>) {
     let v: Vec<Vec3> = shape.0.iter().map(|p| *p * scale + shift).collect();
+    let at = |i: u32| v.get(i as usize).copied().unwrap_or(Vec3::NAN);
     let tris = (shape.1.iter())
-        .map(|&[a, b, c]| Triangle::new(v[a as usize], v[b as usize], v[c as usize]))
+        .map(|&[a, b, c]| Triangle::new(at(a), at(b), at(c)))
         .collect();
     (Mesh::from_triangles(tris), v)
 }
@@ -180,4 +183,23 @@ pub fn placed(shape: &Indexed, scale: f32, shift: Vec3) -> (Mesh, Vec<Vec3>) {
 /// Leaks: aimed rays that hit nothing.
 pub fn leaks(hits: &[Hit]) -> usize {
     hits.iter().filter(|h| !h.is_hit()).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::TriStatus;
+
+    #[test]
+    fn a_triangle_naming_no_vertex_is_left_out_not_indexed_past() {
+        let shape: Indexed = (
+            vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            vec![[0, 1, 2], [0, 1, 9]],
+        );
+        let (mesh, v) = placed(&shape, 2.0, Vec3::Z);
+        assert_eq!((mesh.len(), v.len()), (2, 3));
+        assert_eq!(mesh.status[0], TriStatus::Ok);
+        assert_ne!(mesh.status[1], TriStatus::Ok);
+        assert_eq!(mesh.triangles[0].v[1], Vec3::new(2.0, 0.0, 1.0));
+    }
 }

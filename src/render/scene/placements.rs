@@ -162,7 +162,8 @@ impl Placements {
     /// instance for each map it gives), frame f at f ÷ [`DEFAULT_FRAME_RATE`] seconds.
     /// Ignored where those instances do not exist.
     pub fn with_animation(mut self, first: usize, clip: GltfAnimation) -> Self {
-        if first + clip.placements() <= self.set.instances.len() {
+        let end = first.checked_add(clip.placements());
+        if end.is_some_and(|end| end <= self.set.instances.len()) {
             self.animation = Some(Animated {
                 first,
                 clip: Arc::new(clip),
