@@ -328,13 +328,7 @@ fn a_binary_chain_at_the_depth_cap_collapses_and_traces() {
     };
     let mut root = leaf(64);
     for i in (0..64).rev() {
-        let (a, b) = (leaf(i), root);
-        root = Node::Inner {
-            bbox: a.bbox().union(*b.bbox()),
-            axis: 0,
-            nodes: 1 + a.nodes() + b.nodes(),
-            children: Box::new([a, b]),
-        };
+        root = Node::parent(0, [leaf(i), root]);
     }
     let bvh = Bvh::new(root, (0..65).collect(), &mesh).unwrap();
     assert_eq!(depth_and_biggest_leaf(bvh.root(), 0).0, MAX_DEPTH);

@@ -387,12 +387,7 @@ fn empty_mesh_and_single_triangle(kind: LayoutKind) {
 }
 
 fn inner(a: Node, b: Node) -> Node {
-    Node::Inner {
-        bbox: a.bbox().union(*b.bbox()),
-        axis: 0,
-        nodes: 1 + a.nodes() + b.nodes(),
-        children: Box::new([a, b]),
-    }
+    Node::parent(0, [a, b])
 }
 
 fn leaf(tris: &mut Vec<Triangle>, t: Triangle) -> Node {

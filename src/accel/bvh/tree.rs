@@ -36,6 +36,14 @@ impl Node {
         Kids::reserve().inner(bbox, axis, children)
     }
 
+    /// The inner node over two subtrees split on `axis` (0, 1 or 2; the low side first):
+    /// its box theirs joined, its count theirs and itself. How a builder of your own makes
+    /// its inner nodes ([`Bvh::new`] checks the tree).
+    pub fn parent(axis: usize, children: [Node; 2]) -> Node {
+        let bbox = children[0].bbox().union(*children[1].bbox());
+        Node::inner(bbox, axis, children)
+    }
+
     /// Nodes in this subtree, itself included.
     pub fn nodes(&self) -> u32 {
         match self {

@@ -165,12 +165,7 @@ mod tests {
     }
 
     fn inner(a: Node, b: Node) -> Node {
-        Node::Inner {
-            bbox: a.bbox().union(*b.bbox()),
-            axis: 0,
-            nodes: 1 + a.nodes() + b.nodes(),
-            children: Box::new([a, b]),
-        }
+        Node::parent(0, [a, b])
     }
 
     #[test]

@@ -251,13 +251,7 @@ mod tests {
         };
         let mut root = leaf(n - 1);
         for i in (0..n - 1).rev() {
-            let (a, b) = (leaf(i), root);
-            root = Node::Inner {
-                bbox: a.bbox().union(*b.bbox()),
-                axis: 0,
-                nodes: 1 + a.nodes() + b.nodes(),
-                children: Box::new([a, b]),
-            };
+            root = Node::parent(0, [leaf(i), root]);
         }
         let bvh = Bvh {
             root,
