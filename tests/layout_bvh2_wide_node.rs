@@ -4,7 +4,8 @@
 //! soups, the bunny, rays through shared edges and vertices, axis-parallel rays on node-box
 //! faces, coincident triangles, and a hand-made tree at the depth cap that fills the stack
 //! (also on the GPU, with and without bounds checks). A tree one level deeper is refused by
-//! validate(); other corruptions are the unit tests in mod.rs. GPU ≡ twin on everything
+//! `Bvh::new` (a layout that deep, by validate(): the layouts' unit tests); other
+//! corruptions are the unit tests in mod.rs. GPU ≡ twin on everything
 //! else is tests/gpu_vs_cpu.rs.
 
 mod common;

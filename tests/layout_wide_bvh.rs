@@ -418,6 +418,12 @@ fn copies(tris: &mut Vec<Triangle>, t: Triangle, count: u32) -> Node {
 /// sibling has `innermost` leaves (2 or 3), of one triangle each: bvh4's deepest node holds
 /// two binary levels, so 2; bvh8's three, so 3 (its 8 leaves fill the node).
 fn stack_filler(depth: usize, innermost: usize) -> (Mesh, Bvh) {
+    let (mesh, bvh) = stack_filler_tree(depth, innermost);
+    (mesh, bvh.unwrap())
+}
+
+/// [`stack_filler`]'s tree as `Bvh::new` takes or refuses it.
+fn stack_filler_tree(depth: usize, innermost: usize) -> (Mesh, lancer::Result<Bvh>) {
     let mut tris = Vec::new();
     let (mut x, mut y) = (1.0f32, 100.0f32);
     let first = leaf(
@@ -454,7 +460,7 @@ fn stack_filler(depth: usize, innermost: usize) -> (Mesh, Bvh) {
     }
     let order = (0..tris.len() as u32).collect();
     let mesh = Mesh::from_triangles(tris);
-    let bvh = Bvh::new(node, order, &mesh).unwrap();
+    let bvh = Bvh::new(node, order, &mesh);
     (mesh, bvh)
 }
 
@@ -523,12 +529,15 @@ fn a_tree_that_fills_the_stack_traces_on_twin_and_gpu(kind: LayoutKind) {
         assert_eq!(g.hits, c.hits, "{query:?}");
         assert_eq!(g.stats, c.stats, "{query:?}");
     }
-    // One binary level deeper than the stack holds is refused before any flatten; a layout
-    // one wide level deeper than validate allows (from a file) is refused by validate
-    // (`wide_bvh`'s unit tests).
+    // The chain one wide level deeper (binary depth L · (63 / L + 1) + 1) is refused before
+    // any flatten, as deeper than the stacks; a layout that deep from a file is refused by
+    // validate, at exactly that wide depth (the layouts' unit test
+    // `validate_refuses_a_layout_deeper_than_its_traversal_stack`).
     let deepest = (MAX_DEPTH - 1) / l + 1;
-    let e = std::panic::catch_unwind(|| stack_filler(l * deepest + 1, l)).unwrap_err();
-    let e = e.downcast_ref::<String>().unwrap();
+    let e = stack_filler_tree(l * deepest + 1, l)
+        .1
+        .unwrap_err()
+        .to_string();
     assert!(e.contains(&format!("deeper than {MAX_DEPTH}")), "{e}");
 }
 

@@ -301,6 +301,11 @@ fn inconsistent_arrays_made_in_code_are_refused_not_panicked_on() {
         .err()
         .expect("refused");
     assert!(e.to_string().contains("texture 99"), "{e}");
+    let short_fx = EffectSet::of(&short_materials); // reads the materials it can name
+    let e = AlphaMask::new(&short_materials, short_fx)
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("material indices"), "{e}");
     let e = short_materials.at_frame(0).expect_err("refused");
     assert!(e.to_string().contains("material indices"), "{e}");
     assert!(AlphaMask::new(&scene, EffectSet::of(&scene)).is_ok());

@@ -67,8 +67,11 @@ impl EffectSet {
         let s = &scene.settings;
         // The materials of the triangles that are in the BVH (only those can be hit).
         let included = scene.mesh.included();
+        // (A scene made in code whose arrays disagree names fewer: `RenderScene::check`
+        // refuses it before any render.)
         let used: Vec<_> = (included.iter())
-            .map(|&i| &scene.materials[scene.material_of[i as usize] as usize])
+            .filter_map(|&i| scene.material_of.get(i as usize))
+            .filter_map(|&m| scene.materials.get(m as usize))
             .collect();
         let kind_used = |k: MaterialKind| used.iter().any(|m| m.kind == k);
         let ao = s.integrator == Integrator::Ao;

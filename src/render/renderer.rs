@@ -178,6 +178,9 @@ impl<'a> Renderer<'a> {
     ) -> Result<Self> {
         let scene: &RenderScene = &owned;
         scene.check()?;
+        if options.spp == Some(0) {
+            return Err(Error::Usage("spp must be at least 1".into()));
+        }
         let (w, h) = (scene.camera.width, scene.camera.height);
         // Pixel indices of the full image seed the random numbers: they must fit a u32.
         // The size is the scene file's [camera] or the caller's (--width/--height/--scale).

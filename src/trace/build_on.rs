@@ -63,7 +63,7 @@ pub fn gpu_built(
         let flat = crate::gpu::lbvh_dfs_sign(ctx, mesh, build)?;
         let ms = ms();
         GpuBuilt {
-            tree: want_tree.then(|| flat.tree()),
+            tree: want_tree.then(|| flat.tree(mesh.len())),
             layout: Arc::new(flat),
             ms,
         }

@@ -54,14 +54,7 @@ fn flatten(node: &Node, opts: &BuildOptions, out: &mut Vec<Flat>) -> (usize, (u3
 /// is one reference: a triangle that several leaves reference is in the subtree of each of
 /// their ancestors.
 pub fn epo_cost(bvh: &Bvh, mesh: &Mesh, opts: &BuildOptions) -> crate::Result<f64> {
-    if bvh.mesh_len > mesh.len() {
-        return Err(crate::Error::Usage(format!(
-            "the BVH was built over {} triangles but the mesh given has {}: measure it over \
-             the mesh it was built over",
-            bvh.mesh_len,
-            mesh.len()
-        )));
-    }
+    bvh.check_mesh(mesh, "measure it over")?;
     let mut nodes = Vec::with_capacity(bvh.root.nodes() as usize);
     flatten(&bvh.root, opts, &mut nodes);
     // Every position of each triangle in the leaf order, sorted, to tell which nodes hold it.

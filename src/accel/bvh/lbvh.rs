@@ -60,12 +60,13 @@ impl RadixTree {
                 self.boxes.len()
             ));
         }
-        let mut placed = vec![false; n];
+        let mut placed = vec![None; n];
         for (p, &s) in self.sorted.iter().enumerate() {
-            if (s as usize) >= n || std::mem::replace(&mut placed[s as usize], true) {
-                return Err(format!(
-                    "sorted place {p} holds primitive {s} twice or of {n}"
-                ));
+            let Some(at) = placed.get_mut(s as usize) else {
+                return Err(format!("sorted place {p} holds primitive {s} of {n}"));
+            };
+            if let Some(q) = at.replace(p) {
+                return Err(format!("sorted places {q} and {p} both hold primitive {s}"));
             }
         }
         // Parents: one for every node but the root, none for the root.
@@ -73,13 +74,15 @@ impl RadixTree {
         let mut inner_parent = vec![false; inner];
         for (k, pair) in self.kids.iter().enumerate() {
             for &c in pair {
-                let (taken, what) = match c & LEAF_BIT {
-                    0 => (inner_parent.get_mut(c as usize), "inner node"),
-                    _ => (leaf_parent.get_mut((c & !LEAF_BIT) as usize), "leaf"),
+                let (taken, what, of) = match c & LEAF_BIT {
+                    0 => (inner_parent.get_mut(c as usize), "inner node", inner),
+                    _ => (leaf_parent.get_mut((c & !LEAF_BIT) as usize), "leaf", n),
                 };
                 let i = c & !LEAF_BIT;
                 let Some(t) = taken else {
-                    return Err(format!("inner node {k} names {what} {i} of none such"));
+                    return Err(format!(
+                        "inner node {k} names {what} {i}, but there are {of}"
+                    ));
                 };
                 if std::mem::replace(t, true) {
                     return Err(format!("{what} {i} is the child of two nodes"));
@@ -403,10 +406,19 @@ mod tests {
             let e = t.check(9).unwrap_err();
             assert!(e.contains(want), "{want}: {e}");
         };
-        refused(&|t| t.sorted[3] = t.sorted[4], "holds primitive");
-        refused(&|t| t.sorted[0] = 9, "holds primitive 9");
-        refused(&|t| t.kids[2][0] = 40, "names inner node 40");
-        refused(&|t| t.kids[2][0] = LEAF_BIT | 9, "names leaf 9");
+        refused(
+            &|t| t.sorted[3] = t.sorted[4],
+            "places 3 and 4 both hold primitive",
+        );
+        refused(&|t| t.sorted[0] = 9, "place 0 holds primitive 9 of 9");
+        refused(
+            &|t| t.kids[2][0] = 40,
+            "names inner node 40, but there are 8",
+        );
+        refused(
+            &|t| t.kids[2][0] = LEAF_BIT | 9,
+            "names leaf 9, but there are 9",
+        );
         refused(&|t| t.kids.truncate(7), "7 inner nodes");
         refused(
             &|t| {

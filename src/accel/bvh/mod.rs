@@ -164,9 +164,20 @@ pub fn build_from_radix_tree(
     tree: lbvh::RadixTree,
     opts: &BuildOptions,
 ) -> crate::Result<Bvh> {
-    let refuse = |e: String| crate::Error::Usage(format!("refusing the radix tree: {e}"));
+    let refuse = |e: String| {
+        crate::Error::Usage(format!(
+            "refusing the radix tree: {e} (lbvh::radix_tree makes one over boxes)"
+        ))
+    };
     if let Some(&i) = ids.iter().find(|&&i| i as usize >= mesh.len()) {
         return Err(refuse(format!("id {i} of a mesh of {}", mesh.len())));
+    }
+    if ids.len() > lbvh::MAX_PRIMS {
+        return Err(refuse(format!(
+            "{} ids, more than the {} it takes",
+            ids.len(),
+            lbvh::MAX_PRIMS
+        )));
     }
     tree.check(ids.len()).map_err(refuse)?;
     if ids.is_empty() {

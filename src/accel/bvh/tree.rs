@@ -39,9 +39,9 @@ impl Node {
     /// The inner node over two subtrees split on `axis` (0, 1 or 2; the low side first):
     /// its box theirs joined, its count theirs and itself. How a builder of your own makes
     /// its inner nodes ([`Bvh::new`] checks the tree).
-    pub fn parent(axis: usize, children: [Node; 2]) -> Node {
+    pub fn parent(axis: u8, children: [Node; 2]) -> Node {
         let bbox = children[0].bbox().union(*children[1].bbox());
-        Node::inner(bbox, axis, children)
+        Node::inner(bbox, axis as usize, children)
     }
 
     /// Nodes in this subtree, itself included.
@@ -72,7 +72,8 @@ impl Node {
 pub struct Bvh {
     /// The root node.
     pub(crate) root: Node,
-    /// Original (file-order) triangle indices in leaf order; included triangles only.
+    /// Original (file-order) triangle indices in leaf order (the builders': included
+    /// triangles only).
     pub(crate) order: Vec<u32>,
     /// Triangles (the top level over instances: boxes) of what it was built over: every
     /// entry of `order` lies below this.
@@ -93,11 +94,27 @@ impl Bvh {
     }
 
     /// Triangles of the mesh it was built over (the top level over instances: boxes): a
-    /// flattening refuses a mesh of another size ([`try_flatten`]).
+    /// smaller mesh is refused by [`try_flatten`] and [`epo_cost`], which read it by the
+    /// tree's indices.
     ///
     /// [`try_flatten`]: super::layouts::try_flatten
+    /// [`epo_cost`]: super::epo_cost
     pub fn mesh_len(&self) -> usize {
         self.mesh_len
+    }
+
+    /// Refuses a mesh smaller than the one the tree was built over (its triangles are read
+    /// by the tree's indices); `to` says what the caller does with it, for the message.
+    pub(crate) fn check_mesh(&self, mesh: &crate::mesh::Mesh, to: &str) -> crate::Result<()> {
+        if self.mesh_len > mesh.len() {
+            return Err(crate::Error::Usage(format!(
+                "the BVH was built over {} triangles but the mesh given has {}: {to} the mesh \
+                 it was built over",
+                self.mesh_len,
+                mesh.len()
+            )));
+        }
+        Ok(())
     }
 
     /// The tree over none of a mesh's `mesh_len` triangles: one empty leaf.

@@ -49,7 +49,10 @@ impl Bvh {
             }),
             Some(e) => {
                 free(root);
-                Err(Error::Usage(format!("refusing the BVH: {e}")))
+                Err(Error::Usage(format!(
+                    "refusing the BVH: {e} (Bvh::new's documentation lists the shape a tree \
+                     must have)"
+                )))
             }
         }
     }

@@ -276,7 +276,7 @@ impl Settings {
         if self.max_bounces > max {
             return Err(format!(
                 "max_bounces is {}, more than {max} (paths follow every bounce: each sample \
-                 of a closed scene would take that many)",
+                 of a closed scene would take that many); set it to at most {max}",
                 self.max_bounces
             ));
         }

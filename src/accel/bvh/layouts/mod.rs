@@ -151,7 +151,7 @@ impl std::fmt::Display for LayoutKind {
 /// fit in the memory available (the `threaded` layout holds eight copies of the tree's
 /// nodes): the library's and the command line's way in, for trees built from input.
 pub fn try_flatten(kind: LayoutKind, bvh: &Bvh, mesh: &Mesh) -> crate::Result<Box<dyn GpuForm>> {
-    check_mesh(bvh, mesh)?;
+    bvh.check_mesh(mesh, "flatten it with")?;
     if kind == LayoutKind::Threaded {
         crate::limits::check_memory(
             "the threaded layout",
@@ -171,25 +171,11 @@ pub fn try_flatten_owned(
 ) -> crate::Result<Box<dyn GpuForm>> {
     match kind {
         LayoutKind::Cwbvh => {
-            check_mesh(&bvh, mesh)?;
+            bvh.check_mesh(mesh, "flatten it with")?;
             Ok(Box::new(Cwbvh::flatten_owned(bvh, mesh)))
         }
         _ => try_flatten(kind, &bvh, mesh),
     }
-}
-
-/// Refuses a mesh smaller than the one `bvh` was built over (its triangles are read by
-/// the tree's indices).
-fn check_mesh(bvh: &Bvh, mesh: &Mesh) -> crate::Result<()> {
-    if bvh.mesh_len() > mesh.len() {
-        return Err(crate::Error::Usage(format!(
-            "the BVH was built over {} triangles but the mesh given has {}: flatten it with \
-             the mesh it was built over",
-            bvh.mesh_len(),
-            mesh.len()
-        )));
-    }
-    Ok(())
 }
 
 /// Flattens a built tree into the chosen layout, unchecked: for trees known to fit (tests,
@@ -227,7 +213,7 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::accel::bvh::Node;
+    use crate::accel::bvh::{Node, MAX_DEPTH};
     use crate::geometry::Triangle;
 
     #[test]
@@ -258,15 +244,27 @@ mod tests {
             order: (0..n).collect(),
             mesh_len: mesh.len(),
         };
+        // The first node the check meets past the stack is one level past it, so each
+        // message names the boundary: MAX_DEPTH + 1 levels of binary nodes (bvh2-wide-node's
+        // records hold their children: MAX_DEPTH), the wide depth whose stack entries first
+        // exceed the kernel's (bvh4: 32 levels of 3, bvh8: 22 of 7; cwbvh: one group a level).
         for &kind in LayoutKind::ALL {
             let result = flatten(kind, &bvh, &mesh).validate();
-            match kind {
-                LayoutKind::Threaded => result.unwrap(),
-                _ => {
-                    let e = result.unwrap_err();
-                    assert!(e.contains("depth"), "{kind}: {e}");
+            let want = match kind {
+                LayoutKind::Threaded => {
+                    result.unwrap();
+                    continue;
                 }
-            }
+                LayoutKind::DfsSign | LayoutKind::DfsDistance => {
+                    format!("at depth 65 > {MAX_DEPTH}")
+                }
+                LayoutKind::Bvh2WideNode => format!("at depth {MAX_DEPTH}: its children"),
+                LayoutKind::Cwbvh => format!("at depth 65 > the {MAX_DEPTH}-group stack"),
+                LayoutKind::Bvh4 => "at depth 32: its traversal may need more than 96".into(),
+                LayoutKind::Bvh8 => "at depth 22: its traversal may need more than 154".into(),
+            };
+            let e = result.unwrap_err();
+            assert!(e.contains(&want), "{kind}: {e}");
         }
     }
 }

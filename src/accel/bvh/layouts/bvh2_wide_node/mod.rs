@@ -118,6 +118,8 @@ pub struct Bvh2WideNode {
 
 impl Bvh2WideNode {
     /// Flattens a built tree (in parallel for big trees).
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Bvh2WideNode {
         let tris = LeafTri::gather(bvh, mesh);
         let root = &bvh.root;

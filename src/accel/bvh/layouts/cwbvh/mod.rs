@@ -132,12 +132,16 @@ pub struct Cwbvh {
 
 impl Cwbvh {
     /// Collapses a built tree into 8-wide compressed nodes.
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Cwbvh {
         Cwbvh::collapse(Cow::Borrowed(bvh), &bvh.order, mesh)
     }
 
     /// [`Cwbvh::flatten`], consuming the tree: its nodes are freed as soon as the collapse
     /// holds the tree's shape, before the wide nodes are written (a lower peak of memory).
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten_owned(mut bvh: Bvh, mesh: &Mesh) -> Cwbvh {
         let order = std::mem::take(&mut bvh.order);
         Cwbvh::collapse(Cow::Owned(bvh), &order, mesh)

@@ -22,6 +22,8 @@ pub struct DfsDistance {
 
 impl DfsDistance {
     /// Flattens a built tree (the dfs-sign arrays).
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> DfsDistance {
         DfsDistance {
             flat: DfsSign::flatten(bvh, mesh),

@@ -85,6 +85,8 @@ pub struct DfsSign {
 
 impl DfsSign {
     /// Flattens a built tree (in parallel for big trees).
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> DfsSign {
         let tris = LeafTri::gather(bvh, mesh);
         DfsSign {
@@ -94,9 +96,10 @@ impl DfsSign {
     }
 
     /// The binary tree these arrays hold (the inverse of [`DfsSign::flatten`]): for the
-    /// statistics of a layout flattened elsewhere (on the GPU: `gpu::lbvh_dfs_sign`). Its
-    /// mesh is taken to end at the last triangle it holds ([`Bvh::mesh_len`]).
-    pub fn tree(&self) -> Bvh {
+    /// statistics of a layout flattened elsewhere (on the GPU: `gpu::lbvh_dfs_sign`), over a
+    /// mesh of `mesh_len` triangles ([`Bvh::mesh_len`]; taken to end at the last triangle it
+    /// holds where that is more).
+    pub fn tree(&self, mesh_len: usize) -> Bvh {
         fn node(nodes: &[DfsNode], i: usize) -> Node {
             let n = &nodes[i];
             if n.is_leaf() {
@@ -109,7 +112,7 @@ impl DfsSign {
         let order: Vec<u32> = self.tris.iter().map(|t| t.prim).collect();
         Bvh {
             root: node(&self.nodes, 0),
-            mesh_len: order.iter().max().map_or(0, |&m| m as usize + 1),
+            mesh_len: (order.iter().max()).map_or(mesh_len, |&m| mesh_len.max(m as usize + 1)),
             order,
         }
     }

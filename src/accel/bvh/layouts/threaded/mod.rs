@@ -46,6 +46,8 @@ impl Threaded {
     }
 
     /// Flattens a built tree: the eight copies in parallel.
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Threaded {
         let tris = LeafTri::gather(bvh, mesh);
         let n = bvh.root.nodes() as usize;

@@ -175,6 +175,8 @@ where
 
     /// Collapses a built binary tree into W-wide nodes, in depth-first pre-order (the root
     /// at 0).
+    /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
+    /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> WideBvh<W> {
         // The triangles and the nodes are independent: gathered and collapsed side by side.
         let (tris, nodes) = rayon::join(
