@@ -306,7 +306,9 @@ impl Marks for Walk {
 /// those vertices. A triangle with several records (a spatial split's) and a vertex
 /// outside the boxes on the way here (`within`, this leaf's included) is kept as a part
 /// for [`check_parts`] (its other leaves may hold the rest), and only its bounds within
-/// `within` count as below.
+/// `within` count as below. The usual case, every vertex inside, is inlined into the
+/// walk; the rest is [`leaf_in_parts`].
+#[inline(always)]
 fn leaf(
     slot: &Slot,
     (first, count): (u32, u32),
@@ -316,17 +318,46 @@ fn leaf(
 ) -> Result<Aabb, String> {
     let (first, end) = (first as usize, first as usize + count as usize);
     let Some(ts) = tris.get(first..end) else {
-        return Err(format!(
-            "{} refers to triangles {first}..{end} of {}",
-            slot.at,
-            tris.len()
-        ));
+        return Err(out_of_range(slot, (first, end), tris.len()));
     };
+    let Some(below) = whole_inside(ts, &within) else {
+        return leaf_in_parts(slot, first, ts, tris, within, marks);
+    };
+    // Only the marks can fail, in the order the walk of `leaf_in_parts` meets them.
+    for record in first..end {
+        if marks.mark(record) {
+            return Err(twice(slot, record));
+        }
+    }
+    Ok(below)
+}
+
+#[cold]
+fn out_of_range(slot: &Slot, (first, end): (usize, usize), len: usize) -> String {
+    format!("{} refers to triangles {first}..{end} of {len}", slot.at)
+}
+
+#[cold]
+fn twice(slot: &Slot, record: usize) -> String {
+    format!("{}: triangle {record} is in two leaves", slot.at)
+}
+
+/// [`leaf`] where a vertex lies outside a box on the way, triangle by triangle.
+#[cold]
+#[inline(never)]
+fn leaf_in_parts(
+    slot: &Slot,
+    first: usize,
+    ts: &[LeafTri],
+    tris: &[LeafTri],
+    within: Aabb,
+    marks: &mut impl Marks,
+) -> Result<Aabb, String> {
     let mut below = Aabb::EMPTY;
     for (k, t) in ts.iter().enumerate() {
         let record = first + k;
         if marks.mark(record) {
-            return Err(format!("{}: triangle {record} is in two leaves", slot.at));
+            return Err(twice(slot, record));
         }
         let vs = [t.v0, t.v1, t.v2].map(glam::Vec3::from);
         let out_of = |b: &Aabb| {
@@ -367,6 +398,32 @@ fn leaf(
         }
     }
     Ok(below)
+}
+
+/// The box of the triangles' vertices where every one lies inside `within` (faces
+/// included, none NaN), else None: [`leaf`]'s usual case, checked in SIMD lanes (a
+/// record's vertex is loaded with the 4 bytes after it, a lane never compared nor
+/// returned).
+#[inline(always)]
+fn whole_inside(ts: &[LeafTri], within: &Aabb) -> Option<Aabb> {
+    use glam::{Vec3A, Vec4};
+    let (wlo, whi) = (Vec3A::from(within.lo), Vec3A::from(within.hi));
+    let (mut lo, mut hi) = (Vec3A::from(Aabb::EMPTY.lo), Vec3A::from(Aabb::EMPTY.hi));
+    let mut inside = glam::BVec3A::TRUE;
+    for t in ts {
+        let f: &[f32; 12] = bytemuck::cast_ref(t);
+        for v in f.chunks_exact(4) {
+            let v = Vec3A::from_vec4(Vec4::from_slice(v));
+            // False for a NaN lane: the box below is then never returned.
+            inside &= wlo.cmple(v) & v.cmple(whi);
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    inside.all().then(|| Aabb {
+        lo: lo.into(),
+        hi: hi.into(),
+    })
 }
 
 /// What the walk on all threads shares: the records' flags, the count of marks, the parts

@@ -530,8 +530,9 @@ impl Cwbvh {
                 if std::mem::replace(r, true) {
                     return Err(format!("node {c} is reached twice"));
                 }
-                stack.push((c, depth + 1));
             }
+            // The first child last, so that the walk reads the nodes in memory order.
+            stack.extend((base..base + inner).rev().map(|c| (c, depth + 1)));
         }
         if let Some(i) = reached.iter().position(|r| !r) {
             return Err(format!("node {i} is unreachable"));

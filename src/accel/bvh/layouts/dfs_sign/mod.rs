@@ -210,8 +210,9 @@ impl DfsSign {
                         i + 2
                     ));
                 }
-                stack.push((i + 1, depth + 1, second));
+                // The first child last, so that the walk reads the nodes in memory order.
                 stack.push((second, depth + 1, end));
+                stack.push((i + 1, depth + 1, second));
             }
         }
         if seen != self.nodes.len() {

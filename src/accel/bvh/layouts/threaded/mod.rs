@@ -155,45 +155,55 @@ impl Threaded {
                 "{total} nodes are not {OCTANTS} copies of the {n} nodes copy 0's root spans"
             ));
         }
-        for o in 0..OCTANTS {
-            let mut stack = vec![(o * n, o * n + n)];
-            while let Some((i, end)) = stack.pop() {
-                let node = &self.nodes[i];
-                if node.is_leaf() {
-                    if end != i + 1 {
-                        return Err(format!("leaf {i} stands where a subtree {i}..{end} should"));
-                    }
-                    let (first, count) = (node.a as usize, node.count() as usize);
-                    if first + count > self.tris.len() {
-                        return Err(format!(
-                            "leaf {i} refers to triangles {first}..{} of {}",
-                            first + count,
-                            self.tris.len()
-                        ));
-                    }
-                    continue;
+        // The copies on all threads; the first fault in copy order is named.
+        use rayon::prelude::*;
+        let copies: Vec<Result<(), String>> = (0..OCTANTS)
+            .into_par_iter()
+            .map(|o| self.check_copy(o * n..o * n + n))
+            .collect();
+        copies.into_iter().collect()
+    }
+
+    /// [`check_structure`](Self::check_structure) of the copy at nodes `range`.
+    fn check_copy(&self, range: std::ops::Range<usize>) -> Result<(), String> {
+        let mut stack = vec![(range.start, range.end)];
+        while let Some((i, end)) = stack.pop() {
+            let node = &self.nodes[i];
+            if node.is_leaf() {
+                if end != i + 1 {
+                    return Err(format!("leaf {i} stands where a subtree {i}..{end} should"));
                 }
-                if node.a as usize != end {
+                let (first, count) = (node.a as usize, node.count() as usize);
+                if first + count > self.tris.len() {
                     return Err(format!(
-                        "inner node {i} skips to {} but its subtree ends at {end}",
-                        node.a
+                        "leaf {i} refers to triangles {first}..{} of {}",
+                        first + count,
+                        self.tris.len()
                     ));
                 }
-                let first = i + 1;
-                let mid = match self.nodes.get(first) {
-                    Some(c) if first < end && c.is_leaf() => first + 1,
-                    Some(c) if first < end => c.a as usize,
-                    _ => end,
-                };
-                if mid <= first || mid >= end {
-                    return Err(format!(
-                        "inner node {i}: its first child {first} ends at {mid}, outside {}..{end}",
-                        first + 1
-                    ));
-                }
-                stack.push((first, mid));
-                stack.push((mid, end));
+                continue;
             }
+            if node.a as usize != end {
+                return Err(format!(
+                    "inner node {i} skips to {} but its subtree ends at {end}",
+                    node.a
+                ));
+            }
+            let first = i + 1;
+            let mid = match self.nodes.get(first) {
+                Some(c) if first < end && c.is_leaf() => first + 1,
+                Some(c) if first < end => c.a as usize,
+                _ => end,
+            };
+            if mid <= first || mid >= end {
+                return Err(format!(
+                    "inner node {i}: its first child {first} ends at {mid}, outside {}..{end}",
+                    first + 1
+                ));
+            }
+            // The first child last, so that the walk reads the nodes in memory order.
+            stack.push((mid, end));
+            stack.push((first, mid));
         }
         Ok(())
     }

@@ -330,6 +330,9 @@ where
                 ));
             }
             let n = &self.nodes[i];
+            // Children pushed after the node's slots are checked, the first last, so that
+            // the walk reads the nodes in memory order (pre-order).
+            let below = stack.len();
             for k in 0..W {
                 let (child, kind) = (n.child[k] as usize, n.kind[k]);
                 if kind == 0 {
@@ -358,6 +361,7 @@ where
                     ));
                 }
             }
+            stack[below..].reverse();
         }
         if let Some(i) = reached.iter().position(|&r| !r) {
             return Err(format!(
