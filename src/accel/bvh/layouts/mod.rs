@@ -267,4 +267,52 @@ mod tests {
             assert!(e.contains(&want), "{kind}: {e}");
         }
     }
+
+    /// Big trees' structural checks run on all threads (their halves, or their nodes, side
+    /// by side); the fault they name must not depend on that. The triangle array cut to a
+    /// third leaves a fault in most leaves, on both sides of every split: each layout names
+    /// the same one on one thread as on two, every time; and dfs-sign (whose nodes lie in
+    /// the order its walk meets them) the first leaf past the cut.
+    #[test]
+    fn validate_names_the_same_fault_on_any_number_of_threads() {
+        let tris: Vec<Triangle> = (0..30_000)
+            .map(|i| {
+                let f = i as f32;
+                let c = Vec3::new((f * 0.37).sin(), (f * 0.91).cos(), (f * 0.53).sin()) * 10.0;
+                Triangle::new(c, c + Vec3::X * 0.05, c + Vec3::Y * 0.05)
+            })
+            .collect();
+        let mesh = Mesh::from_triangles(tris);
+        let bvh = crate::accel::bvh::build(&mesh, &Default::default());
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        for &kind in LayoutKind::ALL {
+            let layout = flatten(kind, &bvh, &mesh);
+            let a = layout.arrays();
+            let cut = GpuArrays {
+                nodes: a.nodes,
+                tris: &a.tris[..a.tris.len() / 3 / 48 * 48],
+            };
+            let refused = || from_arrays(kind, cut).err().expect("accepted");
+            let want = one.install(refused);
+            for _ in 0..3 {
+                assert_eq!(two.install(refused), want, "{kind}");
+            }
+            if kind == LayoutKind::DfsSign {
+                let kept = cut.tris.len() / 48;
+                let nodes: &[dfs_sign::DfsNode] = bytemuck::cast_slice(a.nodes);
+                let first = (nodes.iter().enumerate())
+                    .find(|(_, n)| n.is_leaf() && (n.a + n.count()) as usize > kept)
+                    .map(|(i, _)| i)
+                    .unwrap();
+                assert!(want.starts_with(&format!("leaf {first} refers")), "{want}");
+            }
+        }
+    }
 }

@@ -262,9 +262,21 @@ impl Bvh2WideNode {
             return Err("no header record".into());
         };
         let len = self.nodes.len();
-        // (reference, its depth (the root's is 0), end of its pre-order range, parent)
-        let mut stack = vec![(head.child0(), 0usize, len, 0usize)];
-        let mut seen = 1usize;
+        let seen = 1 + self.check_subtree((head.child0(), 0, len, 0))?;
+        if seen != len {
+            return Err(format!("{} of {len} records are unreachable", len - seen));
+        }
+        Ok(())
+    }
+
+    /// The structural checks below one reference: (the reference, its depth (the root's is
+    /// 0), the end of its pre-order range, the record holding it). Returns the inner
+    /// records reached. Depth first in memory order; a big subtree's two halves on two
+    /// threads, the first's fault named before the second's (the order of the walk on one
+    /// thread).
+    fn check_subtree(&self, top: (ChildRef, usize, usize, usize)) -> Result<usize, String> {
+        let mut stack = vec![top];
+        let mut seen = 0usize;
         while let Some((c, depth, end, parent)) = stack.pop() {
             if is_leaf(c) {
                 let (first, count) = (c.0 as usize, (c.1 >> COUNT_SHIFT) as usize);
@@ -295,13 +307,18 @@ impl Bvh2WideNode {
             let (c0, c1) = (n.child0(), n.child1());
             // The first inner child's range ends where the second's begins.
             let mid = if is_leaf(c1) { end } else { c1.0 as usize };
-            stack.push((c1, depth + 1, end, i));
-            stack.push((c0, depth + 1, mid.min(end), i));
+            let (first, second) = ((c0, depth + 1, mid.min(end), i), (c1, depth + 1, end, i));
+            if end - i >= PARALLEL_RECORDS {
+                let (a, b) =
+                    rayon::join(|| self.check_subtree(first), || self.check_subtree(second));
+                seen += a? + b?;
+                continue;
+            }
+            // The first child last, so that the walk reads the records in memory order.
+            stack.push(second);
+            stack.push(first);
         }
-        if seen != len {
-            return Err(format!("{} of {len} records are unreachable", len - seen));
-        }
-        Ok(())
+        Ok(seen)
     }
 }
 

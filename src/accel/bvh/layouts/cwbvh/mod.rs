@@ -470,75 +470,95 @@ impl Cwbvh {
     }
 
     /// [`validate`](super::GpuForm::validate)'s checks, the structural ones first; returns
-    /// the depth of the deepest node.
+    /// the depth of the deepest node. Each node's own fields are checked on all threads (the
+    /// first fault by index is named); then, in index order (children come after their
+    /// parents, checked first), that every node is reached once from the root and no deeper
+    /// than the stack holds.
     fn checked_depth(&self) -> Result<usize, String> {
+        use rayon::prelude::*;
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }
-        let mut reached = vec![false; self.nodes.len()];
-        reached[0] = true;
-        let mut stack = vec![(0usize, 0usize)];
+        let bad = (0..self.nodes.len())
+            .into_par_iter()
+            .find_first(|&i| self.check_node(i).is_err());
+        if let Some(i) = bad {
+            self.check_node(i)?;
+        }
+        const UNREACHED: usize = usize::MAX;
+        let mut depth = vec![UNREACHED; self.nodes.len()];
+        depth[0] = 0;
         let mut deepest = 0;
-        while let Some((i, depth)) = stack.pop() {
-            deepest = deepest.max(depth);
-            if depth > STACK_SIZE {
-                return Err(format!(
-                    "node {i} is at depth {depth} > the {STACK_SIZE}-group stack"
-                ));
+        for (i, n) in self.nodes.iter().enumerate() {
+            let d = depth[i];
+            if d == UNREACHED {
+                return Err(format!("node {i} is unreachable"));
             }
-            let n = &self.nodes[i];
-            if n.e.iter().any(|&e| e == 0 || e == 255) {
-                return Err(format!("node {i} has a step exponent outside 1..=254"));
-            }
-            for s in 0..WIDTH {
-                let m = n.child_meta[s] as u32;
-                if n.imask >> s & 1 == 1 {
-                    if m != CwNode::inner_meta(s) as u32 {
-                        return Err(format!("node {i} slot {s}: internal with meta {m:#04x}"));
-                    }
-                } else if m != 0 {
-                    let unary = m >> COUNT_SHIFT;
-                    let count = unary.count_ones();
-                    let first = m & ((1 << COUNT_SHIFT) - 1);
-                    if unary != (1 << count) - 1 || first + count > TRI_BITS {
-                        return Err(format!("node {i} slot {s}: bad leaf meta {m:#04x}"));
-                    }
-                    let start = n.tri_base as usize + first as usize;
-                    let end = start + count as usize;
-                    if end > self.tris.len() {
-                        return Err(format!(
-                            "node {i} slot {s} refers to triangles {start}..{end} of {}",
-                            self.tris.len()
-                        ));
-                    }
-                }
-                if m != 0 && (0..3).any(|a| n.q_lo[a][s] > n.q_hi[a][s]) {
-                    return Err(format!("node {i} slot {s}: inverted box"));
-                }
-            }
-            let inner = n.imask.count_ones() as usize;
+            deepest = deepest.max(d);
             let base = n.child_base as usize;
-            if inner > 0 && (base <= i || base + inner > self.nodes.len()) {
-                return Err(format!(
-                    "node {i} has children {base}..{} outside {}..{}",
-                    base + inner,
-                    i + 1,
-                    self.nodes.len()
-                ));
-            }
-            for (c, r) in reached.iter_mut().enumerate().skip(base).take(inner) {
-                if std::mem::replace(r, true) {
+            let inner = n.imask.count_ones() as usize;
+            for (c, dc) in depth.iter_mut().enumerate().skip(base).take(inner) {
+                if *dc != UNREACHED {
                     return Err(format!("node {c} is reached twice"));
                 }
+                *dc = d + 1;
+                if d + 1 > STACK_SIZE {
+                    return Err(format!(
+                        "node {c} is at depth {} > the {STACK_SIZE}-group stack",
+                        d + 1
+                    ));
+                }
             }
-            // The first child last, so that the walk reads the nodes in memory order.
-            stack.extend((base..base + inner).rev().map(|c| (c, depth + 1)));
-        }
-        if let Some(i) = reached.iter().position(|r| !r) {
-            return Err(format!("node {i} is unreachable"));
         }
         check_boxes(self)?;
         Ok(deepest)
+    }
+
+    /// [`checked_depth`](Self::checked_depth)'s checks of node `i`'s own fields: step
+    /// exponents, meta bytes (internal slots match `imask`, leaves of 1–3 triangles in
+    /// range), boxes not inverted, children after it and in range.
+    fn check_node(&self, i: usize) -> Result<(), String> {
+        let n = &self.nodes[i];
+        if n.e.iter().any(|&e| e == 0 || e == 255) {
+            return Err(format!("node {i} has a step exponent outside 1..=254"));
+        }
+        for s in 0..WIDTH {
+            let m = n.child_meta[s] as u32;
+            if n.imask >> s & 1 == 1 {
+                if m != CwNode::inner_meta(s) as u32 {
+                    return Err(format!("node {i} slot {s}: internal with meta {m:#04x}"));
+                }
+            } else if m != 0 {
+                let unary = m >> COUNT_SHIFT;
+                let count = unary.count_ones();
+                let first = m & ((1 << COUNT_SHIFT) - 1);
+                if unary != (1 << count) - 1 || first + count > TRI_BITS {
+                    return Err(format!("node {i} slot {s}: bad leaf meta {m:#04x}"));
+                }
+                let start = n.tri_base as usize + first as usize;
+                let end = start + count as usize;
+                if end > self.tris.len() {
+                    return Err(format!(
+                        "node {i} slot {s} refers to triangles {start}..{end} of {}",
+                        self.tris.len()
+                    ));
+                }
+            }
+            if m != 0 && (0..3).any(|a| n.q_lo[a][s] > n.q_hi[a][s]) {
+                return Err(format!("node {i} slot {s}: inverted box"));
+            }
+        }
+        let inner = n.imask.count_ones() as usize;
+        let base = n.child_base as usize;
+        if inner > 0 && (base <= i || base + inner > self.nodes.len()) {
+            return Err(format!(
+                "node {i} has children {base}..{} outside {}..{}",
+                base + inner,
+                i + 1,
+                self.nodes.len()
+            ));
+        }
+        Ok(())
     }
 }
 

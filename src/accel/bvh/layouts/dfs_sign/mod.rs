@@ -185,7 +185,23 @@ impl DfsSign {
         if self.nodes.is_empty() {
             return Err("BVH has no nodes".into());
         }
-        let mut stack = vec![(0usize, 0usize, self.nodes.len())];
+        let seen = self.check_subtree(0, 0, self.nodes.len())?;
+        if seen != self.nodes.len() {
+            return Err(format!(
+                "{} of {} nodes are unreachable",
+                self.nodes.len() - seen,
+                self.nodes.len()
+            ));
+        }
+        Ok(())
+    }
+
+    /// The structural checks of the subtree at node `root` (at `depth`), which must end
+    /// before node `end`; returns its number of nodes. Depth first in memory order; a big
+    /// subtree's two halves on two threads, the first's fault named before the second's (the
+    /// order of the walk on one thread).
+    fn check_subtree(&self, root: usize, depth: usize, end: usize) -> Result<usize, String> {
+        let mut stack = vec![(root, depth, end)];
         let mut seen = 0usize;
         while let Some((i, depth, end)) = stack.pop() {
             seen += 1;
@@ -202,27 +218,28 @@ impl DfsSign {
                         self.tris.len()
                     ));
                 }
-            } else {
-                let second = n.a as usize;
-                if i + 1 >= second || second >= end {
-                    return Err(format!(
-                        "inner node {i} has second child {second} outside {}..{end}",
-                        i + 2
-                    ));
-                }
-                // The first child last, so that the walk reads the nodes in memory order.
-                stack.push((second, depth + 1, end));
-                stack.push((i + 1, depth + 1, second));
+                continue;
             }
+            let second = n.a as usize;
+            if i + 1 >= second || second >= end {
+                return Err(format!(
+                    "inner node {i} has second child {second} outside {}..{end}",
+                    i + 2
+                ));
+            }
+            if end - i >= PARALLEL_NODES {
+                let (first, next) = rayon::join(
+                    || self.check_subtree(i + 1, depth + 1, second),
+                    || self.check_subtree(second, depth + 1, end),
+                );
+                seen += first? + next?;
+                continue;
+            }
+            // The first child last, so that the walk reads the nodes in memory order.
+            stack.push((second, depth + 1, end));
+            stack.push((i + 1, depth + 1, second));
         }
-        if seen != self.nodes.len() {
-            return Err(format!(
-                "{} of {} nodes are unreachable",
-                self.nodes.len() - seen,
-                self.nodes.len()
-            ));
-        }
-        Ok(())
+        Ok(seen)
     }
 }
 

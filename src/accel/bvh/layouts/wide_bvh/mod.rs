@@ -315,59 +315,75 @@ where
                 Self::MAX_NODES
             ));
         }
+        // Each node's own slots on all threads (the first fault by index is named); then, in
+        // index order (children come after their parents, checked first), that every node
+        // is reached once from the root and no deeper than the stack holds.
+        use rayon::prelude::*;
+        let bad = (0..self.nodes.len())
+            .into_par_iter()
+            .find_first(|&i| self.check_node(i).is_err());
+        if let Some(i) = bad {
+            self.check_node(i)?;
+        }
         let stack_size = stack_size(W);
-        let mut reached = vec![false; self.nodes.len()];
-        let mut stack = vec![(0usize, 0usize)];
-        while let Some((i, depth)) = stack.pop() {
-            if reached[i] {
-                return Err(format!("node {i} is reached twice"));
-            }
-            reached[i] = true;
-            if stack_entries(W, depth) > stack_size {
+        const UNREACHED: usize = usize::MAX;
+        let mut depth = vec![UNREACHED; self.nodes.len()];
+        depth[0] = 0;
+        for (i, n) in self.nodes.iter().enumerate() {
+            let d = depth[i];
+            if d == UNREACHED {
                 return Err(format!(
-                    "node {i} is at depth {depth}: its traversal may need more than \
+                    "node {i} (one of {} nodes) is unreachable",
+                    self.nodes.len()
+                ));
+            }
+            if stack_entries(W, d) > stack_size {
+                return Err(format!(
+                    "node {i} is at depth {d}: its traversal may need more than \
                      {stack_size} stack entries"
                 ));
             }
-            let n = &self.nodes[i];
-            // Children pushed after the node's slots are checked, the first last, so that
-            // the walk reads the nodes in memory order (pre-order).
-            let below = stack.len();
-            for k in 0..W {
-                let (child, kind) = (n.child[k] as usize, n.kind[k]);
-                if kind == 0 {
-                    continue;
+            for k in (0..W).filter(|&k| n.kind[k] == INNER) {
+                let c = n.child[k] as usize;
+                if depth[c] != UNREACHED {
+                    return Err(format!("node {c} is reached twice"));
                 }
-                let b = n.bbox(k);
-                if !(b.lo.is_finite() && b.hi.is_finite()) {
-                    return Err(format!("node {i} slot {k} has a non-finite box {b:?}"));
-                }
-                if kind == INNER {
-                    if child <= i || child >= self.nodes.len() {
-                        return Err(format!(
-                            "node {i} slot {k} refers to node {child} outside {}..{}",
-                            i + 1,
-                            self.nodes.len()
-                        ));
-                    }
-                    stack.push((child, depth + 1));
-                    continue;
-                }
-                let end = child + kind as usize;
-                if end > self.tris.len() {
+                depth[c] = d + 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`check_structure`](Self::check_structure)'s checks of node `i`'s own slots: finite
+    /// boxes, inner children after it and in range, leaf ranges in range.
+    fn check_node(&self, i: usize) -> Result<(), String> {
+        let n = &self.nodes[i];
+        for k in 0..W {
+            let (child, kind) = (n.child[k] as usize, n.kind[k]);
+            if kind == 0 {
+                continue;
+            }
+            let b = n.bbox(k);
+            if !(b.lo.is_finite() && b.hi.is_finite()) {
+                return Err(format!("node {i} slot {k} has a non-finite box {b:?}"));
+            }
+            if kind == INNER {
+                if child <= i || child >= self.nodes.len() {
                     return Err(format!(
-                        "node {i} slot {k} refers to triangles {child}..{end} of {}",
-                        self.tris.len()
+                        "node {i} slot {k} refers to node {child} outside {}..{}",
+                        i + 1,
+                        self.nodes.len()
                     ));
                 }
+                continue;
             }
-            stack[below..].reverse();
-        }
-        if let Some(i) = reached.iter().position(|&r| !r) {
-            return Err(format!(
-                "node {i} (one of {} nodes) is unreachable",
-                self.nodes.len()
-            ));
+            let end = child + kind as usize;
+            if end > self.tris.len() {
+                return Err(format!(
+                    "node {i} slot {k} refers to triangles {child}..{end} of {}",
+                    self.tris.len()
+                ));
+            }
         }
         Ok(())
     }
