@@ -402,8 +402,8 @@ fn leaf_in_parts(
 
 /// The box of the triangles' vertices where every one lies inside `within` (faces
 /// included, none NaN), else None: [`leaf`]'s usual case, checked in SIMD lanes (a
-/// record's vertex is loaded with the 4 bytes after it, a lane never compared nor
-/// returned).
+/// record's vertex is loaded with the 4 bytes after it, a lane whose comparison is masked
+/// off and whose value is never returned).
 #[inline(always)]
 fn whole_inside(ts: &[LeafTri], within: &Aabb) -> Option<Aabb> {
     use glam::{Vec3A, Vec4};

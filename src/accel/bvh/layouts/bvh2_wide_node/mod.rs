@@ -162,7 +162,7 @@ fn child_ref(node: &Node, index: u32) -> ChildRef {
     }
 }
 
-/// Subtrees with at least this many records are written in parallel.
+/// Subtrees with at least this many records are written, and checked, in parallel.
 const PARALLEL_RECORDS: usize = 1 << 11;
 
 /// Writes the records of `node`'s subtree in pre-order into `out` (exactly its inner

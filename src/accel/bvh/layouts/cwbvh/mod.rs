@@ -485,7 +485,9 @@ impl Cwbvh {
         if let Some(i) = bad {
             self.check_node(i)?;
         }
-        const UNREACHED: usize = usize::MAX;
+        // A node's depth (at most STACK_SIZE, below u8::MAX), or none yet.
+        const UNREACHED: u8 = u8::MAX;
+        const _: () = assert!(STACK_SIZE < UNREACHED as usize);
         let mut depth = vec![UNREACHED; self.nodes.len()];
         depth[0] = 0;
         let mut deepest = 0;
@@ -494,6 +496,7 @@ impl Cwbvh {
             if d == UNREACHED {
                 return Err(format!("node {i} is unreachable"));
             }
+            let d = d as usize;
             deepest = deepest.max(d);
             let base = n.child_base as usize;
             let inner = n.imask.count_ones() as usize;
@@ -501,13 +504,13 @@ impl Cwbvh {
                 if *dc != UNREACHED {
                     return Err(format!("node {c} is reached twice"));
                 }
-                *dc = d + 1;
                 if d + 1 > STACK_SIZE {
                     return Err(format!(
                         "node {c} is at depth {} > the {STACK_SIZE}-group stack",
                         d + 1
                     ));
                 }
+                *dc = (d + 1) as u8;
             }
         }
         check_boxes(self)?;

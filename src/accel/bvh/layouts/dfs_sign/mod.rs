@@ -243,11 +243,9 @@ impl DfsSign {
     }
 }
 
-/// Subtrees with at least this many nodes are written in parallel.
+/// Subtrees with at least this many nodes are written, and checked, in parallel.
 const PARALLEL_NODES: usize = 1 << 12;
 
-/// Writes `node`'s subtree in pre-order into `out` (exactly its size), whose first element
-/// is node `index` of the whole array.
 /// The tree's nodes in depth-first pre-order (leaves hold positions in `bvh.order`): the
 /// nodes of dfs-sign, and of the top level over instances.
 pub(crate) fn dfs_nodes(bvh: &Bvh) -> Vec<DfsNode> {
@@ -258,6 +256,8 @@ pub(crate) fn dfs_nodes(bvh: &Bvh) -> Vec<DfsNode> {
     nodes
 }
 
+/// Writes `node`'s subtree in pre-order into `out` (exactly its size), whose first element
+/// is node `index` of the whole array.
 fn write(node: &Node, out: &mut [DfsNode], index: u32) {
     let b = node.bbox();
     let (a, tag, children) = match node {

@@ -156,7 +156,6 @@ impl Threaded {
             ));
         }
         // The copies on all threads; the first fault in copy order is named.
-        use rayon::prelude::*;
         let copies: Vec<Result<(), String>> = (0..OCTANTS)
             .into_par_iter()
             .map(|o| self.check_copy(o * n..o * n + n))

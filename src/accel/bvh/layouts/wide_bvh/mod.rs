@@ -326,7 +326,8 @@ where
             self.check_node(i)?;
         }
         let stack_size = stack_size(W);
-        const UNREACHED: usize = usize::MAX;
+        // A node's depth (the stack check below keeps it far under u8::MAX), or none yet.
+        const UNREACHED: u8 = u8::MAX;
         let mut depth = vec![UNREACHED; self.nodes.len()];
         depth[0] = 0;
         for (i, n) in self.nodes.iter().enumerate() {
@@ -337,6 +338,7 @@ where
                     self.nodes.len()
                 ));
             }
+            let d = d as usize;
             if stack_entries(W, d) > stack_size {
                 return Err(format!(
                     "node {i} is at depth {d}: its traversal may need more than \
@@ -348,7 +350,10 @@ where
                 if depth[c] != UNREACHED {
                     return Err(format!("node {c} is reached twice"));
                 }
-                depth[c] = d + 1;
+                depth[c] = u8::try_from(d + 1)
+                    .ok()
+                    .filter(|&dc| dc != UNREACHED)
+                    .ok_or_else(|| format!("node {c} is deeper than {}", UNREACHED - 1))?;
             }
         }
         Ok(())
