@@ -88,11 +88,9 @@ impl DfsSign {
     /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
     /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> DfsSign {
-        let tris = LeafTri::gather(bvh, mesh);
-        DfsSign {
-            nodes: dfs_nodes(bvh),
-            tris,
-        }
+        // The triangles and the nodes are independent: gathered and written side by side.
+        let (tris, nodes) = rayon::join(|| LeafTri::gather(bvh, mesh), || dfs_nodes(bvh));
+        DfsSign { nodes, tris }
     }
 
     /// The binary tree these arrays hold (the inverse of [`DfsSign::flatten`]): for the
