@@ -680,6 +680,8 @@ fn scale_times_each_step_from_the_file_on_both_devices() {
             assert!(steps.iter().all(|&ms| ms > 0.0), "{r:?}");
             // The device step is timed on a GPU only; the ratio counts what was timed.
             assert_eq!(r.to_device_ms.is_some_and(|ms| ms > 0.0), gpu, "{r:?}");
+            // So is the check alone, part of it.
+            assert_eq!(r.checked_ms.is_some_and(|ms| ms > 0.0), gpu, "{r:?}");
             let ratio = (r.flatten_ms + r.to_device_ms.unwrap_or(0.0)) / r.build_ms;
             assert!((r.flatten_and_device_per_build - ratio).abs() <= 1e-9 * ratio);
             let rate = bytes as f64 / 1e3 / r.read_ms;

@@ -70,6 +70,9 @@ pub struct Row {
     /// Checking, packing and uploading the layout and making the kernel (None on the CPU,
     /// which traces the flattened layout where it is).
     pub to_device_ms: Option<f64>,
+    /// Of `to_device_ms`: the layout's check alone ([`GpuForm::validate`], which every
+    /// upload runs first), timed again after the trace on the same arrays (None on the CPU).
+    pub checked_ms: Option<f64>,
     /// (flatten + to the device) ÷ build.
     pub flatten_and_device_per_build: f64,
     /// The first trace of the default view's primary rays (a GPU's pipeline compiled on
@@ -118,6 +121,7 @@ struct Run {
     build: f64,
     flatten: f64,
     to_device: Option<f64>,
+    checked: Option<f64>,
     trace: f64,
     rays: usize,
     peak: Option<u64>,
@@ -167,6 +171,12 @@ fn run_once(path: &Path, config: &Config, device: &crate::Device, kind: LayoutKi
     tracer.trace(&rays, Query::Closest)?;
     let trace = ms(start);
     let peak = peak_resident().filter(|_| peak_known);
+    // The device step's check once more, alone (it passed there: its answer is known).
+    let checked = (!device.is_cpu()).then(|| {
+        let start = Instant::now();
+        let _ = tracer.layout().map(|l| l.validate());
+        ms(start)
+    });
     Ok(Run {
         triangles,
         file_bytes,
@@ -174,6 +184,7 @@ fn run_once(path: &Path, config: &Config, device: &crate::Device, kind: LayoutKi
         build: built,
         flatten,
         to_device,
+        checked,
         trace,
         rays: rays.len(),
         peak,
@@ -231,6 +242,7 @@ fn row(mesh: String, runs: &[Run]) -> Row {
         of(&|r| r.trace),
     );
     let to_device = first.to_device.map(|_| of(&|r| r.to_device.unwrap_or(0.0)));
+    let checked = first.checked.map(|_| of(&|r| r.checked.unwrap_or(0.0)));
     let median_of = |f: &dyn Fn(&Run) -> Option<u64>| {
         let all: Option<Vec<f64>> = runs.iter().map(|r| f(r).map(|b| b as f64)).collect();
         all.map(|v| median(v) as u64)
@@ -245,6 +257,7 @@ fn row(mesh: String, runs: &[Run]) -> Row {
         build_ms: build,
         flatten_ms: flatten,
         to_device_ms: to_device,
+        checked_ms: checked,
         flatten_and_device_per_build: (flatten + to_device.unwrap_or(0.0)) / build.max(1e-6),
         first_trace_ms: trace,
         rays: first.rays,
@@ -311,6 +324,7 @@ impl BenchReport for Report {
             "build ms",
             "flatten ms",
             "to device ms",
+            "of which checked ms",
             "(flatten + device) ÷ build",
             "first trace ms",
             "rays",
@@ -328,6 +342,7 @@ impl BenchReport for Report {
                 format!("{:.0}", r.build_ms),
                 format!("{:.0}", r.flatten_ms),
                 dash(r.to_device_ms, 0),
+                dash(r.checked_ms, 0),
                 format!("{:.2}", r.flatten_and_device_per_build),
                 format!("{:.0}", r.first_trace_ms),
                 r.rays.to_string(),
@@ -340,7 +355,8 @@ impl BenchReport for Report {
         out += "\nEach run reads the file anew and goes on as `lancer trace` does: read and \
                 checked (every file the read opens counted in MB), build, flatten, to the \
                 device (checked, packed, uploaded, kernel made; none on the CPU, which traces \
-                the flattened layout where it is), and the first trace of the default view's \
+                the flattened layout where it is; the check, which every upload runs first, \
+                timed once more alone after the trace), and the first trace of the default view's \
                 primary rays (a GPU's pipeline compiled on the way). Peak: the most memory the \
                 process held resident from the read to the trace (VmHWM, reset before each \
                 run; a software GPU's memory included), what it held at the start (the device, \
