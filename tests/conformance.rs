@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::accel_check::{brute_force, check, same_as_bvh};
+use common::accel_check::{brute_force, check, check_against, same_as_bvh};
 use common::hard::{coincident_stacks, edge_rays, extreme_rays, grid, invalid_rays, stack_rays};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
@@ -19,7 +19,7 @@ use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::{Ray, Triangle, TriangleTest};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, Verdict};
+use lancer::trace::oracle::{self, Truths, Verdict};
 use lancer::{Query, RayStats, Robustness};
 
 /// Every structure of the registry over `mesh`, with its default options, and the BVH once
@@ -55,9 +55,10 @@ fn random_soups_against_the_oracle_the_bvh_and_brute_force() {
         let mesh = soup(&mut rng, 2000, 0.2);
         let rays = random_rays(&mut rng, 3000, &mesh);
         let brute = brute_force(&mesh, &rays);
+        let truths = Truths::new(&mesh, &rays);
         for (kind, accel) in every_structure(&mesh) {
             let name = format!("{kind}, soup {seed}");
-            let (agree, _) = check(&name, &mesh, accel.as_ref(), &rays);
+            let (agree, _) = check_against(&name, &truths, accel.as_ref());
             assert!(agree > 2500, "{name}: {agree} agree");
             assert_eq!(
                 same_as_bvh(&name, &mesh, accel.as_ref(), &rays),
@@ -86,12 +87,16 @@ fn models_primary_and_random_rays() {
             .collect();
         let brute = brute_force(&mesh, &some);
         let small = Camera::default_view(&mesh.bounds(), side, side).primary_rays();
+        let (random_truths, small_truths) = (
+            Truths::new(&mesh, &random[..judged]),
+            Truths::new(&mesh, &small),
+        );
         for (kind, accel) in every_structure(&mesh) {
             let accel = accel.as_ref();
             let name = format!("{kind}, {model}");
-            check(&format!("{name} random"), &mesh, accel, &random[..judged]);
+            check_against(&format!("{name} random"), &random_truths, accel);
             assert_eq!(same_as_bvh(&name, &mesh, accel, &random), 0, "{name}");
-            let (agree, _) = check(&format!("{name} primary"), &mesh, accel, &small);
+            let (agree, _) = check_against(&format!("{name} primary"), &small_truths, accel);
             assert!(agree > (side * side / 2) as usize, "{name}: {agree} agree");
             assert_eq!(same_as_bvh(&name, &mesh, accel, &primary), 0, "{name}");
             let (hits, _) = accel.trace_batch(&some, Query::Closest, &Robustness::default());
@@ -107,6 +112,7 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
     let c = mesh.bounds().center();
     let rays = edge_rays(&mut rng, c, &targets);
     let brute = brute_force(&mesh, &rays);
+    let truths = Truths::new(&mesh, &rays);
     let rob = Robustness::default();
     for (kind, accel) in every_structure(&mesh) {
         for query in [Query::Closest, Query::Any] {
@@ -117,7 +123,7 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
                 "{kind} {query:?}: rays through shared edges leaked"
             );
         }
-        check(&format!("{kind} grid edges"), &mesh, accel.as_ref(), &rays);
+        check_against(&format!("{kind} grid edges"), &truths, accel.as_ref());
         // Where two triangles meet at the ray, equal t goes to the smaller index even when
         // the two sit in different leaves or cells.
         let (hits, _) = accel.trace_batch(&rays, Query::Closest, &rob);
@@ -136,18 +142,19 @@ fn coincident_triangles_keep_the_tie_rule() {
     let mesh = coincident_stacks(&mut rng);
     let rays = stack_rays(&mut rng, 2000);
     let brute = brute_force(&mesh, &rays);
+    let truths = oracle::Truths::new(&mesh, &rays);
     for (kind, accel) in every_structure(&mesh) {
         let (hits, _) = accel.trace_batch(&rays, Query::Closest, &Robustness::default());
         let mut exact = 0;
-        for (r, h) in rays.iter().zip(&hits) {
-            let Some((_, prim)) = oracle::closest(&mesh, r) else {
+        for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
+            let Some((_, prim)) = truths.closest(i) else {
                 continue;
             };
             if h.prim == prim {
                 exact += 1;
                 continue;
             }
-            let v = judge(&mesh, r, h);
+            let v = truths.judge(i, h);
             assert!(
                 matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
                 "{kind}: {r:?} reports {} but the oracle's smallest index at the nearest t \

@@ -9,13 +9,14 @@ use lancer::accel::{build, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::Ray;
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{judge, Verdict};
+use lancer::trace::oracle::{judge, Truths, Verdict};
 use lancer::{LayoutKind, Query, Robustness};
 
 /// Traces `rays` through every layout's CPU twin and every other structure, judges every
-/// answer, prints the counts and fails on any wrong one. Returns the counts of the BVH in
-/// its default layout.
+/// answer (the oracle searched once for all of them), prints the counts and fails on any
+/// wrong one. Returns the counts of the BVH in its default layout.
 fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usize) {
+    let truths = Truths::new(mesh, rays);
     let mut kinds: Vec<AccelKind> = LayoutKind::ALL.iter().map(|&l| AccelKind::Bvh(l)).collect();
     kinds.extend(
         AccelKind::ALL
@@ -24,7 +25,7 @@ fn check(name: &str, mesh: &Mesh, rays: &[Ray], builder: Builder) -> (usize, usi
     );
     let counts: Vec<(usize, usize)> = kinds
         .iter()
-        .map(|&kind| check_accel(name, mesh, rays, builder, kind))
+        .map(|&kind| check_accel(name, mesh, rays, &truths, builder, kind))
         .collect();
     counts[0]
 }
@@ -33,6 +34,7 @@ fn check_accel(
     name: &str,
     mesh: &Mesh,
     rays: &[Ray],
+    truths: &Truths,
     builder: Builder,
     kind: AccelKind,
 ) -> (usize, usize) {
@@ -43,8 +45,8 @@ fn check_accel(
     let accel = build(kind, mesh, &opts).unwrap();
     let (hits, _) = accel.trace_batch(rays, Query::Closest, &Robustness::default());
     let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-    for (r, h) in rays.iter().zip(&hits) {
-        match judge(mesh, r, h) {
+    for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
+        match truths.judge(i, h) {
             Verdict::Agree => agree += 1,
             Verdict::Tie(_) => tie += 1,
             Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
@@ -135,4 +137,60 @@ fn the_judge_rejects_wrong_answers() {
     assert!(matches!(judge(&mesh, r, &as_miss), Verdict::Wrong(_)));
     let far = lancer::geometry::Hit { t: h.t * 1.5, ..*h };
     assert!(matches!(judge(&mesh, r, &far), Verdict::Wrong(_)));
+}
+
+#[test]
+fn judging_from_the_searched_truths_is_judging_afresh() {
+    // `Truths` searches once and judges many answers; `judge_any` tests a reported hit's own
+    // triangle only. Both must say what the whole search says: the same verdicts as `judge`,
+    // and an any-hit answer agreed with exactly when its triangle is among `all_hits`.
+    let mut rng = Rng::new(3);
+    let mesh = soup(&mut rng, 400, 0.3);
+    // Each ray whole, cut short before its first hit, and started past it: hits outside
+    // the interval must count for nothing.
+    let rays: Vec<Ray> = random_rays(&mut rng, 300, &mesh)
+        .into_iter()
+        .flat_map(|r| {
+            let first = lancer::trace::oracle::closest(&mesh, &r).map_or(1.0, |h| h.0 as f32);
+            [
+                r,
+                Ray::new(r.origin, r.dir, r.tmin, 0.5 * first),
+                Ray::new(r.origin, r.dir, 1.01 * first, r.tmax),
+            ]
+        })
+        .collect();
+    let truths = Truths::new(&mesh, &rays);
+    let (mut hits_judged, mut others_judged) = (0, 0);
+    for (i, r) in rays.iter().enumerate() {
+        let all = lancer::trace::oracle::all_hits(&mesh, r);
+        let mut answers = vec![lancer::geometry::Hit::miss(r.tmax)];
+        answers.extend(all.iter().map(|&(t, prim)| lancer::geometry::Hit {
+            t: t as f32,
+            prim,
+            ..lancer::geometry::Hit::miss(r.tmax)
+        }));
+        let other = (rng.u64() % mesh.len() as u64) as u32;
+        answers.push(lancer::geometry::Hit {
+            t: r.tmax * 0.5,
+            prim: other,
+            ..lancer::geometry::Hit::miss(r.tmax)
+        });
+        for h in &answers {
+            assert_eq!(truths.judge(i, h), judge(&mesh, r, h), "ray {i}: {h:?}");
+            let any = lancer::trace::oracle::judge_any(&mesh, r, h);
+            if h.is_hit() {
+                let real = all.iter().any(|&(_, p)| p == h.prim);
+                assert_eq!(any == Verdict::Agree, real, "ray {i}: {h:?}: {any:?}");
+                match real {
+                    true => hits_judged += 1,
+                    false => others_judged += 1,
+                }
+            }
+        }
+        assert_eq!(truths.closest(i), lancer::trace::oracle::closest(&mesh, r));
+    }
+    assert!(
+        hits_judged > 300 && others_judged > 300,
+        "{hits_judged} {others_judged}"
+    );
 }

@@ -41,8 +41,9 @@ fn differing(a: &[Hit], b: &[Hit]) -> usize {
 /// where the oracle hits when the case is exact in f32, and CPU ≡ GPU.
 fn check_robust(case: &HardCase) {
     let rob = Robustness::default();
-    let oracle_hits: Vec<bool> = (case.rays.iter())
-        .map(|r| oracle::closest(&case.mesh, r).is_some())
+    let truths = oracle::Truths::new(&case.mesh, &case.rays);
+    let oracle_hits: Vec<bool> = (0..case.rays.len())
+        .map(|i| truths.closest(i).is_some())
         .collect();
     let cpu = trace(&Device::cpu(), &case.mesh, &case.rays, rob);
     let gpu = trace(gpu_device(), &case.mesh, &case.rays, rob);
@@ -441,11 +442,12 @@ fn primary_hits_t_equals_the_oracles_within_1e_5() {
         let mesh = Mesh::from_triangles(tris);
         let size = mesh.bounds().extent().length() as f64;
         let rays = lancer::camera::Camera::default_view(&mesh.bounds(), 48, 48).primary_rays();
+        let truths = oracle::Truths::new(&mesh, &rays);
         for device in [&Device::cpu(), gpu_device()] {
             let hits = trace(device, &mesh, &rays, Robustness::default());
             let (mut worst, mut compared) = (0.0f64, 0);
-            for (r, h) in rays.iter().zip(&hits) {
-                let Some((t, p)) = oracle::closest(&mesh, r) else {
+            for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
+                let Some((t, p)) = truths.closest(i) else {
                     continue;
                 };
                 if p != h.prim {

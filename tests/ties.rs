@@ -58,14 +58,14 @@ fn check_closest(name: &str, mesh: &Mesh, rays: &[Ray]) {
     let all = everywhere(mesh, rays, Query::Closest);
     let (first_name, first) = &all[0];
     let mut judged = 0;
-    for (i, r) in rays.iter().enumerate() {
-        let want = oracle::closest(mesh, r);
-        let h = &first[i];
+    let truths = oracle::Truths::new(mesh, rays);
+    for (i, h) in first.iter().enumerate() {
+        let want = truths.closest(i);
         if let Some((_, prim)) = want {
             // The oracle's prim is the smallest index among the hits at the nearest t; the
             // tracer must return exactly it unless the ray grazes an edge.
             if h.prim != prim {
-                let v = oracle::judge(mesh, r, h);
+                let v = truths.judge(i, h);
                 assert!(
                     matches!(v, Verdict::Tie(_)) && !matches!(v, Verdict::Tie("two hits at equal t")),
                     "{name}: ray {i}: {first_name} reports {} but the oracle's smallest index at the nearest t is {prim} ({v:?})",

@@ -60,8 +60,10 @@ pub fn triangle_test_hits(mesh: &Mesh, ray: &Ray, robustness: &Robustness) -> bo
 /// False misses: rays a tracer (run with `robustness`) missed although the f64 oracle hits
 /// a triangle and the tracer's own triangle test, tried on every triangle, hits one too —
 /// hits lost by the box tests or the traversal, not by the triangle test.
+/// On all threads (the oracle is brute force).
 pub fn false_misses(mesh: &Mesh, rays: &[Ray], hits: &[Hit], robustness: &Robustness) -> usize {
-    rays.iter()
+    use rayon::prelude::*;
+    rays.par_iter()
         .zip(hits)
         .filter(|(r, h)| {
             !h.is_hit()
@@ -71,9 +73,11 @@ pub fn false_misses(mesh: &Mesh, rays: &[Ray], hits: &[Hit], robustness: &Robust
         .count()
 }
 
-/// Closest-hit answers the oracle judges wrong (not even a genuine tie).
+/// Closest-hit answers the oracle judges wrong (not even a genuine tie), judged on all
+/// threads (the oracle is brute force).
 pub fn wrong_answers(mesh: &Mesh, rays: &[Ray], hits: &[Hit]) -> usize {
-    rays.iter()
+    use rayon::prelude::*;
+    rays.par_iter()
         .zip(hits)
         .filter(|(r, h)| matches!(judge(mesh, r, h), Verdict::Wrong(_)))
         .count()

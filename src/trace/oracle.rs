@@ -27,19 +27,44 @@ fn f32_t_error(mesh: &Mesh, ray: &Ray, p: u32) -> f64 {
 
 /// Every hit in [tmin, tmax] as (t, prim), in index order.
 pub fn all_hits(mesh: &Mesh, ray: &Ray) -> Vec<(f64, u32)> {
-    if !ray.is_valid() {
-        return Vec::new();
-    }
+    hits(mesh, ray).collect()
+}
+
+/// [`all_hits`], one at a time.
+fn hits<'a>(mesh: &'a Mesh, ray: &Ray) -> impl Iterator<Item = (f64, u32)> + 'a {
+    // A triangle without a status (arrays that disagree) is left out, as `included` does.
+    let n = match ray.is_valid() {
+        true => mesh.triangles.len().min(mesh.status.len()),
+        false => 0,
+    };
     let (o, d) = (d3(ray.origin), d3(ray.dir));
     let (tmin, tmax) = (ray.tmin as f64, ray.tmax as f64);
-    // A triangle without a status (arrays that disagree) is left out, as `included` does.
-    (mesh.triangles.iter().zip(&mesh.status))
-        .enumerate()
-        .filter(|(_, (_, s))| **s == TriStatus::Ok)
-        .map(|(i, (tri, _))| (i, tri))
-        .filter_map(|(i, tri)| intersect_f64(&tri.v.map(d3), o, d).map(|h| (h.0, i as u32)))
-        .filter(|&(t, _)| t >= tmin && t <= tmax)
-        .collect()
+    (0..n)
+        .filter(|&p| mesh.status[p] == TriStatus::Ok)
+        .filter_map(move |p| hit_in(&mesh.triangles[p], o, d, tmin, tmax).map(|t| (t, p as u32)))
+}
+
+/// Where `ray` hits triangle `p` in [tmin, tmax], if it does: [`all_hits`]'s test for one
+/// triangle (a valid ray, an included triangle).
+fn hit_of(mesh: &Mesh, ray: &Ray, p: u32) -> Option<f64> {
+    let tri = mesh.triangles.get(p as usize)?;
+    if !ray.is_valid() || mesh.status.get(p as usize) != Some(&TriStatus::Ok) {
+        return None;
+    }
+    let (o, d) = (d3(ray.origin), d3(ray.dir));
+    hit_in(tri, o, d, ray.tmin as f64, ray.tmax as f64)
+}
+
+/// The f64 hit of a triangle by the line o + t·d, if t lies in [tmin, tmax].
+fn hit_in(
+    tri: &crate::geometry::Triangle,
+    o: DVec3,
+    d: DVec3,
+    tmin: f64,
+    tmax: f64,
+) -> Option<f64> {
+    let (t, ..) = intersect_f64(&tri.v.map(d3), o, d)?;
+    (t >= tmin && t <= tmax).then_some(t)
 }
 
 /// The exact-as-f64-allows closest hit in [tmin, tmax]: (t, prim), ties by index.
@@ -88,10 +113,56 @@ pub enum Verdict {
 
 /// Judges a closest-hit answer `got` for `ray` against the oracle.
 pub fn judge(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
+    judge_against(mesh, ray, closest(mesh, ray), got)
+}
+
+/// The oracle's closest hits of a batch of rays, searched once (on all threads) and judged
+/// against any number of answers: the search is brute force, every triangle for every ray,
+/// and a caller judging several tracers on the same rays pays it once.
+pub struct Truths<'a> {
+    mesh: &'a Mesh,
+    rays: &'a [Ray],
+    closest: Vec<Option<(f64, u32)>>,
+}
+
+impl<'a> Truths<'a> {
+    /// [`closest`] of every ray.
+    pub fn new(mesh: &'a Mesh, rays: &'a [Ray]) -> Truths<'a> {
+        use rayon::prelude::*;
+        let closest = rays.par_iter().map(|r| closest(mesh, r)).collect();
+        Truths {
+            mesh,
+            rays,
+            closest,
+        }
+    }
+
+    /// The mesh the rays were searched in.
+    pub fn mesh(&self) -> &'a Mesh {
+        self.mesh
+    }
+
+    /// The rays, in the order their truths are numbered.
+    pub fn rays(&self) -> &'a [Ray] {
+        self.rays
+    }
+
+    /// The oracle's closest hit of ray `i`: (t, prim).
+    pub fn closest(&self, i: usize) -> Option<(f64, u32)> {
+        self.closest[i]
+    }
+
+    /// [`judge`] of `got` as the answer for ray `i`, without searching again.
+    pub fn judge(&self, i: usize, got: &Hit) -> Verdict {
+        judge_against(self.mesh, &self.rays[i], self.closest[i], got)
+    }
+}
+
+/// [`judge`], given the oracle's closest hit `truth`.
+fn judge_against(mesh: &Mesh, ray: &Ray, truth: Option<(f64, u32)>, got: &Hit) -> Verdict {
     let o = d3(ray.origin);
     let d = d3(ray.dir);
     let dl = d.length();
-    let truth = closest(mesh, ray);
     let tri = |p: u32| mesh.triangles[p as usize].v.map(d3);
     // Scale of the numbers involved: coordinates relative to the origin, and the hit point.
     let scale_of = |p: u32, t: f64| {
@@ -190,7 +261,6 @@ pub fn judge_any(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
     let o = d3(ray.origin);
     let d = d3(ray.dir);
     let dl = d.length();
-    let hits = all_hits(mesh, ray);
     let marginal = |p: u32, t: f64| {
         let v = mesh.triangles[p as usize].v.map(d3);
         let scale = v
@@ -212,12 +282,19 @@ pub fn judge_any(mesh: &Mesh, ray: &Ray, got: &Hit) -> Verdict {
         edge_distance(&v, o, d) <= tol || near_bound(ray.tmin) || near_bound(ray.tmax)
     };
     if got.prim == MISS {
-        match hits.iter().find(|&&(t, p)| !marginal(p, t)) {
-            None if hits.is_empty() => Verdict::Agree,
+        // The first occluder that is no tie, if any (the search stops there).
+        let mut any = false;
+        let occluder = hits(mesh, ray).find(|&(t, p)| {
+            any = true;
+            !marginal(p, t)
+        });
+        match occluder {
+            None if !any => Verdict::Agree,
             None => Verdict::Tie("only marginal occluders"),
             Some((t, p)) => Verdict::Wrong(format!("miss, but prim {p} occludes at t={t}")),
         }
-    } else if hits.iter().any(|&(_, p)| p == got.prim) {
+    } else if hit_of(mesh, ray, got.prim).is_some() {
+        // A real hit of its own triangle: no other triangle need be tested.
         Verdict::Agree
     } else if (got.prim as usize) < mesh.len() && marginal(got.prim, got.t as f64) {
         Verdict::Tie("occluder hit at its edge")

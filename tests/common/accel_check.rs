@@ -7,20 +7,27 @@ use lancer::accel::bvh::BuildOptions;
 use lancer::accel::{build, Accel, AccelKind};
 use lancer::geometry::{intersect_triangle_bounded, Hit, Ray, Triangle, WatertightRay};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{judge, judge_any, Verdict};
+use lancer::trace::oracle::{judge, judge_any, Truths, Verdict};
 use lancer::{Query, Robustness};
 
 /// Judges closest and any-hit answers of `accel` for every ray; fails on any wrong one.
 /// Returns (agree, ties) of the closest-hit answers.
 pub fn check(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> (usize, usize) {
+    check_against(name, &Truths::new(mesh, rays), accel)
+}
+
+/// [`check`] on the rays of `truths`, the oracle's search done once for every structure
+/// judged on them.
+pub fn check_against(name: &str, truths: &Truths, accel: &dyn Accel) -> (usize, usize) {
+    let (mesh, rays) = (truths.mesh(), truths.rays());
     let rob = Robustness::default();
     let mut counts = (0, 0);
     for query in [Query::Closest, Query::Any] {
         let (hits, _) = accel.trace_batch(rays, query, &rob);
         let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-        for (r, h) in rays.iter().zip(&hits) {
+        for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
             let v = match query {
-                Query::Closest => judge(mesh, r, h),
+                Query::Closest => truths.judge(i, h),
                 Query::Any => judge_any(mesh, r, h),
             };
             match v {
