@@ -6,6 +6,8 @@
 #   scripts/gpu-benches.sh run KIT OUT [S]   # there, in a copy of this repository: check, bench,
 #                                            # and leave OUT/results.tar.gz and OUT/log.txt
 #
+# KIT can be `.gpu-kit` (ignored by git), to travel with a copy of the repository.
+#
 # `run` takes at most S seconds in all (default 480), each step under its own limit, the
 # most important first: `lancer check` (every layout's GPU kernel against its CPU twin, on
 # the bunny and a 1M-triangle terrain), then `bench scale` (from the file to the first rays,
@@ -53,7 +55,10 @@ pack() {
 
 run() {
   local kit out budget
-  kit=$(cd "$1" && pwd)
+  kit=$(cd "$1" 2>/dev/null && pwd) || {
+    echo "error: no kit at $1 (make one with: $0 pack KIT)" >&2
+    exit 2
+  }
   out=$2
   budget=${3:-480}
   mkdir -p "$out"
@@ -63,16 +68,22 @@ run() {
   local day
   day=$(date -u +%F)
   : >"$log"
+  # What the benches write is newer than this (pages of the same day already there are not).
+  local since=$out/.since
+  touch "$since"
+  sleep 1
   say() { echo "$*" | tee -a "$log"; }
 
   # The loader, where the machine lacks it; NVIDIA's driver file where no other is listed.
-  if ! ldconfig -p | grep -q libvulkan.so.1; then
+  # (grep reads to the end: with pipefail, an early exit could fail ldconfig on SIGPIPE.)
+  if ! ldconfig -p | grep libvulkan.so.1 >/dev/null; then
     for f in "$kit"/gl/*.deb; do [ -e "$f" ] && dpkg -x "$f" /; done
     ldconfig
   fi
   local icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
   if [ -e "$icd" ] && ! ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1; then
-    export VK_DRIVER_FILES=$icd
+    # The first for current loaders, the second for older ones.
+    export VK_DRIVER_FILES=$icd VK_ICD_FILENAMES=$icd
   fi
   export PATH=$kit:$PATH
   mkdir -p /tmp/meshes
@@ -114,7 +125,8 @@ run() {
 
   # Everything the benches wrote under docs/src/results (pages and charts) in one file.
   local pages
-  pages=$(ls docs/src/results/"$day"-*-gpu* 2>/dev/null)
+  pages=$(find docs/src/results -maxdepth 1 -name "$day-*-gpu*" -newer "$since" | sort)
+  rm -f "$since"
   if [ -n "$pages" ]; then
     # shellcheck disable=SC2086 # one name a line, no spaces in them
     tar czf "$out/results.tar.gz" $pages

@@ -143,7 +143,8 @@ fn the_judge_rejects_wrong_answers() {
 fn judging_from_the_searched_truths_is_judging_afresh() {
     // `Truths` searches once and judges many answers; `judge_any` tests a reported hit's own
     // triangle only. Both must say what the whole search says: the same verdicts as `judge`,
-    // and an any-hit answer agreed with exactly when its triangle is among `all_hits`.
+    // an any-hit answer agreed with exactly when its triangle is among `all_hits`, and a miss
+    // exactly when that list is empty.
     let mut rng = Rng::new(3);
     let mesh = soup(&mut rng, 400, 0.3);
     // Each ray whole, cut short before its first hit, and started past it: hits outside
@@ -161,6 +162,7 @@ fn judging_from_the_searched_truths_is_judging_afresh() {
         .collect();
     let truths = Truths::new(&mesh, &rays);
     let (mut hits_judged, mut others_judged) = (0, 0);
+    let (mut misses_wrong, mut misses_tied) = (0, 0);
     for (i, r) in rays.iter().enumerate() {
         let all = lancer::trace::oracle::all_hits(&mesh, r);
         let mut answers = vec![lancer::geometry::Hit::miss(r.tmax)];
@@ -185,6 +187,19 @@ fn judging_from_the_searched_truths_is_judging_afresh() {
                     true => hits_judged += 1,
                     false => others_judged += 1,
                 }
+            } else {
+                // A miss is right only where nothing occludes, and a tie only where every
+                // occluder is marginal (rare in a random soup).
+                assert_eq!(
+                    any == Verdict::Agree,
+                    all.is_empty(),
+                    "ray {i}: miss: {any:?}"
+                );
+                match any {
+                    Verdict::Wrong(_) => misses_wrong += 1,
+                    Verdict::Tie(_) => misses_tied += 1,
+                    Verdict::Agree => {}
+                }
             }
         }
         assert_eq!(truths.closest(i), lancer::trace::oracle::closest(&mesh, r));
@@ -192,5 +207,9 @@ fn judging_from_the_searched_truths_is_judging_afresh() {
     assert!(
         hits_judged > 300 && others_judged > 300,
         "{hits_judged} {others_judged}"
+    );
+    assert!(
+        misses_wrong > 100 && misses_tied * 20 < misses_wrong,
+        "misses of occluded rays: {misses_wrong} wrong, {misses_tied} ties"
     );
 }
