@@ -472,6 +472,13 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
     assert_eq!(report.embree_version.is_some(), embree);
     let builders = lancer::accel::bvh::Builder::ALL.len();
     assert_eq!(report.builds.len(), 2 * (builders + embree as usize));
+    for b in &report.builds {
+        let [lo, hi] = b.build_ms_range;
+        assert!(
+            lo <= b.build_ms && b.build_ms <= hi,
+            "{b:?}: median outside the range"
+        );
+    }
     for b in report
         .builds
         .iter()
@@ -506,7 +513,9 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
     }
     let text = report.text();
     assert!(
-        text.contains("| mesh | builder | build ms | flatten ms | (build + flatten) ÷ Embree |"),
+        text.contains(
+            "| mesh | builder | build ms (range) | flatten ms | (build + flatten) ÷ Embree |"
+        ),
         "{text}"
     );
     assert!(
@@ -515,7 +524,7 @@ fn builders_measures_every_builder_on_every_mesh_and_ranks_the_costs() {
     );
     assert!(text.contains("| SAH | primary | CPU |"), "{text}");
     let v = json(&report);
-    for key in ["build_ms", "peak_mib", "sah", "epo"] {
+    for key in ["build_ms", "build_ms_range", "peak_mib", "sah", "epo"] {
         assert!(v["builds"][0].get(key).is_some(), "{key}: {v}");
     }
     assert!(v["correlations"][0].get("mean_rho").is_some(), "{v}");

@@ -63,6 +63,8 @@ pub struct BuildRow {
     /// Wall time of the tree's build, median of `repeat` (Embree: its scene build, buffers
     /// filled and committed, median of all its builds on the mesh).
     pub build_ms: f64,
+    /// The fastest and the slowest of those builds, in ms: how much the median can move.
+    pub build_ms_range: [f64; 2],
     /// Wall time to flatten the tree into the CPU layout traced, median of `repeat`.
     pub flatten_ms: Option<f64>,
     /// (build + flatten) ÷ Embree's build: the medians, Embree's over all its builds on the
@@ -322,6 +324,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
             builds.push(BuildRow {
                 mesh: name.clone(),
                 builder: label.clone(),
+                build_ms_range: range(&times),
                 build_ms: median(times),
                 flatten_ms: Some(flatten_ms),
                 vs_embree: None,
@@ -376,6 +379,7 @@ pub fn run(config: &Config, progress: &dyn Fn(Progress)) -> Result<Report> {
             builds.push(BuildRow {
                 mesh: name.clone(),
                 builder: EMBREE_MEDIUM.into(),
+                build_ms_range: range(&e.times),
                 build_ms: median(e.times),
                 flatten_ms: None,
                 vs_embree: None,
@@ -462,12 +466,19 @@ fn gpu_lbvh_row(
     }
     Ok(Some(BuildRow {
         builder: LBVH_ON_GPU.into(),
+        build_ms_range: range(&times),
         build_ms: median(times),
         flatten_ms: None,
         vs_embree: None,
         peak_mib: None,
         ..cpu_row.clone()
     }))
+}
+
+/// The fastest and the slowest of some timings.
+fn range(times: &[f64]) -> [f64; 2] {
+    let (lo, hi) = super::timing::min_max(times);
+    [lo, hi]
 }
 
 /// A tree's name in the report: the builder's, `+reinsert` when optimised.
@@ -574,7 +585,7 @@ impl BenchReport for Report {
         let mut t = Table::new(&[
             "mesh",
             "builder",
-            "build ms",
+            "build ms (range)",
             "flatten ms",
             "(build + flatten) ÷ Embree",
             "peak MiB",
@@ -587,7 +598,10 @@ impl BenchReport for Report {
             t.row(vec![
                 super::file_name(&b.mesh),
                 b.builder.clone(),
-                format!("{:.1}", b.build_ms),
+                format!(
+                    "{:.1} ({:.1}–{:.1})",
+                    b.build_ms, b.build_ms_range[0], b.build_ms_range[1]
+                ),
                 dash(b.flatten_ms, 1),
                 dash(b.vs_embree, 2),
                 dash(b.peak_mib, 1),
@@ -641,7 +655,9 @@ impl BenchReport for Report {
             t.row(cells);
         }
         out += &t.text();
-        out += "\n(build + flatten) ÷ Embree: lancer's tree built and flattened into the CPU \
+        out += "\nbuild ms (range): the median build, and the fastest and slowest of the \
+                builds it is the median of.\n";
+        out += "(build + flatten) ÷ Embree: lancer's tree built and flattened into the CPU \
                 layout it traces, against Embree 3's medium-quality scene build (its BVH is \
                 ready to trace) of the same triangles on the same threads, timed right after \
                 each build; the medians (Embree's over all its builds on the mesh). Both start \
