@@ -698,8 +698,29 @@ impl BenchReport for Report {
                 (n.clone(), v)
             })
             .collect();
-        let title = format!("BVH build, {} CPU threads", self.cpu_threads);
-        super::chart::bar_chart(build_chart, &title, "build time (ms)", &meshes, &series)?;
+        let ranges: Vec<Vec<[f64; 2]>> = (names.iter())
+            .map(|n| {
+                (self.meshes.iter())
+                    .map(|(m, _)| {
+                        (self.builds.iter())
+                            .find(|b| &b.mesh == m && &b.builder == n)
+                            .map_or([f64::NAN; 2], |b| b.build_ms_range)
+                    })
+                    .collect()
+            })
+            .collect();
+        let title = format!(
+            "BVH build, {} CPU threads (median; whiskers: fastest to slowest)",
+            self.cpu_threads
+        );
+        super::chart::bar_chart_with_ranges(
+            build_chart,
+            &title,
+            "build time (ms)",
+            &meshes,
+            &series,
+            &ranges,
+        )?;
         let Some(sah_chart) = paths.get(1) else {
             return Ok(vec![build_chart.clone()]);
         };

@@ -39,6 +39,38 @@ pub fn bar_chart(
     categories: &[String],
     series: &[(String, Vec<f64>)],
 ) -> Result<()> {
+    bars(path, title, y_label, categories, series, &[])
+}
+
+/// [`bar_chart`] with a whisker on each bar from `ranges[s][c][0]` to `ranges[s][c][1]`
+/// (the spread of the runs a bar is the median of; NaN: no whisker). The title should say
+/// what the whiskers are.
+pub fn bar_chart_with_ranges(
+    path: &Path,
+    title: &str,
+    y_label: &str,
+    categories: &[String],
+    series: &[(String, Vec<f64>)],
+    ranges: &[Vec<[f64; 2]>],
+) -> Result<()> {
+    if ranges.len() != series.len() {
+        return Err(chart_error(
+            path,
+            format!("{} ranges for {} series", ranges.len(), series.len()),
+        ));
+    }
+    bars(path, title, y_label, categories, series, ranges)
+}
+
+/// Bars, with whiskers where `ranges` has them (empty: none).
+fn bars(
+    path: &Path,
+    title: &str,
+    y_label: &str,
+    categories: &[String],
+    series: &[(String, Vec<f64>)],
+    ranges: &[Vec<[f64; 2]>],
+) -> Result<()> {
     if let Some((name, v)) = series.iter().find(|(_, v)| v.len() != categories.len()) {
         return Err(chart_error(
             path,
@@ -49,7 +81,14 @@ pub fn bar_chart(
             ),
         ));
     }
-    let heights = series.iter().flat_map(|(_, v)| v).filter(|y| y.is_finite());
+    if let Some(r) = ranges.iter().find(|r| r.len() != categories.len()) {
+        return Err(chart_error(
+            path,
+            format!("{} ranges for {} categories", r.len(), categories.len()),
+        ));
+    }
+    let ends = ranges.iter().flatten().flatten();
+    let heights = (series.iter().flat_map(|(_, v)| v).chain(ends)).filter(|y| y.is_finite());
     let (lo, hi) = heights.fold((0.0f64, 0.0f64), |(lo, hi), &y| (lo.min(y), hi.max(y)));
     let pad = if hi > lo { 0.08 * (hi - lo) } else { 1.0 };
     let (lo, hi) = (if lo < 0.0 { lo - pad } else { 0.0 }, hi + pad);
@@ -87,6 +126,26 @@ pub fn bar_chart(
                         Rectangle::new([(x0, 0.0), (x0 + w, y)], style)
                     }),
             )?;
+        }
+        // Whiskers: a vertical line through the bar's middle, capped at both ends.
+        for (s, r) in ranges.iter().enumerate() {
+            for (c, &[a, b]) in r.iter().enumerate() {
+                if !(a.is_finite() && b.is_finite()) {
+                    continue;
+                }
+                let x = c as f64 + 0.1 + (s as f64 + 0.5) * w;
+                let cap = 0.25 * w;
+                for line in [
+                    vec![(x, a), (x, b)],
+                    vec![(x - cap, a), (x + cap, a)],
+                    vec![(x - cap, b), (x + cap, b)],
+                ] {
+                    chart.draw_series(std::iter::once(PathElement::new(
+                        line,
+                        BLACK.stroke_width(2),
+                    )))?;
+                }
+            }
         }
         // Category names centred under their groups (plotters puts numeric ticks at
         // round numbers, not at group centres).
@@ -485,6 +544,47 @@ mod tests {
         let bad = vec![("cpu".to_string(), vec![1.0])];
         let e = bar_chart(&out, "t", "ms", &cats, &bad).unwrap_err();
         assert!(e.to_string().contains("1 values for 3 categories"), "{e}");
+    }
+
+    #[test]
+    fn whiskers_are_drawn_where_a_bar_has_a_range_and_reach_past_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let (plain, whiskers) = (dir.path().join("plain.png"), dir.path().join("w.png"));
+        let cats: Vec<String> = ["1M", "4M"].map(String::from).into();
+        let series = vec![("binned".to_string(), vec![2.0, 3.0])];
+        // A whisker on the first bar only, reaching above every bar (the y axis takes it
+        // in); against the same chart whose whisker has no length (the same axes and labels).
+        let (nil, ranges) = (
+            vec![vec![[6.0, 6.0], [f64::NAN; 2]]],
+            vec![vec![[1.5, 6.0], [f64::NAN; 2]]],
+        );
+        bar_chart_with_ranges(&plain, "build", "ms", &cats, &series, &nil).unwrap();
+        bar_chart_with_ranges(&whiskers, "build", "ms", &cats, &series, &ranges).unwrap();
+        let (with, without) = (
+            image::open(&whiskers).unwrap().to_rgb8(),
+            image::open(&plain).unwrap().to_rgb8(),
+        );
+        assert_eq!(with.dimensions(), without.dimensions());
+        // The whisker is a vertical run of dark pixels the other chart lacks: count them
+        // per column (its caps add a few to many columns, not a tall run to one).
+        let dark = |p: &image::Rgb<u8>| p.0.iter().all(|&c| c < 60);
+        let tallest = (0..with.width())
+            .map(|x| {
+                (0..with.height())
+                    .filter(|&y| dark(with.get_pixel(x, y)) && !dark(without.get_pixel(x, y)))
+                    .count()
+            })
+            .max()
+            .unwrap_or(0);
+        assert!(
+            tallest > 150,
+            "no whisker drawn: {tallest} new dark pixels in a column"
+        );
+        let bad = vec![vec![[1.0, 2.0]]];
+        let e = bar_chart_with_ranges(&whiskers, "b", "ms", &cats, &series, &bad).unwrap_err();
+        assert!(e.to_string().contains("1 ranges for 2 categories"), "{e}");
+        let e = bar_chart_with_ranges(&whiskers, "b", "ms", &cats, &series, &[]).unwrap_err();
+        assert!(e.to_string().contains("0 ranges for 1 series"), "{e}");
     }
 
     #[test]
