@@ -686,26 +686,28 @@ impl BenchReport for Report {
                 names.push(b.builder.clone());
             }
         }
-        let series: Vec<(String, Vec<f64>)> = (names.iter())
-            .map(|n| {
-                let v = (self.meshes.iter())
-                    .map(|(m, _)| {
-                        (self.builds.iter())
-                            .find(|b| &b.mesh == m && &b.builder == n)
-                            .map_or(f64::NAN, |b| b.build_ms)
-                    })
-                    .collect();
-                (n.clone(), v)
-            })
-            .collect();
-        let ranges: Vec<Vec<[f64; 2]>> = (names.iter())
+        // Each builder's row on each mesh (None where it has none): its bar and whisker.
+        let rows: Vec<Vec<Option<&BuildRow>>> = (names.iter())
             .map(|n| {
                 (self.meshes.iter())
-                    .map(|(m, _)| {
-                        (self.builds.iter())
-                            .find(|b| &b.mesh == m && &b.builder == n)
-                            .map_or([f64::NAN; 2], |b| b.build_ms_range)
-                    })
+                    .map(|(m, _)| (self.builds.iter()).find(|b| &b.mesh == m && &b.builder == n))
+                    .collect()
+            })
+            .collect();
+        let series: Vec<(String, Vec<f64>)> = (names.iter().zip(&rows))
+            .map(|(n, r)| {
+                (
+                    n.clone(),
+                    r.iter()
+                        .map(|b| b.map_or(f64::NAN, |b| b.build_ms))
+                        .collect(),
+                )
+            })
+            .collect();
+        let ranges: Vec<Vec<[f64; 2]>> = (rows.iter())
+            .map(|r| {
+                r.iter()
+                    .map(|b| b.map_or([f64::NAN; 2], |b| b.build_ms_range))
                     .collect()
             })
             .collect();

@@ -39,7 +39,8 @@ pub fn bar_chart(
     categories: &[String],
     series: &[(String, Vec<f64>)],
 ) -> Result<()> {
-    bars(path, title, y_label, categories, series, &[])
+    let none = vec![vec![[f64::NAN; 2]; categories.len()]; series.len()];
+    bar_chart_with_ranges(path, title, y_label, categories, series, &none)
 }
 
 /// [`bar_chart`] with a whisker on each bar from `ranges[s][c][0]` to `ranges[s][c][1]`
@@ -59,18 +60,6 @@ pub fn bar_chart_with_ranges(
             format!("{} ranges for {} series", ranges.len(), series.len()),
         ));
     }
-    bars(path, title, y_label, categories, series, ranges)
-}
-
-/// Bars, with whiskers where `ranges` has them (empty: none).
-fn bars(
-    path: &Path,
-    title: &str,
-    y_label: &str,
-    categories: &[String],
-    series: &[(String, Vec<f64>)],
-    ranges: &[Vec<[f64; 2]>],
-) -> Result<()> {
     if let Some((name, v)) = series.iter().find(|(_, v)| v.len() != categories.len()) {
         return Err(chart_error(
             path,
