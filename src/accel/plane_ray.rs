@@ -11,8 +11,36 @@
 use crate::geometry::{prune_bound, safe_recip, Aabb, Ray, PARALLEL_INV};
 
 /// The WGSL twin of this file (`plane_ray.wgsl`), placed in front of the kd-tree's and the
-/// BIH's traversals.
-pub(crate) const PLANE_RAY_WGSL: &str = include_str!("plane_ray.wgsl");
+/// BIH's traversals ([`traversal_wgsl`]).
+const PLANE_RAY_WGSL: &str = include_str!("plane_ray.wgsl");
+
+/// A plane traversal's WGSL source: its own `u32` constants (generated from their Rust
+/// definitions), `PLANE_STACK_SIZE` (its [`PlaneStack`]'s `N`, the structure's deepest
+/// level), this file's WGSL twin, then the traversal itself.
+pub(crate) fn traversal_wgsl(consts: &[(&str, u32)], stack_size: usize, traversal: &str) -> String {
+    let mut s = String::new();
+    for (name, value) in consts
+        .iter()
+        .chain(&[("PLANE_STACK_SIZE", stack_size as u32)])
+    {
+        s.push_str(&format!("const {name}: u32 = {value}u;\n"));
+    }
+    s + PLANE_RAY_WGSL + traversal
+}
+
+/// The override constants of the box a plane traversal clips the ray to first (the
+/// structure's bounds): `PLANE_LO_X` … `PLANE_HI_Z` in `plane_ray.wgsl`.
+pub(crate) fn root_box_overrides(bounds: &Aabb) -> Vec<(&'static str, f64)> {
+    let (lo, hi) = (bounds.lo, bounds.hi);
+    vec![
+        ("PLANE_LO_X", lo.x as f64),
+        ("PLANE_LO_Y", lo.y as f64),
+        ("PLANE_LO_Z", lo.z as f64),
+        ("PLANE_HI_X", hi.x as f64),
+        ("PLANE_HI_Y", hi.y as f64),
+        ("PLANE_HI_Z", hi.z as f64),
+    ]
+}
 
 /// The lower end of an interval that starts at the computed distance `t`, widened by
 /// [`TIE_SLACK`](crate::geometry::TIE_SLACK) (2⁻²⁰ ≈ 9.5e-7) of its magnitude. Every distance is one computed plane
@@ -110,5 +138,46 @@ impl PlaneRay {
             tf = tf.min(widen_hi(b));
         }
         (tn <= tf).then_some((tn, tf))
+    }
+}
+
+/// The pending far children of a front-to-back plane traversal, each with the ray's
+/// interval in it: at most one per level, so `N` levels hold them all (a deeper tree is
+/// refused when built). WGSL `PlaneStack` (`plane_push`, `plane_pop`).
+pub(crate) struct PlaneStack<const N: usize> {
+    entries: [(u32, f32, f32); N],
+    len: usize,
+}
+
+impl<const N: usize> PlaneStack<N> {
+    /// No node pending.
+    #[inline(always)]
+    pub fn new() -> Self {
+        PlaneStack {
+            entries: [(0, 0.0, 0.0); N],
+            len: 0,
+        }
+    }
+
+    /// Node `node`, to be visited later over [lo, hi]. WGSL `plane_push`.
+    #[inline(always)]
+    pub fn push(&mut self, node: usize, lo: f32, hi: f32) {
+        self.entries[self.len] = (node as u32, lo, hi);
+        self.len += 1;
+    }
+
+    /// The nearest pending node whose entry is not beyond `prune` (the best hit's prune
+    /// bound, scaled), with its interval; those beyond it are dropped on the way. None when
+    /// no node is left. WGSL `plane_pop`.
+    #[inline(always)]
+    pub fn pop_within(&mut self, prune: f32) -> Option<(usize, f32, f32)> {
+        while self.len > 0 {
+            self.len -= 1;
+            let (node, lo, hi) = self.entries[self.len];
+            if lo <= prune {
+                return Some((node as usize, lo, hi));
+            }
+        }
+        None
     }
 }

@@ -1,6 +1,16 @@
 // plane_ray: the WGSL twin of src/accel/plane_ray.rs, shared by the traversals that clip a
 // ray's t-interval at axis-aligned planes (kdtree.wgsl, bih.wgsl). Every function names its
-// Rust twin and does the same operations in the same order.
+// Rust twin and does the same operations in the same order. PLANE_STACK_SIZE (the
+// structure's deepest level) is generated in front (plane_ray::traversal_wgsl).
+
+// The box the traversal clips the ray to first: the structure's bounds
+// (plane_ray::root_box_overrides).
+override PLANE_LO_X: f32 = 0.0;
+override PLANE_LO_Y: f32 = 0.0;
+override PLANE_LO_Z: f32 = 0.0;
+override PLANE_HI_X: f32 = 0.0;
+override PLANE_HI_Y: f32 = 0.0;
+override PLANE_HI_Z: f32 = 0.0;
 
 // widen_lo
 fn widen_lo(t: f32) -> f32 {
@@ -74,4 +84,43 @@ fn plane_root_interval(pr: PlaneRay, lo: vec3<f32>, hi: vec3<f32>) -> vec3<f32> 
         tf = min(tf, widen_hi(select(t0, t1, fwd)));
     }
     return vec3<f32>(tn, tf, select(0.0, 1.0, tn <= tf));
+}
+
+// PlaneStack: the pending far children, each with the ray's interval in it.
+struct PlanePending {
+    node: u32,
+    lo: f32,
+    hi: f32,
+}
+
+struct PlaneStack {
+    entries: array<PlanePending, PLANE_STACK_SIZE>,
+    len: u32,
+}
+
+// PlaneStack::push
+fn plane_push(s: ptr<function, PlaneStack>, node: u32, lo: f32, hi: f32) {
+    (*s).entries[(*s).len] = PlanePending(node, lo, hi);
+    (*s).len += 1u;
+}
+
+// PlaneStack::pop_within: the nearest pending node whose entry is not beyond prune, those
+// beyond it dropped; found false when no node is left.
+struct PlanePopped {
+    found: bool,
+    next: PlanePending,
+}
+
+fn plane_pop(s: ptr<function, PlaneStack>, prune: f32) -> PlanePopped {
+    loop {
+        if (*s).len == 0u {
+            break;
+        }
+        (*s).len -= 1u;
+        let next = (*s).entries[(*s).len];
+        if next.lo <= prune {
+            return PlanePopped(true, next);
+        }
+    }
+    return PlanePopped(false, PlanePending(0u, 0.0, 0.0));
 }

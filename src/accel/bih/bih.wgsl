@@ -2,23 +2,9 @@
 // word, the leaves' triangles one LeafTri each. Front to back with a stack of pending far
 // children and the ray's interval in each. The CPU twin is Bih::walk in traverse.rs, step
 // for step: same operations in the same order, so hits and statistics agree bit for bit.
-// BIH_LEAF_TAG, BIH_LINK_SHIFT and BIH_STACK_SIZE (MAX_BIH_DEPTH) are generated in front
-// from their Rust definitions (gpu.rs), followed by plane_ray.wgsl.
-
-// The root's box, Bih::bounds (Layout::overrides).
-override BIH_LO_X: f32 = 0.0;
-override BIH_LO_Y: f32 = 0.0;
-override BIH_LO_Z: f32 = 0.0;
-override BIH_HI_X: f32 = 0.0;
-override BIH_HI_Y: f32 = 0.0;
-override BIH_HI_Z: f32 = 0.0;
-
-// A pending far child and the ray's interval in it.
-struct BihPending {
-    node: u32,
-    lo: f32,
-    hi: f32,
-}
+// BIH_LEAF_TAG, BIH_LINK_SHIFT and PLANE_STACK_SIZE (MAX_BIH_DEPTH) are generated in front
+// from their Rust definitions (gpu.rs), followed by plane_ray.wgsl (the root box Bih::bounds
+// in its overrides, the ray, the stack).
 
 // bih::BihNode. Inner: clip = [left child's maximum, right child's minimum],
 // link = right child << BIH_LINK_SHIFT | axis (the left child is the next node), count = 0.
@@ -49,8 +35,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         return best;
     }
     let pr = plane_ray(r);
-    let box_lo = vec3<f32>(BIH_LO_X, BIH_LO_Y, BIH_LO_Z);
-    let box_hi = vec3<f32>(BIH_HI_X, BIH_HI_Y, BIH_HI_Z);
+    let box_lo = vec3<f32>(PLANE_LO_X, PLANE_LO_Y, PLANE_LO_Z);
+    let box_hi = vec3<f32>(PLANE_HI_X, PLANE_HI_Y, PLANE_HI_Z);
     let root_interval = plane_root_interval(pr, box_lo, box_hi);
     if root_interval.z == 0.0 {
         if COUNT_STATS {
@@ -64,8 +50,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let w = watertight_setup(r.dir);
     var hit_prune = min(r.tmax, BIG);
     var prune = plane_scaled(pr, hit_prune);
-    var stack: array<BihPending, BIH_STACK_SIZE>;
-    var sp = 0u;
+    var stack: PlaneStack;
     var idx = 0u;
     loop {
         let node = bih_load_node(idx);
@@ -101,8 +86,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             visit_far = visit_far && far_lo <= prune;
             if visit_near {
                 if visit_far {
-                    stack[sp] = BihPending(far, far_lo, hi);
-                    sp += 1u;
+                    plane_push(&stack, far, far_lo, hi);
                 }
                 idx = near;
                 hi = near_hi;
@@ -122,25 +106,14 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             prune = plane_scaled(pr, hit_prune);
         }
         // Next: the nearest pending node whose entry is not beyond the best hit.
-        var popped = false;
-        loop {
-            if sp == 0u {
-                break;
-            }
-            sp -= 1u;
-            let next = stack[sp];
-            if next.lo <= prune {
-                idx = next.node;
-                lo = next.lo;
-                hi = next.hi;
-                popped = true;
-                break;
-            }
-        }
-        if !popped {
+        let popped = plane_pop(&stack, prune);
+        if !popped.found {
             traversal_end(bitcast<u32>(r.tmax));
             break;
         }
+        idx = popped.next.node;
+        lo = popped.next.lo;
+        hi = popped.next.hi;
     }
     return best;
 }

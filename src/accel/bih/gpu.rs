@@ -3,7 +3,7 @@
 //! twin is the tree's [`Accel`](crate::accel::Accel) (`traverse.rs`).
 
 use super::{Bih, BihNode, BIH_LEAF_TAG, BIH_LINK_SHIFT, BIH_NODE_BYTES, MAX_BIH_DEPTH};
-use crate::accel::plane_ray::PLANE_RAY_WGSL;
+use crate::accel::plane_ray::{root_box_overrides, traversal_wgsl};
 use crate::accel::AccelKind;
 use crate::accel::{GpuArrays, GpuForm};
 
@@ -24,26 +24,14 @@ impl GpuForm for Bih {
         let u32s = [
             ("BIH_LEAF_TAG", BIH_LEAF_TAG),
             ("BIH_LINK_SHIFT", BIH_LINK_SHIFT),
-            ("BIH_STACK_SIZE", MAX_BIH_DEPTH as u32),
         ];
-        let mut s = String::new();
-        for (name, value) in u32s {
-            s.push_str(&format!("const {name}: u32 = {value}u;\n"));
-        }
-        s + PLANE_RAY_WGSL + include_str!("bih.wgsl")
+        traversal_wgsl(&u32s, MAX_BIH_DEPTH, include_str!("bih.wgsl"))
     }
 
-    /// The root's box, which the traversal clips the ray to first (`BIH_LO_X` … `BIH_HI_Z`).
+    /// The root's box, which the traversal clips the ray to first (`PLANE_LO_X` …
+    /// `PLANE_HI_Z`).
     fn overrides(&self) -> Vec<(&'static str, f64)> {
-        let (lo, hi) = (self.bounds.lo, self.bounds.hi);
-        vec![
-            ("BIH_LO_X", lo.x as f64),
-            ("BIH_LO_Y", lo.y as f64),
-            ("BIH_LO_Z", lo.z as f64),
-            ("BIH_HI_X", hi.x as f64),
-            ("BIH_HI_Y", hi.y as f64),
-            ("BIH_HI_Z", hi.z as f64),
-        ]
+        root_box_overrides(&self.bounds)
     }
 
     /// Every node reachable from the root exactly once: an inner node's left child next to

@@ -5,7 +5,7 @@
 
 use super::traverse::MAILBOX;
 use super::{KdTree, ABOVE_EMPTY, ABOVE_SHIFT, BELOW_EMPTY, COUNT_SHIFT, LEAF_TAG, MAX_KD_DEPTH};
-use crate::accel::plane_ray::PLANE_RAY_WGSL;
+use crate::accel::plane_ray::{root_box_overrides, traversal_wgsl};
 use crate::accel::AccelKind;
 use crate::accel::{GpuArrays, GpuForm};
 
@@ -29,27 +29,15 @@ impl GpuForm for KdTree {
             ("KD_ABOVE_EMPTY", ABOVE_EMPTY),
             ("KD_ABOVE_SHIFT", ABOVE_SHIFT),
             ("KD_COUNT_SHIFT", COUNT_SHIFT),
-            ("KD_STACK_SIZE", MAX_KD_DEPTH as u32),
             ("KD_MAILBOX", MAILBOX as u32),
         ];
-        let mut s = String::new();
-        for (name, value) in u32s {
-            s.push_str(&format!("const {name}: u32 = {value}u;\n"));
-        }
-        s + PLANE_RAY_WGSL + include_str!("kdtree.wgsl")
+        traversal_wgsl(&u32s, MAX_KD_DEPTH, include_str!("kdtree.wgsl"))
     }
 
-    /// The root cell, which the traversal clips the ray to first (`KD_LO_X` … `KD_HI_Z`).
+    /// The root cell, which the traversal clips the ray to first (`PLANE_LO_X` …
+    /// `PLANE_HI_Z`).
     fn overrides(&self) -> Vec<(&'static str, f64)> {
-        let (lo, hi) = (self.bounds.lo, self.bounds.hi);
-        vec![
-            ("KD_LO_X", lo.x as f64),
-            ("KD_LO_Y", lo.y as f64),
-            ("KD_LO_Z", lo.z as f64),
-            ("KD_HI_X", hi.x as f64),
-            ("KD_HI_Y", hi.y as f64),
-            ("KD_HI_Z", hi.z as f64),
-        ]
+        root_box_overrides(&self.bounds)
     }
 
     /// Whole words of nodes; every node of the tree reachable from the root, the child above

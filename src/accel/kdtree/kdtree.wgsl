@@ -2,27 +2,13 @@
 // the leaves' triangles one LeafTri per reference. Front to back with a stack of pending far
 // children and the ray's interval in each. The CPU twin is KdTree::walk in traverse.rs, step
 // for step: same operations in the same order, so hits and statistics agree bit for bit.
-// KD_LEAF_TAG, KD_BELOW_EMPTY, KD_ABOVE_EMPTY, KD_ABOVE_SHIFT, KD_COUNT_SHIFT, KD_STACK_SIZE
-// (MAX_KD_DEPTH) and KD_MAILBOX are generated in front from their Rust definitions (gpu.rs),
-// followed by plane_ray.wgsl (widen_lo, widen_hi, finite, pow2).
+// KD_LEAF_TAG, KD_BELOW_EMPTY, KD_ABOVE_EMPTY, KD_ABOVE_SHIFT, KD_COUNT_SHIFT, KD_MAILBOX and
+// PLANE_STACK_SIZE (MAX_KD_DEPTH) are generated in front from their Rust definitions (gpu.rs),
+// followed by plane_ray.wgsl (the root cell KdTree::bounds in its overrides, the ray, the
+// stack).
 
 // The mailbox is two vec4<u32> (no loop: lavapipe caps the loop iterations of a ray).
 const_assert KD_MAILBOX == 8u;
-
-// The root cell, KdTree::bounds (Layout::overrides).
-override KD_LO_X: f32 = 0.0;
-override KD_LO_Y: f32 = 0.0;
-override KD_LO_Z: f32 = 0.0;
-override KD_HI_X: f32 = 0.0;
-override KD_HI_Y: f32 = 0.0;
-override KD_HI_Z: f32 = 0.0;
-
-// A pending far child and the ray's interval in its cell.
-struct KdPending {
-    node: u32,
-    lo: f32,
-    hi: f32,
-}
 
 // kdtree::Node. Inner: a = the split position's bits, b = above child << KD_ABOVE_SHIFT |
 // KD_ABOVE_EMPTY | KD_BELOW_EMPTY | axis (the child below is the next node).
@@ -53,52 +39,23 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
         return best;
     }
     // Distances t' = t / 2^k along the direction scaled by 2^k (largest component in [1, 2)).
-    let a = abs(r.dir);
-    let e = i32((bitcast<u32>(max(max(a.x, a.y), a.z)) >> 23u) & 0xffu) - 127;
-    let k = clamp(-e, -126, 126);
-    let unscale = pow2(-k);
-    let inv = safe_recip3(r.dir * pow2(k));
-    let parallel = abs(inv) >= vec3<f32>(PARALLEL_INV);
-    let o = r.origin;
-    let tmax = finite(min(r.tmax, BIG) * unscale);
-    let tmin = finite(r.tmin * unscale);
-    // root_interval: [lo, hi], the ray's widened interval in the current cell.
-    let cell_lo = vec3<f32>(KD_LO_X, KD_LO_Y, KD_LO_Z);
-    let cell_hi = vec3<f32>(KD_HI_X, KD_HI_Y, KD_HI_Z);
-    var lo = tmin;
-    var hi = tmax;
-    var outside = false;
-    for (var ax = 0u; ax < 3u; ax += 1u) {
-        if parallel[ax] {
-            if o[ax] < cell_lo[ax] || o[ax] > cell_hi[ax] {
-                outside = true;
-                break;
-            }
-            continue;
-        }
-        let t0 = finite((cell_lo[ax] - o[ax]) * inv[ax]);
-        let t1 = finite((cell_hi[ax] - o[ax]) * inv[ax]);
-        let fwd = inv[ax] > 0.0;
-        let tn = widen_lo(select(t1, t0, fwd));
-        let tf = widen_hi(select(t0, t1, fwd));
-        if tn > lo {
-            lo = tn;
-        }
-        if tf < hi {
-            hi = tf;
-        }
-    }
-    if outside || lo > hi {
+    let pr = plane_ray(r);
+    // [lo, hi]: the ray's widened interval in the current cell.
+    let cell_lo = vec3<f32>(PLANE_LO_X, PLANE_LO_Y, PLANE_LO_Z);
+    let cell_hi = vec3<f32>(PLANE_HI_X, PLANE_HI_Y, PLANE_HI_Z);
+    let root_interval = plane_root_interval(pr, cell_lo, cell_hi);
+    if root_interval.z == 0.0 {
         if COUNT_STATS {
             n_nodes = 1u;
         }
         return best;
     }
     traversal_done = false;
+    var lo = root_interval.x;
+    var hi = root_interval.y;
     let w = watertight_setup(r.dir);
-    var prune = tmax;
-    var stack: array<KdPending, KD_STACK_SIZE>;
-    var sp = 0u;
+    var prune = pr.tmax;
+    var stack: PlaneStack;
     var idx = 0u;
     var mail_lo = vec4<u32>(MISS);
     var mail_hi = vec4<u32>(MISS);
@@ -115,7 +72,9 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             let above = node.b >> KD_ABOVE_SHIFT;
             let below_empty = (node.b & KD_BELOW_EMPTY) != 0u;
             let above_empty = (node.b & KD_ABOVE_EMPTY) != 0u;
-            let fwd = inv[ax] > 0.0;
+            let o = pr.o[ax];
+            let inv = pr.inv[ax];
+            let fwd = inv > 0.0;
             let near = select(above, below, fwd);
             let far = select(below, above, fwd);
             let near_empty = select(above_empty, below_empty, fwd);
@@ -125,13 +84,13 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             var reach_far: bool;
             var dl = lo;
             var dh = hi;
-            if parallel[ax] {
-                let on_below = o[ax] <= s;
-                let on_above = o[ax] >= s;
+            if plane_parallel(pr, ax) {
+                let on_below = o <= s;
+                let on_above = o >= s;
                 reach_near = select(on_above, on_below, fwd);
                 reach_far = select(on_below, on_above, fwd);
             } else {
-                let d = finite((s - o[ax]) * inv[ax]);
+                let d = finite((s - o) * inv);
                 reach_near = d >= lo;
                 reach_far = d <= hi;
                 dl = widen_lo(d);
@@ -141,8 +100,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             let visit_far = reach_far && !far_empty;
             if visit_near {
                 if visit_far {
-                    stack[sp] = KdPending(far, select(lo, dl, dl > lo), hi);
-                    sp += 1u;
+                    plane_push(&stack, far, select(lo, dl, dl > lo), hi);
                     if dh < hi {
                         hi = dh;
                     }
@@ -184,7 +142,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                         any_found = true;
                         break;
                     }
-                    prune = finite(hit_prune(h) * unscale);
+                    prune = plane_scaled(pr, hit_prune(h));
                 }
             }
             if any_found {
@@ -193,25 +151,14 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
         }
         // Next: the nearest pending node whose entry is not beyond the best hit.
-        var popped = false;
-        loop {
-            if sp == 0u {
-                break;
-            }
-            sp -= 1u;
-            let next = stack[sp];
-            if next.lo <= prune {
-                idx = next.node;
-                lo = next.lo;
-                hi = next.hi;
-                popped = true;
-                break;
-            }
-        }
-        if !popped {
+        let popped = plane_pop(&stack, prune);
+        if !popped.found {
             traversal_end(bitcast<u32>(r.tmax));
             break;
         }
+        idx = popped.next.node;
+        lo = popped.next.lo;
+        hi = popped.next.hi;
     }
     return best;
 }

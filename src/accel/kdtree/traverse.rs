@@ -16,9 +16,10 @@
 //!   its magnitude ([`widen_lo`], [`widen_hi`]); d is compared with the widened ends, so a
 //!   cell the ray truly reaches is never skipped, d exactly on near or far included (both
 //!   children are then visited);
-//! - an axis the ray is parallel to (|1/d| ≥ [`PARALLEL_INV`], the slab test's own rule)
-//!   is decided by the origin's side alone, both sides when the origin lies on the plane,
-//!   and leaves the interval as it is;
+//! - an axis the ray is parallel to (|1/d| ≥
+//!   [`PARALLEL_INV`](crate::geometry::PARALLEL_INV), the slab test's own rule) is decided
+//!   by the origin's side alone, both sides when the origin lies on the plane, and leaves
+//!   the interval as it is;
 //! - distances are clamped to ±f32::MAX ([`finite`]), and measured along the direction
 //!   scaled by a power of two to a largest component in [1, 2) (exact), so a tiny or huge
 //!   direction is traversed like its unit twin.
@@ -37,11 +38,10 @@
 //! CPU's).
 
 use super::{KdTree, MAX_KD_DEPTH};
-use crate::accel::plane_ray::{finite, pow2_scales, widen_hi, widen_lo};
+use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay, PlaneStack};
 use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{
-    intersect_triangle_bounded, safe_recip, Aabb, Hit, Ray, Robustness, TriangleTest,
-    WatertightRay, MISS, PARALLEL_INV,
+    intersect_triangle_bounded, Aabb, Hit, Ray, Robustness, TriangleTest, WatertightRay, MISS,
 };
 
 /// Triangles remembered per ray (kdtree.wgsl holds them in two `vec4<u32>`).
@@ -70,41 +70,6 @@ impl Accel for KdTree {
 }
 
 impl KdTree {
-    /// The ray's widened [near, far] interval in the root cell, or None when it misses the
-    /// cell; `o` the origin, `inv` the reciprocal direction, `parallel` its axes the ray is
-    /// parallel to, [tmin, tmax] the ray's interval (all in the traversal's scaled units).
-    /// WGSL: the start of `traverse`.
-    fn root_interval(
-        &self,
-        o: [f32; 3],
-        inv: [f32; 3],
-        parallel: [bool; 3],
-        tmin: f32,
-        tmax: f32,
-    ) -> Option<(f32, f32)> {
-        let (mut tn, mut tf) = (tmin, tmax);
-        for k in 0..3 {
-            let (lo, hi) = (self.bounds.lo[k], self.bounds.hi[k]);
-            if parallel[k] {
-                if o[k] < lo || o[k] > hi {
-                    return None;
-                }
-                continue;
-            }
-            let t0 = finite((lo - o[k]) * inv[k]);
-            let t1 = finite((hi - o[k]) * inv[k]);
-            let (a, b) = if inv[k] > 0.0 { (t0, t1) } else { (t1, t0) };
-            let (a, b) = (widen_lo(a), widen_hi(b));
-            if a > tn {
-                tn = a;
-            }
-            if b < tf {
-                tf = b;
-            }
-        }
-        (tn <= tf).then_some((tn, tf))
-    }
-
     /// The traversal, with Möller–Trumbore when `MT`, else the watertight test.
     #[inline(always)]
     fn walk<const MT: bool>(
@@ -129,24 +94,17 @@ impl KdTree {
         // largest component lies in [1, 2): exact (a power of two), and it makes "parallel"
         // mean a component below 2e-30 of the largest, so a ray whose direction is tiny (or
         // huge) overall is traversed like its unit twin. Triangles see the ray unscaled.
-        let dir = ray.dir;
-        let (scale, unscale) = pow2_scales(dir.x.abs().max(dir.y.abs()).max(dir.z.abs()));
-        let inv = (dir * scale).to_array().map(safe_recip);
-        let parallel = inv.map(|r| r.abs() >= PARALLEL_INV);
-        let o = ray.origin.to_array();
-        let tmax = finite(ray.tmax.min(f32::MAX) * unscale);
-        let tmin = finite(ray.tmin * unscale);
+        let pr = PlaneRay::new(ray);
         // [lo, hi]: the ray's interval in the current cell, widened (widen_lo, widen_hi).
-        let Some((mut lo, mut hi)) = self.root_interval(o, inv, parallel, tmin, tmax) else {
+        let Some((mut lo, mut hi)) = pr.root_interval(&self.bounds) else {
             stats.nodes += 1;
             return best;
         };
         let wr = WatertightRay::new(ray.dir);
         let reject_near = robustness.rejects_near_hits_of(ray);
-        let mut prune = tmax;
+        let mut prune = pr.tmax;
         // Pending far children with their intervals: at most one per level.
-        let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_KD_DEPTH];
-        let mut sp = 0usize;
+        let mut stack = PlaneStack::<MAX_KD_DEPTH>::new();
         let mut idx = 0usize;
         let mut mailbox = [MISS; MAILBOX];
         let mut slot = 0usize;
@@ -157,7 +115,8 @@ impl KdTree {
                 let (k, s) = (node.axis(), node.split());
                 let (below, above) = (idx + 1, node.above());
                 let (below_empty, above_empty) = node.empty_children();
-                let (near, far, near_empty, far_empty) = if inv[k] > 0.0 {
+                let (o, inv) = (pr.o[k], pr.inv[k]);
+                let (near, far, near_empty, far_empty) = if inv > 0.0 {
                     (below, above, below_empty, above_empty)
                 } else {
                     (above, below, above_empty, below_empty)
@@ -165,15 +124,15 @@ impl KdTree {
                 // Which children the interval reaches, and the plane's widened distance
                 // (dl, dh) to cut it with. On an axis the ray is parallel to, the origin's
                 // side decides (both sides when it lies on the plane), the interval stays.
-                let (reach_near, reach_far, dl, dh) = if parallel[k] {
-                    let (on_below, on_above) = (o[k] <= s, o[k] >= s);
-                    if inv[k] > 0.0 {
+                let (reach_near, reach_far, dl, dh) = if pr.parallel(k) {
+                    let (on_below, on_above) = (o <= s, o >= s);
+                    if inv > 0.0 {
                         (on_below, on_above, lo, hi)
                     } else {
                         (on_above, on_below, lo, hi)
                     }
                 } else {
-                    let d = finite((s - o[k]) * inv[k]);
+                    let d = finite((s - o) * inv);
                     (d >= lo, d <= hi, widen_lo(d), widen_hi(d))
                 };
                 // Empty leaves are not visited: they hold nothing to test.
@@ -181,8 +140,7 @@ impl KdTree {
                 let visit_far = reach_far && !far_empty;
                 if visit_near {
                     if visit_far {
-                        stack[sp] = (far as u32, if dl > lo { dl } else { lo }, hi);
-                        sp += 1;
+                        stack.push(far, if dl > lo { dl } else { lo }, hi);
                         if dh < hi {
                             hi = dh;
                         }
@@ -230,21 +188,14 @@ impl KdTree {
                     if query == Query::Any {
                         return best;
                     }
-                    prune = finite(h.prune() * unscale);
+                    prune = pr.scaled(h.prune());
                 }
             }
             // Next: the nearest pending node whose entry is not beyond the best hit.
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let (i, l, h) = stack[sp];
-                if l <= prune {
-                    (idx, lo, hi) = (i as usize, l, h);
-                    break;
-                }
-            }
+            let Some((i, l, h)) = stack.pop_within(prune) else {
+                return best;
+            };
+            (idx, lo, hi) = (i, l, h);
         }
     }
 }
