@@ -53,6 +53,22 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `lancer rays`: the default view of `model`, `width`×`height` rays, written to `out` (the
+/// ray file most tests trace); fails the test unless it succeeds.
+fn view_rays(model: &Path, width: u32, height: u32, out: &Path) {
+    let (w, h) = (width.to_string(), height.to_string());
+    lancer_ok(&[
+        "rays",
+        s(model),
+        "--width",
+        &w,
+        "--height",
+        &h,
+        "-o",
+        s(out),
+    ]);
+}
+
 /// `--build-on gpu` builds the LBVH on the adapter (lavapipe in CI): the same tree as the
 /// CPU's, saying where; any other builder is refused as a usage error.
 #[test]
@@ -674,16 +690,7 @@ fn compare_tells_equal_from_different_images_and_hit_files() {
     lancer_ok(&["compare", s(&a), s(&b), "--tolerance", "5"]);
     let rays = d.path("r.bin");
     let (ha, hb) = (d.path("a.hits"), d.path("b.hits"));
-    lancer_ok(&[
-        "rays",
-        s(&quad),
-        "--width",
-        "16",
-        "--height",
-        "16",
-        "-o",
-        s(&rays),
-    ]);
+    view_rays(&quad, 16, 16, &rays);
     lancer_ok(&[
         "trace",
         s(&quad),
@@ -1009,16 +1016,7 @@ fn bad_wgpu_environment_is_refused_under_auto_too() {
 /// The quad mesh and a ray file of its default view, 4×4 (r.bin), in `d`.
 fn quad_with_rays(d: &Scratch) -> (PathBuf, PathBuf) {
     let (quad, rays) = (d.quad(), d.path("r.bin"));
-    lancer_ok(&[
-        "rays",
-        s(&quad),
-        "--width",
-        "4",
-        "--height",
-        "4",
-        "-o",
-        s(&rays),
-    ]);
+    view_rays(&quad, 4, 4, &rays);
     (quad, rays)
 }
 
@@ -1032,16 +1030,7 @@ fn trace_json(
 ) -> (serde_json::Value, String) {
     let quad = dir.quad();
     let (rays, hits) = (dir.path("tj.rays"), dir.path("tj.hits"));
-    lancer_ok(&[
-        "rays",
-        s(&quad),
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "-o",
-        s(&rays),
-    ]);
+    view_rays(&quad, 8, 8, &rays);
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_lancer"));
     cmd.args(global)
         .args(["trace", s(&quad), "--rays", s(&rays), "--out", s(&hits)])
@@ -1264,16 +1253,7 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
         d.path("h.png"),
     );
     let heat = d.path("heat.png");
-    lancer_ok(&[
-        "rays",
-        s(&quad),
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "-o",
-        s(&rays),
-    ]);
+    view_rays(&quad, 8, 8, &rays);
     lancer_ok(&[
         "heatmap",
         s(&quad),
@@ -1736,16 +1716,7 @@ fn a_gltf_mesh_drawn_by_several_nodes_is_traced_in_two_levels() {
     let scene = dir.path("four.gltf");
     std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
     let rays = dir.path("four.rays");
-    lancer_ok(&[
-        "rays",
-        s(&scene),
-        "--width",
-        "40",
-        "--height",
-        "30",
-        "-o",
-        s(&rays),
-    ]);
+    view_rays(&scene, 40, 30, &rays);
     let trace = |device: &str, extra: &[&str]| {
         let hits = dir.path(&format!("{device}{}.hits", extra.len()));
         let mut args = vec![

@@ -1785,6 +1785,15 @@ fn huge_coordinates_work_or_are_refused_with_the_range() {
             let h_gpu = s.path(&format!("{stem}-gpu.hits"));
             let png = s.path(&format!("{stem}.png"));
             let m = mesh.to_str().unwrap().to_string();
+            // `trace` of the aimed rays on `device`, the hits to `hits`: a finite hit file.
+            let trace = |device: &str, hits: &Path| -> (Vec<String>, Box<ModelCheck>) {
+                let args = with(
+                    &[&"trace", &m, &"--rays", &rays, &"--out", &hits],
+                    &["--device", device],
+                );
+                let hits = hits.to_path_buf();
+                (args, Box::new(move || finite_hit_file(&hits)))
+            };
             let runs: Vec<(Vec<String>, Box<ModelCheck>)> = vec![
                 (
                     vec!["build".into(), m.clone(), "--json".into()],
@@ -1806,38 +1815,8 @@ fn huge_coordinates_work_or_are_refused_with_the_range() {
                         move || finite_ray_file(&r_out)
                     }),
                 ),
-                (
-                    vec![
-                        "trace".into(),
-                        m.clone(),
-                        "--rays".into(),
-                        rays.to_str().unwrap().into(),
-                        "--out".into(),
-                        h_cpu.to_str().unwrap().into(),
-                        "--device".into(),
-                        "cpu".into(),
-                    ],
-                    Box::new({
-                        let h = h_cpu.clone();
-                        move || finite_hit_file(&h)
-                    }),
-                ),
-                (
-                    vec![
-                        "trace".into(),
-                        m.clone(),
-                        "--rays".into(),
-                        rays.to_str().unwrap().into(),
-                        "--out".into(),
-                        h_gpu.to_str().unwrap().into(),
-                        "--device".into(),
-                        "gpu".into(),
-                    ],
-                    Box::new({
-                        let h = h_gpu.clone();
-                        move || finite_hit_file(&h)
-                    }),
-                ),
+                trace("cpu", &h_cpu),
+                trace("gpu", &h_gpu),
                 (
                     with(
                         &[&"render", &m, &"-o", &png],
