@@ -10,8 +10,15 @@
 mod bench_common;
 mod common;
 
-use common::accel_check::{brute_force, check, quad_plane, same_as_bvh};
-use common::hard::{chain_centres, corner_cascade, edge_rays};
+use common::accel_check::{
+    assert_closest_is_brute_force, check, check_against, no_leaks_at_shared_edges, same_as_bvh,
+    smallest_index_at_nearest_t,
+};
+use common::hard::{
+    chain_centres, coincident_stacks, corner_cascade, edge_rays, grid, soup_on_a_grid,
+    split_plane_rays, stack_rays,
+};
+use common::speed::{bvh_entrant, race, Entrant};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bih::{Bih, BihNode, BihOptions, BIH_LEAF_TAG, MAX_BIH_DEPTH};
@@ -20,7 +27,7 @@ use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Ray, Triangle};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, Verdict};
+use lancer::trace::oracle::Truths;
 use lancer::{Query, RayStats, Robustness};
 
 fn bih(mesh: &Mesh) -> Bih {
@@ -141,8 +148,7 @@ fn random_soups_against_the_oracle_and_the_bvh() {
             let (agree, _) = check(&name, &mesh, &tree, &rays);
             assert!(agree > 2500);
             assert_eq!(same_as_bvh(&name, &mesh, &tree, &rays), 0);
-            let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-            assert_eq!(hits, brute_force(&mesh, &rays), "{name}: BIH ≠ brute force");
+            assert_closest_is_brute_force(&name, &mesh, &tree, &rays);
         }
     }
 }
@@ -168,7 +174,7 @@ fn parallel_build_equals_serial_build() {
 
 #[test]
 fn rays_at_shared_edges_and_vertices_never_leak() {
-    let (mesh, targets) = quad_plane(24, 0.37);
+    let (mesh, targets) = grid(24, 0.37);
     for max_leaf in [1, 4] {
         let tree = Bih::build(
             &mesh,
@@ -182,27 +188,16 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
         let mut rng = Rng::new(11);
         let c = mesh.bounds().center();
         let rays = edge_rays(&mut rng, c, &targets);
-        let rob = Robustness::default();
-        for query in [Query::Closest, Query::Any] {
-            let (hits, _) = tree.trace_batch(&rays, query, &rob);
-            let leaks = hits.iter().filter(|h| !h.is_hit()).count();
-            println!("plane {query:?}: {} rays, {leaks} leaks", rays.len());
-            assert_eq!(leaks, 0, "rays through shared edges and vertices leaked");
-        }
-        check("plane edges", &mesh, &tree, &rays);
         // Where two triangles meet at the ray, equal t goes to the smaller index even when
         // the two sit in different leaves.
-        let (hits, _) = tree.trace_batch(&rays, Query::Closest, &rob);
-        assert_eq!(hits, brute_force(&mesh, &rays), "plane: BIH ≠ brute force");
+        no_leaks_at_shared_edges("plane edges", &mesh, &tree, &rays);
     }
 }
 
 #[test]
 fn axis_parallel_rays_on_clip_planes() {
     let mut rng = Rng::new(21);
-    let mut tris = soup(&mut rng, 1500, 0.25).triangles;
-    tris.extend(quad_plane(8, 0.25).0.triangles);
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = soup_on_a_grid(&mut rng);
     let tree = bih(&mesh);
     // Both planes of every node: the left child's maximum and the right child's minimum.
     let planes: Vec<(usize, f32)> = tree
@@ -211,42 +206,10 @@ fn axis_parallel_rays_on_clip_planes() {
         .flat_map(|(k, l, r)| [(k, l), (k, r)])
         .collect();
     assert!(planes.len() > 200);
-    let b = mesh.bounds();
-    let mut rays = Vec::new();
-    for i in 0..4000 {
-        let (axis, pos) = planes[rng.u64() as usize % planes.len()];
-        // An origin on the plane, inside or outside the bounds.
-        let mut o = b.lo + (b.hi - b.lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
-        o += rng.vec3(-0.3, 0.3) * (i % 2) as f32;
-        o[axis] = pos;
-        let mut d = Vec3::ZERO;
-        match i % 4 {
-            // Along an axis in the plane, or across it.
-            0 => d[(axis + 1 + (i / 4) % 2) % 3] = if rng.f32() < 0.5 { 1.0 } else { -1.0 },
-            1 => d[axis] = if rng.f32() < 0.5 { 2.0 } else { -0.5 },
-            // Within the plane, any direction; the axis component ±0.
-            2 => {
-                d = rng.dir();
-                d[axis] = if i % 8 == 2 { 0.0 } else { -0.0 };
-            }
-            // Another axis-parallel direction, an origin on a second plane too.
-            _ => {
-                let (a2, p2) = planes[rng.u64() as usize % planes.len()];
-                o[a2] = p2;
-                d[rng.u64() as usize % 3] = 1.0;
-            }
-        }
-        let tmin = if i % 5 == 0 { -1.0 } else { 0.0 };
-        rays.push(Ray::new(o, d, tmin, 3.4e38));
-    }
+    let rays = split_plane_rays(&mut rng, &mesh, &planes, 4000);
     check("axis-parallel on clip planes", &mesh, &tree, &rays);
     same_as_bvh("axis-parallel on clip planes", &mesh, &tree, &rays);
-    let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-    assert_eq!(
-        hits,
-        brute_force(&mesh, &rays),
-        "axis-parallel: BIH ≠ brute force"
-    );
+    assert_closest_is_brute_force("axis-parallel on clip planes", &mesh, &tree, &rays);
 }
 
 #[test]
@@ -254,25 +217,7 @@ fn coincident_triangles_keep_the_tie_rule() {
     // k copies of one triangle at several depths, indices interleaved between the stacks,
     // among random triangles: the answer must be the smallest index at the nearest t.
     let mut rng = Rng::new(31);
-    let mut tris = soup(&mut rng, 400, 0.1).triangles;
-    let shape = [
-        Vec3::new(-0.9, -0.9, 0.0),
-        Vec3::new(0.9, -0.7, 0.0),
-        Vec3::new(-0.6, 0.9, 0.0),
-    ];
-    let depths = [0.3f32, -0.2, 0.05, 0.7];
-    for copy in 0..6 {
-        for (s, &z) in depths.iter().enumerate() {
-            if copy < 3 + s {
-                let dz = Vec3::new(0.0, 0.0, z);
-                tris.insert(
-                    (rng.u64() as usize) % tris.len(),
-                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
-                );
-            }
-        }
-    }
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = coincident_stacks(&mut rng);
     // Leaves of one triangle put every copy in a leaf of its own (median splits).
     for max_leaf in [1, 4] {
         let tree = Bih::build(
@@ -284,45 +229,17 @@ fn coincident_triangles_keep_the_tie_rule() {
         )
         .unwrap();
         validate(&mesh, &tree, max_leaf);
-        let mut rays = Vec::new();
-        for i in 0..2000 {
-            let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
-            let o = if i % 3 == 0 {
-                Vec3::new(target.x, target.y, 2.0)
-            } else {
-                Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
-            };
-            rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
-        }
+        let rays = stack_rays(&mut rng, 2000);
+        let truths = Truths::new(&mesh, &rays);
         let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-        let mut exact = 0;
-        for (r, h) in rays.iter().zip(&hits) {
-            let Some((_, prim)) = oracle::closest(&mesh, r) else {
-                continue;
-            };
-            if h.prim == prim {
-                exact += 1;
-                continue;
-            }
-            let v = judge(&mesh, r, h);
-            assert!(
-                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-                "{r:?}: the BIH reports {} but the oracle's smallest index at the nearest t \
-                 is {prim} ({v:?})",
-                h.prim
-            );
-        }
+        let exact = smallest_index_at_nearest_t("the BIH", &truths, &hits);
         println!(
             "coincident, leaves ≤ {max_leaf}: {exact} of {} rays exactly the oracle's index",
             rays.len()
         );
         assert!(exact > 1800);
-        check("coincident", &mesh, &tree, &rays);
-        assert_eq!(
-            hits,
-            brute_force(&mesh, &rays),
-            "coincident: BIH ≠ brute force"
-        );
+        check_against("coincident", &truths, &tree);
+        assert_closest_is_brute_force("coincident", &mesh, &tree, &rays);
     }
 }
 
@@ -367,8 +284,7 @@ fn the_depth_cap_holds_and_keeps_leaves_small() {
         let name = format!("cascade, cap {max_depth:?}");
         let (agree, _) = check(&name, &mesh, &tree, &rays);
         assert!(agree > 1000);
-        let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-        assert_eq!(hits, brute_force(&mesh, &rays), "{name}: BIH ≠ brute force");
+        assert_closest_is_brute_force(&name, &mesh, &tree, &rays);
     }
 }
 
@@ -515,16 +431,7 @@ fn bunny_speed_and_million_builds() {
     pool.install(|| {
         if let Some(mesh) = load_model("stanford-bunny.obj") {
             let rays = Camera::default_view(&mesh.bounds(), 1024, 1024).primary_rays();
-            let rob = Robustness::default();
-            let mut all: Vec<(String, Box<dyn Accel>, f64)> = Vec::new();
-            let t = Instant::now();
-            let bvh = build(
-                AccelKind::Bvh(lancer::LayoutKind::DfsSign),
-                &mesh,
-                &BuildOptions::default(),
-            )
-            .unwrap();
-            all.push(("bvh".into(), bvh, t.elapsed().as_secs_f64()));
+            let mut all: Vec<Entrant> = vec![bvh_entrant(&mesh)];
             let t = Instant::now();
             let kd = KdTree::build(&mesh, &Default::default()).unwrap();
             all.push(("kdtree".into(), Box::new(kd), t.elapsed().as_secs_f64()));
@@ -542,30 +449,11 @@ fn bunny_speed_and_million_builds() {
             }
             let mut rng = Rng::new(17);
             let incoherent = random_rays(&mut rng, 1 << 20, &mesh);
-            for (what, rays) in [("primary 1024²", &rays), ("random 2²⁰", &incoherent)] {
-                let mut best = vec![0.0f64; all.len()];
-                let mut work = vec![(0.0, 0.0); all.len()];
-                for _ in 0..5 {
-                    for (i, (_, a, _)) in all.iter().enumerate() {
-                        let t = Instant::now();
-                        let (_, stats) = a.trace_batch(rays, Query::Closest, &rob);
-                        let m = rays.len() as f64 / t.elapsed().as_secs_f64() / 1e6;
-                        best[i] = best[i].max(m);
-                        work[i] = RayStats::means(&stats);
-                    }
-                }
-                for (i, (name, _, b)) in all.iter().enumerate() {
-                    println!(
-                        "{what}, {name}: {:.2} Mrays/s ({:.2}× the BVH), {:.1} nodes, {:.2} \
-                         triangle tests per ray; build {:.1} ms",
-                        best[i],
-                        best[i] / best[0],
-                        work[i].0,
-                        work[i].1,
-                        b * 1e3
-                    );
-                }
-            }
+            let sets = [
+                ("primary 1024²", &rays[..]),
+                ("random 2²⁰", &incoherent[..]),
+            ];
+            race(&all, &sets, 5, |b| format!("{:.1} ms", b * 1e3));
         }
         let mut rng = Rng::new(5);
         for (name, mesh) in [
@@ -586,16 +474,10 @@ fn bunny_speed_and_million_builds() {
                     tree.stats()
                 );
             }
-            let t = Instant::now();
-            let bvh = build(
-                AccelKind::Bvh(lancer::LayoutKind::DfsSign),
-                &mesh,
-                &BuildOptions::default(),
-            )
-            .unwrap();
+            let (_, bvh, secs) = bvh_entrant(&mesh);
             println!(
                 "{name}: the default BVH builds (and flattens) in {:.1} ms",
-                t.elapsed().as_secs_f64() * 1e3,
+                secs * 1e3,
             );
             drop(bvh);
         }

@@ -10,7 +10,9 @@
 
 mod common;
 
-use common::accel_check::{brute_force, check, check_against, same_as_bvh};
+use common::accel_check::{
+    brute_force, check, check_against, same_as_bvh, smallest_index_at_nearest_t,
+};
 use common::hard::{coincident_stacks, edge_rays, extreme_rays, grid, invalid_rays, stack_rays};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
@@ -19,7 +21,7 @@ use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::{Ray, Triangle, TriangleTest};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, Truths, Verdict};
+use lancer::trace::oracle::{self, Truths};
 use lancer::{Query, RayStats, Robustness};
 
 /// Every structure of the registry over `mesh`, with its default options, and the BVH once
@@ -145,23 +147,7 @@ fn coincident_triangles_keep_the_tie_rule() {
     let truths = oracle::Truths::new(&mesh, &rays);
     for (kind, accel) in every_structure(&mesh) {
         let (hits, _) = accel.trace_batch(&rays, Query::Closest, &Robustness::default());
-        let mut exact = 0;
-        for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
-            let Some((_, prim)) = truths.closest(i) else {
-                continue;
-            };
-            if h.prim == prim {
-                exact += 1;
-                continue;
-            }
-            let v = truths.judge(i, h);
-            assert!(
-                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-                "{kind}: {r:?} reports {} but the oracle's smallest index at the nearest t \
-                 is {prim} ({v:?})",
-                h.prim
-            );
-        }
+        let exact = smallest_index_at_nearest_t(&kind.to_string(), &truths, &hits);
         assert!(exact > 1800, "{kind}: {exact} exact");
         assert!(hits == brute, "{kind}: not the brute force's hits");
     }

@@ -10,16 +10,16 @@ mod common;
 use std::collections::HashMap;
 use std::time::Instant;
 
+use common::accel_check::default_bvh;
+use common::speed::{bvh_entrant, thread_cpu_ns};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
-use lancer::accel::build;
-use lancer::accel::bvh::BuildOptions;
 use lancer::accel::grid::{GridOptions, GridStats, HashedGrid, TwoLevelGrid, UniformGrid};
 use lancer::camera::Camera;
 use lancer::geometry::{Hit, Ray, Triangle, TriangleTest};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{self, judge, judge_any, Verdict};
-use lancer::{Accel, AccelKind, Query, RayStats, Robustness};
+use lancer::{Accel, Query, RayStats, Robustness};
 use rayon::prelude::*;
 
 /// A built grid, its name and its stats.
@@ -103,12 +103,7 @@ struct Counts {
 /// tie, and prints the counts.
 fn check_with(name: &str, mesh: &Mesh, rays: &[Ray], opts: &GridOptions) -> Vec<Counts> {
     let rob = Robustness::default();
-    let bvh = build(
-        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
-        mesh,
-        &BuildOptions::default(),
-    )
-    .unwrap();
+    let bvh = default_bvh(mesh);
     let (bvh_hits, _) = bvh.trace_batch(rays, Query::Closest, &rob);
     let built = grids(mesh, opts);
     let traced: Vec<_> = built
@@ -728,14 +723,8 @@ fn bench_bunny() {
         let opts = GridOptions::default();
         let rob = Robustness::default();
         let mut accels: Vec<(&str, Box<dyn Accel>, f64)> = Vec::new();
-        let t = Instant::now();
-        let bvh = build(
-            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
-            &mesh,
-            &BuildOptions::default(),
-        )
-        .unwrap();
-        accels.push(("bvh (dfs-sign)", bvh, t.elapsed().as_secs_f64()));
+        let (_, bvh, secs) = bvh_entrant(&mesh);
+        accels.push(("bvh (dfs-sign)", bvh, secs));
         let t = Instant::now();
         let u = UniformGrid::build(&mesh, &opts).unwrap();
         let tu = t.elapsed().as_secs_f64();
@@ -785,12 +774,4 @@ fn bench_bunny() {
             );
         }
     });
-}
-
-/// CPU time of this thread in ns (Linux: /proc/thread-self/schedstat), 0 elsewhere.
-fn thread_cpu_ns() -> u64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse().ok())
-        .unwrap_or(0)
 }

@@ -6,19 +6,22 @@
 
 mod common;
 
-use common::accel_check::{brute_force, check, same_as_bvh};
-use common::hard::{
-    coincident_stacks, corner_rays, shrinking_corner, soup_on_a_grid, split_plane_rays, stack_rays,
+use common::accel_check::{
+    assert_closest_is_brute_force, check, check_against, same_as_bvh, smallest_index_at_nearest_t,
 };
+use common::hard::{
+    coincident_stacks, corner_rays, needles, shrinking_corner, soup_on_a_grid, split_plane_rays,
+    stack_rays,
+};
+use common::speed::{bvh_entrant, race, Entrant};
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
-use lancer::accel::bvh::BuildOptions;
 use lancer::accel::kdtree::{KdOptions, KdTree, MAX_KD_DEPTH};
-use lancer::accel::{build, Accel, AccelKind};
+use lancer::accel::Accel;
 use lancer::camera::Camera;
 use lancer::geometry::{Hit, Triangle};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, Verdict};
+use lancer::trace::oracle::Truths;
 use lancer::{Query, RayStats, Robustness};
 
 fn kd(mesh: &Mesh) -> KdTree {
@@ -60,12 +63,7 @@ fn axis_parallel_rays_on_split_planes() {
     let rays = split_plane_rays(&mut rng, &mesh, &planes, 4000);
     check("axis-parallel on split planes", &mesh, &tree, &rays);
     same_as_bvh("axis-parallel on split planes", &mesh, &tree, &rays);
-    let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-    assert_eq!(
-        hits,
-        brute_force(&mesh, &rays),
-        "axis-parallel: kd ≠ brute force"
-    );
+    assert_closest_is_brute_force("axis-parallel on split planes", &mesh, &tree, &rays);
 }
 
 #[test]
@@ -84,35 +82,16 @@ fn coincident_triangles_keep_the_tie_rule() {
     ] {
         let tree = KdTree::build(&mesh, &opts).unwrap();
         let rays = stack_rays(&mut rng, 2000);
+        let truths = Truths::new(&mesh, &rays);
         let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-        let mut exact = 0;
-        for (r, h) in rays.iter().zip(&hits) {
-            let Some((_, prim)) = oracle::closest(&mesh, r) else {
-                continue;
-            };
-            if h.prim == prim {
-                exact += 1;
-                continue;
-            }
-            let v = judge(&mesh, r, h);
-            assert!(
-                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-                "{r:?}: kd-tree reports {} but the oracle's smallest index at the nearest t is \
-                 {prim} ({v:?})",
-                h.prim
-            );
-        }
+        let exact = smallest_index_at_nearest_t("the kd-tree", &truths, &hits);
         println!(
             "coincident: {exact} of {} rays exactly the oracle's index",
             rays.len()
         );
         assert!(exact > 1800);
-        check("coincident", &mesh, &tree, &rays);
-        assert_eq!(
-            hits,
-            brute_force(&mesh, &rays),
-            "coincident: kd ≠ brute force"
-        );
+        check_against("coincident", &truths, &tree);
+        assert_closest_is_brute_force("coincident", &mesh, &tree, &rays);
     }
 }
 
@@ -133,22 +112,8 @@ fn a_tree_at_the_depth_cap_traces_within_its_stack() {
     assert_eq!(s.depth_cap, MAX_KD_DEPTH);
     assert!(s.max_depth > 40 && s.max_depth <= MAX_KD_DEPTH, "{s:?}");
     let rays = corner_rays(&mut rng, &mesh);
-    let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
     check("deep", &mesh, &tree, &rays);
-    assert_eq!(hits, brute_force(&mesh, &rays), "deep: kd ≠ brute force");
-}
-
-/// `n` needles: thin triangles across the whole scene in random directions, which every
-/// split duplicates.
-fn needles(rng: &mut Rng, n: usize) -> Mesh {
-    let tris = (0..n)
-        .map(|_| {
-            let a = rng.vec3(-1.0, 1.0);
-            let b = -a + rng.vec3(-0.1, 0.1);
-            Triangle::new(a, b, b + rng.vec3(-0.06, 0.06))
-        })
-        .collect();
-    Mesh::from_triangles(tris)
+    assert_closest_is_brute_force("deep", &mesh, &tree, &rays);
 }
 
 #[test]
@@ -261,17 +226,8 @@ fn bunny_speed_against_the_bvh() {
         .build()
         .unwrap();
     let rays = Camera::default_view(&mesh.bounds(), 1024, 1024).primary_rays();
-    let rob = Robustness::default();
     pool.install(|| {
-        let mut all: Vec<(String, Box<dyn Accel>, f64)> = Vec::new();
-        let t = Instant::now();
-        let bvh = build(
-            AccelKind::Bvh(lancer::LayoutKind::DfsSign),
-            &mesh,
-            &BuildOptions::default(),
-        )
-        .unwrap();
-        all.push(("bvh".into(), bvh, t.elapsed().as_secs_f64()));
+        let mut all: Vec<Entrant> = vec![bvh_entrant(&mesh)];
         // Variants as K_I:λ:max_depth, comma-separated (0 = the automatic depth cap).
         let variants =
             std::env::var("KD_VARIANTS").unwrap_or_else(|_| "1.5:0.8:0,1:0.8:0,2:0.8:0".into());
@@ -291,28 +247,10 @@ fn bunny_speed_against_the_bvh() {
         }
         let mut rng = Rng::new(17);
         let incoherent = random_rays(&mut rng, 1 << 20, &mesh);
-        for (what, rays) in [("primary 1024²", &rays), ("random 2²⁰", &incoherent)] {
-            let mut best = vec![0.0f64; all.len()];
-            let mut work = vec![(0.0, 0.0); all.len()];
-            for _ in 0..10 {
-                for (i, (_, a, _)) in all.iter().enumerate() {
-                    let t = Instant::now();
-                    let (_, stats) = a.trace_batch(rays, Query::Closest, &rob);
-                    let m = rays.len() as f64 / t.elapsed().as_secs_f64() / 1e6;
-                    best[i] = best[i].max(m);
-                    work[i] = RayStats::means(&stats);
-                }
-            }
-            for (i, (name, _, b)) in all.iter().enumerate() {
-                println!(
-                    "{what}, {name}: {:.2} Mrays/s ({:.2}× the BVH), {:.1} nodes, {:.2} \
-                     triangle tests per ray; build {b:.3} s",
-                    best[i],
-                    best[i] / best[0],
-                    work[i].0,
-                    work[i].1
-                );
-            }
-        }
+        let sets = [
+            ("primary 1024²", &rays[..]),
+            ("random 2²⁰", &incoherent[..]),
+        ];
+        race(&all, &sets, 10, |b| format!("{b:.3} s"));
     });
 }

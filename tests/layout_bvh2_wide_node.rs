@@ -10,8 +10,11 @@
 
 mod common;
 
-use common::accel_check::brute_force;
-use common::hard::edge_rays;
+use common::accel_check::{
+    assert_closest_is_brute_force, check, check_against, no_leaks_at_shared_edges,
+    smallest_index_at_nearest_t,
+};
+use common::hard::{coincident_stacks, edge_rays, grid, stack_rays};
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::layouts::{flatten, LayoutKind};
@@ -22,63 +25,13 @@ use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Ray, Triangle};
 use lancer::gpu::BvhMemory;
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, judge_any, Verdict};
+use lancer::trace::oracle::Truths;
 use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
 
 const WIDE: LayoutKind = LayoutKind::Bvh2WideNode;
 
 fn wide(mesh: &Mesh) -> Box<dyn Accel> {
     build(AccelKind::Bvh(WIDE), mesh, &BuildOptions::default()).expect("builds")
-}
-
-/// Judges closest and any-hit answers for every ray; fails on any wrong one. Returns the
-/// closest-hit answers the oracle agrees with exactly.
-fn check(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> usize {
-    let rob = Robustness::default();
-    let mut exact = 0;
-    for query in [Query::Closest, Query::Any] {
-        let (hits, _) = accel.trace_batch(rays, query, &rob);
-        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-        for (r, h) in rays.iter().zip(&hits) {
-            let v = match query {
-                Query::Closest => judge(mesh, r, h),
-                Query::Any => judge_any(mesh, r, h),
-            };
-            match v {
-                Verdict::Agree => agree += 1,
-                Verdict::Tie(_) => tie += 1,
-                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
-            }
-        }
-        println!(
-            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
-            wrong.len()
-        );
-        assert!(
-            wrong.is_empty(),
-            "{name} {query:?}: {} wrong, first: {}",
-            wrong.len(),
-            wrong[0]
-        );
-        if query == Query::Closest {
-            exact = agree;
-        }
-    }
-    exact
-}
-
-fn assert_closest_is_brute_force(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) {
-    let (hits, _) = accel.trace_batch(rays, Query::Closest, &Robustness::default());
-    let want = brute_force(mesh, rays);
-    let differ: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != want[i]).collect();
-    assert!(
-        differ.is_empty(),
-        "{name}: {} rays differ from the brute force; first {:?}: {:?} vs {:?}",
-        differ.len(),
-        rays[differ[0]],
-        hits[differ[0]],
-        want[differ[0]]
-    );
 }
 
 #[test]
@@ -88,7 +41,7 @@ fn random_soups_against_the_oracle_and_the_brute_force() {
         let mesh = soup(&mut rng, 2000, 0.2);
         let rays = random_rays(&mut rng, 3000, &mesh);
         let accel = wide(&mesh);
-        let exact = check(&format!("soup {seed}"), &mesh, accel.as_ref(), &rays);
+        let (exact, _) = check(&format!("soup {seed}"), &mesh, accel.as_ref(), &rays);
         assert!(exact > 2500);
         assert_closest_is_brute_force(&format!("soup {seed}"), &mesh, accel.as_ref(), &rays);
     }
@@ -111,7 +64,7 @@ fn bunny_against_the_oracle_and_dfs_sign() {
     // The oracle tests all 69,451 triangles per ray: few rays judged.
     check("bunny random", &mesh, accel.as_ref(), &rays[..200]);
     let cam = Camera::default_view(&mesh.bounds(), 16, 16);
-    let exact = check("bunny primary", &mesh, accel.as_ref(), &cam.primary_rays());
+    let (exact, _) = check("bunny primary", &mesh, accel.as_ref(), &cam.primary_rays());
     assert!(exact > 128);
     // Closest hits are order-independent: the same as dfs-sign's (same tree, same tests),
     // bit for bit, on many more rays.
@@ -138,30 +91,6 @@ fn bunny_against_the_oracle_and_dfs_sign() {
     }
 }
 
-/// An n×n grid of quads (two triangles each) in the plane z = 0, with irregular f32
-/// coordinates, and the points on its interior vertices and shared edges.
-fn grid(n: usize, step: f32) -> (Mesh, Vec<Vec3>) {
-    let p = |i: usize, j: usize| Vec3::new(i as f32 * step, j as f32 * step * 1.1, 0.0);
-    let mut tris = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
-            tris.push(Triangle::new(a, b, c));
-            tris.push(Triangle::new(a, c, d));
-        }
-    }
-    let mut targets = Vec::new();
-    for i in 1..n {
-        for j in 1..n {
-            targets.push(p(i, j));
-            targets.push(0.5 * (p(i, j) + p(i + 1, j + 1)));
-            targets.push(0.5 * (p(i, j) + p(i + 1, j)));
-            targets.push(0.5 * (p(i, j) + p(i, j + 1)));
-        }
-    }
-    (Mesh::from_triangles(tris), targets)
-}
-
 #[test]
 fn rays_at_shared_edges_and_vertices_never_leak() {
     let (mesh, targets) = grid(24, 0.37);
@@ -169,18 +98,8 @@ fn rays_at_shared_edges_and_vertices_never_leak() {
     let mut rng = Rng::new(11);
     let c = mesh.bounds().center();
     let rays = edge_rays(&mut rng, c, &targets);
-    let rob = Robustness::default();
-    for query in [Query::Closest, Query::Any] {
-        let (hits, _) = accel.trace_batch(&rays, query, &rob);
-        let leaks = hits.iter().filter(|h| !h.is_hit()).count();
-        assert_eq!(
-            leaks, 0,
-            "{query:?}: rays through shared edges and vertices leaked"
-        );
-    }
-    check("grid edges", &mesh, accel.as_ref(), &rays);
     // Equal t at a shared edge goes to the smaller index, even across leaves.
-    assert_closest_is_brute_force("grid edges", &mesh, accel.as_ref(), &rays);
+    no_leaks_at_shared_edges("grid edges", &mesh, accel.as_ref(), &rays);
 }
 
 /// Every node box's face planes (axis, position) of the tree the layout flattens.
@@ -230,7 +149,7 @@ fn axis_parallel_rays_on_child_box_faces() {
         let tmin = if i % 5 == 0 { -1.0 } else { 0.0 };
         rays.push(Ray::new(o, d, tmin, 3.4e38));
     }
-    let exact = check("axis-parallel", &mesh, accel.as_ref(), &rays);
+    let (exact, _) = check("axis-parallel", &mesh, accel.as_ref(), &rays);
     assert!(
         exact > 100,
         "{exact} hits judged exactly: the rays miss everything"
@@ -243,62 +162,20 @@ fn coincident_triangles_keep_the_tie_rule() {
     // Copies of one triangle at several depths, indices interleaved among random triangles,
     // so equal-t copies sit in different leaves visited in either order.
     let mut rng = Rng::new(31);
-    let mut tris = soup(&mut rng, 400, 0.1).triangles;
-    let shape = [
-        Vec3::new(-0.9, -0.9, 0.0),
-        Vec3::new(0.9, -0.7, 0.0),
-        Vec3::new(-0.6, 0.9, 0.0),
-    ];
-    for copy in 0..6 {
-        for (s, &z) in [0.3f32, -0.2, 0.05, 0.7].iter().enumerate() {
-            if copy < 3 + s {
-                let dz = Vec3::new(0.0, 0.0, z);
-                let at = (rng.u64() as usize) % tris.len();
-                tris.insert(
-                    at,
-                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
-                );
-            }
-        }
-    }
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = coincident_stacks(&mut rng);
     for max_leaf in [1, 16] {
         let opts = BuildOptions {
             max_leaf,
             ..BuildOptions::default()
         };
         let accel = build(AccelKind::Bvh(WIDE), &mesh, &opts).unwrap();
-        let mut rays = Vec::new();
-        for i in 0..2000 {
-            let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
-            let o = if i % 3 == 0 {
-                Vec3::new(target.x, target.y, 2.0)
-            } else {
-                Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
-            };
-            rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
-        }
+        let rays = stack_rays(&mut rng, 2000);
+        let truths = Truths::new(&mesh, &rays);
         let (hits, _) = accel.trace_batch(&rays, Query::Closest, &Robustness::default());
-        let mut exact = 0;
-        for (r, h) in rays.iter().zip(&hits) {
-            let Some((_, prim)) = oracle::closest(&mesh, r) else {
-                continue;
-            };
-            if h.prim == prim {
-                exact += 1;
-                continue;
-            }
-            let v = judge(&mesh, r, h);
-            assert!(
-                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-                "max_leaf {max_leaf}: {r:?}: reports {} but the oracle's smallest index at \
-                 the nearest t is {prim} ({v:?})",
-                h.prim
-            );
-        }
+        let exact = smallest_index_at_nearest_t(&format!("max_leaf {max_leaf}"), &truths, &hits);
         println!("coincident, max_leaf {max_leaf}: {exact} of 2000 rays exactly the oracle's");
         assert!(exact > 1800);
-        check("coincident", &mesh, accel.as_ref(), &rays);
+        check_against("coincident", &truths, accel.as_ref());
         assert_closest_is_brute_force("coincident", &mesh, accel.as_ref(), &rays);
     }
 }

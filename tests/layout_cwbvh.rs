@@ -10,6 +10,7 @@ mod common;
 
 use std::sync::Arc;
 
+use common::accel_check::check;
 use common::gpu_twin::same_on_gpu;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
@@ -30,42 +31,6 @@ fn cwbvh(mesh: &Mesh, opts: &BuildOptions) -> Cwbvh {
         .validate()
         .unwrap_or_else(|e| panic!("invalid layout: {e}"));
     layout
-}
-
-/// Judges closest and any-hit answers of the twin for every ray; fails on any wrong one.
-/// Returns (agree, ties) of the closest-hit answers.
-fn check(name: &str, mesh: &Mesh, layout: &Cwbvh, rays: &[Ray]) -> (usize, usize) {
-    let rob = Robustness::default();
-    let mut counts = (0, 0);
-    for query in [Query::Closest, Query::Any] {
-        let (hits, _) = layout.trace_batch(rays, query, &rob);
-        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-        for (r, h) in rays.iter().zip(&hits) {
-            let v = match query {
-                Query::Closest => judge(mesh, r, h),
-                Query::Any => judge_any(mesh, r, h),
-            };
-            match v {
-                Verdict::Agree => agree += 1,
-                Verdict::Tie(_) => tie += 1,
-                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
-            }
-        }
-        println!(
-            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
-            wrong.len()
-        );
-        assert!(
-            wrong.is_empty(),
-            "{name} {query:?}: {} wrong, first: {}",
-            wrong.len(),
-            wrong[0]
-        );
-        if query == Query::Closest {
-            counts = (agree, tie);
-        }
-    }
-    counts
 }
 
 /// The closest hits equal dfs-sign's bit for bit (the same triangle test on the same ray),

@@ -9,6 +9,8 @@ mod common;
 
 use std::sync::Arc;
 
+use common::accel_check::{judge_hits, smallest_index_at_nearest_t};
+use common::hard::{coincident_stacks, extreme_rays_up_to, grid, stack_rays};
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::layouts::{flatten, LayoutKind};
@@ -17,7 +19,7 @@ use lancer::accel::GpuForm;
 use lancer::camera::Camera;
 use lancer::geometry::{Aabb, Hit, Precision, Ray, Triangle};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, judge_any, Verdict};
+use lancer::trace::oracle::{self, Truths};
 use lancer::{Device, Query, RayStats, Robustness, Tracer, TracerOptions};
 
 fn layout(kind: LayoutKind, mesh: &Mesh) -> Box<dyn GpuForm> {
@@ -28,6 +30,7 @@ fn layout(kind: LayoutKind, mesh: &Mesh) -> Box<dyn GpuForm> {
 /// returns the closest hits and their work.
 fn check(name: &str, mesh: &Mesh, wide: &dyn GpuForm, rays: &[Ray]) -> (Vec<Hit>, Vec<RayStats>) {
     let rob = Robustness::default();
+    let truths = Truths::new(mesh, rays);
     let mut closest = None;
     for query in [Query::Closest, Query::Any] {
         let (hits, stats) = wide.trace_batch(rays, query, &rob);
@@ -39,28 +42,7 @@ fn check(name: &str, mesh: &Mesh, wide: &dyn GpuForm, rays: &[Ray]) -> (Vec<Hit>
                 .all(|(a, b)| *a == b),
             "{name}: trace_hits differs from trace_batch"
         );
-        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-        for (r, h) in rays.iter().zip(&hits) {
-            let v = match query {
-                Query::Closest => judge(mesh, r, h),
-                Query::Any => judge_any(mesh, r, h),
-            };
-            match v {
-                Verdict::Agree => agree += 1,
-                Verdict::Tie(_) => tie += 1,
-                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
-            }
-        }
-        println!(
-            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
-            wrong.len()
-        );
-        assert!(
-            wrong.is_empty(),
-            "{name} {query:?}: {} wrong, first: {}",
-            wrong.len(),
-            wrong[0]
-        );
+        judge_hits(name, &truths, query, &hits);
         if query == Query::Closest {
             closest = Some((hits, stats));
         }
@@ -167,28 +149,8 @@ fn f64_precision_gives_the_oracles_answers(kind: LayoutKind) {
     );
 }
 
-/// An n×n grid of quads (two triangles each) in the plane z = 0, with irregular f32
-/// coordinates; and points on its shared edges and vertices.
-fn grid(n: usize, step: f32) -> (Vec<Triangle>, Vec<Vec3>) {
-    let p = |i: usize, j: usize| Vec3::new(i as f32 * step, j as f32 * step * 1.1, 0.0);
-    let mut tris = Vec::new();
-    let mut targets = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
-            tris.push(Triangle::new(a, b, c));
-            tris.push(Triangle::new(a, c, d));
-            if i > 0 && j > 0 {
-                targets.extend([a, 0.5 * (a + c), 0.5 * (a + b), 0.5 * (a + d)]);
-            }
-        }
-    }
-    (tris, targets)
-}
-
 fn rays_at_shared_edges_and_vertices_never_leak(kind: LayoutKind) {
-    let (tris, targets) = grid(24, 0.37);
-    let mesh = Mesh::from_triangles(tris);
+    let (mesh, targets) = grid(24, 0.37);
     let wide = layout(kind, &mesh);
     let mut rng = Rng::new(11);
     let c = mesh.bounds().center();
@@ -217,7 +179,7 @@ fn axis_parallel_rays_on_box_planes(kind: LayoutKind) {
     // parallel-axis rule.
     let mut rng = Rng::new(21);
     let mut tris = soup(&mut rng, 1500, 0.25).triangles;
-    tris.extend(grid(8, 0.25).0);
+    tris.extend(grid(8, 0.25).0.triangles);
     let mesh = Mesh::from_triangles(tris);
     let wide = layout(kind, &mesh);
     let b = mesh.bounds();
@@ -254,59 +216,16 @@ fn coincident_triangles_keep_the_tie_rule(kind: LayoutKind) {
     // triangles: the answer is the smallest index at the nearest t, whichever child the
     // traversal visits first.
     let mut rng = Rng::new(31);
-    let mut tris = soup(&mut rng, 400, 0.1).triangles;
-    let shape = [
-        Vec3::new(-0.9, -0.9, 0.0),
-        Vec3::new(0.9, -0.7, 0.0),
-        Vec3::new(-0.6, 0.9, 0.0),
-    ];
-    for copy in 0..6 {
-        for (s, z) in [0.3f32, -0.2, 0.05, 0.7].into_iter().enumerate() {
-            if copy < 3 + s {
-                let dz = Vec3::new(0.0, 0.0, z);
-                let at = rng.u64() as usize % tris.len();
-                tris.insert(
-                    at,
-                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
-                );
-            }
-        }
-    }
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = coincident_stacks(&mut rng);
     // Small leaves: the copies spread over many leaves and nodes.
     let opts = BuildOptions {
         max_leaf: 2,
         ..BuildOptions::default()
     };
     let wide = flatten(kind, &build(&mesh, &opts), &mesh);
-    let mut rays = Vec::new();
-    for i in 0..2000 {
-        let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
-        let o = if i % 3 == 0 {
-            Vec3::new(target.x, target.y, 2.0)
-        } else {
-            Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
-        };
-        rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
-    }
+    let rays = stack_rays(&mut rng, 2000);
     let (hits, _) = check("coincident", &mesh, wide.as_ref(), &rays);
-    let mut exact = 0;
-    for (r, h) in rays.iter().zip(&hits) {
-        let Some((_, prim)) = oracle::closest(&mesh, r) else {
-            continue;
-        };
-        if h.prim == prim {
-            exact += 1;
-            continue;
-        }
-        let v = judge(&mesh, r, h);
-        assert!(
-            matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-            "{r:?}: {kind} reports {} but the oracle's smallest index at the nearest t is \
-             {prim} ({v:?})",
-            h.prim
-        );
-    }
+    let exact = smallest_index_at_nearest_t(&kind.to_string(), &Truths::new(&mesh, &rays), &hits);
     println!(
         "coincident: {exact} of {} rays exactly the oracle's index",
         rays.len()
@@ -336,33 +255,9 @@ fn invalid_and_extreme_rays_neither_hang_nor_panic(kind: LayoutKind) {
         assert!(!h.is_hit(), "{r:?}");
         assert_eq!(s, RayStats::default(), "{r:?}");
     }
-    let mut rays = Vec::new();
-    for i in 0..3000 {
-        let o = match i % 3 {
-            0 => rng.vec3(-1e12, 1e12),
-            1 => rng.vec3(-2.0, 2.0),
-            _ => rng.vec3(-1.0, 1.0) * 1e-30,
-        };
-        // Short directions, the largest component just above limits::MIN_DIR (the shortest
-        // valid one: tests/hard_cases.rs checks that limit in every layout).
-        let mut d = match i % 4 {
-            0 => rng.dir() * 1e-19,
-            1 => rng.dir() * 1e30,
-            _ => rng.dir(),
-        };
-        if i % 7 == 0 {
-            d.x = 0.0;
-        }
-        if i % 11 == 0 {
-            d.y = -1e-35;
-        }
-        let (tmin, tmax) = match i % 5 {
-            0 => (-3.4e38, 3.4e38),
-            1 => (0.0, f32::MAX),
-            _ => (0.0, 3.4e38),
-        };
-        rays.push(Ray::new(o, d, tmin, tmax));
-    }
+    // Short directions among them, the largest component just above limits::MIN_DIR (the
+    // shortest valid one: tests/hard_cases.rs checks that limit in every layout).
+    let rays = extreme_rays_up_to(&mut rng, 3000, f32::MAX);
     check("extreme rays", &mesh, wide.as_ref(), &rays);
     same_as_dfs_sign("extreme rays", &mesh, wide.as_ref(), &rays);
 }

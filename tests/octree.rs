@@ -5,8 +5,15 @@
 
 mod common;
 
-use common::accel_check::{brute_force, check, quad_plane, same_as_bvh};
-use common::hard::edge_rays;
+use common::accel_check::{
+    assert_closest_is_brute_force, check, check_against, no_leaks_at_shared_edges, same_as_bvh,
+    smallest_index_at_nearest_t,
+};
+use common::hard::{
+    coincident_stacks, corner_rays_by, edge_rays, grid, needles, shrinking_corner_by,
+    soup_on_a_grid, split_plane_rays, stack_rays,
+};
+use common::speed::thread_cpu_ns;
 use common::{load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::BuildOptions;
@@ -15,19 +22,11 @@ use lancer::accel::{build, Accel, AccelKind};
 use lancer::camera::Camera;
 use lancer::geometry::{Ray, Triangle};
 use lancer::mesh::Mesh;
-use lancer::trace::oracle::{self, judge, Verdict};
+use lancer::trace::oracle::{self, Truths};
 use lancer::{Query, RayStats, Robustness};
 
 fn oct(mesh: &Mesh) -> Octree {
     Octree::build(mesh, &OctreeOptions::default()).expect("octree builds")
-}
-
-fn assert_brute_force(name: &str, mesh: &Mesh, tree: &Octree, rays: &[Ray]) {
-    let (hits, _) = tree.trace_batch(rays, Query::Closest, &Robustness::default());
-    let truth = brute_force(mesh, rays);
-    for ((r, h), b) in rays.iter().zip(&hits).zip(&truth) {
-        assert_eq!(h, b, "{name}: octree ≠ brute force on {r:?}");
-    }
 }
 
 #[test]
@@ -51,7 +50,7 @@ fn random_soups_against_the_oracle_and_the_bvh() {
             let (agree, _) = check(&name, &mesh, &tree, &rays);
             assert!(agree > 2500);
             assert_eq!(same_as_bvh(&name, &mesh, &tree, &rays), 0);
-            assert_brute_force(&name, &mesh, &tree, &rays);
+            assert_closest_is_brute_force(&name, &mesh, &tree, &rays);
         }
     }
 }
@@ -80,67 +79,30 @@ fn one_thread_builds_the_same_tree() {
 
 #[test]
 fn rays_at_shared_edges_and_vertices_never_leak() {
-    let (mesh, targets) = quad_plane(24, 0.37);
+    let (mesh, targets) = grid(24, 0.37);
     let tree = oct(&mesh);
     assert!(tree.stats().max_depth >= 3, "{:?}", tree.stats());
     let mut rng = Rng::new(11);
     let c = mesh.bounds().center();
     let rays = edge_rays(&mut rng, c, &targets);
-    let rob = Robustness::default();
-    for query in [Query::Closest, Query::Any] {
-        let (hits, _) = tree.trace_batch(&rays, query, &rob);
-        let leaks = hits.iter().filter(|h| !h.is_hit()).count();
-        println!("grid {query:?}: {} rays, {leaks} leaks", rays.len());
-        assert_eq!(leaks, 0, "rays through shared edges and vertices leaked");
-    }
-    check("grid edges", &mesh, &tree, &rays);
     // Where two triangles meet at the ray, equal t goes to the smaller index even when the
     // two sit in different cells.
-    assert_brute_force("grid edges", &mesh, &tree, &rays);
+    no_leaks_at_shared_edges("grid edges", &mesh, &tree, &rays);
 }
 
 #[test]
 fn axis_parallel_rays_on_cell_planes() {
     let mut rng = Rng::new(21);
-    let mut tris = soup(&mut rng, 1500, 0.25).triangles;
-    let (g, _) = quad_plane(8, 0.25);
-    tris.extend(g.triangles);
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = soup_on_a_grid(&mut rng);
     let tree = oct(&mesh);
     let planes = tree.split_planes();
     assert!(planes.len() > 100);
-    let b = mesh.bounds();
-    let mut rays = Vec::new();
-    for i in 0..4000 {
-        let (axis, pos) = planes[rng.u64() as usize % planes.len()];
-        // An origin on the plane, inside or outside the bounds.
-        let mut o = b.lo + (b.hi - b.lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
-        o += rng.vec3(-0.3, 0.3) * (i % 2) as f32;
-        o[axis] = pos;
-        let mut d = Vec3::ZERO;
-        match i % 4 {
-            // Along an axis in the plane, or across it.
-            0 => d[(axis + 1 + (i / 4) % 2) % 3] = if rng.f32() < 0.5 { 1.0 } else { -1.0 },
-            1 => d[axis] = if rng.f32() < 0.5 { 2.0 } else { -0.5 },
-            // Within the plane, any direction; the axis component ±0.
-            2 => {
-                d = rng.dir();
-                d[axis] = if i % 8 == 2 { 0.0 } else { -0.0 };
-            }
-            // Another axis-parallel direction, an origin on a second plane too (often
-            // through a line where two of a cell's mid-planes meet).
-            _ => {
-                let (a2, p2) = planes[rng.u64() as usize % planes.len()];
-                o[a2] = p2;
-                d[rng.u64() as usize % 3] = 1.0;
-            }
-        }
-        let tmin = if i % 5 == 0 { -1.0 } else { 0.0 };
-        rays.push(Ray::new(o, d, tmin, 3.4e38));
-    }
+    // Every fourth ray starts on two planes (often on a line where two of a cell's
+    // mid-planes meet).
+    let rays = split_plane_rays(&mut rng, &mesh, &planes, 4000);
     check("axis-parallel on cell planes", &mesh, &tree, &rays);
     same_as_bvh("axis-parallel on cell planes", &mesh, &tree, &rays);
-    assert_brute_force("axis-parallel on cell planes", &mesh, &tree, &rays);
+    assert_closest_is_brute_force("axis-parallel on cell planes", &mesh, &tree, &rays);
 }
 
 #[test]
@@ -149,25 +111,7 @@ fn coincident_triangles_keep_the_tie_rule() {
     // among random triangles: the answer must be the smallest index at the nearest t. Small
     // leaves split the copies' cells as far as they can be split.
     let mut rng = Rng::new(31);
-    let mut tris = soup(&mut rng, 400, 0.1).triangles;
-    let shape = [
-        Vec3::new(-0.9, -0.9, 0.0),
-        Vec3::new(0.9, -0.7, 0.0),
-        Vec3::new(-0.6, 0.9, 0.0),
-    ];
-    let depths = [0.3f32, -0.2, 0.05, 0.7];
-    for copy in 0..6 {
-        for (s, &z) in depths.iter().enumerate() {
-            if copy < 3 + s {
-                let dz = Vec3::new(0.0, 0.0, z);
-                tris.insert(
-                    (rng.u64() as usize) % tris.len(),
-                    Triangle::new(shape[0] + dz, shape[1] + dz, shape[2] + dz),
-                );
-            }
-        }
-    }
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = coincident_stacks(&mut rng);
     for opts in [
         OctreeOptions::default(),
         OctreeOptions {
@@ -179,41 +123,17 @@ fn coincident_triangles_keep_the_tie_rule() {
     ] {
         let tree = Octree::build(&mesh, &opts).unwrap();
         println!("coincident, {opts:?}: {:?}", tree.stats());
-        let mut rays = Vec::new();
-        for i in 0..2000 {
-            let target = Vec3::new(rng.range(-0.6, 0.4), rng.range(-0.6, 0.4), 0.0);
-            let o = if i % 3 == 0 {
-                Vec3::new(target.x, target.y, 2.0)
-            } else {
-                Vec3::new(rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), -2.0)
-            };
-            rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
-        }
+        let rays = stack_rays(&mut rng, 2000);
+        let truths = Truths::new(&mesh, &rays);
         let (hits, _) = tree.trace_batch(&rays, Query::Closest, &Robustness::default());
-        let mut exact = 0;
-        for (r, h) in rays.iter().zip(&hits) {
-            let Some((_, prim)) = oracle::closest(&mesh, r) else {
-                continue;
-            };
-            if h.prim == prim {
-                exact += 1;
-                continue;
-            }
-            let v = judge(&mesh, r, h);
-            assert!(
-                matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
-                "{r:?}: the octree reports {} but the oracle's smallest index at the nearest \
-                 t is {prim} ({v:?})",
-                h.prim
-            );
-        }
+        let exact = smallest_index_at_nearest_t("the octree", &truths, &hits);
         println!(
             "coincident: {exact} of {} rays give the oracle's index",
             rays.len()
         );
         assert!(exact > 1800);
-        check("coincident", &mesh, &tree, &rays);
-        assert_brute_force("coincident", &mesh, &tree, &rays);
+        check_against("coincident", &truths, &tree);
+        assert_closest_is_brute_force("coincident", &mesh, &tree, &rays);
     }
 }
 
@@ -287,7 +207,7 @@ fn coplanar_triangles_on_a_mid_plane_at_exactly_equal_t() {
     }
     println!("{coplanar} rays meet the coplanar triangles first");
     assert!(coplanar > 1000);
-    assert_brute_force("coplanar at equal t", &mesh, &tree, &rays);
+    assert_closest_is_brute_force("coplanar at equal t", &mesh, &tree, &rays);
 }
 
 #[test]
@@ -327,17 +247,7 @@ fn a_tree_at_the_depth_cap_traces_within_its_stack() {
     // Triangles shrinking geometrically towards a corner, with clutter, leaves of one
     // triangle and a cap above the largest: the tree reaches MAX_OCTREE_DEPTH.
     let mut rng = Rng::new(71);
-    let mut tris = soup(&mut rng, 300, 0.05).triangles;
-    for i in 0..300 {
-        let s = 0.9f32.powi(i / 3);
-        let c = Vec3::splat(s) + rng.vec3(-0.1, 0.1) * s;
-        tris.push(Triangle::new(
-            c,
-            c + Vec3::new(0.3 * s, 0.0, 0.0),
-            c + Vec3::new(0.0, 0.3 * s, 0.1 * s),
-        ));
-    }
-    let mesh = Mesh::from_triangles(tris);
+    let mesh = shrinking_corner_by(&mut rng, 0.9);
     let opts = OctreeOptions {
         max_depth: 100,
         leaf_size: 1,
@@ -349,15 +259,9 @@ fn a_tree_at_the_depth_cap_traces_within_its_stack() {
     println!("deep: {s:?}");
     assert_eq!(s.depth_cap, MAX_OCTREE_DEPTH);
     assert_eq!(s.max_depth, MAX_OCTREE_DEPTH, "{s:?}");
-    let mut rays = random_rays(&mut rng, 1000, &mesh);
-    for i in 0..1000 {
-        let s = 0.9f32.powi((i % 300) / 3);
-        let target = Vec3::splat(s * 1.05);
-        let o = target + rng.dir() * 4.0 * s;
-        rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
-    }
+    let rays = corner_rays_by(&mut rng, &mesh, 0.9);
     check("deep", &mesh, &tree, &rays);
-    assert_brute_force("deep", &mesh, &tree, &rays);
+    assert_closest_is_brute_force("deep", &mesh, &tree, &rays);
 }
 
 /// Options that split every cell above the leaf size and the depth cap (no split test).
@@ -368,19 +272,6 @@ fn split_always(max_depth: usize, leaf_size: usize) -> OctreeOptions {
         traversal_cost: f32::NEG_INFINITY,
         ..OctreeOptions::default()
     }
-}
-
-/// `n` needles: thin triangles across the whole scene in random directions, which every
-/// split duplicates.
-fn needles(rng: &mut Rng, n: usize) -> Mesh {
-    let tris = (0..n)
-        .map(|_| {
-            let a = rng.vec3(-1.0, 1.0);
-            let b = -a + rng.vec3(-0.1, 0.1);
-            Triangle::new(a, b, b + rng.vec3(-0.06, 0.06))
-        })
-        .collect();
-    Mesh::from_triangles(tris)
 }
 
 #[test]
@@ -583,16 +474,7 @@ fn a_million_triangles_build_in_bounded_memory() {
     // Memory linear in the triangles: a few references each.
     assert!(s.references < 4 * s.triangles, "{s:?}");
     let rays = random_rays(&mut rng, 32, &mesh);
-    assert_brute_force("2²⁰ triangles", &mesh, &tree, &rays);
-}
-
-/// CPU time of this thread in ns (Linux: /proc/thread-self/schedstat), 0 elsewhere: what
-/// other processes on a shared machine change least.
-fn thread_cpu_ns() -> u64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse().ok())
-        .unwrap_or(0)
+    assert_closest_is_brute_force("2²⁰ triangles", &mesh, &tree, &rays);
 }
 
 /// The octree's options against build time, size and speed on the bunny, beside the BVH

@@ -1,11 +1,10 @@
 //! Judging any acceleration structure (`&dyn Accel`): against the f64 oracle, against the
-//! BVH, and against a brute-force pass with the tracers' own f32 test and tie rule; and a
-//! plane of quads whose shared edges and vertices rays must not leak through.
+//! BVH, and against a brute-force pass with the tracers' own f32 test and tie rule; and the
+//! tie rule on coincident triangles (the smallest index at the nearest t).
 
-use glam::Vec3;
 use lancer::accel::bvh::BuildOptions;
 use lancer::accel::{build, Accel, AccelKind};
-use lancer::geometry::{intersect_triangle_bounded, Hit, Ray, Triangle, WatertightRay};
+use lancer::geometry::{intersect_triangle_bounded, Hit, Ray, WatertightRay};
 use lancer::mesh::Mesh;
 use lancer::trace::oracle::{judge, judge_any, Truths, Verdict};
 use lancer::{Query, Robustness};
@@ -19,38 +18,87 @@ pub fn check(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> (usize
 /// [`check`] on the rays of `truths`, the oracle's search done once for every structure
 /// judged on them.
 pub fn check_against(name: &str, truths: &Truths, accel: &dyn Accel) -> (usize, usize) {
-    let (mesh, rays) = (truths.mesh(), truths.rays());
     let rob = Robustness::default();
     let mut counts = (0, 0);
     for query in [Query::Closest, Query::Any] {
-        let (hits, _) = accel.trace_batch(rays, query, &rob);
-        let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-        for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
-            let v = match query {
-                Query::Closest => truths.judge(i, h),
-                Query::Any => judge_any(mesh, r, h),
-            };
-            match v {
-                Verdict::Agree => agree += 1,
-                Verdict::Tie(_) => tie += 1,
-                Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
-            }
-        }
-        println!(
-            "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
-            wrong.len()
-        );
-        assert!(
-            wrong.is_empty(),
-            "{name} {query:?}: {} wrong, first: {}",
-            wrong.len(),
-            wrong[0]
-        );
+        let (hits, _) = accel.trace_batch(truths.rays(), query, &rob);
+        let judged = judge_hits(name, truths, query, &hits);
         if query == Query::Closest {
-            counts = (agree, tie);
+            counts = judged;
         }
     }
     counts
+}
+
+/// Judges `hits`, one `query` answer per ray of `truths`, however they were traced; prints
+/// the counts and fails on any wrong one. Returns (agree, ties): [`check_against`]'s
+/// judging, for callers that trace the batch themselves (to test more of it).
+pub fn judge_hits(name: &str, truths: &Truths, query: Query, hits: &[Hit]) -> (usize, usize) {
+    let (mesh, rays) = (truths.mesh(), truths.rays());
+    let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
+    for (i, (r, h)) in rays.iter().zip(hits).enumerate() {
+        let v = match query {
+            Query::Closest => truths.judge(i, h),
+            Query::Any => judge_any(mesh, r, h),
+        };
+        match v {
+            Verdict::Agree => agree += 1,
+            Verdict::Tie(_) => tie += 1,
+            Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
+        }
+    }
+    println!(
+        "{name} ({query:?}): {agree} agree, {tie} ties, {} wrong",
+        wrong.len()
+    );
+    assert!(
+        wrong.is_empty(),
+        "{name} {query:?}: {} wrong, first: {}",
+        wrong.len(),
+        wrong[0]
+    );
+    (agree, tie)
+}
+
+/// The tie rule on coincident triangles: every closest hit in `hits` (one per ray of
+/// `truths`) is the oracle's smallest index at the nearest t, or a genuine tie the oracle
+/// names (not two hits at exactly equal t, where the smaller index must win); `who` names
+/// the structure in the failure. Returns how many are exactly the oracle's index.
+pub fn smallest_index_at_nearest_t(who: &str, truths: &Truths, hits: &[Hit]) -> usize {
+    let mut exact = 0;
+    for (i, (r, h)) in truths.rays().iter().zip(hits).enumerate() {
+        let Some((_, prim)) = truths.closest(i) else {
+            continue;
+        };
+        if h.prim == prim {
+            exact += 1;
+            continue;
+        }
+        let v = truths.judge(i, h);
+        assert!(
+            matches!(v, Verdict::Tie(_)) && v != Verdict::Tie("two hits at equal t"),
+            "{who}: {r:?} reports {} but the oracle's smallest index at the nearest t is \
+             {prim} ({v:?})",
+            h.prim
+        );
+    }
+    exact
+}
+
+/// `accel`'s closest hits equal the [`brute_force`] pass's, bit for bit (equal t goes to the
+/// smaller index, whichever leaf or cell each sits in); names the first ray that differs.
+pub fn assert_closest_is_brute_force(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) {
+    let (hits, _) = accel.trace_batch(rays, Query::Closest, &Robustness::default());
+    let want = brute_force(mesh, rays);
+    let differ: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != want[i]).collect();
+    assert!(
+        differ.is_empty(),
+        "{name}: {} rays differ from the brute force; first {:?}: {:?} vs {:?}",
+        differ.len(),
+        rays[differ[0]],
+        hits[differ[0]],
+        want[differ[0]]
+    );
 }
 
 /// `accel`'s closest hits equal the BVH's, bit for bit, except where the oracle names a
@@ -58,12 +106,7 @@ pub fn check_against(name: &str, truths: &Truths, accel: &dyn Accel) -> (usize, 
 /// does not (counted and printed: a BVH bug). Returns that count.
 pub fn same_as_bvh(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> usize {
     let rob = Robustness::default();
-    let bvh = build(
-        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
-        mesh,
-        &BuildOptions::default(),
-    )
-    .unwrap();
+    let bvh = default_bvh(mesh);
     let (a, _) = accel.trace_batch(rays, Query::Closest, &rob);
     let (b, _) = bvh.trace_batch(rays, Query::Closest, &rob);
     let (mut differ, mut bvh_wrong) = (0, 0);
@@ -98,6 +141,16 @@ pub fn same_as_bvh(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) -> 
     bvh_wrong
 }
 
+/// The BVH every other structure is compared with: the default build in the dfs-sign layout.
+pub fn default_bvh(mesh: &Mesh) -> Box<dyn Accel> {
+    build(
+        AccelKind::Bvh(lancer::LayoutKind::DfsSign),
+        mesh,
+        &BuildOptions::default(),
+    )
+    .unwrap()
+}
+
 /// Every triangle tested in index order with the tracers' own f32 test and tie rule (and
 /// their near-hit rejection): the answer a traversal must give bit for bit.
 pub fn brute_force(mesh: &Mesh, rays: &[Ray]) -> Vec<Hit> {
@@ -130,26 +183,21 @@ pub fn brute_force(mesh: &Mesh, rays: &[Ray]) -> Vec<Hit> {
         .collect()
 }
 
-/// An n×n grid of quads (two triangles each) in the plane z = 0 over [0, n·step]², with
-/// irregular f32 coordinates; and points on its shared vertices and edges (diagonals too).
-pub fn quad_plane(n: usize, step: f32) -> (Mesh, Vec<Vec3>) {
-    let p = |i: usize, j: usize| Vec3::new(i as f32 * step, j as f32 * step * 1.1, 0.0);
-    let mut tris = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
-            tris.push(Triangle::new(a, b, c));
-            tris.push(Triangle::new(a, c, d));
-        }
+/// Rays at the shared edges and vertices of a plane of triangles (`hard::edge_rays` at
+/// `hard::grid`'s targets) never leak: no closest or any-hit answer misses; the oracle
+/// judges every answer; and the closest hits are the brute force's (equal t at a shared
+/// edge goes to the smaller index, whichever leaf or cell each triangle sits in).
+pub fn no_leaks_at_shared_edges(name: &str, mesh: &Mesh, accel: &dyn Accel, rays: &[Ray]) {
+    let rob = Robustness::default();
+    for query in [Query::Closest, Query::Any] {
+        let (hits, _) = accel.trace_batch(rays, query, &rob);
+        let leaks = hits.iter().filter(|h| !h.is_hit()).count();
+        println!("{name} {query:?}: {} rays, {leaks} leaks", rays.len());
+        assert_eq!(
+            leaks, 0,
+            "{name} {query:?}: rays through shared edges and vertices leaked"
+        );
     }
-    let mut targets = Vec::new();
-    for i in 1..n {
-        for j in 1..n {
-            targets.push(p(i, j));
-            targets.push(0.5 * (p(i, j) + p(i + 1, j + 1)));
-            targets.push(0.5 * (p(i, j) + p(i + 1, j)));
-            targets.push(0.5 * (p(i, j) + p(i, j + 1)));
-        }
-    }
-    (Mesh::from_triangles(tris), targets)
+    check(name, mesh, accel, rays);
+    assert_closest_is_brute_force(name, mesh, accel, rays);
 }

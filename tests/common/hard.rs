@@ -1,5 +1,6 @@
-//! Hard cases for the kd-tree's and the BIH's tests (CPU and GPU): shared edges and vertices,
-//! coincident triangles, trees as deep as the stack, invalid and extreme rays.
+//! Hard cases for the spatial structures' tests (kd-tree, BIH, octree; CPU and GPU) and the
+//! layouts': shared edges and vertices, coincident triangles, trees as deep as the stack,
+//! needles every split duplicates, invalid and extreme rays.
 
 use glam::Vec3;
 use lancer::geometry::{Ray, Triangle};
@@ -9,7 +10,8 @@ use super::{random_rays, soup, Rng};
 
 /// An n×n grid of quads (two triangles each) in the plane z = 0 over [0, n·step]², with
 /// irregular f32 coordinates, and its interior vertices and interior edge midpoints (on
-/// shared edges, diagonals included).
+/// shared edges, diagonals included): the plane whose shared edges and vertices rays
+/// ([`edge_rays`]) must not leak through.
 pub fn grid(n: usize, step: f32) -> (Mesh, Vec<Vec3>) {
     let p = |i: usize, j: usize| Vec3::new(i as f32 * step, j as f32 * step * 1.1, 0.0);
     let mut tris = Vec::new();
@@ -59,11 +61,18 @@ pub fn coincident_stacks(rng: &mut Rng) -> Mesh {
 
 /// Triangles shrinking geometrically (to 1e-7) towards the origin along the diagonal, with
 /// clutter: an SAH kd-tree with a high K_I keeps splitting towards the corner down to the
-/// depth cap.
+/// depth cap. [`shrinking_corner_by`] with ratio 0.85.
 pub fn shrinking_corner(rng: &mut Rng) -> Mesh {
+    shrinking_corner_by(rng, 0.85)
+}
+
+/// 300 random triangles and 300 triangles shrinking by `ratio` every third one towards the
+/// origin along the diagonal (0.85: to 1e-7; the octree's 0.9: to 3e-5), which a structure
+/// splitting small cells keeps splitting towards the corner down to its depth cap.
+pub fn shrinking_corner_by(rng: &mut Rng, ratio: f32) -> Mesh {
     let mut tris = soup(rng, 300, 0.05).triangles;
     for i in 0..300 {
-        let s = 0.85f32.powi(i / 3);
+        let s = ratio.powi(i / 3);
         let c = Vec3::splat(s) + rng.vec3(-0.1, 0.1) * s;
         tris.push(Triangle::new(
             c,
@@ -93,6 +102,12 @@ pub fn invalid_rays() -> Vec<Ray> {
 /// `n` valid but extreme rays: origins up to 1e12 or down to 1e-30, directions of length
 /// 1e-19 (just above `limits::MIN_DIR`) or 1e30, zero and tiny components, intervals from −3.4e38 or up to +∞.
 pub fn extreme_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
+    extreme_rays_up_to(rng, n, f32::INFINITY)
+}
+
+/// [`extreme_rays`] whose open intervals (every fifth ray, from 0) end at `far` (+∞ there;
+/// f32::MAX in tests/layout_wide_bvh.rs) instead of 3.4e38.
+pub fn extreme_rays_up_to(rng: &mut Rng, n: usize, far: f32) -> Vec<Ray> {
     let mut rays = Vec::new();
     for i in 0..n {
         let o = match i % 3 {
@@ -113,7 +128,7 @@ pub fn extreme_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
         }
         let (tmin, tmax) = match i % 5 {
             0 => (-3.4e38, 3.4e38),
-            1 => (0.0, f32::INFINITY),
+            1 => (0.0, far),
             _ => (0.0, 3.4e38),
         };
         rays.push(Ray::new(o, d, tmin, tmax));
@@ -182,11 +197,16 @@ pub fn stack_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
 
 /// 1000 random rays through [`shrinking_corner`]'s mesh and 1000 at its small triangles
 /// from every side, from nearby (at a distance like their size: from afar, f32 cannot aim
-/// at a triangle 1e-15 across).
+/// at a triangle 1e-15 across). [`corner_rays_by`] with ratio 0.85.
 pub fn corner_rays(rng: &mut Rng, mesh: &Mesh) -> Vec<Ray> {
+    corner_rays_by(rng, mesh, 0.85)
+}
+
+/// [`corner_rays`] at the triangles of [`shrinking_corner_by`] with the same `ratio`.
+pub fn corner_rays_by(rng: &mut Rng, mesh: &Mesh, ratio: f32) -> Vec<Ray> {
     let mut rays = random_rays(rng, 1000, mesh);
     for i in 0..1000 {
-        let s = 0.85f32.powi((i % 300) / 3);
+        let s = ratio.powi((i % 300) / 3);
         let target = Vec3::splat(s * 1.05);
         let o = target + rng.dir() * 4.0 * s;
         rays.push(Ray::new(o, (target - o).normalize(), 0.0, 3.4e38));
@@ -263,4 +283,17 @@ pub fn edge_rays(rng: &mut Rng, centre: Vec3, targets: &[Vec3]) -> Vec<Ray> {
         rays.push(Ray::new(t - Vec3::Z * 5.0, Vec3::Z, 0.0, f32::INFINITY));
     }
     rays
+}
+
+/// `n` needles: thin triangles across the whole scene in random directions, which every
+/// split duplicates (the spatial structures' duplicated references and memory caps).
+pub fn needles(rng: &mut Rng, n: usize) -> Mesh {
+    let tris = (0..n)
+        .map(|_| {
+            let a = rng.vec3(-1.0, 1.0);
+            let b = -a + rng.vec3(-0.1, 0.1);
+            Triangle::new(a, b, b + rng.vec3(-0.06, 0.06))
+        })
+        .collect();
+    Mesh::from_triangles(tris)
 }

@@ -8,6 +8,7 @@ pub mod gpu_twin;
 pub mod hard;
 pub mod readers;
 pub mod scratch;
+pub mod speed;
 pub mod writers;
 
 use std::path::PathBuf;
