@@ -24,6 +24,15 @@ fn lancer_ok(args: &[&str]) -> Output {
     out
 }
 
+/// Runs lancer and fails the test unless it exits 2 (the input or the command line
+/// refused); returns its stderr, where the reason stands.
+fn lancer_refused(args: &[&str]) -> String {
+    let out = lancer(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    err
+}
+
 /// A folder of its own per test: tests run in parallel, and two of them rewriting one
 /// shared file let a third read it half-written.
 struct Scratch(tempfile::TempDir);
@@ -112,7 +121,7 @@ fn build_on_gpu_makes_the_cpus_lbvh_and_refuses_other_builders() {
     ] {
         assert_eq!(cpu[k], gpu[k], "{k}");
     }
-    let out = lancer(&[
+    let err = lancer_refused(&[
         "build",
         s(&mesh),
         "--builder",
@@ -120,8 +129,6 @@ fn build_on_gpu_makes_the_cpus_lbvh_and_refuses_other_builders() {
         "--build-on",
         "gpu",
     ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--builder lbvh"), "{err}");
 }
 
@@ -318,7 +325,7 @@ fn gltf_cameras_give_the_view_and_camera_picks_one() {
     );
     // An unknown camera names the ones there are; a scene file has its own.
     let out = dir.path("x.png");
-    let o = lancer(&[
+    let err = lancer_refused(&[
         "render",
         s(&g),
         "-o",
@@ -328,8 +335,6 @@ fn gltf_cameras_give_the_view_and_camera_picks_one() {
         "--device",
         "cpu",
     ]);
-    assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains(r#"the file's cameras are 0 "", 1 "Side""#),
         "{err}"
@@ -356,7 +361,7 @@ fn bad_input_is_one_line_and_exit_2() {
     let q = dir.quad();
     let r = dir.path("short.rays");
     std::fs::write(&r, [0u8; 33]).unwrap();
-    let out = lancer(&[
+    let err = lancer_refused(&[
         "trace",
         s(&q),
         "--rays",
@@ -364,22 +369,16 @@ fn bad_input_is_one_line_and_exit_2() {
         "--out",
         s(&dir.path("x.hits")),
     ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("not a multiple of 32"), "{err}");
 
     let bad = dir.path("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nv 1 1\n").unwrap();
-    let out = lancer(&["build", s(&bad)]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.obj:2:"));
+    assert!(lancer_refused(&["build", s(&bad)]).contains("bad.obj:2:"));
 
     let empty = dir.path("empty.obj");
     std::fs::write(&empty, "# nothing\n").unwrap();
-    let out = lancer(&["build", s(&empty)]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("no usable triangle"));
+    assert!(lancer_refused(&["build", s(&empty)]).contains("no usable triangle"));
 }
 
 #[test]
@@ -460,9 +459,7 @@ fn render_writes_exr_and_refuses_unknown_formats_before_rendering() {
     assert!(img.pixels().any(|p| p[0] > 0.99) && img.pixels().any(|p| p[0] < 0.9));
 
     let jpg = dir.path("ao.jpg");
-    let out = lancer(&[&["render", s(&ao), "-o", s(&jpg)][..], &small].concat());
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = lancer_refused(&[&["render", s(&ao), "-o", s(&jpg)][..], &small].concat());
     assert!(err.contains("unknown image type"), "{err}");
     assert!(!err.contains("spp ->"), "rendered before refusing: {err}");
     assert!(!jpg.exists());
@@ -492,8 +489,7 @@ fn bench_render_prints_both_kernels() {
     assert!(text.contains("effects: shadows textures"), "{text}");
     assert!(text.contains("median of 3"), "{text}");
     // A median needs samples to choose from: fewer than 3 is a usage error.
-    let out = lancer(&["bench", "render", s(&scene("textured.toml")), "--spp", "2"]);
-    assert_eq!(out.status.code(), Some(2));
+    lancer_refused(&["bench", "render", s(&scene("textured.toml")), "--spp", "2"]);
 }
 
 #[test]
@@ -560,9 +556,8 @@ fn check_compares_every_layout_on_the_gpu_with_its_twin() {
     assert!(text.contains("every answer agrees"), "{text}");
     // No GPU, no check, and never a silent pass on the CPU alone: --device cpu is a usage
     // error (exit 2; exit 1 is a disagreement or a device that fails to open).
-    let out = lancer(&["check", s(&teapot), "--device", "cpu"]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--device cpu leaves no GPU"));
+    assert!(lancer_refused(&["check", s(&teapot), "--device", "cpu"])
+        .contains("--device cpu leaves no GPU"));
 }
 
 #[test]
@@ -1486,11 +1481,10 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
     assert_eq!(v["runs"].as_array().unwrap().len(), 2, "{v}");
     assert!(String::from_utf8_lossy(&out.stdout).contains("| primary"));
     let before = std::fs::read(&quad).unwrap();
-    let out = lancer(&["bench", "layouts", "--json", s(&quad)]);
-    assert_eq!(out.status.code(), Some(2));
+    lancer_refused(&["bench", "layouts", "--json", s(&quad)]);
     assert_eq!(std::fs::read(&quad).unwrap(), before);
     // Two writers of stdout at once is a usage error.
-    let out = lancer(&[
+    lancer_refused(&[
         "trace",
         s(&quad),
         "--rays",
@@ -1499,7 +1493,6 @@ fn json_is_one_object_on_stdout_the_text_on_stderr_and_every_key_is_documented()
         "-",
         "--json",
     ]);
-    assert_eq!(out.status.code(), Some(2));
 }
 
 /// The names in the "Commands:" list of a help text (clap's own `help` left out).
@@ -1831,9 +1824,7 @@ fn render_frames_writes_a_numbered_sequence() {
     assert!(!out.exists() && !dir.path("f-0005.png").exists());
     let mut empty = args.to_vec();
     empty.extend(["--frames", "5..5", "-o", s(&out)]);
-    let refused = lancer(&empty);
-    assert_eq!(refused.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&refused.stderr).contains("no frame in 5..5"));
+    assert!(lancer_refused(&empty).contains("no frame in 5..5"));
 }
 
 /// `render FILE.gltf --frames A..` plays the file's animation to its last key at `--fps`;
