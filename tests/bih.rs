@@ -34,6 +34,15 @@ fn bih(mesh: &Mesh) -> Bih {
     Bih::build(mesh, &BihOptions::default()).expect("BIH builds")
 }
 
+/// The BIH of `mesh` with the default options but leaves of at most `max_leaf` triangles.
+fn bih_with_leaves(mesh: &Mesh, max_leaf: usize) -> Bih {
+    let opts = BihOptions {
+        max_leaf,
+        ..BihOptions::default()
+    };
+    Bih::build(mesh, &opts).unwrap()
+}
+
 /// Checks the arrays' invariants: depth-first order (left child next, right child after
 /// the left subtree), leaves covering the triangle array in order with 1..=`max_leaf`
 /// triangles, each inner node's planes exactly the max / min of its children's triangles
@@ -138,11 +147,7 @@ fn random_soups_against_the_oracle_and_the_bvh() {
         let mesh = soup(&mut rng, 2000, 0.2);
         let rays = random_rays(&mut rng, 3000, &mesh);
         for max_leaf in [1, 4] {
-            let opts = BihOptions {
-                max_leaf,
-                ..BihOptions::default()
-            };
-            let tree = Bih::build(&mesh, &opts).unwrap();
+            let tree = bih_with_leaves(&mesh, max_leaf);
             validate(&mesh, &tree, max_leaf);
             let name = format!("soup {seed}, leaves ≤ {max_leaf}");
             let (agree, _) = check(&name, &mesh, &tree, &rays);
@@ -176,14 +181,7 @@ fn parallel_build_equals_serial_build() {
 fn rays_at_shared_edges_and_vertices_never_leak() {
     let (mesh, targets) = grid(24, 0.37);
     for max_leaf in [1, 4] {
-        let tree = Bih::build(
-            &mesh,
-            &BihOptions {
-                max_leaf,
-                ..BihOptions::default()
-            },
-        )
-        .unwrap();
+        let tree = bih_with_leaves(&mesh, max_leaf);
         assert!(tree.stats().nodes > 100, "the plane is split");
         let mut rng = Rng::new(11);
         let c = mesh.bounds().center();
@@ -220,14 +218,7 @@ fn coincident_triangles_keep_the_tie_rule() {
     let mesh = coincident_stacks(&mut rng);
     // Leaves of one triangle put every copy in a leaf of its own (median splits).
     for max_leaf in [1, 4] {
-        let tree = Bih::build(
-            &mesh,
-            &BihOptions {
-                max_leaf,
-                ..BihOptions::default()
-            },
-        )
-        .unwrap();
+        let tree = bih_with_leaves(&mesh, max_leaf);
         validate(&mesh, &tree, max_leaf);
         let rays = stack_rays(&mut rng, 2000);
         let truths = Truths::new(&mesh, &rays);

@@ -9,7 +9,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::alike::assert_alike;
+use common::alike::{assert_alike, assert_gpu_renders_as_cpu};
 use common::gpu_device;
 use common::scratch::Scratch;
 use glam::Vec3;
@@ -100,12 +100,7 @@ fn the_gpu_renders_the_panel_as_the_cpu_does() {
         spp: Some(2),
         ..RenderOptions::default()
     };
-    let cpu = render(&scene, &Device::cpu(), &options)
-        .unwrap()
-        .image
-        .pixels;
-    let gpu = render(&scene, gpu_device(), &options).unwrap().image.pixels;
-    assert_alike("panel.glb, CPU vs GPU", &cpu, &gpu);
+    assert_gpu_renders_as_cpu("panel.glb, CPU vs GPU", &scene, &options);
 }
 
 /// The panel's JSON with its first material changed by `edit`, as a .gltf beside its

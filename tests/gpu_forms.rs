@@ -13,12 +13,12 @@ use std::sync::Arc;
 use common::gpu_twin::{bits, cpu_device, gpu_form, judged, same_on_gpu};
 use common::hard::{
     chain_centres, coincident_stacks, corner_cascade, corner_rays, extreme_rays, grid,
-    invalid_rays, shrinking_corner, soup_on_a_grid, split_plane_rays, stack_rays,
+    invalid_rays, kd_tree_at_the_depth_cap, soup_on_a_grid, split_plane_rays, stack_rays,
 };
 use common::{gpu_device, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bih::{Bih, BihOptions, MAX_BIH_DEPTH};
-use lancer::accel::kdtree::{KdOptions, KdTree, MAX_KD_DEPTH};
+use lancer::accel::kdtree::{KdOptions, KdTree};
 use lancer::accel::AccelKind;
 use lancer::accel::GpuForm;
 use lancer::geometry::Ray;
@@ -157,15 +157,7 @@ fn bih_axis_parallel_rays_on_clip_planes() {
 #[test]
 fn kdtree_at_the_depth_cap_stays_within_the_kernel_stack() {
     let mut rng = Rng::new(71);
-    let mesh = shrinking_corner(&mut rng);
-    let opts = KdOptions {
-        max_depth: Some(200),
-        intersection_cost: 20.0,
-        ..KdOptions::default()
-    };
-    let tree = KdTree::build(&mesh, &opts).unwrap();
-    let s = tree.stats();
-    assert!(s.max_depth > 40 && s.max_depth <= MAX_KD_DEPTH, "{s:?}");
+    let (mesh, tree) = kd_tree_at_the_depth_cap(&mut rng);
     let rays = corner_rays(&mut rng, &mesh);
     let hits = same_on_gpu(
         "deep",

@@ -10,8 +10,8 @@ use common::accel_check::{
     assert_closest_is_brute_force, check, check_against, same_as_bvh, smallest_index_at_nearest_t,
 };
 use common::hard::{
-    coincident_stacks, corner_rays, needles, shrinking_corner, soup_on_a_grid, split_plane_rays,
-    stack_rays,
+    coincident_stacks, corner_rays, kd_tree_at_the_depth_cap, needles, soup_on_a_grid,
+    split_plane_rays, stack_rays,
 };
 use common::speed::{bvh_entrant, race, Entrant};
 use common::{load_model, random_rays, soup, Rng};
@@ -100,17 +100,10 @@ fn a_tree_at_the_depth_cap_traces_within_its_stack() {
     // Triangles shrinking geometrically (to 1e-7) towards a corner, with clutter: the SAH keeps
     // splitting towards the corner until the cap, 64 levels asked for (more are refused).
     let mut rng = Rng::new(71);
-    let mesh = shrinking_corner(&mut rng);
-    let opts = KdOptions {
-        max_depth: Some(200),
-        intersection_cost: 20.0,
-        ..KdOptions::default()
-    };
-    let tree = KdTree::build(&mesh, &opts).unwrap();
+    let (mesh, tree) = kd_tree_at_the_depth_cap(&mut rng);
     let s = tree.stats();
     println!("deep: {s:?}");
     assert_eq!(s.depth_cap, MAX_KD_DEPTH);
-    assert!(s.max_depth > 40 && s.max_depth <= MAX_KD_DEPTH, "{s:?}");
     let rays = corner_rays(&mut rng, &mesh);
     check("deep", &mesh, &tree, &rays);
     assert_closest_is_brute_force("deep", &mesh, &tree, &rays);

@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use common::accel_check::check;
 use common::gpu_twin::same_on_gpu;
+use common::hard::height_field;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::layouts::{CwChild, Cwbvh, DfsSign};
@@ -127,26 +128,10 @@ fn flattening_an_owned_tree_writes_the_same_layout() {
     }
 }
 
-/// A height field of quads (two triangles each): many shared edges and vertices.
-fn grid(n: usize) -> Mesh {
-    let p = |i: usize, j: usize| {
-        let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
-        Vec3::new(x, y, 0.3 * (i as f32 * 0.37).sin())
-    };
-    let mut tris = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
-            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
-        }
-    }
-    Mesh::from_triangles(tris)
-}
-
 #[test]
 fn no_ray_leaks_through_shared_edges_or_vertices() {
     let n = 16;
-    let mesh = grid(n);
+    let mesh = height_field(n);
     let layout = cwbvh(&mesh, &BuildOptions::default());
     let mut rays = Vec::new();
     // Through every vertex and along every edge line at quarter steps, from oblique and
@@ -569,7 +554,7 @@ fn every_quantised_child_box_contains_its_exact_box() {
     let far = far.map(|t| Triangle::new(t.v[0] + 3e3, t.v[1] + 3e3, t.v[2] + 3e3));
     meshes.push(("far", Mesh::from_triangles(far.collect())));
     // Flat in z and spanning negative and positive coordinates, some zero-extent axes.
-    meshes.push(("grid", grid(24)));
+    meshes.push(("grid", height_field(24)));
     let axis = (0..500).map(|i| {
         let x = i as f32 * 0.01 - 2.5;
         Triangle::new(

@@ -2,6 +2,7 @@
 
 mod common;
 
+use common::hard::height_field;
 use glam::Vec3;
 use lancer::accel::bvh::BuildOptions;
 use lancer::accel::{build, Accel, AccelKind};
@@ -125,29 +126,10 @@ fn a_ray_asking_for_hits_behind_its_origin_gets_the_surface_it_starts_on() {
     }
 }
 
-/// A grid of quads (two triangles each) with many shared edges and vertices.
-fn grid(n: usize) -> Mesh {
-    let mut tris = Vec::new();
-    let p = |i: usize, j: usize| {
-        Vec3::new(
-            i as f32 / n as f32,
-            j as f32 / n as f32,
-            0.3 * (i as f32 * 0.37).sin(),
-        )
-    };
-    for i in 0..n {
-        for j in 0..n {
-            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
-            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
-        }
-    }
-    Mesh::from_triangles(tris)
-}
-
 #[test]
 fn watertight_no_ray_leaks_through_shared_edges_or_vertices() {
     let n = 16;
-    let mesh = grid(n);
+    let mesh = height_field(n);
     let f = flat(&mesh);
     let mut leaks = 0;
     let mut total = 0;
@@ -232,7 +214,7 @@ fn slab_test_is_robust() {
 
 #[test]
 fn bad_rays_are_misses_not_hangs() {
-    let mesh = grid(4);
+    let mesh = height_field(4);
     let f = flat(&mesh);
     let o = Vec3::new(0.5, 0.5, 1.0);
     for r in [
@@ -253,7 +235,7 @@ fn bad_rays_are_misses_not_hangs() {
 
 #[test]
 fn any_hit_finds_an_occluder_and_respects_the_interval() {
-    let mesh = grid(8);
+    let mesh = height_field(8);
     let f = flat(&mesh);
     let r = Ray::new(Vec3::new(0.4, 0.6, 2.0), Vec3::NEG_Z, 0.0, 10.0);
     let h = trace_ray(

@@ -4,6 +4,10 @@
 //! flattened copy's.
 
 use glam::Vec3;
+use lancer::render::{render, RenderOptions, RenderScene};
+use lancer::Device;
+
+use super::gpu_device;
 
 /// Asserts that at most 1 % of the pixels of `a` and `b` differ by more than 10⁻⁴
 /// (relative, against at least 0.01), printing how many are bit-identical and the worst.
@@ -22,4 +26,12 @@ pub fn assert_alike(what: &str, a: &[Vec3], b: &[Vec3]) {
         "{what}: {far} of {} pixels differ",
         a.len()
     );
+}
+
+/// Renders `scene` with `options` on the CPU and on the test's GPU and asserts the two
+/// images alike ([`assert_alike`]): a scene whose GPU kernel must do as the CPU does.
+pub fn assert_gpu_renders_as_cpu(what: &str, scene: &RenderScene, options: &RenderOptions) {
+    let cpu = render(scene, &Device::cpu(), options).unwrap().image.pixels;
+    let gpu = render(scene, gpu_device(), options).unwrap().image.pixels;
+    assert_alike(what, &cpu, &gpu);
 }

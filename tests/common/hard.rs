@@ -3,6 +3,7 @@
 //! needles every split duplicates, invalid and extreme rays.
 
 use glam::Vec3;
+use lancer::accel::kdtree::{KdOptions, KdTree, MAX_KD_DEPTH};
 use lancer::geometry::{Ray, Triangle};
 use lancer::mesh::Mesh;
 
@@ -195,6 +196,22 @@ pub fn stack_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
         .collect()
 }
 
+/// [`shrinking_corner`] (from `rng`) and its kd-tree at the depth cap: a high K_I (20) and
+/// 200 levels asked for, more than [`MAX_KD_DEPTH`] allows; checks that the tree is deeper
+/// than 40 levels and within the cap (what the CPU's and the GPU's stacks must hold).
+pub fn kd_tree_at_the_depth_cap(rng: &mut Rng) -> (Mesh, KdTree) {
+    let mesh = shrinking_corner(rng);
+    let opts = KdOptions {
+        max_depth: Some(200),
+        intersection_cost: 20.0,
+        ..KdOptions::default()
+    };
+    let tree = KdTree::build(&mesh, &opts).unwrap();
+    let s = tree.stats();
+    assert!(s.max_depth > 40 && s.max_depth <= MAX_KD_DEPTH, "{s:?}");
+    (mesh, tree)
+}
+
 /// 1000 random rays through [`shrinking_corner`]'s mesh and 1000 at its small triangles
 /// from every side, from nearby (at a distance like their size: from afar, f32 cannot aim
 /// at a triangle 1e-15 across). [`corner_rays_by`] with ratio 0.85.
@@ -295,5 +312,22 @@ pub fn needles(rng: &mut Rng, n: usize) -> Mesh {
             Triangle::new(a, b, b + rng.vec3(-0.06, 0.06))
         })
         .collect();
+    Mesh::from_triangles(tris)
+}
+
+/// An n×n height field of quads (two triangles each) over [0, 1]², z = 0.3·sin(0.37·i) along
+/// x: many shared edges and vertices, not in one plane.
+pub fn height_field(n: usize) -> Mesh {
+    let p = |i: usize, j: usize| {
+        let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+        Vec3::new(x, y, 0.3 * (i as f32 * 0.37).sin())
+    };
+    let mut tris = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
+            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
+        }
+    }
     Mesh::from_triangles(tris)
 }
