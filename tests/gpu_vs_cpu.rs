@@ -5,6 +5,7 @@
 
 mod common;
 
+use common::hard::nan_zero_and_empty_rays;
 use common::{gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::{BuildOptions, Builder};
@@ -318,16 +319,7 @@ fn every_variant_matches_the_cpu() {
 fn bad_rays_terminate_as_misses() {
     let mut rng = Rng::new(2);
     let mesh = soup(&mut rng, 500, 0.2);
-    let o = Vec3::ZERO;
-    let rays = vec![
-        Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 10.0),
-        Ray::new(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0, 10.0),
-        Ray::new(o, Vec3::ZERO, 0.0, 10.0),
-        Ray::new(o, Vec3::X, f32::NAN, 10.0),
-        Ray::new(o, Vec3::X, 0.0, f32::NAN),
-        Ray::new(o, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
-        Ray::new(o, Vec3::X, 5.0, 1.0),
-    ];
+    let rays = nan_zero_and_empty_rays();
     for &layout in LayoutKind::ALL {
         let options = TracerOptions {
             stats: true,

@@ -10,6 +10,7 @@ mod common;
 
 use std::sync::Arc;
 
+use common::hard::nan_zero_and_empty_rays;
 use common::{gpu, gpu_device, load_model, random_rays, soup, Rng};
 use glam::Vec3;
 use lancer::accel::bvh::build;
@@ -271,16 +272,7 @@ fn invalid_rays_and_partial_subgroups_end_as_misses() {
     let mut rng = Rng::new(3);
     let mesh = soup(&mut rng, 800, 0.2);
     let mut rays = random_rays(&mut rng, 1001, &mesh);
-    let o = Vec3::ZERO;
-    let bad = [
-        Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 10.0),
-        Ray::new(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0, 10.0),
-        Ray::new(o, Vec3::ZERO, 0.0, 10.0),
-        Ray::new(o, Vec3::X, f32::NAN, 10.0),
-        Ray::new(o, Vec3::X, 0.0, f32::NAN),
-        Ray::new(o, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
-        Ray::new(o, Vec3::X, 5.0, 1.0),
-    ];
+    let bad = nan_zero_and_empty_rays();
     // Invalid rays among valid ones in the same subgroups, and a subgroup of only invalid ones.
     for (k, r) in bad.iter().enumerate() {
         rays[13 * k + 1] = *r;

@@ -1,5 +1,5 @@
-//! Hard cases for the spatial structures' tests (kd-tree, BIH, octree; CPU and GPU) and the
-//! layouts': shared edges and vertices, coincident triangles, trees as deep as the stack,
+//! Hard cases for the spatial structures' tests (kd-tree, BIH, octree; CPU and GPU), the
+//! layouts' and the kernels': shared edges and vertices, coincident triangles, trees as deep as the stack,
 //! needles every split duplicates, invalid and extreme rays.
 
 use glam::Vec3;
@@ -97,6 +97,22 @@ pub fn invalid_rays() -> Vec<Ray> {
         Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 1.0),
         // Every component below limits::MIN_DIR.
         Ray::new(Vec3::ZERO, Vec3::new(1e-21, -1e-25, 1e-30), 0.0, f32::MAX),
+    ]
+}
+
+/// Seven invalid rays at the origin, interval [0, 10] unless named: a NaN origin, a NaN,
+/// zero or infinite direction, a NaN tmin or tmax, an empty interval [5, 1]. Every kernel
+/// answers them as misses without traversing (tests/gpu_vs_cpu.rs, tests/subgroup.rs).
+pub fn nan_zero_and_empty_rays() -> [Ray; 7] {
+    let o = Vec3::ZERO;
+    [
+        Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 10.0),
+        Ray::new(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0, 10.0),
+        Ray::new(o, Vec3::ZERO, 0.0, 10.0),
+        Ray::new(o, Vec3::X, f32::NAN, 10.0),
+        Ray::new(o, Vec3::X, 0.0, f32::NAN),
+        Ray::new(o, Vec3::new(f32::INFINITY, 0.0, 0.0), 0.0, 10.0),
+        Ray::new(o, Vec3::X, 5.0, 1.0),
     ]
 }
 
