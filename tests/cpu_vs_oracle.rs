@@ -3,6 +3,7 @@
 
 mod common;
 
+use common::accel_check::judge_hits;
 use common::{load_model, random_rays, soup, Rng};
 use lancer::accel::bvh::{BuildOptions, Builder};
 use lancer::accel::{build, AccelKind};
@@ -44,25 +45,8 @@ fn check_accel(
     };
     let accel = build(kind, mesh, &opts).unwrap();
     let (hits, _) = accel.trace_batch(rays, Query::Closest, &Robustness::default());
-    let (mut agree, mut tie, mut wrong) = (0, 0, Vec::new());
-    for (i, (r, h)) in rays.iter().zip(&hits).enumerate() {
-        match truths.judge(i, h) {
-            Verdict::Agree => agree += 1,
-            Verdict::Tie(_) => tie += 1,
-            Verdict::Wrong(w) => wrong.push(format!("{r:?}: {w}")),
-        }
-    }
-    println!(
-        "{name} ({builder:?}, {kind}): {agree} agree, {tie} ties, {} wrong",
-        wrong.len()
-    );
-    assert!(
-        wrong.is_empty(),
-        "{name}: {} wrong, first: {}",
-        wrong.len(),
-        wrong[0]
-    );
-    (agree, tie)
+    let name = format!("{name} ({builder:?}, {kind})");
+    judge_hits(&name, truths, Query::Closest, &hits)
 }
 
 #[test]
