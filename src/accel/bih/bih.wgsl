@@ -50,7 +50,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     let w = watertight_setup(r.dir);
     var hit_prune = min(r.tmax, BIG);
     var prune = plane_scaled(pr, hit_prune);
-    var stack: PlaneStack;
+    var stack: array<PlanePending, PLANE_STACK_SIZE>;
+    var sp = 0u;
     var idx = 0u;
     loop {
         let node = bih_load_node(idx);
@@ -86,7 +87,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             visit_far = visit_far && far_lo <= prune;
             if visit_near {
                 if visit_far {
-                    plane_push(&stack, far, far_lo, hi);
+                    stack[sp] = PlanePending(far, far_lo, hi);
+                    sp += 1u;
                 }
                 idx = near;
                 hi = near_hi;
@@ -105,15 +107,27 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             }
             prune = plane_scaled(pr, hit_prune);
         }
-        // Next: the nearest pending node whose entry is not beyond the best hit.
-        let popped = plane_pop(&stack, prune);
-        if !popped.found {
+        // Next: the nearest pending node whose entry is not beyond the best hit
+        // (PlaneStack::pop_within, inline: see plane_ray.wgsl).
+        var popped = false;
+        loop {
+            if sp == 0u {
+                break;
+            }
+            sp -= 1u;
+            let next = stack[sp];
+            if next.lo <= prune {
+                idx = next.node;
+                lo = next.lo;
+                hi = next.hi;
+                popped = true;
+                break;
+            }
+        }
+        if !popped {
             traversal_end(bitcast<u32>(r.tmax));
             break;
         }
-        idx = popped.next.node;
-        lo = popped.next.lo;
-        hi = popped.next.hi;
     }
     return best;
 }

@@ -55,7 +55,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
     var hi = root_interval.y;
     let w = watertight_setup(r.dir);
     var prune = pr.tmax;
-    var stack: PlaneStack;
+    var stack: array<PlanePending, PLANE_STACK_SIZE>;
+    var sp = 0u;
     var idx = 0u;
     var mail_lo = vec4<u32>(MISS);
     var mail_hi = vec4<u32>(MISS);
@@ -100,7 +101,8 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
             let visit_far = reach_far && !far_empty;
             if visit_near {
                 if visit_far {
-                    plane_push(&stack, far, select(lo, dl, dl > lo), hi);
+                    stack[sp] = PlanePending(far, select(lo, dl, dl > lo), hi);
+                    sp += 1u;
                     if dh < hi {
                         hi = dh;
                     }
@@ -150,15 +152,27 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 break;
             }
         }
-        // Next: the nearest pending node whose entry is not beyond the best hit.
-        let popped = plane_pop(&stack, prune);
-        if !popped.found {
+        // Next: the nearest pending node whose entry is not beyond the best hit
+        // (PlaneStack::pop_within, inline: see plane_ray.wgsl).
+        var popped = false;
+        loop {
+            if sp == 0u {
+                break;
+            }
+            sp -= 1u;
+            let next = stack[sp];
+            if next.lo <= prune {
+                idx = next.node;
+                lo = next.lo;
+                hi = next.hi;
+                popped = true;
+                break;
+            }
+        }
+        if !popped {
             traversal_end(bitcast<u32>(r.tmax));
             break;
         }
-        idx = popped.next.node;
-        lo = popped.next.lo;
-        hi = popped.next.hi;
     }
     return best;
 }
