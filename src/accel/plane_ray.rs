@@ -15,8 +15,8 @@ use crate::geometry::{prune_bound, safe_recip, Aabb, Ray, PARALLEL_INV};
 const PLANE_RAY_WGSL: &str = include_str!("plane_ray.wgsl");
 
 /// A plane traversal's WGSL source: its own `u32` constants (generated from their Rust
-/// definitions), `PLANE_STACK_SIZE` (its [`PlaneStack`]'s `N`, the structure's deepest
-/// level), this file's WGSL twin, then the traversal itself.
+/// definitions), `PLANE_STACK_SIZE` (the pending-node stack's size, the structure's
+/// deepest level), this file's WGSL twin, then the traversal itself.
 pub(crate) fn traversal_wgsl(consts: &[(&str, u32)], stack_size: usize, traversal: &str) -> String {
     let mut s = String::new();
     for (name, value) in consts
@@ -138,48 +138,5 @@ impl PlaneRay {
             tf = tf.min(widen_hi(b));
         }
         (tn <= tf).then_some((tn, tf))
-    }
-}
-
-/// The pending far children of a front-to-back plane traversal, each with the ray's
-/// interval in it: at most one per level, so `N` levels hold them all (a deeper tree is
-/// refused when built). The kernels (`bih.wgsl`, `kdtree.wgsl`) keep the same stack inline,
-/// an array of `PlanePending` (`plane_ray.wgsl`) and its length: a call to pop cost lavapipe
-/// 3–5 % of their rays/s.
-pub(crate) struct PlaneStack<const N: usize> {
-    entries: [(u32, f32, f32); N],
-    len: usize,
-}
-
-impl<const N: usize> PlaneStack<N> {
-    /// No node pending.
-    #[inline(always)]
-    pub fn new() -> Self {
-        PlaneStack {
-            entries: [(0, 0.0, 0.0); N],
-            len: 0,
-        }
-    }
-
-    /// Node `node`, to be visited later over [lo, hi].
-    #[inline(always)]
-    pub fn push(&mut self, node: usize, lo: f32, hi: f32) {
-        self.entries[self.len] = (node as u32, lo, hi);
-        self.len += 1;
-    }
-
-    /// The nearest pending node whose entry is not beyond `prune` (the best hit's prune
-    /// bound, scaled), with its interval; those beyond it are dropped on the way. None when
-    /// no node is left. WGSL: the kernels' loop after each node.
-    #[inline(always)]
-    pub fn pop_within(&mut self, prune: f32) -> Option<(usize, f32, f32)> {
-        while self.len > 0 {
-            self.len -= 1;
-            let (node, lo, hi) = self.entries[self.len];
-            if lo <= prune {
-                return Some((node as usize, lo, hi));
-            }
-        }
-        None
     }
 }

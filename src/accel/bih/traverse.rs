@@ -24,7 +24,7 @@
 
 use super::{Bih, MAX_BIH_DEPTH};
 use crate::accel::leaf_tri::{with_leaf_test, LeafRay};
-use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay, PlaneStack};
+use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay};
 use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
 
@@ -75,7 +75,8 @@ impl Bih {
         // (the leaf step keeps it unscaled in `hit_prune`).
         let mut hit_prune = ray.tmax.min(f32::MAX);
         let mut prune = pr.scaled(hit_prune);
-        let mut stack = PlaneStack::<MAX_BIH_DEPTH>::new();
+        let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_BIH_DEPTH];
+        let mut sp = 0usize;
         let mut idx = 0usize;
         loop {
             let node = self.nodes[idx];
@@ -113,7 +114,8 @@ impl Bih {
                 visit_far = visit_far && far_lo <= prune;
                 if visit_near {
                     if visit_far {
-                        stack.push(far, far_lo, hi);
+                        stack[sp] = (far as u32, far_lo, hi);
+                        sp += 1;
                     }
                     (idx, hi) = (near, near_hi);
                     continue;
@@ -138,10 +140,17 @@ impl Bih {
                 prune = pr.scaled(hit_prune);
             }
             // Next: the nearest pending node whose entry is not beyond the best hit.
-            let Some((i, l, h)) = stack.pop_within(prune) else {
-                return best;
-            };
-            (idx, lo, hi) = (i, l, h);
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let (i, l, h) = stack[sp];
+                if l <= prune {
+                    (idx, lo, hi) = (i as usize, l, h);
+                    break;
+                }
+            }
         }
     }
 }

@@ -152,8 +152,7 @@ fn traverse(r: Ray, any_hit: bool) -> Hit {
                 break;
             }
         }
-        // Next: the nearest pending node whose entry is not beyond the best hit
-        // (PlaneStack::pop_within, inline: see plane_ray.wgsl).
+        // Next: the nearest pending node whose entry is not beyond the best hit.
         var popped = false;
         loop {
             if sp == 0u {

@@ -38,7 +38,7 @@
 //! CPU's).
 
 use super::{KdTree, MAX_KD_DEPTH};
-use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay, PlaneStack};
+use crate::accel::plane_ray::{finite, widen_hi, widen_lo, PlaneRay};
 use crate::accel::{Accel, Mask, Query, RayStats};
 use crate::geometry::{
     intersect_triangle_bounded, Aabb, Hit, Ray, Robustness, TriangleTest, WatertightRay, MISS,
@@ -104,7 +104,8 @@ impl KdTree {
         let reject_near = robustness.rejects_near_hits_of(ray);
         let mut prune = pr.tmax;
         // Pending far children with their intervals: at most one per level.
-        let mut stack = PlaneStack::<MAX_KD_DEPTH>::new();
+        let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_KD_DEPTH];
+        let mut sp = 0usize;
         let mut idx = 0usize;
         let mut mailbox = [MISS; MAILBOX];
         let mut slot = 0usize;
@@ -140,7 +141,8 @@ impl KdTree {
                 let visit_far = reach_far && !far_empty;
                 if visit_near {
                     if visit_far {
-                        stack.push(far, if dl > lo { dl } else { lo }, hi);
+                        stack[sp] = (far as u32, if dl > lo { dl } else { lo }, hi);
+                        sp += 1;
                         if dh < hi {
                             hi = dh;
                         }
@@ -192,10 +194,17 @@ impl KdTree {
                 }
             }
             // Next: the nearest pending node whose entry is not beyond the best hit.
-            let Some((i, l, h)) = stack.pop_within(prune) else {
-                return best;
-            };
-            (idx, lo, hi) = (i, l, h);
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let (i, l, h) = stack[sp];
+                if l <= prune {
+                    (idx, lo, hi) = (i as usize, l, h);
+                    break;
+                }
+            }
         }
     }
 }
