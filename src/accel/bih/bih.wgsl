@@ -4,7 +4,7 @@
 // for step: same operations in the same order, so hits and statistics agree bit for bit.
 // BIH_LEAF_TAG, BIH_LINK_SHIFT and PLANE_STACK_SIZE (MAX_BIH_DEPTH) are generated in front
 // from their Rust definitions (gpu.rs), followed by plane_ray.wgsl (the root box Bih::bounds
-// in its overrides, the ray, the stack).
+// in its overrides, the ray, the stack's entries).
 
 // bih::BihNode. Inner: clip = [left child's maximum, right child's minimum],
 // link = right child << BIH_LINK_SHIFT | axis (the left child is the next node), count = 0.

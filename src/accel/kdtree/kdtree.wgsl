@@ -5,7 +5,7 @@
 // KD_LEAF_TAG, KD_BELOW_EMPTY, KD_ABOVE_EMPTY, KD_ABOVE_SHIFT, KD_COUNT_SHIFT, KD_MAILBOX and
 // PLANE_STACK_SIZE (MAX_KD_DEPTH) are generated in front from their Rust definitions (gpu.rs),
 // followed by plane_ray.wgsl (the root cell KdTree::bounds in its overrides, the ray, the
-// stack).
+// stack's entries).
 
 // The mailbox is two vec4<u32> (no loop: lavapipe caps the loop iterations of a ray).
 const_assert KD_MAILBOX == 8u;
