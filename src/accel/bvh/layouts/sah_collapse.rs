@@ -14,16 +14,18 @@
 
 use std::sync::atomic::{AtomicU32, Ordering};
 
-/// The binary tree the programme runs on: nodes `0..len()`, children before parents.
+/// The binary tree the programme runs on, its nodes named by `Id`s that the plan's
+/// decisions are indexed by.
 pub(crate) trait BinaryTree {
+    /// A node's name.
+    type Id: Copy + Send + Sync;
     /// Node n's two children, none for a leaf.
-    fn kids(&self, n: u32) -> Option<[u32; 2]>;
-    /// Triangles beneath node n.
-    fn tris(&self, n: u32) -> u32;
+    fn kids(&self, n: Self::Id) -> Option<[Self::Id; 2]>;
+    /// Node n's place in the plan's decisions and in [`Plan::count`]'s counts.
+    fn index(&self, n: Self::Id) -> usize;
+    /// Whether n's subtree is big enough to be counted on several threads.
+    fn big(&self, n: Self::Id) -> bool;
 }
-
-/// Subtrees of at least this many triangles are counted on several threads.
-const PARALLEL_TRIS: u32 = 16384;
 
 /// Zeroed counts for [`Plan::count`], one per binary node, made on all threads.
 pub(crate) fn zeroed_counts(len: usize) -> Vec<AtomicU32> {
@@ -134,12 +136,12 @@ impl<const W: usize> Plan<W> {
 
     /// The children of the wide internal node made from `n`: (binary node, is a wide
     /// leaf), at most W. A binary leaf (a one-leaf tree) is its own only child.
-    pub fn children(&self, tree: &impl BinaryTree, n: u32) -> Children<W> {
-        let mut out = Children::EMPTY;
+    pub fn children<T: BinaryTree>(&self, tree: &T, n: T::Id) -> Children<T::Id, W> {
+        let mut out = Children::new(n);
         match tree.kids(n) {
             None => out.push((n, true)),
             Some([l, r]) => {
-                let k = self.decisions[n as usize].split[0] as usize;
+                let k = self.decisions[tree.index(n)].split[0] as usize;
                 self.collect(tree, l, k, &mut out);
                 self.collect(tree, r, W - k, &mut out);
             }
@@ -151,16 +153,16 @@ impl<const W: usize> Plan<W> {
     /// or the root), each such node's count also kept in `counts` by binary node (a node
     /// beyond it, a one-leaf tree's root, keeps none): where the writers split their output
     /// among the children. Big subtrees are counted on all threads.
-    pub fn count(&self, tree: &(impl BinaryTree + Sync), n: u32, counts: &[AtomicU32]) -> u32 {
+    pub fn count<T: BinaryTree + Sync>(&self, tree: &T, n: T::Id, counts: &[AtomicU32]) -> u32 {
         use rayon::prelude::*;
-        let go = |&(c, leaf): &(u32, bool)| if leaf { 0 } else { self.count(tree, c, counts) };
+        let go = |&(c, leaf): &(T::Id, bool)| if leaf { 0 } else { self.count(tree, c, counts) };
         let children = self.children(tree, n);
-        let below: u32 = if tree.tris(n) >= PARALLEL_TRIS {
+        let below: u32 = if tree.big(n) {
             children.par_iter().map(go).sum()
         } else {
             children.iter().map(go).sum()
         };
-        if let Some(own) = counts.get(n as usize) {
+        if let Some(own) = counts.get(tree.index(n)) {
             own.store(1 + below, Ordering::Relaxed);
         }
         1 + below
@@ -168,12 +170,18 @@ impl<const W: usize> Plan<W> {
 
     /// The at most `slots` subtrees that hold `n`'s subtree.
     /// A binary leaf is a wide leaf: its decision is not read (a tree may store none).
-    fn collect(&self, tree: &impl BinaryTree, n: u32, slots: usize, out: &mut Children<W>) {
+    fn collect<T: BinaryTree>(
+        &self,
+        tree: &T,
+        n: T::Id,
+        slots: usize,
+        out: &mut Children<T::Id, W>,
+    ) {
         let Some([l, r]) = tree.kids(n) else {
             out.push((n, true));
             return;
         };
-        let decision = &self.decisions[n as usize];
+        let decision = &self.decisions[tree.index(n)];
         let mut i = slots;
         while i > 1 && decision.split[i - 1] == 0 {
             i -= 1;
@@ -191,28 +199,31 @@ impl<const W: usize> Plan<W> {
 /// A wide node's children as the plan gives them: (binary node, is a wide leaf), at most W,
 /// held in place (a wide node is made for every few triangles: no allocation each).
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Children<const W: usize> {
-    items: [(u32, bool); W],
+pub(crate) struct Children<Id, const W: usize> {
+    items: [(Id, bool); W],
     len: usize,
 }
 
-impl<const W: usize> Children<W> {
-    const EMPTY: Children<W> = Children {
-        items: [(0, false); W],
-        len: 0,
-    };
+impl<Id: Copy, const W: usize> Children<Id, W> {
+    /// None yet; `filler` only fills the unused places.
+    fn new(filler: Id) -> Self {
+        Children {
+            items: [(filler, false); W],
+            len: 0,
+        }
+    }
 
     /// Appends a child; the programme never spreads a node over more than W slots.
-    fn push(&mut self, child: (u32, bool)) {
+    fn push(&mut self, child: (Id, bool)) {
         self.items[self.len] = child;
         self.len += 1;
     }
 }
 
-impl<const W: usize> std::ops::Deref for Children<W> {
-    type Target = [(u32, bool)];
+impl<Id, const W: usize> std::ops::Deref for Children<Id, W> {
+    type Target = [(Id, bool)];
 
-    fn deref(&self) -> &[(u32, bool)] {
+    fn deref(&self) -> &[(Id, bool)] {
         &self.items[..self.len]
     }
 }

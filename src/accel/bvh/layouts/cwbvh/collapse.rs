@@ -58,7 +58,7 @@ pub(crate) struct Binary<'a> {
     leaves: &'a LeafOrder<'a>,
 }
 
-/// Subtrees of at least this many triangles are made on two threads.
+/// Subtrees of at least this many triangles are made on two threads, and counted on several.
 const PARALLEL_TRIS: u32 = 16384;
 
 /// A subtree's share of the arrays: its inner nodes' slots, children before parents, the
@@ -198,6 +198,15 @@ impl<'a> Binary<'a> {
     /// The number of inner nodes (ids `0..inner_len()`).
     pub fn inner_len(&self) -> usize {
         self.boxes.len()
+    }
+
+    /// Triangles beneath node n.
+    pub fn tris(&self, n: u32) -> u32 {
+        if n & LEAF != 0 {
+            1
+        } else {
+            self.tris[n as usize]
+        }
     }
 
     /// The exact box of `n`'s triangles.
@@ -370,15 +379,19 @@ fn split(refs: &mut [Ref], share: &mut Share<'_, WIDTH>, cursor: &mut usize) -> 
 }
 
 impl BinaryTree for Binary<'_> {
+    type Id = u32;
+
     fn kids(&self, n: u32) -> Option<[u32; 2]> {
         (n & LEAF == 0).then(|| self.kids[n as usize])
     }
 
-    fn tris(&self, n: u32) -> u32 {
-        if n & LEAF != 0 {
-            1
-        } else {
-            self.tris[n as usize]
-        }
+    /// Inner nodes by their number; a leaf (its position with the `LEAF` bit) lies past
+    /// every plan's and count's index.
+    fn index(&self, n: u32) -> usize {
+        n as usize
+    }
+
+    fn big(&self, n: u32) -> bool {
+        self.tris(n) >= PARALLEL_TRIS
     }
 }

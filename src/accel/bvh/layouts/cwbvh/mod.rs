@@ -37,7 +37,7 @@ use crate::util::zeroed_on_all_threads;
 use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
-use crate::accel::bvh::layouts::sah_collapse::{zeroed_counts, BinaryTree, Plan};
+use crate::accel::bvh::layouts::sah_collapse::{zeroed_counts, Plan};
 use collapse::{Binary, LeafOrder};
 use quantise::{dequantise, step, Frame};
 

@@ -12,7 +12,6 @@ use crate::accel::bvh::layouts::sah_collapse::{
     zeroed_counts, BinaryTree, Decision, Entry, Plan, SahCosts,
 };
 use crate::accel::bvh::Node;
-use crate::geometry::Aabb;
 use crate::util::zeroed_on_all_threads;
 
 use super::{WideNode, INNER};
@@ -24,157 +23,95 @@ pub(super) const C_TRI: f32 = 0.3;
 /// Most triangles a leaf made of several binary leaves holds.
 pub(super) const MAX_LEAF_TRIS: u32 = 4;
 
-/// The binary tree in arrays, children before parents (post-order, the root last): what
-/// the wide nodes are written from, read in place of the tree's boxed nodes.
-struct Arena {
-    boxes: Vec<Aabb>,
-    /// The first leaf-order position of the node's triangles.
-    first: Vec<u32>,
-    /// The two children's indices; `NO_KIDS` for a leaf (an inner node's two differ).
-    kids: Vec<[u32; 2]>,
-    tris: Vec<u32>,
+/// The built tree as the programme reads it: a node is named by itself and its place in
+/// the tree's pre-order (its first child is the next place, its second child's follows the
+/// first child's subtree: `Node::nodes`), where its decision is kept. The boxes and leaf
+/// ranges are read from the nodes themselves: no copy of the tree is made.
+struct Binary<'t>(std::marker::PhantomData<&'t Node>);
+
+/// A node of the tree and its place in pre-order.
+#[derive(Clone, Copy)]
+struct At<'t> {
+    node: &'t Node,
+    index: u32,
 }
 
-/// The `kids` of a leaf.
-const NO_KIDS: [u32; 2] = [0, 0];
-
-/// One node's entries in the arena (and its decision in the plan).
-struct Own<'s, const W: usize> {
-    bbox: &'s mut Aabb,
-    first: &'s mut u32,
-    kids: &'s mut [u32; 2],
-    tris: &'s mut u32,
-    decision: &'s mut Decision<W>,
-}
-
-/// A subtree's share of the arena and of the plan: its nodes' slots, children before
-/// parents, the subtree's root last.
-struct Share<'s, const W: usize> {
-    boxes: &'s mut [Aabb],
-    first: &'s mut [u32],
-    kids: &'s mut [[u32; 2]],
-    tris: &'s mut [u32],
-    decisions: &'s mut [Decision<W>],
-}
-
-impl<'s, const W: usize> Share<'s, W> {
-    /// The first `at` slots, the rest before the last, and the last slot's entries.
-    fn split(self, at: usize) -> (Self, Self, Own<'s, W>) {
-        let last = self.boxes.len() - 1;
-        let (b, b_own) = self.boxes.split_at_mut(last);
-        let (f, f_own) = self.first.split_at_mut(last);
-        let (k, k_own) = self.kids.split_at_mut(last);
-        let (t, t_own) = self.tris.split_at_mut(last);
-        let (e, e_own) = self.decisions.split_at_mut(last);
-        let (b0, b1) = b.split_at_mut(at);
-        let (f0, f1) = f.split_at_mut(at);
-        let (k0, k1) = k.split_at_mut(at);
-        let (t0, t1) = t.split_at_mut(at);
-        let (e0, e1) = e.split_at_mut(at);
-        (
-            Share {
-                boxes: b0,
-                first: f0,
-                kids: k0,
-                tris: t0,
-                decisions: e0,
-            },
-            Share {
-                boxes: b1,
-                first: f1,
-                kids: k1,
-                tris: t1,
-                decisions: e1,
-            },
-            Own {
-                bbox: &mut b_own[0],
-                first: &mut f_own[0],
-                kids: &mut k_own[0],
-                tris: &mut t_own[0],
-                decision: &mut e_own[0],
-            },
-        )
-    }
-}
-
-/// Subtrees of at least this many nodes fill their two halves on two threads.
+/// Subtrees of at least this many binary nodes are decided, counted and written on
+/// several threads.
 const PARALLEL_NODES: u32 = 8192;
 
-/// Fills `share` with `node`'s subtree in post-order, its first slot at index `base`, and
-/// the programme's decisions bottom-up (each subtree on its own thread where big); returns
-/// the entry of `node`, which its parent's is made from.
-fn fill<const W: usize>(node: &Node, base: u32, share: Share<'_, W>, costs: SahCosts) -> Entry<W> {
-    let bbox = *node.bbox();
-    let area = bbox.area();
-    let Node::Inner { children, .. } = node else {
-        let (start, count) = match node {
-            Node::Leaf { start, count, .. } => (*start, *count),
-            Node::Inner { .. } => (0, 0),
+impl<'t> BinaryTree for Binary<'t> {
+    type Id = At<'t>;
+
+    fn kids(&self, n: At<'t>) -> Option<[At<'t>; 2]> {
+        let Node::Inner { children, .. } = n.node else {
+            return None;
         };
-        let entry = Entry::new(area, count, None, costs);
-        share.boxes[0] = bbox;
-        share.first[0] = start;
-        share.kids[0] = NO_KIDS;
-        share.tris[0] = count;
-        share.decisions[0] = entry.decision();
-        return entry;
-    };
-    let nl = children[0].nodes();
-    let (left, right, own) = share.split(nl as usize);
-    let (l, r) = (nl as usize - 1, right.boxes.len() - 1);
-    let go = |c: &Node, b: u32, s: Share<'_, W>| fill(c, b, s, costs);
-    let ((left, le), (right, re)) = if node.nodes() >= PARALLEL_NODES {
-        rayon::join(
-            || {
-                let mut s = left;
-                let e = go(&children[0], base, reborrow(&mut s));
-                (s, e)
+        let [l, r] = &**children;
+        Some([
+            At {
+                node: l,
+                index: n.index + 1,
             },
-            || {
-                let mut s = right;
-                let e = go(&children[1], base + nl, reborrow(&mut s));
-                (s, e)
+            At {
+                node: r,
+                index: n.index + 1 + l.nodes(),
             },
-        )
-    } else {
-        let (mut a, mut b) = (left, right);
-        let ea = go(&children[0], base, reborrow(&mut a));
-        let eb = go(&children[1], base + nl, reborrow(&mut b));
-        ((a, ea), (b, eb))
+        ])
+    }
+
+    fn index(&self, n: At<'t>) -> usize {
+        n.index as usize
+    }
+
+    fn big(&self, n: At<'t>) -> bool {
+        n.node.nodes() >= PARALLEL_NODES
+    }
+}
+
+/// The leaf-order range of a subtree's triangles: (first position, count). Its leaves'
+/// ranges follow one another; read where a subtree becomes a wide leaf, at most
+/// `MAX_LEAF_TRIS` triangles (a few nodes), or a binary leaf.
+fn span(node: &Node) -> (u32, u32) {
+    match node {
+        Node::Leaf { start, count, .. } => (*start, *count),
+        Node::Inner { children, .. } => {
+            let (first, l) = span(&children[0]);
+            (first, l + span(&children[1]).1)
+        }
+    }
+}
+
+/// Decides `node`'s subtree bottom-up, each big subtree's halves on two threads, into
+/// `decisions` (that subtree's places in pre-order: the node, then its first child's
+/// subtree, then its second's); returns the node's entry, which its parent's is made from,
+/// and its triangle count.
+fn fill<const W: usize>(
+    node: &Node,
+    decisions: &mut [Decision<W>],
+    costs: SahCosts,
+) -> (Entry<W>, u32) {
+    let area = node.bbox().area();
+    let (own, rest) = decisions.split_at_mut(1);
+    let (entry, tris) = match node {
+        Node::Leaf { count, .. } => (Entry::new(area, *count, None, costs), *count),
+        Node::Inner {
+            children, nodes, ..
+        } => {
+            let (left, right) = rest.split_at_mut(children[0].nodes() as usize);
+            let go = |c: &Node, d: &mut [Decision<W>]| fill(c, d, costs);
+            let ((le, lt), (re, rt)) = if *nodes >= PARALLEL_NODES {
+                rayon::join(|| go(&children[0], left), || go(&children[1], right))
+            } else {
+                (go(&children[0], left), go(&children[1], right))
+            };
+            let tris = lt + rt;
+            (Entry::new(area, tris, Some([&le, &re]), costs), tris)
+        }
     };
-    let tris = left.tris[l] + right.tris[r];
-    let entry = Entry::new(area, tris, Some([&le, &re]), costs);
-    *own.bbox = bbox;
-    *own.first = left.first[0];
-    *own.kids = [base + l as u32, base + nl + r as u32];
-    *own.tris = tris;
-    *own.decision = entry.decision();
-    entry
+    own[0] = entry.decision();
+    (entry, tris)
 }
-
-fn reborrow<'t, const W: usize>(s: &'t mut Share<'_, W>) -> Share<'t, W> {
-    Share {
-        boxes: s.boxes,
-        first: s.first,
-        kids: s.kids,
-        tris: s.tris,
-        decisions: s.decisions,
-    }
-}
-
-impl BinaryTree for Arena {
-    fn kids(&self, n: u32) -> Option<[u32; 2]> {
-        let kids = self.kids[n as usize];
-        (kids != NO_KIDS).then_some(kids)
-    }
-
-    fn tris(&self, n: u32) -> u32 {
-        self.tris[n as usize]
-    }
-}
-
-/// Subtrees of at least this many triangles are written on several threads.
-const PARALLEL_TRIS: u32 = 16384;
 
 /// Writes the wide node of inner node `n` at depth `d` into `out[0]` and its subtree after
 /// it, in pre-order (`out` is exactly that subtree's part; `index`, the position of
@@ -182,10 +119,10 @@ const PARALLEL_TRIS: u32 = 16384;
 /// subtrees' parts are written on all threads.
 #[allow(clippy::too_many_arguments)] // the tree, its plan and counts, and where to write
 fn emit<const W: usize>(
-    arena: &Arena,
+    tree: &Binary<'_>,
     plan: &Plan<W>,
     counts: &[AtomicU32],
-    n: u32,
+    n: At<'_>,
     d: usize,
     max_depth: usize,
     index: u32,
@@ -200,12 +137,12 @@ where
     let (own, mut rest) = out.split_first_mut()?;
     let mut next = index + 1;
     let mut jobs = Vec::with_capacity(W);
-    for (k, &(c, leaf)) in plan.children(arena, n).iter().enumerate() {
-        own.set_bbox(k, &arena.boxes[c as usize]);
+    for (k, &(c, leaf)) in plan.children(tree, n).iter().enumerate() {
+        own.set_bbox(k, c.node.bbox());
         (own.child[k], own.kind[k]) = match leaf {
-            true => (arena.first[c as usize], arena.tris[c as usize]),
+            true => span(c.node),
             false => {
-                let size = counts[c as usize].load(Ordering::Relaxed);
+                let size = counts[c.index as usize].load(Ordering::Relaxed);
                 let (part, more) = std::mem::take(&mut rest).split_at_mut(size as usize);
                 jobs.push((c, next, part));
                 rest = more;
@@ -214,10 +151,10 @@ where
             }
         };
     }
-    let go = |(c, i, part): (u32, u32, &mut [WideNode<W>])| {
-        emit(arena, plan, counts, c, d + 1, max_depth, i, part)
+    let go = |(c, i, part): (At<'_>, u32, &mut [WideNode<W>])| {
+        emit(tree, plan, counts, c, d + 1, max_depth, i, part)
     };
-    if arena.tris[n as usize] >= PARALLEL_TRIS {
+    if tree.big(n) {
         jobs.into_par_iter().map(go).collect()
     } else {
         jobs.into_iter().map(go).collect()
@@ -239,26 +176,17 @@ where
         max_leaf: MAX_LEAF_TRIS,
     };
     let len = root.nodes() as usize;
-    // Zeroed on all threads (`fill` writes every slot, each subtree's on its thread).
-    let mut arena = Arena {
-        boxes: zeroed_on_all_threads(len),
-        first: zeroed_on_all_threads(len),
-        kids: zeroed_on_all_threads(len),
-        tris: zeroed_on_all_threads(len),
-    };
+    // Zeroed on all threads (`fill` writes every place, each subtree's on its thread).
     let mut decisions: Vec<Decision<W>> = zeroed_on_all_threads(len);
-    let share = Share {
-        boxes: &mut arena.boxes,
-        first: &mut arena.first,
-        kids: &mut arena.kids,
-        tris: &mut arena.tris,
-        decisions: &mut decisions,
-    };
-    fill(root, 0, share, costs);
+    fill(root, &mut decisions, costs);
     let plan = Plan::<W>::from_decisions(decisions);
-    let r = len as u32 - 1;
+    let tree = Binary(std::marker::PhantomData);
+    let r = At {
+        node: root,
+        index: 0,
+    };
     let counts = zeroed_counts(len);
-    let mut out = zeroed_on_all_threads(plan.count(&arena, r, &counts) as usize);
-    emit(&arena, &plan, &counts, r, 0, max_depth, 0, &mut out)?;
+    let mut out = zeroed_on_all_threads(plan.count(&tree, r, &counts) as usize);
+    emit(&tree, &plan, &counts, r, 0, max_depth, 0, &mut out)?;
     Some(out)
 }
