@@ -658,9 +658,10 @@ impl BenchReport for Report {
         out += "\nbuild ms (range): the median build, and the fastest and slowest of the \
                 builds it is the median of.\n";
         out += "(build + flatten) ÷ Embree: lancer's tree built and flattened into the CPU \
-                layout it traces, against Embree 3's medium-quality scene build (its BVH is \
-                ready to trace) of the same triangles on the same threads, timed right after \
-                each build; the medians (Embree's over all its builds on the mesh). Both start \
+                layout it traces, against Embree 3's medium-quality scene build (its commit, \
+                which leaves the BVH ready to trace; the copy of the triangles into its \
+                buffers before it is not timed) of the same triangles on the same threads, \
+                timed right after each build; the medians (Embree's over all its builds on the mesh). Both start \
                 on fresh memory: ";
         out += FRESH_MEMORY_NOTE;
         out += "\n";
