@@ -49,13 +49,19 @@ impl Threaded {
     /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
     /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Threaded {
-        let tris = LeafTri::gather(bvh, mesh);
         let n = bvh.root.nodes() as usize;
-        let mut nodes = bytemuck::zeroed_vec(OCTANTS * n);
-        nodes
-            .par_chunks_mut(n)
-            .enumerate()
-            .for_each(|(o, copy)| write(&bvh.root, copy, (o * n) as u32, o));
+        // The triangles and the eight copies are independent: made side by side.
+        let (tris, nodes) = rayon::join(
+            || LeafTri::gather(bvh, mesh),
+            || {
+                let mut nodes = bytemuck::zeroed_vec(OCTANTS * n);
+                nodes
+                    .par_chunks_mut(n)
+                    .enumerate()
+                    .for_each(|(o, copy)| write(&bvh.root, copy, (o * n) as u32, o));
+                nodes
+            },
+        );
         Threaded { nodes, tris }
     }
 
