@@ -121,21 +121,8 @@ impl Bvh2WideNode {
     /// Panics on a mesh smaller than the tree's ([`Bvh::mesh_len`]): input goes through
     /// [`try_flatten`](super::try_flatten), which refuses it.
     pub fn flatten(bvh: &Bvh, mesh: &Mesh) -> Bvh2WideNode {
-        let tris = LeafTri::gather(bvh, mesh);
-        let root = &bvh.root;
-        let mut nodes: Vec<WideNode> = bytemuck::zeroed_vec(1 + inner_records(root) as usize);
-        if let Some((head, rest)) = nodes.split_first_mut() {
-            let (a0, b0) = child_ref(root, 1);
-            let b = root.bbox();
-            *head = WideNode {
-                lo0: b.lo.into(),
-                a0,
-                hi0: b.hi.into(),
-                b0,
-                ..bytemuck::Zeroable::zeroed()
-            };
-            write(root, rest, 1);
-        }
+        // The triangles and the nodes are independent: gathered and written side by side.
+        let (tris, nodes) = rayon::join(|| LeafTri::gather(bvh, mesh), || records(&bvh.root));
         Bvh2WideNode { nodes, tris }
     }
 
@@ -147,6 +134,25 @@ impl Bvh2WideNode {
         super::GpuForm::validate(&layout)?;
         Ok(layout)
     }
+}
+
+/// The records of the tree under `root`: the header (record 0: the root's box and
+/// reference), then the inner records in pre-order.
+fn records(root: &Node) -> Vec<WideNode> {
+    let mut nodes: Vec<WideNode> = bytemuck::zeroed_vec(1 + inner_records(root) as usize);
+    if let Some((head, rest)) = nodes.split_first_mut() {
+        let (a0, b0) = child_ref(root, 1);
+        let b = root.bbox();
+        *head = WideNode {
+            lo0: b.lo.into(),
+            a0,
+            hi0: b.hi.into(),
+            b0,
+            ..bytemuck::Zeroable::zeroed()
+        };
+        write(root, rest, 1);
+    }
+    nodes
 }
 
 /// Inner records of `node`'s subtree (a full binary tree: inner nodes = (nodes − 1) / 2).
