@@ -60,8 +60,8 @@ pub struct BuildRow {
     pub mesh: String,
     /// The builder (`--builder`; `+reinsert` when optimised), or "embree-medium".
     pub builder: String,
-    /// Wall time of the tree's build, median of `repeat` (Embree: its scene build, buffers
-    /// filled and committed, median of all its builds on the mesh).
+    /// Wall time of the tree's build, median of `repeat` (Embree: its scene's commit, the
+    /// buffers filled before it untimed, median of all its builds on the mesh).
     pub build_ms: f64,
     /// The fastest and the slowest of those builds, in ms: how much the median can move.
     pub build_ms_range: [f64; 2],

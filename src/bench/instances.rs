@@ -122,7 +122,8 @@ pub struct EmbreeRows {
 pub struct EmbreeBuild {
     /// instanced (Embree's instances) or flattened (one scene over the flattened copy).
     pub variant: &'static str,
-    /// Wall-clock time to fill Embree's buffers and commit its scenes (all threads).
+    /// Wall-clock time of Embree's commits, which build its scenes (all threads; filling its
+    /// buffers and placing the instances before them is not timed).
     pub build_ms: f64,
 }
 
