@@ -52,6 +52,29 @@ impl Node {
         }
     }
 
+    /// The leaf-order positions `start..end` of this subtree's triangles: its leaves'
+    /// ranges follow one another (as [`Bvh::new`] checks), so the first leaf's start and
+    /// the last leaf's end.
+    pub(crate) fn leaf_range(&self) -> (u32, u32) {
+        let mut first = self;
+        while let Node::Inner { children, .. } = first {
+            first = &children[0];
+        }
+        let mut last = self;
+        while let Node::Inner { children, .. } = last {
+            last = &children[1];
+        }
+        match (first, last) {
+            (
+                Node::Leaf { start, .. },
+                Node::Leaf {
+                    start: s, count, ..
+                },
+            ) => (*start, s + count),
+            _ => (0, 0),
+        }
+    }
+
     /// Bounds of the triangles in this subtree.
     pub fn bbox(&self) -> &Aabb {
         match self {

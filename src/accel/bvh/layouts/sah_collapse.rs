@@ -128,7 +128,7 @@ pub(crate) struct Plan<const W: usize> {
 }
 
 impl<const W: usize> Plan<W> {
-    /// A plan from every inner node's decisions, indexed as the tree's nodes (a leaf's
+    /// A plan from every inner node's decisions, indexed by [`BinaryTree::index`] (a leaf's
     /// entry, where there is one, is never read).
     pub fn from_decisions(decisions: Vec<Decision<W>>) -> Plan<W> {
         Plan { decisions }

@@ -136,32 +136,11 @@ impl<'s, const W: usize> Share<'s, W> {
 /// A subtree's root as made: its id, box and programme entry.
 type Made<const W: usize> = (u32, Aabb, Entry<W>);
 
-/// The leaf-order positions `start..end` of a subtree's triangles.
-fn span(node: &Node) -> (u32, u32) {
-    let mut first = node;
-    while let Node::Inner { children, .. } = first {
-        first = &children[0];
-    }
-    let mut last = node;
-    while let Node::Inner { children, .. } = last {
-        last = &children[1];
-    }
-    match (first, last) {
-        (
-            Node::Leaf { start, .. },
-            Node::Leaf {
-                start: s, count, ..
-            },
-        ) => (*start, s + count),
-        _ => (0, 0),
-    }
-}
-
 impl<'a> Binary<'a> {
     /// Splits `root`'s leaves (triangles `tris` in leaf order, at least one), and runs the
     /// SAH programme for the wide tree on it, the big subtrees on all threads.
     pub fn new(root: &Node, tris: &'a LeafOrder<'a>) -> (Binary<'a>, Plan<WIDTH>) {
-        let (start, end) = span(root);
+        let (start, end) = root.leaf_range();
         debug_assert!(end < LEAF, "references beyond the leaf tag");
         // T triangles, T − 1 inner nodes.
         let len = (end - start) as usize - 1;
@@ -237,26 +216,26 @@ impl<'a> Binary<'a> {
     }
 }
 
-/// Fills `share` with `node`'s subtree (leaf-order positions `span_`): the two halves of a
+/// Fills `share` with `node`'s subtree (leaf-order positions `range`): the two halves of a
 /// big subtree on two threads, a small one in order. Returns the subtree's root and its
 /// clipped leaves.
 fn fill<'s>(
     node: &Node,
-    span_: (u32, u32),
+    range: (u32, u32),
     share: Share<'s, WIDTH>,
     tris: &LeafOrder,
 ) -> (Made<WIDTH>, Vec<(u32, Aabb)>) {
     match node {
-        Node::Inner { children, .. } if span_.1 - span_.0 >= PARALLEL_TRIS => {
-            let mid = span(&children[0]).1;
-            let (left, right, mut own) = share.split((mid - span_.0) as usize - 1);
+        Node::Inner { children, .. } if range.1 - range.0 >= PARALLEL_TRIS => {
+            let mid = children[0].leaf_range().1;
+            let (left, right, mut own) = share.split((mid - range.0) as usize - 1);
             let ((l, mut clipped), (r, more)) = rayon::join(
-                || fill(&children[0], (span_.0, mid), left, tris),
-                || fill(&children[1], (mid, span_.1), right, tris),
+                || fill(&children[0], (range.0, mid), left, tris),
+                || fill(&children[1], (mid, range.1), right, tris),
             );
             clipped.extend(more);
             clipped.append(&mut own.clipped);
-            (own.join(0, l, r, span_.1 - span_.0), clipped)
+            (own.join(0, l, r, range.1 - range.0), clipped)
         }
         _ => {
             let mut share = share;

@@ -37,7 +37,7 @@ use crate::util::zeroed_on_all_threads;
 use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
-use crate::accel::bvh::layouts::sah_collapse::{zeroed_counts, Plan};
+use crate::accel::bvh::layouts::sah_collapse::{zeroed_counts, BinaryTree, Plan};
 use collapse::{Binary, LeafOrder};
 use quantise::{dequantise, step, Frame};
 
@@ -290,9 +290,6 @@ struct Writer<'a> {
     plan: &'a Plan<WIDTH>,
 }
 
-/// Subtrees of at least this many triangles are counted and written on several threads.
-const PARALLEL_TRIS: u32 = 16384;
-
 /// Wide nodes below each binary inner node that becomes a wide internal node, by binary
 /// node ([`Plan::count`]: each one's own included).
 struct Counts(Vec<AtomicU32>);
@@ -391,7 +388,8 @@ impl Writer<'_> {
             |(c, record, nodes, places): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, u32>)| {
                 self.write(counts, c, depth + 1, record, nodes, places)
             };
-        let deepest = if self.tree.tris(n) >= PARALLEL_TRIS {
+        // Big subtrees (`BinaryTree::big`, as counted) are written on several threads.
+        let deepest = if self.tree.big(n) {
             use rayon::prelude::*;
             jobs.into_par_iter().map(go).max()
         } else {

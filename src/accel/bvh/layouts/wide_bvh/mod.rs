@@ -455,6 +455,11 @@ mod tests {
 
     /// A soup of 3000 small triangles in a 10-unit cube.
     fn soup() -> Mesh {
+        soup_of(3000)
+    }
+
+    /// A soup of `n` small triangles in a 10-unit cube.
+    fn soup_of(n: usize) -> Mesh {
         let mut s = 0x2545_f491_4f6c_dd1du64;
         let mut f = || {
             s ^= s << 13;
@@ -462,7 +467,7 @@ mod tests {
             s ^= s << 17;
             (s >> 40) as f32 / (1u64 << 24) as f32
         };
-        let tris = (0..3000)
+        let tris = (0..n)
             .map(|_| {
                 let c = glam::Vec3::new(f(), f(), f()) * 10.0;
                 let mut v = || c + glam::Vec3::new(f(), f(), f()) * 0.3;
@@ -486,16 +491,24 @@ mod tests {
         cost
     }
 
-    fn sah_collapse_costs_no_more_than_greedy<const W: usize>()
+    fn sah_collapse_costs_no_more_than_greedy<const W: usize>(mesh: &Mesh)
     where
         WideNode<W>: bytemuck::Pod,
     {
-        let mesh = soup();
-        let bvh = crate::accel::bvh::build(&mesh, &Default::default());
-        let tris = LeafTri::gather(&bvh, &mesh);
+        let bvh = crate::accel::bvh::build(mesh, &Default::default());
+        let tris = LeafTri::gather(&bvh, mesh);
         let sah = sah_collapse::collapse::<W>(&bvh.root, max_wide_depth(W)).unwrap();
+        // On one thread as on several (a big tree's subtrees are decided, counted and
+        // written on several).
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let serial =
+            one_thread.install(|| sah_collapse::collapse::<W>(&bvh.root, max_wide_depth(W)));
+        assert_eq!(serial.as_ref(), Some(&sah));
         let greedy = greedy_collapse::collapse::<W>(&bvh.root);
-        assert_eq!(WideBvh::<W>::flatten(&bvh, &mesh).nodes, sah);
+        assert_eq!(WideBvh::<W>::flatten(&bvh, mesh).nodes, sah);
         for nodes in [&sah, &greedy] {
             let layout = WideBvh {
                 nodes: nodes.clone(),
@@ -534,8 +547,19 @@ mod tests {
 
     #[test]
     fn the_sah_collapse_costs_no_more_than_the_greedy_one() {
-        sah_collapse_costs_no_more_than_greedy::<4>();
-        sah_collapse_costs_no_more_than_greedy::<8>();
+        // 3000 triangles, and enough for the tree's top to be collapsed on several threads.
+        let big = soup_of(20_000);
+        let nodes = crate::accel::bvh::build(&big, &Default::default())
+            .root
+            .nodes();
+        assert!(
+            nodes >= 2 * sah_collapse::PARALLEL_NODES,
+            "{nodes} binary nodes"
+        );
+        for mesh in [soup(), big] {
+            sah_collapse_costs_no_more_than_greedy::<4>(&mesh);
+            sah_collapse_costs_no_more_than_greedy::<8>(&mesh);
+        }
     }
 
     fn soup_collapses_greedily<const W: usize>()

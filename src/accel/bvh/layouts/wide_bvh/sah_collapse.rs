@@ -38,7 +38,7 @@ struct At<'t> {
 
 /// Subtrees of at least this many binary nodes are decided, counted and written on
 /// several threads.
-const PARALLEL_NODES: u32 = 8192;
+pub(super) const PARALLEL_NODES: u32 = 8192;
 
 impl<'t> BinaryTree for Binary<'t> {
     type Id = At<'t>;
@@ -66,19 +66,6 @@ impl<'t> BinaryTree for Binary<'t> {
 
     fn big(&self, n: At<'t>) -> bool {
         n.node.nodes() >= PARALLEL_NODES
-    }
-}
-
-/// The leaf-order range of a subtree's triangles: (first position, count). Its leaves'
-/// ranges follow one another; read where a subtree becomes a wide leaf, at most
-/// `MAX_LEAF_TRIS` triangles (a few nodes), or a binary leaf.
-fn span(node: &Node) -> (u32, u32) {
-    match node {
-        Node::Leaf { start, count, .. } => (*start, *count),
-        Node::Inner { children, .. } => {
-            let (first, l) = span(&children[0]);
-            (first, l + span(&children[1]).1)
-        }
     }
 }
 
@@ -140,7 +127,12 @@ where
     for (k, &(c, leaf)) in plan.children(tree, n).iter().enumerate() {
         own.set_bbox(k, c.node.bbox());
         (own.child[k], own.kind[k]) = match leaf {
-            true => span(c.node),
+            // A wide leaf: one range of leaf order (at most `MAX_LEAF_TRIS` triangles, or
+            // a binary leaf).
+            true => {
+                let (start, end) = c.node.leaf_range();
+                (start, end - start)
+            }
             false => {
                 let size = counts[c.index as usize].load(Ordering::Relaxed);
                 let (part, more) = std::mem::take(&mut rest).split_at_mut(size as usize);
