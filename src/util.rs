@@ -16,8 +16,16 @@ pub fn human_bytes(bytes: u64) -> String {
 pub(crate) fn zeroed_on_all_threads<T: bytemuck::Zeroable + Copy + Send + Sync>(
     len: usize,
 ) -> Vec<T> {
+    zeroed_on_all_threads_in(len, len)
+}
+
+/// [`zeroed_on_all_threads`] in a vector of `capacity` (at least `len`).
+pub(crate) fn zeroed_on_all_threads_in<T: bytemuck::Zeroable + Copy + Send + Sync>(
+    len: usize,
+    capacity: usize,
+) -> Vec<T> {
     use rayon::prelude::*;
-    let mut v = Vec::with_capacity(len);
+    let mut v = Vec::with_capacity(capacity.max(len));
     v.par_extend(rayon::iter::repeat_n(T::zeroed(), len));
     v
 }

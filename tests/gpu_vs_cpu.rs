@@ -582,10 +582,7 @@ impl lancer::accel::GpuForm for Moved {
     }
 
     fn arrays(&self) -> lancer::accel::GpuArrays<'_> {
-        lancer::accel::GpuArrays {
-            nodes: self.inner.arrays().nodes,
-            tris: &self.tris,
-        }
+        lancer::accel::GpuArrays::new(self.inner.arrays().nodes, &self.tris)
     }
 
     fn wgsl(&self) -> String {
@@ -631,6 +628,62 @@ fn a_layout_failing_validation_is_refused_in_both_memories() {
                 e.contains("refusing to upload an invalid BVH"),
                 "{kind}: {e}"
             );
+        }
+    }
+}
+
+/// A layout's arrays read in place by a device whose memory is the host's (lavapipe:
+/// `VK_EXT_external_memory_host`) trace as copied ones, hit for hit and node for node, in
+/// both memories and for every BVH layout (each flatten leaves the room a texture's last
+/// rows need, so a texture's arrays are always imported; a buffer's where they are
+/// aligned); a copy is made where the context says not to import. Words read in place
+/// cannot be written over.
+#[test]
+fn arrays_read_in_place_trace_as_copied_ones() {
+    gpu_device(); // fails with the install hint when there is no adapter
+    let ctx = lancer::gpu::GpuContext::new().unwrap();
+    if ctx.adapter.name.contains("llvmpipe") {
+        assert!(ctx.import_host_memory, "lavapipe imports host memory");
+    }
+    let mut copying = ctx.clone();
+    copying.import_host_memory = false;
+    let mut rng = Rng::new(29);
+    let mesh = soup(&mut rng, 3000, 0.05);
+    let rays = random_rays(&mut rng, 2000, &mesh);
+    let bvh = lancer::accel::bvh::build(&mesh, &BuildOptions::default());
+    for &kind in LayoutKind::ALL {
+        let layout: std::sync::Arc<dyn lancer::accel::GpuForm> =
+            lancer::accel::bvh::layouts::flatten(kind, &bvh, &mesh).into();
+        for memory in [BvhMemory::Textures, BvhMemory::Buffers] {
+            let mut traced = Vec::new();
+            for c in [&ctx, &copying] {
+                let mut t = lancer::gpu::GpuTracer::new_shared(c, &layout, memory).unwrap();
+                // A texture's words are imported wherever they lie; a buffer's only where
+                // they start on the binding alignment (wgpu's, coarser than the driver's).
+                let in_place = t.in_place();
+                if memory == BvhMemory::Textures || !c.import_host_memory {
+                    assert_eq!(in_place, [c.import_host_memory; 2], "{kind} {memory:?}");
+                }
+                println!(
+                    "{kind} {memory:?} import {}: in place {in_place:?}",
+                    c.import_host_memory
+                );
+                if t.in_place()[0] {
+                    let e = t.write_node_words(0, &[0; 16]).unwrap_err().to_string();
+                    assert!(e.contains("read in place"), "{e}");
+                }
+                let k = lancer::gpu::TraceKernel {
+                    stats: true,
+                    ..Default::default()
+                };
+                traced.push(t.trace(&rays, k).unwrap());
+            }
+            let (a, b) = (&traced[0], &traced[1]);
+            let bits = |h: &[Hit]| -> Vec<(u32, u32)> {
+                h.iter().map(|h| (h.prim, h.t.to_bits())).collect()
+            };
+            assert_eq!(bits(&a.0), bits(&b.0), "{kind} {memory:?}: hits");
+            assert_eq!(a.1, b.1, "{kind} {memory:?}: statistics");
         }
     }
 }

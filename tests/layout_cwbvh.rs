@@ -386,11 +386,7 @@ fn raw_chain(levels: usize, banded: bool) -> (Mesh, Vec<u8>, Vec<u8>) {
 fn the_group_stack_holds_one_group_per_level_and_no_more() {
     // Deepest nodes at depth 64: accepted, and traced with a full stack.
     let (mesh, nodes, tris) = raw_chain(MAX_DEPTH + 1, false);
-    let layout = Cwbvh::from_arrays(GpuArrays {
-        nodes: &nodes,
-        tris: &tris,
-    })
-    .unwrap();
+    let layout = Cwbvh::from_arrays(GpuArrays::new(&nodes, &tris)).unwrap();
     assert_eq!(layout.node_count(), 2 * MAX_DEPTH + 1);
     let rob = Robustness::default();
     for dir in [Vec3::new(0.01, 0.02, -1.0), Vec3::new(-0.01, 0.02, -1.0)] {
@@ -411,11 +407,7 @@ fn the_group_stack_holds_one_group_per_level_and_no_more() {
     }
     // One level more: refused.
     let (_, nodes, tris) = raw_chain(MAX_DEPTH + 2, false);
-    let e = Cwbvh::from_arrays(GpuArrays {
-        nodes: &nodes,
-        tris: &tris,
-    })
-    .unwrap_err();
+    let e = Cwbvh::from_arrays(GpuArrays::new(&nodes, &tris)).unwrap_err();
     assert!(e.contains("depth 65"), "{e}");
 }
 
@@ -428,10 +420,7 @@ fn chains_fill_the_kernels_stack_to_their_depth_on_the_gpu() {
     // deepest groups, and the rays then skip the side leaves they wait for).
     for levels in [4, 5, 6, 7, 12, MAX_DEPTH + 1] {
         let (mesh, nodes, tris) = raw_chain(levels, true);
-        let arrays = GpuArrays {
-            nodes: &nodes,
-            tris: &tris,
-        };
+        let arrays = GpuArrays::new(&nodes, &tris);
         let cw = Cwbvh::from_arrays(arrays).unwrap();
         // From below, up along each side's strip (x ≥ 0: the chain first): each ray's
         // closest hit is its strip's side, at the depth of its level's group.
@@ -635,11 +624,7 @@ fn validate_refuses_corrupted_arrays() {
     let layout = cwbvh(&mesh, &BuildOptions::default());
     let a = layout.arrays();
     let (nodes, tris) = (a.nodes.to_vec(), a.tris.to_vec());
-    let back = Cwbvh::from_arrays(GpuArrays {
-        nodes: &nodes,
-        tris: &tris,
-    })
-    .unwrap();
+    let back = Cwbvh::from_arrays(GpuArrays::new(&nodes, &tris)).unwrap();
     assert_eq!(back.arrays().nodes, a.nodes);
     // A node with a leaf slot and one with an internal slot.
     let (leaf_node, leaf_slot) = (0..layout.node_count())
@@ -650,7 +635,7 @@ fn validate_refuses_corrupted_arrays() {
         })
         .unwrap();
     let refuse = |what: &str, nodes: &[u8], tris: &[u8]| {
-        let e = Cwbvh::from_arrays(GpuArrays { nodes, tris })
+        let e = Cwbvh::from_arrays(GpuArrays::new(nodes, tris))
             .err()
             .unwrap_or_else(|| panic!("{what}: accepted"));
         println!("{what}: {e}");

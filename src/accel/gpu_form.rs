@@ -13,17 +13,64 @@ pub struct GpuArrays<'a> {
     pub nodes: &'a [u8],
     /// The triangles in leaf order ([`LeafTri`]s).
     pub tris: &'a [u8],
+    /// Bytes allocated from the start of `nodes` and of `tris` (at least their lengths): a
+    /// device whose memory is the host's may map a little past an array's end (a texture's
+    /// last row) when it reads the array in place.
+    pub room: [usize; 2],
 }
 
 impl<'a> GpuArrays<'a> {
-    /// The bytes of a node array and the leaf triangles (the inverse of `records`).
-    pub fn of<N: bytemuck::Pod>(nodes: &'a [N], tris: &'a [LeafTri]) -> GpuArrays<'a> {
+    /// The bytes of a node array and the leaf triangles (the inverse of `records`), with
+    /// the room their allocations have.
+    pub fn of<N: bytemuck::Pod>(nodes: &'a Vec<N>, tris: &'a Vec<LeafTri>) -> GpuArrays<'a> {
         GpuArrays {
             nodes: bytemuck::cast_slice(nodes),
             tris: bytemuck::cast_slice(tris),
+            room: [
+                nodes.capacity() * std::mem::size_of::<N>(),
+                tris.capacity() * std::mem::size_of::<LeafTri>(),
+            ],
+        }
+    }
+
+    /// A node array and leaf triangles as bytes, with no room past their ends.
+    pub fn new(nodes: &'a [u8], tris: &'a [u8]) -> GpuArrays<'a> {
+        GpuArrays {
+            nodes,
+            tris,
+            room: [nodes.len(), tris.len()],
         }
     }
 }
+
+/// Elements to allocate for an array of `len` that a device may read in place: room for
+/// [`ROOM_BYTES`] past its end ([`GpuArrays::room`]).
+pub(crate) fn capacity_for<T>(len: usize) -> usize {
+    len + ROOM_BYTES.div_ceil(std::mem::size_of::<T>().max(1))
+}
+
+/// `len` zeroed values with room past them ([`capacity_for`]), cleared by the system
+/// (fresh pages are zero; the room's are never touched).
+pub(crate) fn zeroed_with_room<T: bytemuck::Zeroable>(len: usize) -> Vec<T> {
+    let mut v = bytemuck::zeroed_vec(capacity_for::<T>(len));
+    v.truncate(len);
+    v
+}
+
+/// `len` zeroed values with room past them ([`capacity_for`]), written on all threads
+/// ([`zeroed_on_all_threads`](crate::util::zeroed_on_all_threads)).
+pub(crate) fn zeroed_on_all_threads_with_room<T>(len: usize) -> Vec<T>
+where
+    T: bytemuck::Zeroable + Copy + Send + Sync,
+{
+    crate::util::zeroed_on_all_threads_in(len, capacity_for::<T>(len))
+}
+
+/// Bytes of room past a flattened array's end: eight 64 KiB texture rows (4096 16-byte
+/// texels each), for the partial last row and the rows a driver pads a texture's height
+/// with (llvmpipe: to a multiple of 4). The GPU side checks what the driver asks for. The
+/// room's pages are never written, so they cost address space, not memory.
+pub const ROOM_BYTES: usize = 8 << 16;
 
 /// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
 /// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays

@@ -50,11 +50,15 @@ impl LeafTri {
     }
 
     /// The triangles of `bvh`'s leaves, in leaf order (in parallel).
+    /// Allocated with room for a device to read them in place
+    /// ([`capacity_for`](super::gpu_form::capacity_for)).
     pub fn gather(bvh: &Bvh, mesh: &Mesh) -> Vec<LeafTri> {
-        bvh.order
-            .par_iter()
-            .map(|&id| LeafTri::new(mesh.triangles[id as usize].v, id))
-            .collect()
+        let mut tris =
+            Vec::with_capacity(super::gpu_form::capacity_for::<LeafTri>(bvh.order.len()));
+        tris.par_extend(
+            (bvh.order.par_iter()).map(|&id| LeafTri::new(mesh.triangles[id as usize].v, id)),
+        );
+        tris
     }
 }
 

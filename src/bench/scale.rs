@@ -354,8 +354,9 @@ impl BenchReport for Report {
         out += &t.text();
         out += "\nEach run reads the file anew and goes on as `lancer trace` does: read and \
                 checked (every file the read opens counted in MB), build, flatten, to the \
-                device (checked, packed, uploaded, kernel made; none on the CPU, which traces \
-                the flattened layout where it is; the check, which every upload runs first, \
+                device (checked, packed, uploaded — or, where the device's memory is the \
+                host's, imported where the flatten wrote it — kernel made; none on the CPU, \
+                which traces the flattened layout where it is; the check, which every upload runs first, \
                 timed once more alone after the trace), and the first trace of the default view's \
                 primary rays (a GPU's pipeline compiled on the way). Peak: the most memory the \
                 process held resident from the read to the trace (VmHWM, reset before each \

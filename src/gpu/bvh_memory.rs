@@ -3,6 +3,8 @@
 //! override; the other pair of bindings gets a one-word placeholder. An array bigger than
 //! one storage binding is bound in parts (`gpu::word_array`).
 
+use std::sync::Arc;
+
 use crate::accel::{GpuForm, LeafTri};
 use crate::error::{Error, Result};
 
@@ -49,24 +51,55 @@ impl GpuBvh {
     // lavapipe, but the device's new memory then met the flatten's freed memory before the
     // allocator had returned it: peak 820-920 MB against 700 MB).
     pub fn upload(ctx: &GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<GpuBvh> {
+        Self::upload_with(ctx, layout, memory, None)
+    }
+
+    /// [`GpuBvh::upload`] of a layout nothing changes while it is uploaded: where the
+    /// device's memory is the host's (a CPU adapter such as lavapipe, with
+    /// `VK_EXT_external_memory_host`), its arrays are read where they lie instead of being
+    /// copied, and the layout is held until the device is done with them. Its words cannot
+    /// then be written over ([`GpuBvh::write_node_words`] refuses).
+    pub fn upload_shared(
+        ctx: &GpuContext,
+        layout: &Arc<dyn GpuForm>,
+        memory: BvhMemory,
+    ) -> Result<GpuBvh> {
+        Self::upload_with(ctx, layout.as_ref(), memory, Some(layout))
+    }
+
+    fn upload_with(
+        ctx: &GpuContext,
+        layout: &dyn GpuForm,
+        memory: BvhMemory,
+        keep: Option<&Arc<dyn GpuForm>>,
+    ) -> Result<GpuBvh> {
         layout
             .validate()
             .map_err(|e| Error::Gpu(format!("refusing to upload an invalid BVH: {e}")))?;
         let arrays = layout.arrays();
         let pad: [LeafTri; 1] = [bytemuck::Zeroable::zeroed()];
         let nodes: &[u8] = arrays.nodes;
-        let tris: &[u8] = if arrays.tris.is_empty() {
-            bytemuck::cast_slice(&pad)
+        let (tris, tris_room): (&[u8], usize) = if arrays.tris.is_empty() {
+            (bytemuck::cast_slice(&pad), 0)
         } else {
-            arrays.tris
+            (arrays.tris, arrays.room[1])
         };
         // Both sizes checked before either array is uploaded.
         WordArray::check(ctx, memory, "the BVH nodes", nodes.len())?;
         WordArray::check(ctx, memory, "the triangles", tris.len())?;
+        let upload = |what: &str, bytes: &[u8], room: usize| match keep {
+            // SAFETY: the arrays are the layout's, which the Arc handed on keeps allocated,
+            // and nothing writes a layout behind an Arc (GpuForm has no &mut method, and
+            // the clone kept makes Arc::get_mut fail).
+            Some(keep) if room >= bytes.len() => unsafe {
+                WordArray::upload_in_place(ctx, memory, what, (bytes, room), keep.clone())
+            },
+            _ => WordArray::upload(ctx, memory, what, bytes),
+        };
         Ok(GpuBvh {
             memory,
-            nodes: WordArray::upload(ctx, memory, "the BVH nodes", nodes)?,
-            tris: WordArray::upload(ctx, memory, "the triangles", tris)?,
+            nodes: upload("the BVH nodes", nodes, arrays.room[0])?,
+            tris: upload("the triangles", tris, tris_room)?,
             shift: word_array::part_shift(ctx),
         })
     }
@@ -104,6 +137,12 @@ impl GpuBvh {
     /// [`GpuBvh::write_node_words`] for the triangles' words.
     pub fn write_tri_words(&self, ctx: &GpuContext, first: u32, bytes: &[u8]) -> Result<()> {
         self.tris.write(ctx, first, bytes)
+    }
+
+    /// Whether the nodes and the triangles are read where the host holds them
+    /// ([`GpuBvh::upload_shared`]) rather than copied.
+    pub fn in_place(&self) -> [bool; 2] {
+        [self.nodes.in_place(), self.tris.in_place()]
     }
 
     /// The override constant that tells traversal.wgsl which bindings to read.

@@ -66,6 +66,11 @@ pub struct GpuContext {
     /// wherever the driver's f64 is as accurate as IEEE's (Vulkan promises less; `lancer
     /// check` tests a driver).
     pub exact_division: bool,
+    /// Arrays that nothing changes once uploaded (a flattened layout's, traced by
+    /// [`Tracer`](crate::Tracer)) are read where the host holds them instead of being
+    /// copied: a Vulkan CPU adapter (lavapipe) opened with `VK_EXT_external_memory_host`,
+    /// whose memory is the host's. Set where the device can; clear it to copy them anyway.
+    pub import_host_memory: bool,
     /// Errors the device reported outside an error scope since the last [`wait`], which
     /// returns the first of them (so no GPU error passes silently).
     ///
@@ -171,6 +176,7 @@ impl GpuContext {
             exact_spirv: exact_spirv(info.backend, features),
             exact_division: exact_spirv(info.backend, features)
                 && features.contains(wgpu::Features::SHADER_F64),
+            import_host_memory: super::host_import::enabled(&device),
             device,
             queue,
             adapter: report,
@@ -233,16 +239,29 @@ impl GpuContext {
         }
         let exact_division = features.contains(wgpu::Features::SHADER_F64);
         let limits = adapter.limits();
-        let (device, queue) = adapter
-            .request_device(&wgpu::DeviceDescriptor {
-                label: Some("lancer"),
-                required_features: features,
-                required_limits: limits.clone(),
-                experimental_features,
-                ..Default::default()
-            })
-            .await
-            .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?;
+        let desc = wgpu::DeviceDescriptor {
+            label: Some("lancer"),
+            required_features: features,
+            required_limits: limits.clone(),
+            experimental_features,
+            ..Default::default()
+        };
+        // A CPU adapter that can import host memory is opened with that extension: the
+        // arrays are then handed to it in place (gpu::host_import).
+        let opened = match super::host_import::wanted(&adapter) {
+            true => super::host_import::open(&adapter, &desc)
+                .inspect_err(|e| log::debug!("{report}: opened without host imports ({e})"))
+                .ok(),
+            false => None,
+        };
+        let import_host_memory = opened.is_some();
+        let (device, queue) = match opened {
+            Some(opened) => opened,
+            None => adapter
+                .request_device(&desc)
+                .await
+                .map_err(|e| Error::Gpu(format!("could not open a device on {}: {e}", report)))?,
+        };
         let ctx = GpuContext {
             device,
             queue,
@@ -253,6 +272,7 @@ impl GpuContext {
             ray_query,
             exact_spirv: features.contains(wgpu::Features::PASSTHROUGH_SHADERS),
             exact_division,
+            import_host_memory,
             uncaptured: Arc::new(Mutex::new(Vec::new())),
         };
         // Errors outside an error scope (gpu::plumbing::scoped) are logged and kept for the

@@ -384,10 +384,7 @@ pub fn lbvh_dfs_sign(ctx: &GpuContext, mesh: &Mesh, opts: &BuildOptions) -> Resu
         &[(&out_nodes, 32 * nodes), (&out_tris, 48 * n)],
     );
     let arrays = run.finish_with(enc, readback, "flattening the LBVH on the GPU", |b| {
-        DfsSign::from_arrays(GpuArrays {
-            nodes: b[0],
-            tris: b[1],
-        })
+        DfsSign::from_arrays(GpuArrays::new(b[0], b[1]))
     })?;
     log::info!(
         "GPU LBVH of {n} triangles flattened into dfs-sign ({nodes} nodes, {top} passes \

@@ -8,6 +8,11 @@ mod bvh_memory;
 mod context;
 mod driver;
 pub mod exact_spirv;
+#[cfg(not(any(target_vendor = "apple", target_arch = "wasm32")))]
+mod host_import;
+#[cfg(any(target_vendor = "apple", target_arch = "wasm32"))]
+#[path = "host_import_none.rs"]
+mod host_import;
 mod lbvh_build;
 mod parted_array;
 pub mod plumbing;

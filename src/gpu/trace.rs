@@ -2,6 +2,7 @@
 //! limit) of short dispatches (no dispatch runs for seconds).
 
 use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::plumbing::{
@@ -115,11 +116,34 @@ impl<'a> GpuTracer<'a> {
 
     /// Validates and uploads a layout in the given memory and compiles the kernel.
     pub fn new(ctx: &'a GpuContext, layout: &dyn GpuForm, memory: BvhMemory) -> Result<Self> {
+        Self::new_with(ctx, layout, memory, None)
+    }
+
+    /// [`GpuTracer::new`] over a layout nothing changes while it is uploaded
+    /// ([`GpuBvh::upload_shared`]: where the device's memory is the host's, its arrays are
+    /// read in place); its words cannot be written over.
+    pub fn new_shared(
+        ctx: &'a GpuContext,
+        layout: &Arc<dyn GpuForm>,
+        memory: BvhMemory,
+    ) -> Result<Self> {
+        Self::new_with(ctx, layout.as_ref(), memory, Some(layout))
+    }
+
+    fn new_with(
+        ctx: &'a GpuContext,
+        layout: &dyn GpuForm,
+        memory: BvhMemory,
+        shared: Option<&Arc<dyn GpuForm>>,
+    ) -> Result<Self> {
         let start = std::time::Instant::now();
         // The kernel's bindings checked before anything is uploaded.
         let parts = GpuBvh::checked_parts(ctx, layout, memory)?;
         parts.check(ctx, "trace", TRACE_STORAGE_BUFFERS, false)?;
-        let bvh = GpuBvh::upload(ctx, layout, memory)?;
+        let bvh = match shared {
+            Some(layout) => GpuBvh::upload_shared(ctx, layout, memory)?,
+            None => GpuBvh::upload(ctx, layout, memory)?,
+        };
         log::info!(
             "{} layout checked, packed and uploaded ({memory:?}) in {:.0} ms",
             layout.name(),
@@ -191,6 +215,12 @@ impl<'a> GpuTracer<'a> {
     /// for arrays that one storage binding holds).
     pub fn parts(&self) -> BufferParts {
         self.bvh.parts()
+    }
+
+    /// Whether its nodes and triangles are read where the host holds them
+    /// ([`GpuTracer::new_shared`]) rather than copied.
+    pub fn in_place(&self) -> [bool; 2] {
+        self.bvh.in_place()
     }
 
     fn pipeline(&mut self, k: TraceKernel) -> Result<wgpu::ComputePipeline> {

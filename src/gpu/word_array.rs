@@ -33,6 +33,8 @@ pub(crate) struct WordArray {
     view: wgpu::TextureView,
     /// The buffer's byte ranges its parts bind (one part: the whole buffer).
     parts: Vec<(u64, u64)>,
+    /// The words are read where the host holds them ([`WordArray::upload_in_place`]).
+    in_place: bool,
 }
 
 /// The words one buffer part holds, as a power of two: the largest that one storage binding
@@ -79,7 +81,46 @@ impl WordArray {
             memory,
             false,
             (buffer, texture),
+            0,
         ))
+    }
+
+    /// [`WordArray::upload`], but where the device's memory is the host's and can take the
+    /// array in place (`gpu::host_import`), `bytes` are read where they lie instead of being
+    /// copied: `room` bytes are allocated from their start, and `keep`, which owns them, is
+    /// held until the device is done with them. Such an array cannot be written over
+    /// ([`WordArray::write`] refuses it).
+    ///
+    /// # Safety
+    /// `bytes` and the `room` bytes from their start must stay allocated while `keep` lives,
+    /// and nothing may write them meanwhile.
+    pub unsafe fn upload_in_place(
+        ctx: &GpuContext,
+        memory: BvhMemory,
+        what: &str,
+        (bytes, room): (&[u8], usize),
+        keep: impl Send + Sync + 'static,
+    ) -> Result<WordArray> {
+        WordArray::check(ctx, memory, what, bytes.len())?;
+        let word = [0u8; 16];
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        // SAFETY: the caller's promise.
+        let imported = unsafe {
+            match memory {
+                _ if bytes.is_empty() => None,
+                BvhMemory::Buffers => super::host_import::buffer(ctx, what, bytes, room, keep)
+                    .map(|(b, start)| (b, texels(ctx, "unused texels", &word), start)),
+                BvhMemory::Textures => super::host_import::texture(ctx, what, bytes, room, keep)
+                    .map(|t| (ctx.buffer_with("unused words", &word, usage), Ok(t), 0)),
+            }
+        };
+        let Some((buffer, texture, start)) = imported else {
+            return WordArray::upload(ctx, memory, what, bytes);
+        };
+        log::debug!("{what} ({}) read in place", human_bytes(bytes.len() as u64));
+        let mut array = WordArray::bound(ctx, what, memory, false, (buffer, texture?), start);
+        array.in_place = true;
+        Ok(array)
     }
 
     /// A zeroed storage buffer of `len` bytes (whole 16-byte words; `what` names them in
@@ -95,22 +136,29 @@ impl WordArray {
             BvhMemory::Buffers,
             true,
             (buffer, texture),
+            0,
         ))
     }
 
-    /// The array made of its buffer and texture: the buffer's parts (logged where there are
-    /// several) and the texture's view.
+    /// The array made of its buffer and texture: the buffer's parts from byte `start` on
+    /// (logged where there are several) and the texture's view.
     fn bound(
         ctx: &GpuContext,
         what: &str,
         memory: BvhMemory,
         writable: bool,
         (buffer, texture): (wgpu::Buffer, wgpu::Texture),
+        start: u64,
     ) -> WordArray {
         let part_bytes = 16u64 << part_shift(ctx);
-        let size = buffer.size();
+        let size = buffer.size() - start;
         let parts: Vec<(u64, u64)> = (0..parts_for(ctx, BvhMemory::Buffers, size) as u64)
-            .map(|k| (k * part_bytes, part_bytes.min(size - k * part_bytes)))
+            .map(|k| {
+                (
+                    start + k * part_bytes,
+                    part_bytes.min(size - k * part_bytes),
+                )
+            })
             .collect();
         if parts.len() > 1 {
             log::info!(
@@ -127,7 +175,14 @@ impl WordArray {
             buffer,
             texture,
             parts,
+            in_place: false,
         }
+    }
+
+    /// Whether the words are read where the host holds them
+    /// ([`WordArray::upload_in_place`]).
+    pub fn in_place(&self) -> bool {
+        self.in_place
     }
 
     /// The buffer (in texture memory, a placeholder): to clear or read back.
@@ -185,6 +240,11 @@ impl WordArray {
         let words = bytes.len() / 16;
         if words * 16 != bytes.len() {
             return Err(Error::Usage("words are 16 bytes each".into()));
+        }
+        if self.in_place {
+            return Err(Error::Usage(
+                "these words are read in place from the host and cannot be written over".into(),
+            ));
         }
         match self.memory {
             BvhMemory::Buffers => {

@@ -223,7 +223,12 @@ impl<'d> Tracer<'d> {
             start.elapsed().as_secs_f64() * 1e3
         );
         let two = Arc::new(two);
-        let mut tracer = Self::with_layout(device, two.clone(), options)?;
+        // Copied to the device, not shared: moving instances writes over its words.
+        let gpu = match device.gpu_context() {
+            Some(ctx) => Some(GpuTracer::new(ctx, two.as_ref(), options.memory)?),
+            None => None,
+        };
+        let mut tracer = Self::over(two.clone(), gpu, options);
         tracer.two_level = Some(two);
         Ok(tracer)
     }
@@ -287,10 +292,17 @@ impl<'d> Tracer<'d> {
         layout: Arc<dyn GpuForm>,
         options: &TracerOptions,
     ) -> Result<Self> {
+        // Nothing writes over a layout's words once uploaded, so a device whose memory is
+        // the host's may read them where they lie.
         let gpu = match device.gpu_context() {
-            Some(ctx) => Some(GpuTracer::new(ctx, layout.as_ref(), options.memory)?),
+            Some(ctx) => Some(GpuTracer::new_shared(ctx, &layout, options.memory)?),
             None => None,
         };
+        Ok(Self::over(layout, gpu, options))
+    }
+
+    /// The tracer over `layout`, uploaded to `gpu` where there is one.
+    fn over(layout: Arc<dyn GpuForm>, gpu: Option<GpuTracer<'d>>, options: &TracerOptions) -> Self {
         let mut tracer = Tracer {
             cpu: layout.clone(),
             layout: Some(layout),
@@ -300,7 +312,7 @@ impl<'d> Tracer<'d> {
             two_level: None,
         };
         tracer.resolve_mode();
-        Ok(tracer)
+        tracer
     }
 
     /// Settles the mode that runs for the options in force: the one asked for, or per-ray

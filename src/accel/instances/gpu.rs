@@ -381,7 +381,7 @@ impl GpuForm for GpuTwoLevel {
 
     fn arrays(&self) -> GpuArrays<'_> {
         let (nodes, tris) = self.arrays.get_or_init(|| self.lay_out());
-        GpuArrays { nodes, tris }
+        GpuArrays::new(nodes, tris)
     }
 
     /// The arrays' bytes, counted without laying them out.

@@ -300,7 +300,7 @@ pub fn decode(name: &Path, bytes: &[u8]) -> Result<BvhFile> {
     check_length(&h, bytes.len() as u64).map_err(bad)?;
     // The length matched counts that fit in the file, so these fit in usize.
     let (nodes, tris) = bytes[HEADER_BYTES..].split_at(h.node_bytes as usize);
-    let arrays = GpuArrays { nodes, tris };
+    let arrays = GpuArrays::new(nodes, tris);
     let crc = checksum(head, arrays);
     if crc != h.crc {
         return Err(bad(format!(

@@ -295,10 +295,7 @@ mod tests {
         for &kind in LayoutKind::ALL {
             let layout = flatten(kind, &bvh, &mesh);
             let a = layout.arrays();
-            let cut = GpuArrays {
-                nodes: a.nodes,
-                tris: &a.tris[..a.tris.len() / 3 / 48 * 48],
-            };
+            let cut = GpuArrays::new(a.nodes, &a.tris[..a.tris.len() / 3 / 48 * 48]);
             let refused = || from_arrays(kind, cut).err().expect("accepted");
             let want = one.install(refused);
             for _ in 0..3 {

@@ -26,6 +26,7 @@
 mod twin;
 
 use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
+use crate::accel::gpu_form::zeroed_with_room;
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
@@ -139,7 +140,7 @@ impl Bvh2WideNode {
 /// The records of the tree under `root`: the header (record 0: the root's box and
 /// reference), then the inner records in pre-order.
 fn records(root: &Node) -> Vec<WideNode> {
-    let mut nodes: Vec<WideNode> = bytemuck::zeroed_vec(1 + inner_records(root) as usize);
+    let mut nodes: Vec<WideNode> = zeroed_with_room(1 + inner_records(root) as usize);
     if let Some((head, rest)) = nodes.split_first_mut() {
         let (a0, b0) = child_ref(root, 1);
         let b = root.bbox();

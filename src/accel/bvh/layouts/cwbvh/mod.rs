@@ -24,6 +24,7 @@ mod twin;
 
 pub(crate) use twin::Walk as CwbvhWalk;
 
+use crate::accel::gpu_form::{capacity_for, zeroed_on_all_threads_with_room};
 use std::borrow::Cow;
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -174,7 +175,7 @@ impl Cwbvh {
         };
         let root = tree.root();
         let counts = w.count(root);
-        let mut nodes = zeroed_on_all_threads(1 + counts.descendants(root) as usize);
+        let mut nodes = zeroed_on_all_threads_with_room(1 + counts.descendants(root) as usize);
         // The writer places leaf-order positions; the triangles are then read for them on all
         // threads (each written once, not zeroed first).
         let mut places: Vec<u32> = zeroed_on_all_threads(order.len());
@@ -187,7 +188,9 @@ impl Cwbvh {
         let tris = {
             use rayon::prelude::*;
             let tri = |&p: &u32| LeafTri::new(leaves.triangle(p).v, leaves.order[p as usize]);
-            places.par_iter().map(tri).collect()
+            let mut tris = Vec::with_capacity(capacity_for::<LeafTri>(places.len()));
+            tris.par_extend(places.par_iter().map(tri));
+            tris
         };
         Cwbvh {
             nodes,

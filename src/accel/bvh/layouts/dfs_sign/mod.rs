@@ -7,6 +7,7 @@ mod node_ray;
 mod twin;
 
 use crate::accel::bvh::{Bvh, Node, MAX_DEPTH};
+use crate::accel::gpu_form::zeroed_with_room;
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
@@ -249,7 +250,8 @@ const PARALLEL_NODES: usize = 1 << 12;
 pub(crate) fn dfs_nodes(bvh: &Bvh) -> Vec<DfsNode> {
     // Every subtree knows its size, so each writes its own part of the array; the big
     // ones on all threads (most of the time here is first touches of fresh pages).
-    let mut nodes = bytemuck::zeroed_vec(bvh.root.nodes() as usize);
+    // With room past the end for a device to read them in place.
+    let mut nodes = zeroed_with_room(bvh.root.nodes() as usize);
     write(&bvh.root, &mut nodes, 0);
     nodes
 }

@@ -9,6 +9,7 @@
 
 mod twin;
 
+use crate::accel::gpu_form::zeroed_with_room;
 use rayon::prelude::*;
 
 use crate::accel::bvh::{Bvh, Node};
@@ -54,7 +55,7 @@ impl Threaded {
         let (tris, nodes) = rayon::join(
             || LeafTri::gather(bvh, mesh),
             || {
-                let mut nodes = bytemuck::zeroed_vec(OCTANTS * n);
+                let mut nodes = zeroed_with_room(OCTANTS * n);
                 nodes
                     .par_chunks_mut(n)
                     .enumerate()

@@ -4,6 +4,7 @@
 //! range) or a binary leaf of any size. `collapse` gives up (and the greedy collapse is used)
 //! where the tree would be deeper than the stack holds.
 
+use crate::accel::gpu_form::zeroed_on_all_threads_with_room;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 use rayon::prelude::*;
@@ -178,7 +179,7 @@ where
         index: 0,
     };
     let counts = zeroed_counts(len);
-    let mut out = zeroed_on_all_threads(plan.count(&tree, r, &counts) as usize);
+    let mut out = zeroed_on_all_threads_with_room(plan.count(&tree, r, &counts) as usize);
     emit(&tree, &plan, &counts, r, 0, max_depth, 0, &mut out)?;
     Some(out)
 }
