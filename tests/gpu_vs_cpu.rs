@@ -634,42 +634,72 @@ fn a_layout_failing_validation_is_refused_in_both_memories() {
 
 /// A layout's arrays read in place by a device whose memory is the host's (lavapipe:
 /// `VK_EXT_external_memory_host`) trace as copied ones, hit for hit and node for node, in
-/// both memories and for every BVH layout (each flatten leaves the room a texture's last
-/// rows need, so a texture's arrays are always imported; a buffer's where they are
-/// aligned); a copy is made where the context says not to import. Words read in place
-/// cannot be written over.
+/// both memories and for every BVH layout. On lavapipe a texture's array is imported
+/// exactly where its flatten left room for it (arrays of at least `ROOM_MIN_BYTES`), a
+/// buffer's wherever it starts aligned as bindings need; nothing is imported where the
+/// context says not to. The tracer alone keeps the layout alive while the device reads it,
+/// and lets it go once the device is done; words read in place cannot be written over.
 #[test]
 fn arrays_read_in_place_trace_as_copied_ones() {
+    use std::sync::Arc;
     gpu_device(); // fails with the install hint when there is no adapter
     let ctx = lancer::gpu::GpuContext::new().unwrap();
-    if ctx.adapter.name.contains("llvmpipe") {
+    let lavapipe = ctx.adapter.name.contains("llvmpipe");
+    if lavapipe {
         assert!(ctx.import_host_memory, "lavapipe imports host memory");
     }
     let mut copying = ctx.clone();
     copying.import_host_memory = false;
     let mut rng = Rng::new(29);
-    let mesh = soup(&mut rng, 3000, 0.05);
+    // Triangle arrays of 1.4 MB, node arrays either side of ROOM_MIN_BYTES.
+    let mesh = soup(&mut rng, 30_000, 0.02);
     let rays = random_rays(&mut rng, 2000, &mesh);
     let bvh = lancer::accel::bvh::build(&mesh, &BuildOptions::default());
+    let mut imported = [0usize; 2];
     for &kind in LayoutKind::ALL {
-        let layout: std::sync::Arc<dyn lancer::accel::GpuForm> =
-            lancer::accel::bvh::layouts::flatten(kind, &bvh, &mesh).into();
         for memory in [BvhMemory::Textures, BvhMemory::Buffers] {
             let mut traced = Vec::new();
             for c in [&ctx, &copying] {
-                let mut t = lancer::gpu::GpuTracer::new_shared(c, &layout, memory).unwrap();
-                // A texture's words are imported wherever they lie; a buffer's only where
-                // they start on the binding alignment (wgpu's, coarser than the driver's).
-                let in_place = t.in_place();
-                if memory == BvhMemory::Textures || !c.import_host_memory {
-                    assert_eq!(in_place, [c.import_host_memory; 2], "{kind} {memory:?}");
-                }
-                println!(
-                    "{kind} {memory:?} import {}: in place {in_place:?}",
-                    c.import_host_memory
+                let layout: Arc<dyn lancer::accel::GpuForm> =
+                    lancer::accel::bvh::layouts::flatten(kind, &bvh, &mesh).into();
+                let a = layout.arrays();
+                let roomy = [a.room()[0] > a.nodes.len(), a.room()[1] > a.tris.len()];
+                assert_eq!(
+                    roomy,
+                    [a.nodes.len(), a.tris.len()].map(|n| n >= lancer::accel::ROOM_MIN_BYTES),
+                    "{kind}: room"
                 );
-                if t.in_place()[0] {
+                let weak = Arc::downgrade(&layout);
+                let mut t = lancer::gpu::GpuTracer::new_shared(c, &layout, memory).unwrap();
+                drop(layout);
+                let in_place = t.in_place();
+                let name = format!("{kind} {memory:?} import {}", c.import_host_memory);
+                println!("{name}: room {roomy:?}, in place {in_place:?}");
+                if !c.import_host_memory {
+                    assert_eq!(in_place, [false; 2], "{name}");
+                } else if lavapipe && memory == BvhMemory::Textures {
+                    assert_eq!(in_place, roomy, "{name}");
+                }
+                for k in 0..2 {
+                    // A texture's last rows need the room; a buffer needs none.
+                    let needs_room = memory == BvhMemory::Textures;
+                    assert!(
+                        roomy[k] || !in_place[k] || !needs_room,
+                        "{name}: past the room"
+                    );
+                    imported[k] += in_place[k] as usize;
+                }
+                assert_eq!(
+                    weak.upgrade().is_some(),
+                    in_place.contains(&true),
+                    "{name}: kept"
+                );
+                if in_place[0] {
                     let e = t.write_node_words(0, &[0; 16]).unwrap_err().to_string();
+                    assert!(e.contains("read in place"), "{e}");
+                }
+                if in_place[1] {
+                    let e = t.write_tri_words(0, &[0; 16]).unwrap_err().to_string();
                     assert!(e.contains("read in place"), "{e}");
                 }
                 let k = lancer::gpu::TraceKernel {
@@ -677,6 +707,14 @@ fn arrays_read_in_place_trace_as_copied_ones() {
                     ..Default::default()
                 };
                 traced.push(t.trace(&rays, k).unwrap());
+                drop(t);
+                let _ = c
+                    .device
+                    .poll(lancer::gpu::wgpu::PollType::wait_indefinitely());
+                assert!(
+                    weak.upgrade().is_none(),
+                    "{name}: the layout outlived the device's use"
+                );
             }
             let (a, b) = (&traced[0], &traced[1]);
             let bits = |h: &[Hit]| -> Vec<(u32, u32)> {
@@ -685,5 +723,8 @@ fn arrays_read_in_place_trace_as_copied_ones() {
             assert_eq!(bits(&a.0), bits(&b.0), "{kind} {memory:?}: hits");
             assert_eq!(a.1, b.1, "{kind} {memory:?}: statistics");
         }
+    }
+    if lavapipe {
+        assert!(imported[0] > 0 && imported[1] > 0, "imported {imported:?}");
     }
 }

@@ -13,15 +13,24 @@ pub struct GpuArrays<'a> {
     pub nodes: &'a [u8],
     /// The triangles in leaf order ([`LeafTri`]s).
     pub tris: &'a [u8],
-    /// Bytes allocated from the start of `nodes` and of `tris` (at least their lengths): a
-    /// device whose memory is the host's may map a little past an array's end (a texture's
-    /// last row) when it reads the array in place.
-    pub room: [usize; 2],
+    /// Bytes allocated from the start of each array (see [`GpuArrays::room`]); set only
+    /// where known true, so that safe code cannot make a device read past an allocation.
+    room: [usize; 2],
 }
 
 impl<'a> GpuArrays<'a> {
-    /// The bytes of a node array and the leaf triangles (the inverse of `records`), with
-    /// the room their allocations have.
+    /// A node array and leaf triangles as bytes (the inverse of `records`), with no room
+    /// past their ends.
+    pub fn new(nodes: &'a [u8], tris: &'a [u8]) -> GpuArrays<'a> {
+        GpuArrays {
+            nodes,
+            tris,
+            room: [nodes.len(), tris.len()],
+        }
+    }
+
+    /// The arrays of a node vector and a triangle vector, with the room their allocations
+    /// have past their ends (their capacities).
     pub fn of<N: bytemuck::Pod>(nodes: &'a Vec<N>, tris: &'a Vec<LeafTri>) -> GpuArrays<'a> {
         GpuArrays {
             nodes: bytemuck::cast_slice(nodes),
@@ -33,24 +42,27 @@ impl<'a> GpuArrays<'a> {
         }
     }
 
-    /// A node array and leaf triangles as bytes, with no room past their ends.
-    pub fn new(nodes: &'a [u8], tris: &'a [u8]) -> GpuArrays<'a> {
-        GpuArrays {
-            nodes,
-            tris,
-            room: [nodes.len(), tris.len()],
-        }
+    /// Bytes allocated from the start of the nodes and of the triangles (at least their
+    /// lengths): a device whose memory is the host's reads an array in place only where
+    /// the room holds what it maps (a texture's last rows, which a driver may pad).
+    pub fn room(&self) -> [usize; 2] {
+        self.room
     }
 }
 
 /// Elements to allocate for an array of `len` that a device may read in place: room for
-/// [`ROOM_BYTES`] past its end ([`GpuArrays::room`]).
+/// [`ROOM_BYTES`] past its end where the array is at least [`ROOM_MIN_BYTES`] (a smaller
+/// one is copied: the room would cost more than the copy saves).
 pub(crate) fn capacity_for<T>(len: usize) -> usize {
-    len + ROOM_BYTES.div_ceil(std::mem::size_of::<T>().max(1))
+    let size = std::mem::size_of::<T>().max(1);
+    match len.saturating_mul(size) >= ROOM_MIN_BYTES {
+        true => len + ROOM_BYTES.div_ceil(size),
+        false => len,
+    }
 }
 
 /// `len` zeroed values with room past them ([`capacity_for`]), cleared by the system
-/// (fresh pages are zero; the room's are never touched).
+/// (fresh pages are zero; the room's are never written).
 pub(crate) fn zeroed_with_room<T: bytemuck::Zeroable>(len: usize) -> Vec<T> {
     let mut v = bytemuck::zeroed_vec(capacity_for::<T>(len));
     v.truncate(len);
@@ -69,8 +81,12 @@ where
 /// Bytes of room past a flattened array's end: eight 64 KiB texture rows (4096 16-byte
 /// texels each), for the partial last row and the rows a driver pads a texture's height
 /// with (llvmpipe: to a multiple of 4). The GPU side checks what the driver asks for. The
-/// room's pages are never written, so they cost address space, not memory.
+/// room is never written, so it costs address space rather than memory.
 pub const ROOM_BYTES: usize = 8 << 16;
+
+/// The smallest array the flattens allocate with [`ROOM_BYTES`] to spare (smaller ones are
+/// copied to the device; a scene of many small meshes pays no room).
+pub const ROOM_MIN_BYTES: usize = 1 << 20;
 
 /// A structure's GPU form: its arrays (nodes and leaf triangles, in either BVH memory), its
 /// WGSL traversal, and its CPU twin (the [`Accel`] supertrait), which walks the same arrays

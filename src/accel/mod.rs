@@ -26,7 +26,7 @@ use crate::accel::bvh::layouts::{self, LayoutKind};
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
 use crate::mesh::Mesh;
 
-pub use gpu_form::{GpuArrays, GpuForm, ROOM_BYTES};
+pub use gpu_form::{GpuArrays, GpuForm, ROOM_BYTES, ROOM_MIN_BYTES};
 pub use leaf_tri::LeafTri;
 pub use query::{HitMask, Mask, Query, RayStats};
 pub use traversal_mode::TraversalMode;

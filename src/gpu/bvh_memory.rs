@@ -82,7 +82,7 @@ impl GpuBvh {
         let (tris, tris_room): (&[u8], usize) = if arrays.tris.is_empty() {
             (bytemuck::cast_slice(&pad), 0)
         } else {
-            (arrays.tris, arrays.room[1])
+            (arrays.tris, arrays.room()[1])
         };
         // Both sizes checked before either array is uploaded.
         WordArray::check(ctx, memory, "the BVH nodes", nodes.len())?;
@@ -98,7 +98,7 @@ impl GpuBvh {
         };
         Ok(GpuBvh {
             memory,
-            nodes: upload("the BVH nodes", nodes, arrays.room[0])?,
+            nodes: upload("the BVH nodes", nodes, arrays.room()[0])?,
             tris: upload("the triangles", tris, tris_room)?,
             shift: word_array::part_shift(ctx),
         })

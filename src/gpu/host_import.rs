@@ -81,14 +81,23 @@ pub(crate) fn enabled(device: &wgpu::Device) -> bool {
 
 /// The Vulkan objects an import needs, read from the context's device.
 struct Vk {
+    instance: ash::Instance,
+    physical: vk::PhysicalDevice,
     device: ash::Device,
     host: ash::ext::external_memory_host::Device,
     /// `minImportedHostPointerAlignment`: imports start and end on such a boundary.
     align: u64,
+    /// The driver is lavapipe (see the module's documentation).
+    lavapipe: bool,
 }
 
+/// The handle type of host memory imports.
+const HOST: vk::ExternalMemoryHandleTypeFlags =
+    vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT;
+
 impl Vk {
-    /// Where the context's device imports host memory and may ([`GpuContext::import_host_memory`]).
+    /// Where the context's device imports host memory and may
+    /// ([`GpuContext::import_host_memory`]).
     fn of(ctx: &GpuContext) -> Option<Vk> {
         if !ctx.import_host_memory || !enabled(&ctx.device) {
             return None;
@@ -97,23 +106,71 @@ impl Vk {
         // while the wgpu device lives, which outlives every import (they are its objects).
         unsafe {
             let hal_device = ctx.device.as_hal::<Vulkan>()?;
-            let shared = hal_device.shared_instance();
-            let instance = shared.raw_instance();
+            let instance = hal_device.shared_instance().raw_instance().clone();
+            let physical = hal_device.raw_physical_device();
             let device = hal_device.raw_device().clone();
             let mut host_props = vk::PhysicalDeviceExternalMemoryHostPropertiesEXT::default();
             let mut props = vk::PhysicalDeviceProperties2::default().push_next(&mut host_props);
-            instance.get_physical_device_properties2(hal_device.raw_physical_device(), &mut props);
+            instance.get_physical_device_properties2(physical, &mut props);
             let align = host_props.min_imported_host_pointer_alignment.max(1);
             if !align.is_power_of_two() {
                 return None;
             }
-            let host = ash::ext::external_memory_host::Device::new(instance, &device);
+            let host = ash::ext::external_memory_host::Device::new(&instance, &device);
             Some(Vk {
+                instance,
+                physical,
                 device,
                 host,
                 align,
+                lavapipe: ctx.device.adapter_info().driver == "llvmpipe",
             })
         }
+    }
+
+    /// Whether a linear rgba32uint storage image of 4096 × `rows` texels can be made over
+    /// imported host memory.
+    fn image_importable(&self, rows: u32) -> bool {
+        let mut external = vk::PhysicalDeviceExternalImageFormatInfo::default().handle_type(HOST);
+        let info = vk::PhysicalDeviceImageFormatInfo2::default()
+            .format(vk::Format::R32G32B32A32_UINT)
+            .ty(vk::ImageType::TYPE_2D)
+            .tiling(vk::ImageTiling::LINEAR)
+            .usage(vk::ImageUsageFlags::STORAGE)
+            .push_next(&mut external);
+        let mut external_props = vk::ExternalImageFormatProperties::default();
+        let mut props = vk::ImageFormatProperties2::default().push_next(&mut external_props);
+        // SAFETY: valid structures for the device's own physical device.
+        let asked = unsafe {
+            self.instance.get_physical_device_image_format_properties2(
+                self.physical,
+                &info,
+                &mut props,
+            )
+        };
+        let extent = props.image_format_properties.max_extent;
+        let features = external_props
+            .external_memory_properties
+            .external_memory_features;
+        asked.is_ok()
+            && features.contains(vk::ExternalMemoryFeatureFlags::IMPORTABLE)
+            && extent.width >= TEXEL_ROW
+            && extent.height >= rows
+    }
+
+    /// Whether a storage buffer can be made over imported host memory.
+    fn buffer_importable(&self) -> bool {
+        let info = vk::PhysicalDeviceExternalBufferInfo::default()
+            .usage(vk::BufferUsageFlags::STORAGE_BUFFER)
+            .handle_type(HOST);
+        let mut props = vk::ExternalBufferProperties::default();
+        // SAFETY: valid structures for the device's own physical device.
+        unsafe {
+            self.instance
+                .get_physical_device_external_buffer_properties(self.physical, &info, &mut props)
+        };
+        let features = props.external_memory_properties.external_memory_features;
+        features.contains(vk::ExternalMemoryFeatureFlags::IMPORTABLE)
     }
 
     /// Device memory over the host pages that hold `[ptr, ptr + size)` (from the page
@@ -134,7 +191,7 @@ impl Vk {
         let base = addr & !(self.align - 1);
         let offset = addr - base;
         let len = (offset + size).div_ceil(self.align) * self.align;
-        let handle = vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT;
+        let handle = HOST;
         let mut props = vk::MemoryHostPointerPropertiesEXT::default();
         // SAFETY: the caller's promise; the pages from `base` to `base + len` hold part of
         // the allocation, so they are mapped.
@@ -183,25 +240,26 @@ pub(crate) unsafe fn texture(
 ) -> Option<wgpu::Texture> {
     let vk = Vk::of(ctx)?;
     let row_bytes = TEXEL_ROW as u64 * 16;
-    let rows = (bytes.len() as u64).div_ceil(row_bytes).max(1);
-    let extent = vk::Extent3D {
-        width: TEXEL_ROW,
-        height: rows as u32,
-        depth: 1,
-    };
-    let mut external = vk::ExternalMemoryImageCreateInfo::default()
-        .handle_types(vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT);
+    let rows = u32::try_from((bytes.len() as u64).div_ceil(row_bytes).max(1)).ok()?;
+    if !vk.lavapipe || !vk.image_importable(rows) {
+        return None;
+    }
+    let mut external = vk::ExternalMemoryImageCreateInfo::default().handle_types(HOST);
     let info = vk::ImageCreateInfo::default()
         .image_type(vk::ImageType::TYPE_2D)
         .format(vk::Format::R32G32B32A32_UINT)
-        .extent(extent)
+        .extent(vk::Extent3D {
+            width: TEXEL_ROW,
+            height: rows,
+            depth: 1,
+        })
         .mip_levels(1)
         .array_layers(1)
         .samples(vk::SampleCountFlags::TYPE_1)
         .tiling(vk::ImageTiling::LINEAR)
         .usage(vk::ImageUsageFlags::STORAGE)
         .sharing_mode(vk::SharingMode::EXCLUSIVE)
-        .initial_layout(vk::ImageLayout::PREINITIALIZED)
+        .initial_layout(vk::ImageLayout::UNDEFINED)
         .push_next(&mut external);
     // SAFETY: the image is destroyed below on every path that does not hand it to wgpu;
     // the memory imported is the caller's, as promised.
@@ -221,13 +279,16 @@ pub(crate) unsafe fn texture(
             array_layer: 0,
         };
         let layout = vk.device.get_image_subresource_layout(image, sub);
-        // The texels must lie where the words are: row after row, from the first byte,
-        // and the image's memory within the allocation.
+        // The texels must lie where the words are: row after row, from the first byte, and
+        // the image's memory within the allocation, starting on its alignment (which must
+        // divide the import's, so that the offset into the imported pages keeps it).
         let in_place = layout.offset == 0 && layout.row_pitch == row_bytes;
-        let aligned = (bytes.as_ptr() as u64).is_multiple_of(req.alignment.max(1));
+        let align = req.alignment.max(1);
+        let aligned = align <= vk.align && (bytes.as_ptr() as u64).is_multiple_of(align);
         if !in_place || !aligned || req.size > room as u64 {
             log::debug!(
-                "{what}: not imported (row pitch {}, offset {}, {} bytes needed of {room})",
+                "{what}: not imported (row pitch {}, offset {}, alignment {align}, {} bytes \
+                 needed of {room})",
                 layout.row_pitch,
                 layout.offset,
                 req.size
@@ -241,9 +302,12 @@ pub(crate) unsafe fn texture(
         if vk.device.bind_image_memory(image, memory, offset).is_err() {
             return destroy(Some(memory));
         }
+        let Some(hal_device) = ctx.device.as_hal::<Vulkan>() else {
+            return destroy(Some(memory));
+        };
         let size = wgpu::Extent3d {
             width: TEXEL_ROW,
-            height: rows as u32,
+            height: rows,
             depth_or_array_layers: 1,
         };
         let hal_desc = hal::TextureDescriptor {
@@ -263,9 +327,6 @@ pub(crate) unsafe fn texture(
             device.free_memory(memory, None);
             drop(keep);
         });
-        let Some(hal_device) = ctx.device.as_hal::<Vulkan>() else {
-            return destroy(Some(memory));
-        };
         let hal_texture = hal_device.texture_from_raw(
             image,
             &hal_desc,
@@ -283,43 +344,13 @@ pub(crate) unsafe fn texture(
             usage: wgpu::TextureUsages::STORAGE_BINDING,
             view_formats: &[],
         };
-        // wgpu is told the image is in the storage layout already; it is moved there from
-        // the preinitialised layout (which keeps the words) before any use.
-        let texture = ctx.device.create_texture_from_hal::<Vulkan>(
+        // In the undefined layout, as made: wgpu moves it to the storage layout on first
+        // use, and counts it initialised (it is never cleared).
+        Some(ctx.device.create_texture_from_hal::<Vulkan>(
             hal_texture,
             &desc,
-            wgpu::TextureUses::STORAGE_READ_ONLY,
-        );
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        encoder.as_hal_mut::<Vulkan, _, _>(|raw| {
-            let Some(raw) = raw else { return };
-            let barrier = vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::HOST_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ)
-                .old_layout(vk::ImageLayout::PREINITIALIZED)
-                .new_layout(vk::ImageLayout::GENERAL)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(vk::ImageSubresourceRange {
-                    aspect_mask: vk::ImageAspectFlags::COLOR,
-                    base_mip_level: 0,
-                    level_count: 1,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                });
-            vk.device.cmd_pipeline_barrier(
-                raw.raw_handle(),
-                vk::PipelineStageFlags::HOST,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::DependencyFlags::empty(),
-                &[],
-                &[],
-                &[barrier],
-            );
-        });
-        ctx.queue.submit([encoder.finish()]);
-        Some(texture)
+            wgpu::TextureUses::UNINITIALIZED,
+        ))
     }
 }
 
@@ -340,9 +371,11 @@ pub(crate) unsafe fn buffer(
     keep: impl Send + Sync + 'static,
 ) -> Option<(wgpu::Buffer, u64)> {
     let vk = Vk::of(ctx)?;
+    if !vk.buffer_importable() {
+        return None;
+    }
     let create = |size: u64| {
-        let mut external = vk::ExternalMemoryBufferCreateInfo::default()
-            .handle_types(vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT);
+        let mut external = vk::ExternalMemoryBufferCreateInfo::default().handle_types(HOST);
         let info = vk::BufferCreateInfo::default()
             .size(size)
             .usage(vk::BufferUsageFlags::STORAGE_BUFFER)
