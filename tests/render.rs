@@ -221,6 +221,62 @@ fn shading_triangles_beyond_a_storage_binding_render_in_both_memories() {
     assert!(e.contains("max_buffer_size"), "{e}");
 }
 
+/// Where the device's memory is the host's (lavapipe), a render reads the layout's arrays
+/// and the shading triangles in place: the bunny (69,451 triangles) renders what a device
+/// that copies them renders, bit for bit, in both memories; on lavapipe every array of at
+/// least `ROOM_MIN_BYTES` (which its flatten gives room) is imported for textures.
+#[test]
+fn renders_reading_arrays_in_place_are_the_copied_renders() {
+    use std::sync::Arc;
+    gpu_device(); // fails with the install hint when there is no adapter
+    let Some(path) = common::model("stanford-bunny.obj") else {
+        return;
+    };
+    let s = RenderScene::from_mesh(&path, 32, 24).unwrap();
+    let ctx = lancer::gpu::GpuContext::new().unwrap();
+    let mut copying = ctx.clone();
+    copying.import_host_memory = false;
+    let bvh = lancer::accel::bvh::build(&s.mesh, &Default::default());
+    let layout: Arc<dyn lancer::accel::GpuForm> =
+        lancer::accel::bvh::layouts::flatten(LayoutKind::Cwbvh, &bvh, &s.mesh).into();
+    let a = layout.arrays();
+    // Arrays of at least ROOM_MIN_BYTES have room; the shading triangles (5.6 MB) do.
+    let roomy = [
+        a.room()[0] > a.nodes.len(),
+        a.room()[1] > a.tris.len(),
+        true,
+    ];
+    assert!(roomy[1], "the bunny's triangles have room");
+    for (c, want) in [(&ctx, ctx.import_host_memory), (&copying, false)] {
+        let full = Crop::full(32, 24);
+        let r = lancer::render::GpuRenderer::new_shared(
+            c,
+            &s,
+            &layout,
+            BvhMemory::Textures,
+            full,
+            false,
+            TraversalMode::PerRay,
+        )
+        .unwrap();
+        if c.adapter.name.contains("llvmpipe") || !want {
+            assert_eq!(r.in_place(), roomy.map(|r| r && want), "import {want}");
+        }
+    }
+    let (imports, copies) = (Device::gpu(ctx), Device::gpu(copying));
+    let fx = EffectSet::of(&s);
+    for memory in [BvhMemory::Textures, BvhMemory::Buffers] {
+        let options = RenderOptions {
+            spp: Some(2),
+            effects: Some(fx),
+            memory,
+            ..RenderOptions::default()
+        };
+        let image = |d: &Device| render(&s, d, &options).unwrap().image.pixels;
+        assert_same(&image(&imports), &image(&copies), &format!("{memory:?}"));
+    }
+}
+
 /// Texels (textures and the environment map, always in a storage buffer) beyond one storage
 /// binding are bound in parts: `principled.toml` (a 64² checker under a 128 × 64 sky) on a
 /// device whose recorded binding limit is shrunk to 16 KiB renders what an unshrunk device

@@ -26,6 +26,7 @@ use crate::accel::bvh::layouts::{self, LayoutKind};
 use crate::geometry::{Aabb, Hit, Ray, Robustness};
 use crate::mesh::Mesh;
 
+pub(crate) use gpu_form::capacity_for;
 pub use gpu_form::{GpuArrays, GpuForm, ROOM_BYTES, ROOM_MIN_BYTES};
 pub use leaf_tri::LeafTri;
 pub use query::{HitMask, Mask, Query, RayStats};

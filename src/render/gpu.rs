@@ -2,6 +2,9 @@
 //! constants of shaders/render.wgsl), samples accumulated over many short dispatches.
 
 use std::collections::HashMap;
+use std::sync::Arc;
+
+use crate::accel::capacity_for;
 
 use glam::Vec3;
 
@@ -308,33 +311,73 @@ impl<'a> GpuRenderer<'a> {
         aovs: bool,
         mode: TraversalMode,
     ) -> Result<Self> {
+        Self::new_with(ctx, scene, (layout, None), memory, crop, aovs, mode)
+    }
+
+    /// Whether the BVH's nodes, its triangles and the shading triangles are read where the
+    /// host holds them ([`GpuRenderer::new_shared`]) rather than copied.
+    pub fn in_place(&self) -> [bool; 3] {
+        let [nodes, tris] = self.bvh.in_place();
+        [nodes, tris, self.shades.in_place()]
+    }
+
+    /// [`GpuRenderer::new`] over a layout nothing changes while it is uploaded: where the
+    /// device's memory is the host's, its arrays are read in place
+    /// ([`GpuBvh::upload_shared`]). Such a renderer cannot [`move_to`](Self::move_to)
+    /// another frame (the top level's words cannot be written over).
+    pub fn new_shared(
+        ctx: &'a GpuContext,
+        scene: &RenderScene,
+        layout: &Arc<dyn GpuForm>,
+        memory: BvhMemory,
+        crop: Crop,
+        aovs: bool,
+        mode: TraversalMode,
+    ) -> Result<Self> {
+        let shared = (layout.as_ref(), Some(layout));
+        Self::new_with(ctx, scene, shared, memory, crop, aovs, mode)
+    }
+
+    fn new_with(
+        ctx: &'a GpuContext,
+        scene: &RenderScene,
+        (layout, shared): (&dyn GpuForm, Option<&Arc<dyn GpuForm>>),
+        memory: BvhMemory,
+        crop: Crop,
+        aovs: bool,
+        mode: TraversalMode,
+    ) -> Result<Self> {
         scene.check()?;
         // Fits a u32: the crop lies in the image, whose pixel count the caller checked.
         let pixels = crop.pixels() as u32;
-        let mut shades: Vec<GpuShade> = (scene.mesh.triangles.iter().enumerate())
-            .map(|(i, t)| {
-                let uv = scene.uvs[i];
-                let n = scene.normals.get(i).copied().unwrap_or([NO_NORMAL; 3]);
-                GpuShade {
-                    v0: t.v[0].into(),
-                    material: scene.material_of[i],
-                    v1: t.v[1].into(),
-                    n0: n[0],
-                    v2: t.v[2].into(),
-                    n1: n[1],
-                    uv0: uv[0].into(),
-                    uv1: uv[1].into(),
-                    uv2: uv[2].into(),
-                    n2: n[2],
-                    tangent: scene.tangents.get(i).map_or(NO_TANGENT, |t| t[0]),
-                }
-            })
-            .collect();
-        let placement_base = shades.len() * 5;
         let placements = placements_of(scene);
-        shades.extend_from_slice(bytemuck::cast_slice(&placements));
+        let tangents = other_tangents(scene);
+        // Room past the end (where big) for a device to read them in place.
+        let placement_words: &[GpuShade] = bytemuck::cast_slice(&placements);
+        let len = scene.mesh.triangles.len() + placement_words.len() + tangents.len();
+        let mut shades: Vec<GpuShade> = Vec::with_capacity(capacity_for::<GpuShade>(len));
+        shades.extend((scene.mesh.triangles.iter().enumerate()).map(|(i, t)| {
+            let uv = scene.uvs[i];
+            let n = scene.normals.get(i).copied().unwrap_or([NO_NORMAL; 3]);
+            GpuShade {
+                v0: t.v[0].into(),
+                material: scene.material_of[i],
+                v1: t.v[1].into(),
+                n0: n[0],
+                v2: t.v[2].into(),
+                n1: n[1],
+                uv0: uv[0].into(),
+                uv1: uv[1].into(),
+                uv2: uv[2].into(),
+                n2: n[2],
+                tangent: scene.tangents.get(i).map_or(NO_TANGENT, |t| t[0]),
+            }
+        }));
+        let placement_base = shades.len() * 5;
+        shades.extend_from_slice(placement_words);
         let tangent_base = shades.len() * 5;
-        shades.extend_from_slice(&other_tangents(scene));
+        shades.extend_from_slice(&tangents);
+        drop((placements, tangents));
         let mut texels: Vec<[f32; 4]> = Vec::new();
         let mut tex_at = Vec::new();
         for t in &scene.textures {
@@ -516,9 +559,24 @@ impl<'a> GpuRenderer<'a> {
             ..GpuBvh::checked_parts(ctx, layout, memory)?
         };
         parts.check(ctx, "render", RENDER_STORAGE_BUFFERS, true)?;
-        let bvh = GpuBvh::upload(ctx, layout, memory)?;
-        // The shading triangles, one per mesh triangle, go where the BVH's triangles do.
-        let shade_words = WordArray::upload(ctx, memory, "the shading triangles", shade_bytes)?;
+        let bvh = match shared {
+            Some(layout) => GpuBvh::upload_shared(ctx, layout, memory)?,
+            None => GpuBvh::upload(ctx, layout, memory)?,
+        };
+        // The shading triangles, one per mesh triangle, go where the BVH's triangles do:
+        // read in place with the layout's arrays (kept until the device is done with them).
+        let what = "the shading triangles";
+        let room = shades.capacity() * std::mem::size_of::<GpuShade>();
+        let shades = Arc::new(shades);
+        let shade_bytes: &[u8] = bytemuck::cast_slice(&shades[..]);
+        let shade_words = match shared {
+            // SAFETY: the Arc handed on keeps the vector allocated, and nothing writes it
+            // (its only owner besides is this function, which only reads it).
+            Some(_) => unsafe {
+                WordArray::upload_in_place(ctx, memory, what, (shade_bytes, room), shades.clone())
+            },
+            None => WordArray::upload(ctx, memory, what, shade_bytes),
+        }?;
         drop(shades);
         // The texels (textures, coordinate maps, the environment) in a storage buffer, in
         // parts where one binding cannot hold them.

@@ -279,16 +279,29 @@ impl<'a> Renderer<'a> {
             };
         let build_ms = (start.elapsed() - stats_time).as_secs_f64() * 1e3;
         let start = Instant::now();
+        // A scene in two levels moves by writing over its top level; any other is read in
+        // place where the device's memory is the host's.
         let gpu = match (device.gpu_context(), &gpu_form) {
-            (Some(ctx), Some(flat)) => Some(GpuRenderer::new(
-                ctx,
-                scene,
-                flat.as_ref(),
-                options.memory,
-                crop,
-                options.aovs,
-                options.mode,
-            )?),
+            (Some(ctx), Some(flat)) => Some(match two_level.is_some() {
+                true => GpuRenderer::new(
+                    ctx,
+                    scene,
+                    flat.as_ref(),
+                    options.memory,
+                    crop,
+                    options.aovs,
+                    options.mode,
+                )?,
+                false => GpuRenderer::new_shared(
+                    ctx,
+                    scene,
+                    flat,
+                    options.memory,
+                    crop,
+                    options.aovs,
+                    options.mode,
+                )?,
+            }),
             _ => None,
         };
         if gpu.is_none() && options.mode != TraversalMode::PerRay {
