@@ -50,8 +50,8 @@ impl LeafTri {
     }
 
     /// The triangles of `bvh`'s leaves, in leaf order (in parallel).
-    /// Allocated with room for a device to read them in place
-    /// ([`capacity_for`](super::gpu_form::capacity_for)).
+    /// Allocated with room for a device to read them in place (see
+    /// [`ROOM_BYTES`](super::ROOM_BYTES)).
     pub fn gather(bvh: &Bvh, mesh: &Mesh) -> Vec<LeafTri> {
         let mut tris =
             Vec::with_capacity(super::gpu_form::capacity_for::<LeafTri>(bvh.order.len()));
