@@ -634,9 +634,10 @@ fn a_layout_failing_validation_is_refused_in_both_memories() {
 
 /// A layout's arrays read in place by a device whose memory is the host's (lavapipe:
 /// `VK_EXT_external_memory_host`) trace as copied ones, hit for hit and node for node, in
-/// both memories and for every BVH layout. On lavapipe a texture's array is imported
-/// exactly where its flatten left room for it (arrays of at least `ROOM_MIN_BYTES`), a
-/// buffer's wherever it starts aligned as bindings need; nothing is imported where the
+/// both memories and for every BVH layout. On lavapipe arrays are imported: a texture's only
+/// where its flatten left room for it (arrays of at least `ROOM_MIN_BYTES`) and it starts on
+/// the driver's image alignment (which, with the allocator's placement, decides), a buffer's
+/// wherever it starts aligned as bindings need; nothing is imported where the
 /// context says not to. The tracer alone keeps the layout alive while the device reads it,
 /// and lets it go once the device is done; words read in place cannot be written over.
 #[test]
@@ -648,6 +649,8 @@ fn arrays_read_in_place_trace_as_copied_ones() {
     if lavapipe {
         assert!(ctx.import_host_memory, "lavapipe imports host memory");
     }
+    // See the end: where every texture array with room must be imported.
+    let mesa22 = ctx.adapter.driver.contains("Mesa 22.");
     let mut copying = ctx.clone();
     copying.import_host_memory = false;
     let mut rng = Rng::new(29);
@@ -677,7 +680,7 @@ fn arrays_read_in_place_trace_as_copied_ones() {
                 println!("{name}: room {roomy:?}, in place {in_place:?}");
                 if !c.import_host_memory {
                     assert_eq!(in_place, [false; 2], "{name}");
-                } else if lavapipe && memory == BvhMemory::Textures {
+                } else if lavapipe && memory == BvhMemory::Textures && mesa22 {
                     assert_eq!(in_place, roomy, "{name}");
                 }
                 for k in 0..2 {
@@ -724,7 +727,12 @@ fn arrays_read_in_place_trace_as_copied_ones() {
             assert_eq!(a.1, b.1, "{kind} {memory:?}: statistics");
         }
     }
-    if lavapipe {
+    // Mesa 22's lavapipe (Debian 12's, CI's) asks 16-byte image alignment, which every
+    // allocation meets: there every texture array with room is read in place. Later ones ask
+    // more, which this test's allocator meets by chance (the CLI's mimalloc places big
+    // arrays aligned), so there only what was imported is checked.
+    if lavapipe && mesa22 {
         assert!(imported[0] > 0 && imported[1] > 0, "imported {imported:?}");
     }
+    println!("arrays read in place: {imported:?} (nodes, triangles)");
 }

@@ -223,8 +223,8 @@ fn shading_triangles_beyond_a_storage_binding_render_in_both_memories() {
 
 /// Where the device's memory is the host's (lavapipe), a render reads the layout's arrays
 /// and the shading triangles in place: the bunny (69,451 triangles) renders what a device
-/// that copies them renders, bit for bit, in both memories; on lavapipe every array of at
-/// least `ROOM_MIN_BYTES` (which its flatten gives room) is imported for textures.
+/// that copies them renders, bit for bit, in both memories; on lavapipe arrays are imported,
+/// a texture's only where its allocation has room (arrays of at least `ROOM_MIN_BYTES`).
 #[test]
 fn renders_reading_arrays_in_place_are_the_copied_renders() {
     use std::sync::Arc;
@@ -247,21 +247,35 @@ fn renders_reading_arrays_in_place_are_the_copied_renders() {
         true,
     ];
     assert!(roomy[1], "the bunny's triangles have room");
-    for (c, want) in [(&ctx, ctx.import_host_memory), (&copying, false)] {
-        let full = Crop::full(32, 24);
-        let r = lancer::render::GpuRenderer::new_shared(
-            c,
-            &s,
-            &layout,
-            BvhMemory::Textures,
-            full,
-            false,
-            TraversalMode::PerRay,
-        )
-        .unwrap();
-        if c.adapter.name.contains("llvmpipe") || !want {
-            assert_eq!(r.in_place(), roomy.map(|r| r && want), "import {want}");
+    let mut imported = 0;
+    for (c, import) in [(&ctx, ctx.import_host_memory), (&copying, false)] {
+        for memory in [BvhMemory::Textures, BvhMemory::Buffers] {
+            let full = Crop::full(32, 24);
+            let mode = TraversalMode::PerRay;
+            let r =
+                lancer::render::GpuRenderer::new_shared(c, &s, &layout, memory, full, false, mode)
+                    .unwrap();
+            let in_place = r.in_place();
+            // Imported only where asked, a texture only where its array has room (and starts
+            // on the driver's alignment, which depends on the allocator).
+            for k in 0..3 {
+                assert!(
+                    import || !in_place[k],
+                    "{memory:?}: imported when told not to"
+                );
+                let textures = memory == BvhMemory::Textures;
+                assert!(
+                    roomy[k] || !in_place[k] || !textures,
+                    "{memory:?}: past the room"
+                );
+                imported += in_place[k] as usize;
+            }
         }
+    }
+    // Mesa 22's lavapipe (CI's) asks 16-byte image alignment, which every allocation meets;
+    // later ones ask more, met here by chance (see tests/gpu_vs_cpu.rs).
+    if ctx.adapter.name.contains("llvmpipe") && ctx.adapter.driver.contains("Mesa 22.") {
+        assert!(imported > 0, "lavapipe read nothing in place");
     }
     let (imports, copies) = (Device::gpu(ctx), Device::gpu(copying));
     let fx = EffectSet::of(&s);
