@@ -91,6 +91,48 @@ struct Vk {
     lavapipe: bool,
 }
 
+/// A Vulkan object made here over imported memory.
+#[derive(Clone, Copy)]
+enum Made {
+    Image(vk::Image),
+    Buffer(vk::Buffer),
+}
+
+/// Destroys `made` and frees its memory, if any: on a path that does not hand it to wgpu,
+/// or from wgpu's drop callback once it has destroyed its texture or buffer.
+///
+/// # Safety
+/// `made` and `memory` are `device`'s, and nothing uses them any more.
+unsafe fn release(device: &ash::Device, made: Made, memory: Option<vk::DeviceMemory>) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        match made {
+            Made::Image(image) => device.destroy_image(image, None),
+            Made::Buffer(buffer) => device.destroy_buffer(buffer, None),
+        }
+        if let Some(m) = memory {
+            device.free_memory(m, None);
+        }
+    }
+}
+
+/// wgpu's drop callback for `made` over `memory`: releases both, then `keep` (what owns the
+/// imported pages).
+fn drop_callback(
+    device: &ash::Device,
+    made: Made,
+    memory: vk::DeviceMemory,
+    keep: impl Send + Sync + 'static,
+) -> hal::DropCallback {
+    let device = device.clone();
+    Box::new(move || {
+        // SAFETY: wgpu calls this once it has destroyed its texture or buffer, after the
+        // device is done with it.
+        unsafe { release(&device, made, Some(memory)) };
+        drop(keep);
+    })
+}
+
 /// The handle type of host memory imports.
 const HOST: vk::ExternalMemoryHandleTypeFlags =
     vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT;
@@ -265,11 +307,8 @@ pub(crate) unsafe fn texture(
     // the memory imported is the caller's, as promised.
     unsafe {
         let image = vk.device.create_image(&info, None).ok()?;
-        let destroy = |memory: Option<vk::DeviceMemory>| {
-            vk.device.destroy_image(image, None);
-            if let Some(m) = memory {
-                vk.device.free_memory(m, None);
-            }
+        let destroy = |memory| {
+            release(&vk.device, Made::Image(image), memory);
             None
         };
         let req = vk.device.get_image_memory_requirements(image);
@@ -321,16 +360,11 @@ pub(crate) unsafe fn texture(
             memory_flags: hal::MemoryFlags::empty(),
             view_formats: Vec::new(),
         };
-        let device = vk.device.clone();
-        let release: hal::DropCallback = Box::new(move || {
-            device.destroy_image(image, None);
-            device.free_memory(memory, None);
-            drop(keep);
-        });
+        let on_drop = drop_callback(&vk.device, Made::Image(image), memory, keep);
         let hal_texture = hal_device.texture_from_raw(
             image,
             &hal_desc,
-            Some(release),
+            Some(on_drop),
             hal::vulkan::TextureMemory::External,
         );
         drop(hal_device);
@@ -403,11 +437,8 @@ pub(crate) unsafe fn buffer(
         }
         let size = start + bytes.len() as u64;
         let raw = create(size)?;
-        let destroy = |memory: Option<vk::DeviceMemory>| {
-            vk.device.destroy_buffer(raw, None);
-            if let Some(m) = memory {
-                vk.device.free_memory(m, None);
-            }
+        let destroy = |memory| {
+            release(&vk.device, Made::Buffer(raw), memory);
             None
         };
         let req = vk.device.get_buffer_memory_requirements(raw);
@@ -425,13 +456,8 @@ pub(crate) unsafe fn buffer(
         if vk.device.bind_buffer_memory(raw, memory, offset).is_err() {
             return destroy(Some(memory));
         }
-        let device = vk.device.clone();
-        let release: hal::DropCallback = Box::new(move || {
-            device.destroy_buffer(raw, None);
-            device.free_memory(memory, None);
-            drop(keep);
-        });
-        let hal_buffer = hal::vulkan::Buffer::from_raw_externally_owned(raw, release);
+        let on_drop = drop_callback(&vk.device, Made::Buffer(raw), memory, keep);
+        let hal_buffer = hal::vulkan::Buffer::from_raw_externally_owned(raw, on_drop);
         let buffer = ctx.device.create_buffer_from_hal::<Vulkan>(
             hal_buffer,
             &wgpu::BufferDescriptor {
