@@ -103,27 +103,42 @@ fn random_soups_against_the_oracle_and_dfs_sign() {
     }
 }
 
-/// The flattening that consumes the tree (the tracer's: it frees the tree's nodes early)
-/// writes the same layout, on trees with spatial splits (clipped leaves) and on one triangle.
+/// The layout is the same on one thread as on all (big subtrees are split, decided and
+/// written side by side) and from the tree consumed (the tracer's flattening, which frees
+/// the tree's nodes early), on trees with spatial splits (clipped leaves), with binary leaves
+/// bigger than a wide leaf, and on one triangle.
 #[test]
-fn flattening_an_owned_tree_writes_the_same_layout() {
+fn one_thread_and_all_threads_write_the_same_layout() {
     use lancer::accel::bvh::Builder;
     let mut rng = Rng::new(41);
-    let mut meshes = vec![soup(&mut rng, 1500, 0.4), soup(&mut rng, 1, 0.4)];
+    // 20,000 triangles: over the 16,384 from which subtrees go side by side.
+    let mut meshes = vec![soup(&mut rng, 20_000, 0.4), soup(&mut rng, 1, 0.4)];
     meshes.extend(load_model("teapot.obj"));
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     for mesh in &meshes {
-        for builder in [Builder::Sweep, Builder::Sbvh] {
+        for (builder, max_leaf) in [
+            (Builder::Sweep, 16),
+            (Builder::Sbvh, 16),
+            (Builder::Median, 8),
+        ] {
             let opts = BuildOptions {
                 builder,
+                max_leaf,
                 ..BuildOptions::default()
             };
             let bvh = build(mesh, &opts);
-            let borrowed = Cwbvh::flatten(&bvh, mesh);
+            let all = Cwbvh::flatten(&bvh, mesh);
+            let serial = one_thread.install(|| Cwbvh::flatten(&bvh, mesh));
+            let what = format!("{builder:?}, {} triangles", mesh.len());
+            assert!(all == serial, "{what}: one thread differs");
             assert!(
-                borrowed == Cwbvh::flatten_owned(bvh, mesh),
-                "{builder:?}, {} triangles",
-                mesh.len()
+                all == Cwbvh::flatten_owned(bvh, mesh),
+                "{what}: owned differs"
             );
+            all.validate().unwrap();
         }
     }
 }
