@@ -609,6 +609,97 @@ fn binary_ply_read_in_bulk_equals_ply_rs_on_the_same_content() {
     }
 }
 
+/// The bulk reader's fast paths against ply-rs on the same content in ASCII: every face a
+/// triangle (each record placed without a walk) and positions in f32 (read without the
+/// types' dispatch; big-endian ones through it), with a colour byte in the vertex record, an
+/// index past the last vertex, a degenerate triangle, one too far out, and an element after
+/// the faces. Bit for bit, status for status.
+#[test]
+fn binary_ply_of_triangles_read_in_bulk_equals_ply_rs() {
+    let dir = scratch();
+    let mut rng = common::Rng::new(29);
+    let mut verts: Vec<[f32; 3]> = (0..64)
+        .map(|_| [0; 3].map(|_| (rng.f32() - 0.5) * 1e3))
+        .collect();
+    verts[5] = [1e30, 0.0, 0.0];
+    let mut faces: Vec<[i32; 3]> = (0..300)
+        .map(|_| [0; 3].map(|_| (rng.f32() * 64.0) as i32 % 64))
+        .collect();
+    faces[7] = [1, 2, 64];
+    faces[8] = [3, 3, 4];
+    faces[9] = [5, 6, 7];
+    let head = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+             property uchar red\nproperty float z\nelement face {}\n\
+             property list uchar int vertex_indices\nelement edge 2\nproperty int vertex1\n\
+             property int vertex2\nend_header\n",
+            verts.len(),
+            faces.len()
+        )
+    };
+    let mut ascii = head("ascii");
+    for v in &verts {
+        ascii += &format!("{:?} {:?} 9 {:?}\n", v[0], v[1], v[2]);
+    }
+    for f in &faces {
+        ascii += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+    }
+    ascii += "0 1\n1 2\n";
+    let p = dir.path().join("ascii.ply");
+    std::fs::write(&p, &ascii).unwrap();
+    let want = load_ply(&p).unwrap();
+    assert_eq!(want.len(), faces.len());
+    for s in [
+        TriStatus::OutOfRange,
+        TriStatus::Degenerate,
+        TriStatus::TooFar,
+    ] {
+        assert!(want.status.contains(&s), "{s:?}");
+    }
+    for big in [false, true] {
+        macro_rules! put {
+            ($out:expr, $x:expr) => {
+                $out.extend(if big {
+                    $x.to_be_bytes()
+                } else {
+                    $x.to_le_bytes()
+                })
+            };
+        }
+        let format = if big {
+            "binary_big_endian"
+        } else {
+            "binary_little_endian"
+        };
+        let mut bin = head(format).into_bytes();
+        for v in &verts {
+            put!(bin, v[0]);
+            put!(bin, v[1]);
+            bin.push(9);
+            put!(bin, v[2]);
+        }
+        for f in &faces {
+            bin.push(3);
+            for &i in f {
+                put!(bin, i);
+            }
+        }
+        for e in [0i32, 1, 1, 2] {
+            put!(bin, e);
+        }
+        let p = dir.path().join(format!("{format}.ply"));
+        std::fs::write(&p, &bin).unwrap();
+        let got = load_ply(&p).unwrap();
+        assert_eq!(bits(&got), bits(&want), "{format}");
+        assert_eq!(got.status, want.status, "{format}");
+        assert_eq!(got.short_faces, 0, "{format}");
+        // Cut short: no longer what the header says, so ply-rs reads it and says so.
+        std::fs::write(&p, &bin[..bin.len() - 9]).unwrap();
+        assert!(load_ply(&p).is_err(), "{format} cut short");
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // What is left out is counted, never dropped.
 

@@ -1,8 +1,9 @@
 //! Binary PLY bodies read in bulk, on all threads: the layouts scanners and exporters write
 //! (every element a fixed record of scalars, except `face`, whose one property is its list of
-//! vertex indices). The vertex records are decoded in parallel; the faces are walked once
-//! to find where each starts (lists vary in length), then decoded and fan-triangulated in
-//! parallel. The result is the one ply-rs gives, value for value (positions through f64 to
+//! vertex indices). The faces are first taken to be triangles, which places every record
+//! (their counts checked in parallel), else walked once to find where each starts (lists
+//! vary in length); then decoded and fan-triangulated in parallel, each vertex's position
+//! decoded from its record where a face names it. The result is the one ply-rs gives, value for value (positions through f64 to
 //! f32, indices widened, faces in file order); any other layout, and any body that does not
 //! match its header's counts, is left to ply-rs and its messages ([`read`] returns `None`).
 
@@ -166,14 +167,8 @@ pub(super) fn read<E>(
                     return None;
                 }
                 let (count_type, item_type) = (Scalar::from(count_type), Scalar::from(item_type));
-                let (c, i) = (size(count_type), size(item_type));
-                let mut starts = Vec::with_capacity(e.count.min(body.len()));
-                for _ in 0..e.count {
-                    let n = index(body.get(at..at + c)?, count_type, big)?;
-                    let n = usize::try_from(n).ok()?;
-                    starts.push(at);
-                    at = at.checked_add(c + n.checked_mul(i)?)?;
-                }
+                let starts = Starts::scan(body, at, e.count, count_type, item_type, big)?;
+                at = starts.end;
                 if at > body.len() {
                     return None;
                 }
@@ -193,18 +188,14 @@ pub(super) fn read<E>(
     }
     let (starts, count_type, item_type) = face?;
     let (c, i) = (size(count_type), size(item_type));
-    // Positions, decoded on all threads.
-    let vertices: Vec<Vec3> = match vertex {
-        Some((start, count, stride, [x, y, z], _)) if stride > 0 => body
-            [start..start + count * stride]
-            .par_chunks_exact(stride)
-            .map(|r| {
-                let get = |(o, t): (usize, Scalar)| value(&r[o..], t, big) as f32;
-                Vec3::new(get(x), get(y), get(z))
-            })
-            .collect(),
+    // Positions, decoded where the faces name them (each a few times: cheaper than a copy of
+    // every vertex in memory of its own).
+    let vertices = match vertex {
+        Some((start, count, stride, xyz, _)) if stride > 0 => {
+            Positions::new(&body[start..start + count * stride], stride, xyz, big)
+        }
         Some((_, count, _, _, _)) if count > 0 => return None,
-        _ => Vec::new(),
+        _ => Positions::new(&[], 1, [(0, Scalar::F32); 3], big),
     };
     // The vertices' own normals (packed) and texture coordinates, where asked for.
     let vertex_def = vertex.map(|v| v.4);
@@ -231,7 +222,7 @@ pub(super) fn read<E>(
         _ => None,
     };
     let corners = |f: usize| {
-        let s = starts[f];
+        let s = starts.at(f);
         let n = index(&body[s..], count_type, big).unwrap_or(0) as usize;
         (s + c, n)
     };
@@ -242,44 +233,44 @@ pub(super) fn read<E>(
         item_type,
         big,
     };
-    let tris: u128 = (starts.par_iter().enumerate())
-        .map(|(f, _)| corners(f).1.saturating_sub(2) as u128)
-        .sum();
+    let tris: u128 = match starts.triangles {
+        true => starts.len() as u128,
+        false => (0..starts.len())
+            .into_par_iter()
+            .map(|f| corners(f).1.saturating_sub(2) as u128)
+            .sum(),
+    };
     if let Err(e) = check(tris) {
         return Some(Err(e));
     }
-    let short_faces = (0..starts.len())
-        .into_par_iter()
-        .filter(|&f| corners(f).1 < 3)
-        .count();
+    let short_faces = match starts.triangles {
+        true => 0,
+        false => (0..starts.len())
+            .into_par_iter()
+            .filter(|&f| corners(f).1 < 3)
+            .count(),
+    };
     let vertex = |b: &[u8]| {
         let k = index(b, item_type, big)?;
-        vertices.get(usize::try_from(k).ok()?).copied()
+        vertices.get(usize::try_from(k).ok()?)
     };
     if tris == starts.len() as u128 && short_faces == 0 {
-        // Every face a triangle (the usual file): one triangle per face, written in place.
-        let triangles: Vec<Triangle> = (0..starts.len())
+        // Every face a triangle (the usual file): one triangle per face and its status,
+        // written in place.
+        let (triangles, status): (Vec<Triangle>, Vec<TriStatus>) = (0..starts.len())
             .into_par_iter()
             .map(|f| {
                 let (s, _) = corners(f);
                 let v = |k: usize| vertex(&body[s + k * i..]);
                 match (v(0), v(1), v(2)) {
-                    (Some(a), Some(b), Some(c)) => Triangle::new(a, b, c),
-                    _ => placeholder(),
+                    (Some(a), Some(b), Some(c)) => {
+                        let t = Triangle::new(a, b, c);
+                        (t, classify(&t))
+                    }
+                    _ => (placeholder(), TriStatus::OutOfRange),
                 }
             })
-            .collect();
-        let status = (triangles.par_iter().zip(0..starts.len()))
-            .map(|(t, f)| {
-                let (s, _) = corners(f);
-                let named = (0..3).all(|k| vertex(&body[s + k * i..]).is_some());
-                if named {
-                    classify(t)
-                } else {
-                    TriStatus::OutOfRange
-                }
-            })
-            .collect();
+            .unzip();
         let (normals, uvs) =
             fan_attributes(&per_vertex, &faces, normal_at.is_some(), uv_at.is_some());
         return Some(Ok(Body {
@@ -325,10 +316,142 @@ pub(super) fn read<E>(
     }))
 }
 
+/// Where each face's record starts (its count, then its list of vertex indices).
+struct Starts {
+    /// Every face's start, or none where every face is a triangle (`triangles`: then face f
+    /// starts at `first + f · stride`).
+    listed: Vec<usize>,
+    triangles: bool,
+    first: usize,
+    stride: usize,
+    count: usize,
+    /// Where the faces end.
+    end: usize,
+}
+
+impl Starts {
+    /// The starts of `count` faces from `at`: first taken to be triangles, each count
+    /// checked on all threads; else (or where the records do not fit `body`) each face walked
+    /// in turn to find where the next starts. None where the counts lead past `body` or
+    /// overflow.
+    fn scan(
+        body: &[u8],
+        at: usize,
+        count: usize,
+        count_type: Scalar,
+        item_type: Scalar,
+        big: bool,
+    ) -> Option<Starts> {
+        let (c, i) = (size(count_type), size(item_type));
+        let stride = c + 3 * i;
+        let end = count.checked_mul(stride).and_then(|b| b.checked_add(at));
+        if let Some(end) = end.filter(|&end| end <= body.len()) {
+            let triangles = (body[at..end].par_chunks_exact(stride))
+                .all(|r| index(r, count_type, big) == Some(3));
+            if triangles {
+                return Some(Starts {
+                    listed: Vec::new(),
+                    triangles: true,
+                    first: at,
+                    stride,
+                    count,
+                    end,
+                });
+            }
+        }
+        let mut listed = Vec::with_capacity(count.min(body.len()));
+        let mut at = at;
+        for _ in 0..count {
+            let n = index(body.get(at..at + c)?, count_type, big)?;
+            let n = usize::try_from(n).ok()?;
+            listed.push(at);
+            at = at.checked_add(c + n.checked_mul(i)?)?;
+        }
+        Some(Starts {
+            listed,
+            triangles: false,
+            first: 0,
+            stride: 0,
+            count,
+            end: at,
+        })
+    }
+
+    /// Where face f starts.
+    #[inline(always)]
+    fn at(&self, f: usize) -> usize {
+        match self.triangles {
+            true => self.first + f * self.stride,
+            false => self.listed[f],
+        }
+    }
+
+    /// The number of faces.
+    fn len(&self) -> usize {
+        self.count
+    }
+}
+
+/// The vertices' positions, decoded from their records where they are read.
+struct Positions<'a> {
+    records: &'a [u8],
+    stride: usize,
+    /// Where x, y and z sit in a record, and their types.
+    xyz: [(usize, Scalar); 3],
+    big: bool,
+}
+
+impl<'a> Positions<'a> {
+    /// The positions in `records` of `stride` bytes each.
+    fn new(records: &'a [u8], stride: usize, xyz: [(usize, Scalar); 3], big: bool) -> Self {
+        Positions {
+            records,
+            stride,
+            xyz,
+            big,
+        }
+    }
+
+    /// Whether they are little-endian f32 (the usual file), read without a type's dispatch.
+    #[inline(always)]
+    fn f32_le(&self) -> bool {
+        !self.big && self.xyz.iter().all(|(_, t)| matches!(t, Scalar::F32))
+    }
+}
+
+impl Positions<'_> {
+    /// Vertex k's position (through f64, as ply-rs gives it), or None past the last.
+    #[inline(always)]
+    fn get(&self, k: usize) -> Option<Vec3> {
+        let r = self.records.get(k.checked_mul(self.stride)?..)?;
+        if r.len() < self.stride {
+            return None;
+        }
+        if self.f32_le() {
+            // Through f64 as the other types go (a signalling NaN comes out quiet, as there).
+            let get = |o: usize| {
+                let b: [u8; 4] = r[o..o + 4].try_into().unwrap_or([0; 4]);
+                f32::from_le_bytes(b) as f64 as f32
+            };
+            return Some(Vec3::new(
+                get(self.xyz[0].0),
+                get(self.xyz[1].0),
+                get(self.xyz[2].0),
+            ));
+        }
+        let get = |(o, t): (usize, Scalar)| value(&r[o..], t, self.big) as f32;
+        Some(Vec3::new(
+            get(self.xyz[0]),
+            get(self.xyz[1]),
+            get(self.xyz[2]),
+        ))
+    }
+}
+
 /// The faces of a body: where each face's index list starts, and how to read it.
 struct Faces<'a> {
     body: &'a [u8],
-    starts: &'a [usize],
+    starts: &'a Starts,
     count_type: Scalar,
     item_type: Scalar,
     big: bool,
@@ -338,7 +461,7 @@ impl Faces<'_> {
     /// Face f's vertex indices (None for one that names no vertex of `n`).
     fn indices(&self, f: usize, n: usize) -> Option<Vec<usize>> {
         let (c, i) = (size(self.count_type), size(self.item_type));
-        let s = self.starts[f];
+        let s = self.starts.at(f);
         let count = index(&self.body[s..], self.count_type, self.big).unwrap_or(0) as usize;
         let list = &self.body[s + c..s + c + count * i];
         (list.chunks_exact(i))
@@ -358,7 +481,7 @@ impl Faces<'_> {
                 let corners = self.indices(f, per.len());
                 let n = corners.as_ref().map_or_else(
                     || {
-                        let s = self.starts[f];
+                        let s = self.starts.at(f);
                         index(&self.body[s..], self.count_type, self.big).unwrap_or(0) as usize
                     },
                     Vec::len,
