@@ -518,6 +518,26 @@ fn bunny_as_binary_ply_traces_to_the_same_hits_as_the_obj() {
     }
 }
 
+/// The PLY format name of a binary byte order (big-endian or little-endian).
+fn binary_format(big: bool) -> &'static str {
+    if big {
+        "binary_big_endian"
+    } else {
+        "binary_little_endian"
+    }
+}
+
+/// Appends the bytes of `$x` to `$out` in the byte order `$big` says.
+macro_rules! put_bytes {
+    ($big:expr, $out:expr, $x:expr) => {
+        $out.extend(if $big {
+            $x.to_be_bytes()
+        } else {
+            $x.to_le_bytes()
+        })
+    };
+}
+
 /// The bulk binary reader (every property a scalar, one index list per face) against ply-rs
 /// on the same content in ASCII: a leading element to skip, doubles and a byte colour in the
 /// vertex record, unsigned 16-bit indices, polygons, a short face and an index past the end;
@@ -569,35 +589,22 @@ fn binary_ply_read_in_bulk_equals_ply_rs_on_the_same_content() {
     assert_eq!(want.short_faces, 40);
     assert!(want.status.contains(&TriStatus::OutOfRange));
     for big in [false, true] {
-        macro_rules! put {
-            ($out:expr, $x:expr) => {
-                $out.extend(if big {
-                    $x.to_be_bytes()
-                } else {
-                    $x.to_le_bytes()
-                })
-            };
-        }
-        let format = if big {
-            "binary_big_endian"
-        } else {
-            "binary_little_endian"
-        };
+        let format = binary_format(big);
         let mut bin = head(format).into_bytes();
         for (view, id) in [(1.5f32, 7i32), (2.5, 8)] {
-            put!(bin, view);
-            put!(bin, id);
+            put_bytes!(big, bin, view);
+            put_bytes!(big, bin, id);
         }
         for v in &verts {
-            put!(bin, v[0]);
+            put_bytes!(big, bin, v[0]);
             bin.push(200);
-            put!(bin, v[1]);
-            put!(bin, v[2]);
+            put_bytes!(big, bin, v[1]);
+            put_bytes!(big, bin, v[2]);
         }
         for f in &faces {
             bin.push(f.len() as u8);
             for &i in f {
-                put!(bin, i);
+                put_bytes!(big, bin, i);
             }
         }
         let p = dir.path().join(format!("{format}.ply"));
@@ -658,35 +665,22 @@ fn binary_ply_of_triangles_read_in_bulk_equals_ply_rs() {
         assert!(want.status.contains(&s), "{s:?}");
     }
     for big in [false, true] {
-        macro_rules! put {
-            ($out:expr, $x:expr) => {
-                $out.extend(if big {
-                    $x.to_be_bytes()
-                } else {
-                    $x.to_le_bytes()
-                })
-            };
-        }
-        let format = if big {
-            "binary_big_endian"
-        } else {
-            "binary_little_endian"
-        };
+        let format = binary_format(big);
         let mut bin = head(format).into_bytes();
         for v in &verts {
-            put!(bin, v[0]);
-            put!(bin, v[1]);
+            put_bytes!(big, bin, v[0]);
+            put_bytes!(big, bin, v[1]);
             bin.push(9);
-            put!(bin, v[2]);
+            put_bytes!(big, bin, v[2]);
         }
         for f in &faces {
             bin.push(3);
             for &i in f {
-                put!(bin, i);
+                put_bytes!(big, bin, i);
             }
         }
         for e in [0i32, 1, 1, 2] {
-            put!(bin, e);
+            put_bytes!(big, bin, e);
         }
         let p = dir.path().join(format!("{format}.ply"));
         std::fs::write(&p, &bin).unwrap();
