@@ -70,33 +70,39 @@ impl<const W: usize> Entry<W> {
             };
         };
         let (cl, cr) = (&l.cost, &r.cost);
-        // Where no sum is finite (a box whose area overflows f32, built from triangles
-        // marked usable by hand) the first share is kept: a node spread over j slots must
-        // give each side one, whatever the costs.
-        let spread = |j: usize| {
-            let mut best = (f32::INFINITY, 1u8);
-            for k in 1..j {
-                let c = cl[k - 1] + cr[j - k - 1];
-                if c < best.0 {
-                    best = (c, k as u8);
+        // spread(j) for every j at once, at index j − 1: the cheapest sum over the shares
+        // k = 1, 2, … in turn, a later share kept only where strictly cheaper (the first
+        // among equals). Without branches: which share wins is as good as random, and an
+        // entry is made for every binary node. Where no sum is finite (a box whose area
+        // overflows f32, built from triangles marked usable by hand) the first share is
+        // kept: a node spread over j slots must give each side one, whatever the costs.
+        let mut spread = [f32::INFINITY; W];
+        let mut share = [1u8; W];
+        if cl[0] == cl[W - 1] && cr[0] == cr[W - 1] {
+            // Neither side's cost falls with more slots (leaves: about half the nodes where
+            // the leaves hold one triangle each): every share sums to the same, the first
+            // share's. (Neither side is NaN, which equals nothing, so neither is the sum.)
+            spread = [cl[0] + cr[0]; W];
+        } else {
+            for k in 1..W {
+                for j in k + 1..=W {
+                    let c = cl[k - 1] + cr[j - k - 1];
+                    let better = c < spread[j - 1];
+                    spread[j - 1] = if better { c } else { spread[j - 1] };
+                    share[j - 1] = if better { k as u8 } else { share[j - 1] };
                 }
             }
-            best
-        };
+        }
         let mut cost = [0.0; W];
         let mut split = [0u8; W];
-        let (c_all, k_all) = spread(W);
-        let internal = costs.node * area + c_all;
+        let internal = costs.node * area + spread[W - 1];
         let leaf = n_tris <= costs.max_leaf && leaf_cost <= internal;
         cost[0] = if leaf { leaf_cost } else { internal };
-        split[0] = k_all;
+        split[0] = share[W - 1];
         for i in 2..=W {
-            let (c, k) = spread(i);
-            if c < cost[i - 2] {
-                (cost[i - 1], split[i - 1]) = (c, k);
-            } else {
-                cost[i - 1] = cost[i - 2];
-            }
+            let better = spread[i - 1] < cost[i - 2];
+            cost[i - 1] = if better { spread[i - 1] } else { cost[i - 2] };
+            split[i - 1] = if better { share[i - 1] } else { 0 };
         }
         Entry { cost, split, leaf }
     }
@@ -225,5 +231,104 @@ impl<Id, const W: usize> std::ops::Deref for Children<Id, W> {
 
     fn deref(&self) -> &[(Id, bool)] {
         &self.items[..self.len]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The programme's step as its formula reads, one spread at a time with a branch per
+    /// sum: what `Entry::new` must give, bit for bit.
+    fn reference<const W: usize>(
+        area: f32,
+        n_tris: u32,
+        [l, r]: [&Entry<W>; 2],
+        costs: SahCosts,
+    ) -> ([f32; W], [u8; W], bool) {
+        let spread = |j: usize| {
+            let mut best = (f32::INFINITY, 1u8);
+            for k in 1..j {
+                let c = l.cost[k - 1] + r.cost[j - k - 1];
+                if c < best.0 {
+                    best = (c, k as u8);
+                }
+            }
+            best
+        };
+        let leaf_cost = costs.tri * area * n_tris as f32;
+        let (mut cost, mut split) = ([0.0; W], [0u8; W]);
+        let (c_all, k_all) = spread(W);
+        let internal = costs.node * area + c_all;
+        let leaf = n_tris <= costs.max_leaf && leaf_cost <= internal;
+        cost[0] = if leaf { leaf_cost } else { internal };
+        split[0] = k_all;
+        for i in 2..=W {
+            let (c, k) = spread(i);
+            if c < cost[i - 2] {
+                (cost[i - 1], split[i - 1]) = (c, k);
+            } else {
+                cost[i - 1] = cost[i - 2];
+            }
+        }
+        (cost, split, leaf)
+    }
+
+    /// A child's entry: costs that never rise with more slots, drawn from a few values
+    /// (ties between shares), now and then all alike (a leaf), infinite or not a number.
+    fn child<const W: usize>() -> impl Strategy<Value = Entry<W>> {
+        let value = prop_oneof![
+            4 => (0u32..6).prop_map(|v| v as f32 * 0.25),
+            2 => 0.0f32..3.0,
+            1 => Just(f32::INFINITY),
+            1 => Just(f32::NAN),
+        ];
+        (prop::collection::vec(value, W), any::<bool>()).prop_map(|(mut c, flat)| {
+            c.sort_by(|a, b| b.total_cmp(a));
+            if flat {
+                let first = c[0];
+                c.fill(first);
+            }
+            Entry {
+                cost: c.try_into().unwrap(),
+                split: [0; W],
+                leaf: flat,
+            }
+        })
+    }
+
+    fn same<const W: usize>(
+        area: f32,
+        n_tris: u32,
+        l: &Entry<W>,
+        r: &Entry<W>,
+    ) -> Result<(), TestCaseError> {
+        let costs = SahCosts {
+            node: 1.0,
+            tri: 0.3,
+            max_leaf: 3,
+        };
+        let e = Entry::new(area, n_tris, Some([l, r]), costs);
+        let (cost, split, leaf) = reference(area, n_tris, [l, r], costs);
+        prop_assert_eq!(e.cost.map(f32::to_bits), cost.map(f32::to_bits));
+        prop_assert_eq!(e.split, split);
+        prop_assert_eq!(e.leaf, leaf);
+        Ok(())
+    }
+
+    proptest! {
+        /// Every sum, tie and infinity decided as the formula's plain reading decides it,
+        /// for four and eight slots.
+        #[test]
+        fn entries_are_the_formulas(
+            area in prop_oneof![0.0f32..4.0, Just(f32::INFINITY)],
+            n_tris in 2u32..6,
+            (l8, r8) in (child::<8>(), child::<8>()),
+            (l4, r4) in (child::<4>(), child::<4>()),
+        ) {
+            same(area, n_tris, &l8, &r8)?;
+            same(area, n_tris, &l4, &r4)?;
+        }
     }
 }
