@@ -12,8 +12,6 @@
 //! A binary leaf is a wide leaf whatever its size. Every wide internal child is a strict
 //! binary descendant, so the wide tree is never deeper than the binary one.
 
-use std::sync::atomic::{AtomicU32, Ordering};
-
 /// The binary tree the programme runs on, its nodes named by `Id`s that the plan's
 /// decisions are indexed by.
 pub(crate) trait BinaryTree {
@@ -21,19 +19,10 @@ pub(crate) trait BinaryTree {
     type Id: Copy + Send + Sync;
     /// Node n's two children, none for a leaf.
     fn kids(&self, n: Self::Id) -> Option<[Self::Id; 2]>;
-    /// Node n's place in the plan's decisions and in [`Plan::count`]'s counts.
+    /// Node n's place in the plan's decisions.
     fn index(&self, n: Self::Id) -> usize;
-    /// Whether n's subtree is big enough to be counted on several threads.
+    /// Whether n's subtree is big enough to be written on several threads.
     fn big(&self, n: Self::Id) -> bool;
-}
-
-/// Zeroed counts for [`Plan::count`], one per binary node, made on all threads.
-pub(crate) fn zeroed_counts(len: usize) -> Vec<AtomicU32> {
-    use rayon::prelude::*;
-    (0..len)
-        .into_par_iter()
-        .map(|_| AtomicU32::new(0))
-        .collect()
 }
 
 /// The programme's costs: of a wide node's visit and of a triangle test, and the most
@@ -55,6 +44,12 @@ pub(crate) struct Entry<const W: usize> {
     split: [u8; W],
     /// Whether cost(n, 1) is the leaf's.
     leaf: bool,
+    /// The wide nodes made within n's subtree when it is held in i + 1 slots (n's own
+    /// included where it becomes a wide internal node).
+    wide: [u32; W],
+    /// The wide nodes of the wide subtree made from n as a wide internal node (the root
+    /// is one whatever cost(n, 1) is).
+    inner: u32,
 }
 
 impl<const W: usize> Entry<W> {
@@ -67,6 +62,8 @@ impl<const W: usize> Entry<W> {
                 cost: [leaf_cost; W],
                 split: [0; W],
                 leaf: true,
+                wide: [0; W],
+                inner: 1,
             };
         };
         let (cl, cr) = (&l.cost, &r.cost);
@@ -93,38 +90,71 @@ impl<const W: usize> Entry<W> {
                 }
             }
         }
+        // The wide nodes each spread makes: its two sides' at their shares.
+        let made = |j: usize| {
+            let k = share[j - 1] as usize;
+            l.wide[k - 1] + r.wide[j - k - 1]
+        };
         let mut cost = [0.0; W];
         let mut split = [0u8; W];
+        let mut wide = [0u32; W];
         let internal = costs.node * area + spread[W - 1];
+        let inner = 1 + made(W);
         let leaf = n_tris <= costs.max_leaf && leaf_cost <= internal;
         cost[0] = if leaf { leaf_cost } else { internal };
         split[0] = share[W - 1];
+        wide[0] = if leaf { 0 } else { inner };
         for i in 2..=W {
             let better = spread[i - 1] < cost[i - 2];
             cost[i - 1] = if better { spread[i - 1] } else { cost[i - 2] };
             split[i - 1] = if better { share[i - 1] } else { 0 };
+            wide[i - 1] = if better { made(i) } else { wide[i - 2] };
         }
-        Entry { cost, split, leaf }
+        Entry {
+            cost,
+            split,
+            leaf,
+            wide,
+            inner,
+        }
     }
 
     /// What the wide tree is made from (the costs only serve the parent's entry).
     pub fn decision(&self) -> Decision<W> {
+        let mut split = self.split;
+        split[0] |= (self.leaf as u8) << LEAF_BIT;
         Decision {
-            split: self.split,
-            leaf: self.leaf,
+            split,
+            inner: self.inner,
         }
     }
 }
 
 /// The programme's decisions for one binary node, without the costs they were made from
-/// (an [`Entry`]'s `split` and `leaf`).
+/// (an [`Entry`]'s `split` and `inner`, and `leaf` as the `LEAF_BIT` of `split[0]`: twelve
+/// bytes for eight slots, made for every binary node).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Decision<const W: usize> {
     split: [u8; W],
-    leaf: bool,
+    inner: u32,
 }
 
-// SAFETY: byte arrays and a bool, for which all zeros is a valid value (an array of
+/// The bit of a decision's `split[0]` that holds `leaf` (a share is below W ≤ 8).
+const LEAF_BIT: u32 = 7;
+
+impl<const W: usize> Decision<W> {
+    /// The share k of spread(n, i), or 0.
+    fn split(&self, i: usize) -> usize {
+        (self.split[i - 1] & !(1 << LEAF_BIT)) as usize
+    }
+
+    /// Whether cost(n, 1) is the leaf's.
+    fn leaf(&self) -> bool {
+        self.split[0] >> LEAF_BIT == 1
+    }
+}
+
+// SAFETY: a byte array and a u32, for which all zeros is a valid value (an array of
 // decisions written in full is allocated zeroed: `bytemuck::zeroed_vec`).
 unsafe impl<const W: usize> bytemuck::Zeroable for Decision<W> {}
 
@@ -147,7 +177,7 @@ impl<const W: usize> Plan<W> {
         match tree.kids(n) {
             None => out.push((n, true)),
             Some([l, r]) => {
-                let k = self.decisions[tree.index(n)].split[0] as usize;
+                let k = self.decisions[tree.index(n)].split(1);
                 self.collect(tree, l, k, &mut out);
                 self.collect(tree, r, W - k, &mut out);
             }
@@ -155,23 +185,14 @@ impl<const W: usize> Plan<W> {
         out
     }
 
-    /// The wide nodes of the wide subtree made from binary node `n` (a wide internal node,
-    /// or the root), each such node's count also kept in `counts` by binary node (a node
-    /// beyond it, a one-leaf tree's root, keeps none): where the writers split their output
-    /// among the children. Big subtrees are counted on all threads.
-    pub fn count<T: BinaryTree + Sync>(&self, tree: &T, n: T::Id, counts: &[AtomicU32]) -> u32 {
-        use rayon::prelude::*;
-        let go = |&(c, leaf): &(T::Id, bool)| if leaf { 0 } else { self.count(tree, c, counts) };
-        let children = self.children(tree, n);
-        let below: u32 = if tree.big(n) {
-            children.par_iter().map(go).sum()
-        } else {
-            children.iter().map(go).sum()
-        };
-        if let Some(own) = counts.get(tree.index(n)) {
-            own.store(1 + below, Ordering::Relaxed);
+    /// The wide nodes of the wide subtree made from binary node `n` as a wide internal
+    /// node (a wide internal child, or the root), its own included: where the writers split
+    /// their output among the children. A binary leaf (a one-leaf tree's root) makes one.
+    pub fn nodes<T: BinaryTree>(&self, tree: &T, n: T::Id) -> u32 {
+        match tree.kids(n) {
+            None => 1,
+            Some(_) => self.decisions[tree.index(n)].inner,
         }
-        1 + below
     }
 
     /// The at most `slots` subtrees that hold `n`'s subtree.
@@ -189,14 +210,14 @@ impl<const W: usize> Plan<W> {
         };
         let decision = &self.decisions[tree.index(n)];
         let mut i = slots;
-        while i > 1 && decision.split[i - 1] == 0 {
+        while i > 1 && decision.split(i) == 0 {
             i -= 1;
         }
         if i == 1 {
-            out.push((n, decision.leaf));
+            out.push((n, decision.leaf()));
             return;
         }
-        let k = decision.split[i - 1] as usize;
+        let k = decision.split(i);
         self.collect(tree, l, k, out);
         self.collect(tree, r, i - k, out);
     }
@@ -294,6 +315,8 @@ mod tests {
                 cost: c.try_into().unwrap(),
                 split: [0; W],
                 leaf: flat,
+                wide: [0; W],
+                inner: 1,
             }
         })
     }

@@ -58,7 +58,7 @@ pub(crate) struct Binary<'a> {
     leaves: &'a LeafOrder<'a>,
 }
 
-/// Subtrees of at least this many triangles are made on two threads, and counted on several.
+/// Subtrees of at least this many triangles are made on two threads, and written on several.
 const PARALLEL_TRIS: u32 = 16384;
 
 /// A subtree's share of the arrays: its inner nodes' slots, children before parents, the
@@ -172,11 +172,6 @@ impl<'a> Binary<'a> {
     /// The root: the last inner node, or the only leaf.
     pub fn root(&self) -> u32 {
         self.root
-    }
-
-    /// The number of inner nodes (ids `0..inner_len()`).
-    pub fn inner_len(&self) -> usize {
-        self.boxes.len()
     }
 
     /// Triangles beneath node n.

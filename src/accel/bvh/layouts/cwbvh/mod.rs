@@ -26,7 +26,6 @@ pub(crate) use twin::Walk as CwbvhWalk;
 
 use crate::accel::gpu_form::{capacity_for, zeroed_on_all_threads_with_room};
 use std::borrow::Cow;
-use std::sync::atomic::{AtomicU32, Ordering};
 
 use glam::Vec3A;
 
@@ -38,7 +37,7 @@ use crate::util::zeroed_on_all_threads;
 use super::validate_boxes::{check_boxes, node_zero, At, BoxTree, Child, Slot};
 use super::{GpuArrays, LayoutKind, LeafTri};
 
-use crate::accel::bvh::layouts::sah_collapse::{zeroed_counts, BinaryTree, Plan};
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Plan};
 use collapse::{Binary, LeafOrder};
 use quantise::{dequantise, step, Frame};
 
@@ -174,17 +173,16 @@ impl Cwbvh {
             plan: &plan,
         };
         let root = tree.root();
-        let counts = w.count(root);
-        let mut nodes = zeroed_on_all_threads_with_room(1 + counts.descendants(root) as usize);
+        let mut nodes = zeroed_on_all_threads_with_room(plan.nodes(&tree, root) as usize);
         // The writer places leaf-order positions; the triangles are then read for them on all
         // threads (each written once, not zeroed first).
         let mut places: Vec<u32> = zeroed_on_all_threads(order.len());
         let (first, rest) = nodes.split_at_mut(1);
-        let deepest = w.write(&counts, root, 0, &mut first[0], (1, rest), (0, &mut places));
+        let deepest = w.write(root, 0, &mut first[0], (1, rest), (0, &mut places));
         // The collapse's arrays are freed before the triangle array is made: the allocator
         // may give their pages to it (a lower peak, fewer pages faulted in).
         let bounds = tree.bbox(root);
-        drop((tree, plan, counts));
+        drop((tree, plan));
         let tris = {
             use rayon::prelude::*;
             let tri = |&p: &u32| LeafTri::new(leaves.triangle(p).v, leaves.order[p as usize]);
@@ -287,41 +285,22 @@ impl BoxTree for Cwbvh {
 /// Writes wide nodes depth first; each node's internal children are contiguous, followed
 /// by the first child's descendants, then the second's, and so on; each node's leaf
 /// triangles' places come before its children's. The big subtrees are written on all
-/// threads, into the parts of the arrays their sizes (counted first) give them.
+/// threads, into the parts of the arrays their sizes (the programme's counts) give them.
 struct Writer<'a> {
     tree: &'a Binary<'a>,
     plan: &'a Plan<WIDTH>,
-}
-
-/// Wide nodes below each binary inner node that becomes a wide internal node, by binary
-/// node ([`Plan::count`]: each one's own included).
-struct Counts(Vec<AtomicU32>);
-
-impl Counts {
-    /// Wide nodes below the wide node made from `n` (none below a one-leaf tree's root).
-    fn descendants(&self, n: u32) -> u32 {
-        (self.0.get(n as usize)).map_or(0, |c| c.load(Ordering::Relaxed).saturating_sub(1))
-    }
 }
 
 /// A part of an output array, and the index of its first element in the whole.
 type Part<'p, T> = (u32, &'p mut [T]);
 
 impl Writer<'_> {
-    /// The wide nodes below every wide internal node.
-    fn count(&self, root: u32) -> Counts {
-        let counts = zeroed_counts(self.tree.inner_len());
-        self.plan.count(self.tree, root, &counts);
-        Counts(counts)
-    }
-
     /// Writes the wide node made from binary node `n` into `slot` at `depth`, its
     /// descendants into `nodes`, and into `places` the leaf-order positions of its subtree's
     /// triangles where the layout's triangles go; returns the depth of the deepest node
     /// written.
     fn write(
         &self,
-        counts: &Counts,
         n: u32,
         depth: usize,
         slot: &mut CwNode,
@@ -378,7 +357,7 @@ impl Writer<'_> {
         let mut places_base = places.0 + offset;
         let mut jobs = Vec::with_capacity(inner_len);
         for (&c, record) in inner[..inner_len].iter().zip(records) {
-            let below = counts.descendants(c) as usize;
+            let below = self.plan.nodes(self.tree, c) as usize - 1;
             let (mine, more) = std::mem::take(&mut rest).split_at_mut(below);
             let (my_places, more_places) =
                 std::mem::take(&mut places_rest).split_at_mut(self.tree.tris(c) as usize);
@@ -389,9 +368,9 @@ impl Writer<'_> {
         }
         let go =
             |(c, record, nodes, places): (u32, &mut CwNode, Part<'_, CwNode>, Part<'_, u32>)| {
-                self.write(counts, c, depth + 1, record, nodes, places)
+                self.write(c, depth + 1, record, nodes, places)
             };
-        // Big subtrees (`BinaryTree::big`, as counted) are written on several threads.
+        // Big subtrees (`BinaryTree::big`) are written on several threads.
         let deepest = if self.tree.big(n) {
             use rayon::prelude::*;
             jobs.into_par_iter().map(go).max()

@@ -5,13 +5,10 @@
 //! where the tree would be deeper than the stack holds.
 
 use crate::accel::gpu_form::zeroed_on_all_threads_with_room;
-use std::sync::atomic::{AtomicU32, Ordering};
 
 use rayon::prelude::*;
 
-use crate::accel::bvh::layouts::sah_collapse::{
-    zeroed_counts, BinaryTree, Decision, Entry, Plan, SahCosts,
-};
+use crate::accel::bvh::layouts::sah_collapse::{BinaryTree, Decision, Entry, Plan, SahCosts};
 use crate::accel::bvh::Node;
 use crate::util::zeroed_on_all_threads;
 
@@ -37,7 +34,7 @@ struct At<'t> {
     index: u32,
 }
 
-/// Subtrees of at least this many binary nodes are decided, counted and written on
+/// Subtrees of at least this many binary nodes are decided and written on
 /// several threads.
 pub(super) const PARALLEL_NODES: u32 = 8192;
 
@@ -105,11 +102,9 @@ fn fill<const W: usize>(
 /// it, in pre-order (`out` is exactly that subtree's part; `index`, the position of
 /// `out[0]` in the whole); None when a node would lie deeper than `max_depth`. The big
 /// subtrees' parts are written on all threads.
-#[allow(clippy::too_many_arguments)] // the tree, its plan and counts, and where to write
 fn emit<const W: usize>(
     tree: &Binary<'_>,
     plan: &Plan<W>,
-    counts: &[AtomicU32],
     n: At<'_>,
     d: usize,
     max_depth: usize,
@@ -135,7 +130,7 @@ where
                 (start, end - start)
             }
             false => {
-                let size = counts[c.index as usize].load(Ordering::Relaxed);
+                let size = plan.nodes(tree, c);
                 let (part, more) = std::mem::take(&mut rest).split_at_mut(size as usize);
                 jobs.push((c, next, part));
                 rest = more;
@@ -145,7 +140,7 @@ where
         };
     }
     let go = |(c, i, part): (At<'_>, u32, &mut [WideNode<W>])| {
-        emit(tree, plan, counts, c, d + 1, max_depth, i, part)
+        emit(tree, plan, c, d + 1, max_depth, i, part)
     };
     if tree.big(n) {
         jobs.into_par_iter().map(go).collect()
@@ -178,8 +173,7 @@ where
         node: root,
         index: 0,
     };
-    let counts = zeroed_counts(len);
-    let mut out = zeroed_on_all_threads_with_room(plan.count(&tree, r, &counts) as usize);
-    emit(&tree, &plan, &counts, r, 0, max_depth, 0, &mut out)?;
+    let mut out = zeroed_on_all_threads_with_room(plan.nodes(&tree, r) as usize);
+    emit(&tree, &plan, r, 0, max_depth, 0, &mut out)?;
     Some(out)
 }
