@@ -313,6 +313,15 @@ fn an_image_difference_reports_the_book_keys() {
         (Some("images"), Some(true))
     );
     assert_eq!(r["out"].as_str(), Some("d.png"));
+    // An image whose pixels do not fill its size is refused, not read past its end.
+    let short = Image {
+        pixels: Vec::new(),
+        ..a.clone()
+    };
+    for (x, y) in [(&short, &a), (&a, &short)] {
+        let e = compare_images(x, y, 0.01).unwrap_err().to_string();
+        assert!(e.contains("0 pixels for a 2×2 image"), "{e}");
+    }
 }
 
 #[test]

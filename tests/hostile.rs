@@ -1527,6 +1527,17 @@ fn hostile_command_lines() {
             .unwrap()
             .replace("checker.png", "big.png"),
     );
+    // A Radiance HDR of 0×0 pixels, which the image decoder accepts.
+    s.write(
+        "named/empty.hdr",
+        "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 0 +X 0\n",
+    );
+    let empty_tex_scene = s.write(
+        "named/emptytex.toml",
+        std::fs::read_to_string(&textured)
+            .unwrap()
+            .replace("checker.png", "empty.hdr"),
+    );
     // An OBJ whose MTL names a texture: every command's output refuses the texture's name.
     let tex_obj = s.write("named/tex.obj", format!("mtllib tex.mtl\nusemtl a\n{QUAD}"));
     s.write(
@@ -1577,6 +1588,13 @@ fn hostile_command_lines() {
             r(&[&"render", &big_tex_scene, &"-o", &"big-tex.png"]),
         )
         .names(&["big.png", "22000×22000", "16384"])
+        .within(60.0),
+        row_args(
+            "render: a 0×0 texture (an HDR header)",
+            Want::Fail(2),
+            r(&[&"render", &empty_tex_scene, &"-o", &"empty-tex.png"]),
+        )
+        .names(&["empty.hdr", "0×0", "no texels"])
         .within(60.0),
         Row::new(
             "heatmap: output = the MTL's texture",

@@ -34,7 +34,8 @@ const MAX_BATCH: usize = 1 << 22;
 /// Rays per batch: at most [`MAX_BATCH`] and what one storage binding holds (32 bytes a ray).
 pub(super) fn batch_len(ctx: &GpuContext, rays: usize) -> usize {
     let limit = (ctx.limits.max_storage_buffer_binding_size).min(ctx.limits.max_buffer_size);
-    rays.clamp(1, MAX_BATCH.min((limit / 32) as usize))
+    // At least one ray even where a device's limits hold none (then the upload refuses it).
+    rays.clamp(1, MAX_BATCH.min((limit / 32) as usize).max(1))
 }
 
 /// Which specialisation of the trace kernel to run (all from one WGSL source).

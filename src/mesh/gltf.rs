@@ -172,7 +172,7 @@ impl GltfCamera {
         let aspect = self.aspect_ratio?;
         let tall = (width as f32 / aspect)
             .round()
-            .clamp(1.0, 64.0 * width as f32);
+            .clamp(1.0, 64.0 * width.max(1) as f32);
         Some((width, tall as u32))
     }
 }
@@ -1338,6 +1338,23 @@ fn add_surface(s: &Surface, world: &Mat4, flip: bool, out: &mut GltfScene) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Any width gives a size, 0 included (an API caller's), within 1 and 64 × the width.
+    #[test]
+    fn a_camera_shapes_every_width() {
+        let camera = GltfCamera {
+            name: None,
+            eye: Vec3::ZERO,
+            look_at: Vec3::NEG_Z,
+            up: Vec3::Y,
+            node: 0,
+            yfov_deg: 40.0,
+            aspect_ratio: Some(2.0),
+        };
+        assert_eq!(camera.shaped(640), Some((640, 320)));
+        assert_eq!(camera.shaped(1), Some((1, 1)));
+        assert_eq!(camera.shaped(0), Some((0, 1)));
+    }
 
     fn close(a: Option<[[f32; 3]; 2]>, b: [[f32; 3]; 2]) -> bool {
         a.is_some_and(|a| {

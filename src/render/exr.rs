@@ -36,6 +36,17 @@ impl ExrImage {
                  write a PNG"
             )));
         }
+        // Every channel one value a pixel of the tile (the encoder reads that many).
+        let pixels = b.width() as u64 * b.height() as u64;
+        if let Some((name, values)) = (self.channels.iter()).find(|(_, v)| v.len() as u64 != pixels)
+        {
+            return Err(Error::Usage(format!(
+                "channel {name} holds {} values for a {}×{} tile: give one a pixel, row by row",
+                values.len(),
+                b.width(),
+                b.height()
+            )));
+        }
         let size = Vec2(b.width() as usize, b.height() as usize);
         let channels = (self.channels.iter())
             .map(|(name, values)| AnyChannel::new(name.as_str(), FlatSamples::F32(values.clone())))
@@ -130,5 +141,48 @@ impl ExrImage {
         }
         channels.sort_by(|a, b| a.0.cmp(&b.0));
         Ok(ExrImage { tile, channels })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Image;
+    use glam::Vec3;
+
+    /// A channel shorter or longer than its tile, written directly or through an image
+    /// whose tile does not match its pixels, is refused with its name, nothing written.
+    #[test]
+    fn channels_must_fill_their_tile() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.exr");
+        let tile = Tile {
+            bounds: Crop::full(2, 2),
+            full_width: 2,
+            full_height: 2,
+        };
+        let with = |values: Vec<f32>| ExrImage {
+            tile,
+            channels: vec![("R".into(), values)],
+        };
+        with(vec![0.5; 4]).write(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        for n in [0, 3, 5] {
+            let e = with(vec![0.5; n]).write(&path).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("channel R holds {n} values for a 2×2 tile")),
+                "{e}"
+            );
+        }
+        let image = Image {
+            width: 1,
+            height: 1,
+            pixels: vec![Vec3::ZERO],
+            tile: Some(tile),
+        };
+        let e = image.save(&path).unwrap_err().to_string();
+        assert!(e.contains("holds 1 values for a 2×2 tile"), "{e}");
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert!(left.is_empty(), "files left: {left:?}");
     }
 }

@@ -25,7 +25,7 @@ fn srgb(x: f32) -> u8 {
 }
 
 /// Refuses pixels that are not `width · height` (an image made in code).
-fn check_pixels(px: &[Vec3], width: u32, height: u32) -> Result<()> {
+pub(super) fn check_pixels(px: &[Vec3], width: u32, height: u32) -> Result<()> {
     if px.len() as u64 != width as u64 * height as u64 {
         return Err(Error::Usage(format!(
             "{} pixels for a {width}×{height} image: give width · height pixels, row by row",

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::image::{heat_ramp, image_kind, Image, ImageKind};
+use super::image::{check_pixels, heat_ramp, image_kind, Image, ImageKind};
 use crate::error::{Error, Result};
 
 /// How two images of one size differ, in linear radiance (a PNG's sRGB values are
@@ -170,7 +170,7 @@ pub fn load_image(path: &Path) -> Result<Image> {
 }
 
 /// Compares two images of the same size; `threshold` is the per-pixel difference above
-/// which a pixel counts as different.
+/// which a pixel counts as different. Each image must hold width × height pixels.
 pub fn compare_images(a: &Image, b: &Image, threshold: f32) -> Result<ImageDiff> {
     if (a.width, a.height) != (b.width, b.height) {
         return Err(Error::Usage(format!(
@@ -178,6 +178,8 @@ pub fn compare_images(a: &Image, b: &Image, threshold: f32) -> Result<ImageDiff>
             a.width, a.height, b.width, b.height
         )));
     }
+    check_pixels(&a.pixels, a.width, a.height)?;
+    check_pixels(&b.pixels, b.width, b.height)?;
     let per_pixel: Vec<f32> = (a.pixels.iter().zip(&b.pixels))
         .map(|(p, q)| {
             (0..3)

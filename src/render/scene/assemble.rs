@@ -354,8 +354,8 @@ fn load_texture(path: &Path, srgb: bool) -> Result<Texture> {
 
 /// An image file's bytes (PNG, JPEG, … by their content) decoded as a linear texture from
 /// sRGB (colours), or as they are (`srgb` false: data such as glTF's metallic-roughness,
-/// scaled to [0, 1]). Its size is read from its header and checked first — at most
-/// [`MAX_TEXTURE_SIDE`](crate::limits::MAX_TEXTURE_SIDE) a side, and the memory decoding
+/// scaled to [0, 1]). Its size is read from its header and checked first — at least one
+/// texel, at most [`MAX_TEXTURE_SIDE`](crate::limits::MAX_TEXTURE_SIDE) a side, and the memory decoding
 /// takes (the decoded image, its RGB8 and RGBA8 copies, the f32 texels and alpha) — so
 /// nothing is decoded that would not fit. The alpha channel, where there is one, is kept
 /// as it is (alpha masks).
@@ -366,6 +366,11 @@ pub(super) fn decode_texture(bytes: &[u8], srgb: bool) -> std::result::Result<Te
             .map_err(|e| e.to_string())
     };
     let (width, height) = reader()?.into_dimensions().map_err(|e| e.to_string())?;
+    if width == 0 || height == 0 {
+        return Err(format!(
+            "a {width}×{height} texture has no texels: give an image of at least one pixel"
+        ));
+    }
     let side = crate::limits::MAX_TEXTURE_SIDE;
     if width > side || height > side {
         return Err(format!(
