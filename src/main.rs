@@ -161,6 +161,7 @@ fn main() {
         release_freed_memory_soon();
     }
     lancer::bench::memory::set_fresh_memory_switch(fresh_memory_switch);
+    cmd::interrupt::install();
     if let Err(e) = cmd::run(cli) {
         eprintln!("error: {e}");
         std::process::exit(e.exit_code());

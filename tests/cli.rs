@@ -1825,6 +1825,14 @@ fn render_frames_writes_a_numbered_sequence() {
     let mut empty = args.to_vec();
     empty.extend(["--frames", "5..5", "-o", s(&out)]);
     assert!(lancer_refused(&empty).contains("no frame in 5..5"));
+    // The name given is never written itself, only its numbered names: a folder of that
+    // name is no reason to refuse.
+    let taken = dir.path("taken.png");
+    std::fs::create_dir(&taken).unwrap();
+    let mut beside = args.to_vec();
+    beside.extend(["--frames", "3..4", "-o", s(&taken)]);
+    lancer_ok(&beside);
+    assert!(dir.path("taken-0003.png").is_file() && taken.is_dir());
 }
 
 /// `render FILE.gltf --frames A..` plays the file's animation to its last key at `--fps`;

@@ -675,6 +675,68 @@ fn hostile_command_lines() {
         .names(&["checker.png"])
         .unchanged(&[&checker, &textured]),
         row_args(
+            "render: output ends in / (a file's name)",
+            Want::Fail(2),
+            r(&[&"render", &textured, &"-o", &"slash.png/"]),
+        )
+        .names(&["slash.png/", "names a folder, not a file"])
+        .within(10.0),
+        Row::new(
+            "rays: output a folder yet to make (newdir/)",
+            Want::Fail(2),
+            &[&"rays", &quad, &"-o", &"newdir/"],
+        )
+        .names(&["newdir/", "names a folder, not a file"])
+        .absent(&s.path("newdir"))
+        .within(10.0),
+        row_args(
+            "render: an output name of 250 bytes (its temporary name would be longer)",
+            Want::Ok,
+            r(&[
+                &"render",
+                &textured,
+                &"-o",
+                &format!("{}.png", "a".repeat(246)),
+            ]),
+        ),
+        Row::new(
+            "bench structures: --chart not a .png",
+            Want::Fail(2),
+            &[
+                &"bench",
+                &"structures",
+                &quad,
+                &"--device",
+                &"cpu",
+                &"--chart",
+                &"c.json",
+            ],
+        )
+        .names(&["c.json", ".png"]),
+        Row::new(
+            "bench structures: --chart ./y.png and --report y.md (whose chart is y.png)",
+            Want::Fail(2),
+            &[
+                &"bench",
+                &"structures",
+                &quad,
+                &"--device",
+                &"cpu",
+                &"--chart",
+                &"./y.png",
+                &"--report",
+                &"y.md",
+            ],
+        )
+        .names(&["y.png", "two outputs"]),
+        Row::new(
+            "merge: output not .exr",
+            Want::Fail(2),
+            &[&"merge", &quad, &"-o", &"sub"],
+        )
+        .names(&["sub", "use a .exr file name"])
+        .lacks(&[".png"]),
+        row_args(
             "render: output = the scene file itself",
             Want::Fail(2),
             r(&[&"render", &textured, &"-o", &textured]),
@@ -1641,7 +1703,7 @@ fn hostile_command_lines() {
         .names(&["tex.png"])
         .unchanged(&[&tex_png]),
         Row::new(
-            "bench structures: --json and --chart one file",
+            "bench structures: --json and --chart one file (a chart is a .png)",
             Want::Fail(2),
             &[
                 &"bench",
@@ -1653,7 +1715,7 @@ fn hostile_command_lines() {
                 &"same.json",
             ],
         )
-        .names(&["same.json", "two outputs"])
+        .names(&["same.json", ".png"])
         .absent(&s.path("same.json"))
         .within(30.0),
     ]);
@@ -2019,4 +2081,107 @@ fn sigterm_saves_the_image_and_exits_130() {
 #[test]
 fn sigint_saves_the_image_and_exits_130() {
     interrupted_render_saves_and_exits_130("INT");
+}
+
+// Signals: any other command ends with 130 and leaves its outputs as they were.
+
+#[cfg(unix)]
+#[test]
+fn an_interrupted_write_leaves_no_temporary_file() {
+    let s = Scratch::new();
+    let mesh = s.write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let out = s.path("big.bin");
+    // 16M rays, 512 MB: long enough to be caught while the file is written.
+    let args: Vec<String> = with(
+        &[&"rays", &mesh, &"-o", &out],
+        &["--width", "4096", "--height", "4096"],
+    );
+    let temporaries = || -> Vec<String> {
+        std::fs::read_dir(s.dir())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".tmp"))
+            .collect()
+    };
+    let start = Instant::now();
+    let mut child = spawn(s.dir(), &args);
+    let mut seen = false;
+    while !seen && start.elapsed() < Duration::from_secs(60) {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        seen = !temporaries().is_empty();
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    if seen {
+        let kill = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .expect("run kill");
+        assert!(kill.success(), "kill -INT failed");
+    }
+    let got = finish(child, start);
+    println!("    $ {}\n    {}", command_line(&args), got.show());
+    assert!(seen, "never caught the temporary file: {}", got.show());
+    assert_eq!(got.code, Some(130), "{}", got.show());
+    assert!(
+        got.stderr.contains("interrupted: nothing saved"),
+        "{}",
+        got.show()
+    );
+    assert_eq!(temporaries(), Vec::<String>::new(), "temporary files left");
+    assert!(
+        !out.exists(),
+        "a partial output was left at {}",
+        out.display()
+    );
+}
+
+/// `--rays -` reads whatever stdin is: a ray file redirected to it is an input, so the hits
+/// may not go over it (as with `--rays /dev/stdin`).
+#[cfg(unix)]
+#[test]
+fn a_file_redirected_to_stdin_is_an_input() {
+    let s = Scratch::new();
+    let quad = s.write("quad.obj", QUAD);
+    let rays = s.path("r.bin");
+    write_ray_file(&rays);
+    let before = std::fs::read(&rays).unwrap();
+    for out in ["r.bin", "./r.bin"] {
+        let args: Vec<String> = [
+            "trace", "quad.obj", "--rays", "-", "-o", out, "--device", "cpu",
+        ]
+        .map(String::from)
+        .to_vec();
+        let got = Command::new(env!("CARGO_BIN_EXE_lancer"))
+            .args(&args)
+            .current_dir(s.dir())
+            .stdin(std::fs::File::open(&rays).unwrap())
+            .output()
+            .expect("run lancer");
+        let stderr = String::from_utf8_lossy(&got.stderr);
+        assert_eq!(
+            got.status.code(),
+            Some(2),
+            "{}: {stderr}",
+            command_line(&args)
+        );
+        assert!(
+            stderr.contains("is an input"),
+            "{}: {stderr}",
+            command_line(&args)
+        );
+        assert_eq!(std::fs::read(&rays).unwrap(), before, "r.bin changed");
+    }
+    // Stdin from elsewhere: the same output is fine.
+    let hits = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args([
+            "trace", "quad.obj", "--rays", "-", "-o", "h.bin", "--device", "cpu",
+        ])
+        .current_dir(s.dir())
+        .stdin(std::fs::File::open(&rays).unwrap())
+        .status()
+        .expect("run lancer");
+    assert!(hits.success());
+    let _ = quad;
 }

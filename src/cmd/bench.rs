@@ -194,7 +194,7 @@ impl Outputs {
             .collect();
         all.extend(pages);
         for (i, a) in all.iter().enumerate() {
-            if all[..i].contains(a) {
+            if all[..i].iter().any(|b| lancer::output::same_output(a, b)) {
                 return Err(lancer::Error::Usage(format!(
                     "{} is named for two outputs (--json, --chart, --report and its charts): \
                      give each its own file",
@@ -274,5 +274,14 @@ fn md_file(s: &str) -> std::result::Result<PathBuf, String> {
     match path.extension() {
         Some(e) if e.eq_ignore_ascii_case("md") => Ok(path),
         _ => Err(format!("{s} is not a .md file name: give FILE.md")),
+    }
+}
+
+/// `--chart FILE.png`: a PNG file name (a chart is never written over a .json or .md).
+pub fn png_file(s: &str) -> std::result::Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match path.extension() {
+        Some(e) if e.eq_ignore_ascii_case("png") => Ok(path),
+        _ => Err(format!("{s} is not a .png file name: give FILE.png")),
     }
 }

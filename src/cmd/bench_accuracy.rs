@@ -46,7 +46,7 @@ pub struct BenchAccuracy {
     device: DeviceChoice,
     /// Also draw the error-vs-time charts, NAME-cpu.png and NAME-gpu.png, and the spp
     /// convergence curve, NAME-spp.png, from this path's stem (none by default).
-    #[arg(long, value_name = "NAME.png")]
+    #[arg(long, value_name = "NAME.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
     #[command(flatten)]
     out: Outputs,

@@ -38,7 +38,7 @@ pub struct BenchBuilders {
     out: Outputs,
     /// Also draw the build times as a PNG bar chart here (a --report page also draws each
     /// tree's SAH against its time per ray beside itself).
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
 }
 

@@ -33,7 +33,7 @@ pub struct BenchInstances {
     out: Outputs,
     /// Also draw Mrays/s of both variants per ray set as a PNG bar chart here (none by
     /// default).
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
     #[command(flatten)]
     build: BuildArgs,

@@ -32,7 +32,7 @@ pub struct BenchLayouts {
     #[command(flatten)]
     out: Outputs,
     /// Also draw Mrays/s per layout and ray set as a PNG bar chart here (none by default).
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
     #[command(flatten)]
     build: BuilderArgs,

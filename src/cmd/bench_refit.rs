@@ -36,7 +36,7 @@ pub struct BenchRefit {
     out: Outputs,
     /// Also draw the refit tree's cost against the rebuilt tree's by twist as a PNG chart
     /// here (none by default).
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
     #[command(flatten)]
     build: BuildArgs,

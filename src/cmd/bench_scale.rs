@@ -33,7 +33,7 @@ pub struct BenchScale {
     out: Outputs,
     /// Also draw each step's time per million triangles as a PNG bar chart here (none by
     /// default).
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
     #[command(flatten)]
     build: BuildArgs,

@@ -32,7 +32,7 @@ pub struct BenchStructures {
     out: Outputs,
     /// Also draw Mrays/s per structure and ray set (CPU, GPU) as a PNG bar chart here (none
     /// by default).
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = super::bench::png_file)]
     chart: Option<PathBuf>,
     #[command(flatten)]
     build: super::BuilderArgs,

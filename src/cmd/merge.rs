@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lancer::render::{image_kind, merge_tiles, ExrImage, ImageKind};
+use lancer::render::{merge_tiles, ExrImage};
 use lancer::{Error, Result};
 
 use super::out::{say, Say};
@@ -18,7 +18,7 @@ pub struct MergeCmd {
 
 impl MergeCmd {
     pub fn run(self) -> Result<()> {
-        if image_kind(&self.out)? != ImageKind::Exr {
+        if !(self.out.extension()).is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
             return Err(Error::input(
                 &self.out,
                 None,

@@ -15,6 +15,7 @@ mod check;
 mod compare;
 mod heatmap;
 mod input;
+pub mod interrupt;
 mod merge;
 mod out;
 mod rays;

@@ -69,12 +69,19 @@ pub fn is_std(path: &Path) -> bool {
     path.as_os_str() == "-"
 }
 
-/// Checks an output path before work starts (`-`, stdout, needs no check).
+/// Checks an output path before work starts (`-`, stdout, needs no check); an input `-`
+/// is whatever stdin reads (a file redirected to it is an input like any other).
 pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
     if is_std(out) {
         return Ok(());
     }
-    lancer::output::check_output(out, inputs)
+    let inputs: Vec<PathBuf> = (inputs.iter())
+        .map(|p| match is_std(p) {
+            true => PathBuf::from("/dev/stdin"),
+            false => p.clone(),
+        })
+        .collect();
+    lancer::output::check_output(out, &inputs)
 }
 
 /// The bytes of a file, or of stdin for `-` (both bounded: [`lancer::input`]).

@@ -1,5 +1,5 @@
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -214,7 +214,10 @@ impl RenderCmd {
                 }
             };
         }
-        lancer::output::check_output(&self.out, &scene.mesh.sources)?;
+        // A sequence writes numbered files only (checked below), never this name itself.
+        if self.frames.is_none() {
+            lancer::output::check_output(&self.out, &scene.mesh.sources)?;
+        }
         if self.flatten {
             scene = scene.flattened()?;
         }
@@ -228,11 +231,9 @@ impl RenderCmd {
         let device = self.device.open_for(self.accel)?;
         let layout = self.build.layout_on(&device);
         let cancel = Arc::new(AtomicBool::new(false));
-        {
-            let cancel = cancel.clone();
-            // A second Ctrl-C while saving is not caught: the default handler ends the run.
-            let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-        }
+        // Ctrl-C from here on stops the samples and saves what accumulated (a second one
+        // while saving changes nothing).
+        super::interrupt::tell(cancel.clone());
         let spp = self.spp.unwrap_or(scene.settings.spp);
         let bar = super::out::progress_bar(spp as u64);
         bar.set_style(
@@ -316,6 +317,7 @@ impl RenderCmd {
         // One renderer for every frame: from frame to frame only the top level is built
         // again and, on a GPU, written over what was uploaded (Renderer::move_to).
         let mut current: Option<Renderer> = None;
+        let last_frame = frames.last().copied().flatten();
         for frame in frames {
             let (out, at_frame) = match frame {
                 Some(f) => (numbered(&self.out, f), Some(scene.at_frame(f)?)),
@@ -372,8 +374,14 @@ impl RenderCmd {
                 }
             }
             if done.stop == Stop::Cancelled {
+                let rest = match (frame, last_frame) {
+                    (Some(f), Some(last)) if f < last => {
+                        format!("; frames {}..{} not rendered", f + 1, last + 1)
+                    }
+                    _ => String::new(),
+                };
                 return Err(Error::Cancelled(format!(
-                    "interrupted after {} of {} samples; saved {}",
+                    "interrupted after {} of {} samples; saved {}{rest}",
                     done.samples,
                     done.requested,
                     out.display()
