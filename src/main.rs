@@ -151,11 +151,17 @@ fn main() {
             writeln!(f, "{kind}: {}", r.args())
         })
         .init();
-    if cli.threads > 0 {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(cli.threads.into());
-        if let Err(e) = pool.build_global() {
-            log::warn!("--threads {}: {e}", cli.threads);
+    // The worker threads start now (rayon would otherwise start them at first use, and
+    // panic there where the system refuses them).
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(cli.threads.into());
+    if let Err(e) = pool.build_global() {
+        match cli.threads {
+            0 => eprintln!("error: cannot start the worker threads ({e}): try --threads 1"),
+            n => eprintln!(
+                "error: --threads {n}: cannot start that many threads ({e}): ask for fewer"
+            ),
         }
+        std::process::exit(2);
     }
     if !cli.is_bench() {
         release_freed_memory_soon();

@@ -2185,3 +2185,36 @@ fn a_file_redirected_to_stdin_is_an_input() {
     assert!(hits.success());
     let _ = quad;
 }
+
+/// More threads than the system gives (here: their stacks beyond an address-space limit)
+/// is a refusal naming --threads, not a panic at the first parallel step.
+#[cfg(target_os = "linux")]
+#[test]
+fn threads_the_system_refuses_are_refused() {
+    let s = Scratch::new();
+    let quad = s.write("quad.obj", QUAD);
+    let run = |threads: &str| {
+        Command::new("prlimit")
+            .arg("--as=2000000000")
+            .arg(env!("CARGO_BIN_EXE_lancer"))
+            .args(["build", "quad.obj", "--threads", threads, "--out", "q.bvh"])
+            .current_dir(s.dir())
+            .output()
+            .expect("prlimit (util-linux) runs lancer")
+    };
+    let many = run("1024");
+    let stderr = String::from_utf8_lossy(&many.stderr);
+    assert_eq!(many.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--threads 1024: cannot start that many threads"),
+        "{stderr}"
+    );
+    assert!(!s.path("q.bvh").exists());
+    let few = run("2");
+    assert!(
+        few.status.success(),
+        "{}",
+        String::from_utf8_lossy(&few.stderr)
+    );
+    let _ = quad;
+}

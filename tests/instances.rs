@@ -741,6 +741,9 @@ fn bad_copies_are_refused_naming_the_line() {
     assert!(refused(both).contains("s.toml:5: use one of 'copies' and 'grid'"));
     let empty = "grid = { count = [2, 0, 1], step = [1.0, 0.0, 0.0] }";
     assert!(refused(empty).contains("makes 0 copies"));
+    // Counts whose product wraps around 2⁶⁴ to 4: refused by the true product.
+    let wraps = "grid = { count = [2, 2147549185, 4294836226], step = [0.0, 0.0, 0.0] }";
+    assert!(refused(wraps).contains("makes 18446744073709551620 copies"));
     let flat = "[[objects.copies]]\nscale = [1.0, 0.0, 1.0]";
     assert!(refused(flat).contains("'scale' must be finite and non-zero"));
     let unknown = "[[objects.copies]]\nmove = [1.0, 0.0, 1.0]";

@@ -182,6 +182,11 @@ fn load_with_tobj(path: &Path, src: &str) -> Result<ObjScene> {
     let mtl_bad: RefCell<Option<Error>> = RefCell::new(None);
     let loaded = tobj::load_obj_buf(&mut scan.text.as_bytes(), &opts, |p| {
         let file = dir.join(p);
+        // A library named again adds nothing new (tobj would append its materials again:
+        // time and memory growing with the square of the repeats).
+        if mtl_files.borrow().contains(&file) {
+            return Ok(Default::default());
+        }
         mtl_files.borrow_mut().push(file.clone());
         // Read once, bounded (a device or a FIFO is refused, not read), and checked first:
         // tobj panics on some malformed lines (a short colour).
@@ -348,13 +353,16 @@ pub(super) fn warn_partial_normals(path: &Path) {
 /// Warns, with the OBJ's file and line, about each `usemtl` that names no material of the
 /// libraries read (tobj leaves those faces without a material: they render grey).
 fn warn_unknown_usemtl(path: &Path, src: &str, materials: &[tobj::Material]) {
+    // A set: a file may switch between thousands of materials thousands of times.
+    let known: std::collections::HashSet<&str> =
+        materials.iter().map(|m| m.name.as_str()).collect();
     for (i, line) in src.lines().enumerate() {
         let mut words = line.split_whitespace();
         if words.next() != Some("usemtl") {
             continue;
         }
         let name = words.collect::<Vec<_>>().join(" ");
-        if !materials.iter().any(|m| m.name == name) {
+        if !known.contains(name.as_str()) {
             log::warn!(
                 "{}:{}: usemtl {name}: no material of that name in the MTL library; its \
                  faces are grey",
@@ -575,6 +583,28 @@ mod tests {
             assert!(got.mesh.len() > 1000);
             same_scene(&got, &expected).unwrap_or_else(|e| panic!("{name}: {e}"));
         }
+    }
+
+    /// A library named again is read once: its materials are not appended again, and
+    /// faces after each `usemtl` keep their material.
+    #[test]
+    fn a_library_named_again_is_read_once() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("lib.mtl"),
+            "newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n",
+        )
+        .unwrap();
+        let path = dir.path().join("x.obj");
+        let text = "mtllib lib.mtl\nmtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n\
+                    usemtl blue\nf 1 2 3\nmtllib lib.mtl\nusemtl red\nf 1 3 2\n";
+        let scene = load_with_tobj(&path, text).unwrap();
+        let names: Vec<&str> = scene.materials.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, ["red", "blue"]);
+        let used: Vec<Option<&str>> = (scene.material_ids.iter())
+            .map(|id| id.map(|i| scene.materials[i].name.as_str()))
+            .collect();
+        assert_eq!(used, [Some("blue"), Some("red")]);
     }
 
     #[test]

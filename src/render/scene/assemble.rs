@@ -9,7 +9,7 @@ use glam::{Mat3, Vec2, Vec3};
 
 use super::environment::environment_of;
 use super::file::{
-    line_of, Integrator, LightKind, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
+    line_of, Integrator, LightKind, Lines, MaterialDef, MaterialKind, ObjectDef, Scale, SceneFile,
 };
 use super::placements::{Motion, PlacedTriangle, Placements};
 use super::shapes;
@@ -734,8 +734,9 @@ fn copies_of(o: &ObjectDef) -> std::result::Result<Option<Vec<(Mat3, Vec3)>>, St
             out
         }
         ([], Some(g)) => {
-            let n: u64 = g.count.iter().map(|&c| c as u64).product();
-            if n == 0 || n > MAX_COPIES {
+            // u32 counts: the product of three fits in u128, not always in u64.
+            let n: u128 = g.count.iter().map(|&c| c as u128).product();
+            if n == 0 || n > MAX_COPIES as u128 {
                 return Err(format!(
                     "'grid' count {:?} makes {n} copies: give 1 to {MAX_COPIES}",
                     g.count
@@ -1015,7 +1016,8 @@ impl RenderScene {
         let src = crate::input::read_text(path)?;
         let f = SceneFile::parse(path, &src)?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let line = |span: std::ops::Range<usize>| line_of(&src, span.start);
+        let lines = Lines::new(&src);
+        let line = |span: std::ops::Range<usize>| lines.of(span.start);
         let mut b = Builder::default();
         b.sources.push(path.to_path_buf());
 

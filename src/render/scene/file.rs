@@ -332,6 +332,30 @@ pub fn line_of(src: &str, offset: usize) -> usize {
     src[..offset.min(src.len())].matches('\n').count() + 1
 }
 
+/// The lines of a text, for the line of many offsets: each found by a binary search over
+/// where the lines start (counting from the top for each would take time quadratic in a
+/// scene's number of objects, lights and materials).
+pub struct Lines {
+    /// Byte offsets just past each newline.
+    starts: Vec<usize>,
+}
+
+impl Lines {
+    /// Indexes `src`'s newlines.
+    pub fn new(src: &str) -> Lines {
+        let starts = (src.bytes().enumerate())
+            .filter(|&(_, b)| b == b'\n')
+            .map(|(i, _)| i + 1)
+            .collect();
+        Lines { starts }
+    }
+
+    /// 1-based line of a byte offset, as [`line_of`] gives it.
+    pub fn of(&self, offset: usize) -> usize {
+        self.starts.partition_point(|&s| s <= offset) + 1
+    }
+}
+
 impl SceneFile {
     /// Parses scene text; errors name `path` and the line.
     pub fn parse(path: &Path, src: &str) -> Result<SceneFile> {
@@ -375,6 +399,21 @@ impl LightKind {
             LightKind::Point => 0,
             LightKind::Directional => 1,
             LightKind::Spot => 2,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The index gives every offset the line counting from the top gives.
+    #[test]
+    fn lines_are_counted_lines() {
+        let src = "a\n\nbc\nd";
+        let lines = Lines::new(src);
+        for offset in 0..=src.len() + 2 {
+            assert_eq!(lines.of(offset), line_of(src, offset), "offset {offset}");
         }
     }
 }
