@@ -919,6 +919,13 @@ fn malformed_ply_headers_are_refused_with_the_reason() {
         b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n",
     );
     refused(&no_face, "no 'face' element");
+    // A scan of a billion points (its header; the body cut short) is refused from the
+    // header alone, before its points are read.
+    let cloud = w(
+        "scan.ply",
+        format!("{head}element vertex 1000000000\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nend_header\n\0\0\0\0").as_bytes(),
+    );
+    refused(&cloud, "scan.ply: no 'face' element");
     let float_idx = w(
         "floatidx.ply",
         b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar float vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",

@@ -211,6 +211,15 @@ fn load_binary_in_bulk(path: &Path, header: &Header, attributes: bool) -> Result
     }))
 }
 
+/// The refusal of a PLY without faces.
+fn no_faces(path: &Path) -> Error {
+    Error::input(
+        path,
+        None,
+        "no 'face' element: lancer traces triangles, not point clouds",
+    )
+}
+
 /// Loads every triangle of a PLY file in file order (polygons fan-triangulated).
 pub fn load_ply(path: &Path) -> Result<Mesh> {
     read_ply(path, false).map(|s| s.mesh)
@@ -250,6 +259,10 @@ fn read_ply(path: &Path, attributes: bool) -> Result<PlyScene> {
             );
         }
     }
+    if !header.elements.values().any(|e| e.name == "face") {
+        // Known from the header: the body (a scan's millions of points) is not read.
+        return Err(no_faces(path));
+    }
     if header.encoding != Encoding::Ascii {
         if let Some(scene) = load_binary_in_bulk(path, &header, attributes)? {
             return Ok(scene);
@@ -288,13 +301,7 @@ fn read_ply(path: &Path, attributes: bool) -> Result<PlyScene> {
         }
     }
     let vertices = vertices.unwrap_or_default();
-    let faces = faces.ok_or_else(|| {
-        Error::input(
-            path,
-            None,
-            "no 'face' element: lancer traces triangles, not point clouds",
-        )
-    })?;
+    let faces = faces.ok_or_else(|| no_faces(path))?;
     let tris: u128 = faces
         .iter()
         .map(|f| f.0.len().saturating_sub(2) as u128)
