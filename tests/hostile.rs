@@ -618,6 +618,9 @@ fn hostile_command_lines() {
     let small = small_render();
     let sm: Vec<&str> = small.to_vec();
     let r = |args: &[&dyn AsArg]| with(args, &sm);
+    // bench structures on the quad, on the CPU, with `more`.
+    let bench_quad =
+        |more: &[&str]| with(&[&"bench", &"structures", &quad, &"--device", &"cpu"], more);
 
     let mut rows = vec![
         // ---- outputs that are inputs
@@ -699,34 +702,16 @@ fn hostile_command_lines() {
                 &format!("{}.png", "a".repeat(246)),
             ]),
         ),
-        Row::new(
+        row_args(
             "bench structures: --chart not a .png",
             Want::Fail(2),
-            &[
-                &"bench",
-                &"structures",
-                &quad,
-                &"--device",
-                &"cpu",
-                &"--chart",
-                &"c.json",
-            ],
+            bench_quad(&["--chart", "c.json"]),
         )
         .names(&["c.json", ".png"]),
-        Row::new(
+        row_args(
             "bench structures: --chart ./y.png and --report y.md (whose chart is y.png)",
             Want::Fail(2),
-            &[
-                &"bench",
-                &"structures",
-                &quad,
-                &"--device",
-                &"cpu",
-                &"--chart",
-                &"./y.png",
-                &"--report",
-                &"y.md",
-            ],
+            bench_quad(&["--chart", "./y.png", "--report", "y.md"]),
         )
         .names(&["y.png", "two outputs"]),
         Row::new(
